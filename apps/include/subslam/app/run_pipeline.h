@@ -1,0 +1,78 @@
+// The `subslam run` job as a library call: feed a data set (read or simulated) through
+// an online estimator, evaluate it against whatever ground truth the data set has,
+// and write the run outputs of ../shared/design.md to a directory.
+//
+// Outputs (in RunOptions::out_dir, when set):
+//   trajectory_online.csv  the pose and covariance after every step, as it was then;
+//   trajectory_final.csv   every step re-expressed with the final estimate — for the
+//                          single-map filters of this module (odometry, ekfslam) there
+//                          are no anchors to re-express, so it equals the online one;
+//   landmarks.csv          the final map (confirmed landmarks);
+//   report.json            configuration, counts, time per stage, metrics.
+#ifndef SUBSLAM_APP_RUN_PIPELINE_H_
+#define SUBSLAM_APP_RUN_PIPELINE_H_
+
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/status/statusor.h"
+#include "subslam/eval/gps_alignment.h"
+#include "subslam/eval/trajectory_errors.h"
+#include "subslam/frontend/ekf_slam.h"
+#include "subslam/graph/estimates.h"
+#include "subslam/io/dataset.h"
+
+namespace subslam::app {
+
+enum class Frontend { kOdometry, kEkfSlam };
+const char* ToString(Frontend frontend);
+absl::StatusOr<Frontend> FrontendFromString(const std::string& name);
+
+// Overrides of the data set's noise values (unset: use the manifest's).
+struct NoiseOverrides {
+  std::optional<double> sigma_v;        // m/s
+  std::optional<double> sigma_u1;       // rad/s (unicycle ω) or rad (ackermann steer)
+  std::optional<double> sigma_range;    // m
+  std::optional<double> sigma_bearing;  // rad
+  std::optional<double> max_range;      // m: detections beyond are not used
+
+  absl::Status ApplyTo(io::Dataset* dataset) const;
+};
+
+struct RunOptions {
+  Frontend frontend = Frontend::kEkfSlam;
+  frontend::EkfSlamOptions ekf;
+  NoiseOverrides noise;
+  std::string out_dir;          // empty: write nothing
+  bool progress = false;        // progress line on stderr (when it is a terminal)
+  std::string source;           // what was run, for the report ("scenario hybrid-120m seed 1")
+};
+
+struct RunResult {
+  std::string source;
+  std::string frontend;
+  int steps = 0;
+  int scans = 0;
+  long detections = 0;
+  Trajectory online;
+  Trajectory final_trajectory;
+  std::vector<LandmarkEstimate> landmarks;
+  double wall_seconds = 0.0;        // estimator time (excludes reading and writing)
+  long peak_rss_kb = 0;             // process peak resident memory after the run
+  std::optional<eval::TrajectoryErrors> errors;       // vs true poses
+  std::optional<eval::MapErrors> map_errors;          // vs true landmarks
+  std::optional<eval::GpsComparison> gps_online;      // vs GPS, aligned
+  std::optional<eval::GpsComparison> gps_final;
+  nlohmann::json report;
+};
+
+absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& options);
+
+// A short human-readable summary table of a result.
+std::string SummaryTable(const RunResult& result);
+
+}  // namespace subslam::app
+
+#endif  // SUBSLAM_APP_RUN_PIPELINE_H_

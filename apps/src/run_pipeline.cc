@@ -1,0 +1,259 @@
+#include "subslam/app/run_pipeline.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/time/clock.h"
+#include "subslam/frontend/dead_reckoning.h"
+#include "subslam/io/run_output_writer.h"
+#include "subslam/io/steps.h"
+
+namespace subslam::app {
+namespace {
+
+using nlohmann::json;
+
+json ErrorsJson(const eval::TrajectoryErrors& e) {
+  return {{"steps", e.steps},
+          {"rms_position_m", e.rms_position_m},
+          {"rms_x_m", e.rms_x_m},
+          {"rms_y_m", e.rms_y_m},
+          {"rms_heading_rad", e.rms_heading_rad},
+          {"max_position_error_m", e.max_position_error_m},
+          {"final_position_error_m", e.final_position_error_m},
+          {"nees_steps", e.nees_steps},
+          {"mean_pose_nees", e.mean_nees},
+          {"fraction_steps_nees_in_95_bounds", e.fraction_nees_in_bounds},
+          {"mean_consistency_index", e.mean_consistency_index},
+          {"failed_10_sigma_test", e.failed},
+          {"longest_10_sigma_excursion_steps", e.longest_excursion_steps}};
+}
+
+json GpsJson(const eval::GpsComparison& g) {
+  return {{"matched_fixes", g.matched_fixes},
+          {"aligned_rms_m", g.rms_m},
+          {"aligned_rms_x_m", g.rms_x_m},
+          {"aligned_rms_y_m", g.rms_y_m},
+          {"aligned_max_m", g.max_m},
+          {"gps_T_estimate", {g.gps_T_estimate.x, g.gps_T_estimate.y, g.gps_T_estimate.theta}}};
+}
+
+long PeakRssKb() {
+  struct rusage usage {};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss;
+}
+
+class Progress {
+ public:
+  Progress(bool enabled, size_t total) : enabled_(enabled && isatty(STDERR_FILENO)), total_(total) {}
+  void Tick(size_t done, double t) {
+    if (!enabled_ || (done & 255) != 0) return;
+    const absl::Time now = absl::Now();
+    if (now - start_ < absl::Seconds(2) || now - last_ < absl::Milliseconds(200)) return;
+    last_ = now;
+    const double fraction = static_cast<double>(done) / total_;
+    const int width = 30, filled = static_cast<int>(fraction * width);
+    std::fprintf(stderr, "\r[%s%s] %5.1f%%  step %zu/%zu  t=%.1f s", std::string(filled, '#').c_str(),
+                 std::string(width - filled, ' ').c_str(), 100 * fraction, done, total_, t);
+    std::fflush(stderr);
+    shown_ = true;
+  }
+  ~Progress() {
+    if (shown_) std::fprintf(stderr, "\r%80s\r", "");
+  }
+
+ private:
+  bool enabled_;
+  size_t total_;
+  bool shown_ = false;
+  absl::Time start_ = absl::Now(), last_ = absl::InfinitePast();
+};
+
+}  // namespace
+
+const char* ToString(Frontend frontend) {
+  return frontend == Frontend::kOdometry ? "odometry" : "ekfslam";
+}
+
+absl::StatusOr<Frontend> FrontendFromString(const std::string& name) {
+  if (name == "odometry") return Frontend::kOdometry;
+  if (name == "ekfslam") return Frontend::kEkfSlam;
+  return absl::InvalidArgumentError(
+      absl::StrCat("unknown front-end \"", name, "\" (expected odometry or ekfslam)"));
+}
+
+absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
+  auto positive = [](const std::optional<double>& v, const char* name) -> absl::Status {
+    if (v.has_value() && !(std::isfinite(*v) && *v > 0.0)) {
+      return absl::InvalidArgumentError(absl::StrCat("--", name, " must be > 0, got ", *v));
+    }
+    return absl::OkStatus();
+  };
+  for (const auto& [v, name] : {std::pair{sigma_v, "sigma_v"}, {sigma_u1, "sigma_u1"},
+                                {sigma_range, "sigma_range"}, {sigma_bearing, "sigma_bearing"},
+                                {max_range, "max_range"}}) {
+    if (absl::Status s = positive(v, name); !s.ok()) return s;
+  }
+  if (sigma_v) d->motion.noise.sigma_u0 = *sigma_v;
+  if (sigma_u1) d->motion.noise.sigma_u1 = *sigma_u1;
+  if (sigma_range) d->sensor.range_bearing.sigma_range_m = *sigma_range;
+  if (sigma_bearing) d->sensor.range_bearing.sigma_bearing_rad = *sigma_bearing;
+  if (max_range) d->sensor.range_bearing.max_range_m = *max_range;
+  return d->sensor.range_bearing.Validate();
+}
+
+absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& options) {
+  if (absl::Status s = options.noise.ApplyTo(&dataset); !s.ok()) return s;
+  if (absl::Status s = options.ekf.Validate(); !s.ok()) return s;
+  std::unique_ptr<frontend::OnlineEstimator> estimator;
+  if (options.frontend == Frontend::kOdometry) {
+    estimator = std::make_unique<frontend::DeadReckoning>(dataset.motion.MakeModel(),
+                                                          dataset.initial_pose);
+  } else {
+    estimator = std::make_unique<frontend::EkfSlam>(
+        dataset.motion.MakeModel(), dataset.sensor.range_bearing, dataset.initial_pose, options.ekf);
+  }
+
+  RunResult r;
+  r.source = options.source.empty() ? dataset.name : options.source;
+  r.frontend = estimator->Name();
+  const std::vector<io::Step> steps = io::BuildSteps(dataset);
+  r.steps = static_cast<int>(steps.size());
+  r.scans = static_cast<int>(dataset.scans.size());
+  r.detections = static_cast<long>(dataset.NumDetections());
+  r.online.reserve(steps.size());
+  {
+    Progress progress(options.progress, steps.size());
+    const absl::Time start = absl::Now();
+    for (size_t k = 0; k < steps.size(); ++k) {
+      const io::Step& step = steps[k];
+      estimator->Predict(step.control, step.dt);
+      if (step.scan_index >= 0) estimator->Update(dataset.scans[step.scan_index]);
+      r.online.push_back({step.t, estimator->pose(), estimator->pose_covariance()});
+      progress.Tick(k, step.t);
+    }
+    r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  }
+  r.peak_rss_kb = PeakRssKb();
+  r.final_trajectory = r.online;  // single-map filters: nothing to re-express
+  r.landmarks = estimator->Map();
+
+  // Evaluation against the ground truth the data set has.
+  json metrics = json::object();
+  if (!dataset.truth_poses.empty()) {
+    r.errors = eval::ComputeTrajectoryErrors(r.final_trajectory, dataset.truth_poses);
+    metrics["trajectory"] = ErrorsJson(*r.errors);
+  }
+  if (!dataset.truth_landmarks.empty()) {
+    r.map_errors = eval::ComputeMapErrors(r.landmarks, dataset.truth_landmarks);
+    metrics["map"] = {{"estimated", r.map_errors->estimated},
+                      {"matched", r.map_errors->matched},
+                      {"spurious", r.map_errors->spurious},
+                      {"true_landmarks", dataset.truth_landmarks.size()},
+                      {"rms_m", r.map_errors->rms_m},
+                      {"mean_landmark_nees", r.map_errors->mean_nees}};
+  }
+  if (!dataset.gps.empty()) {
+    auto online = eval::CompareWithGps(r.online, dataset.gps);
+    auto final_cmp = eval::CompareWithGps(r.final_trajectory, dataset.gps);
+    if (online.ok()) {
+      r.gps_online = *online;
+      metrics["gps_online"] = GpsJson(*online);
+    }
+    if (final_cmp.ok()) {
+      r.gps_final = *final_cmp;
+      metrics["gps_final"] = GpsJson(*final_cmp);
+    }
+  }
+
+  json stage_times = json::object();
+  for (const auto& [stage, seconds] : estimator->stage_times()) stage_times[stage] = seconds;
+  json counters = json::object();
+  for (const auto& [name, value] : estimator->Counters()) counters[name] = value;
+  const models::RangeBearingConfig& rb = dataset.sensor.range_bearing;
+  r.report = {
+      {"format", "subslam-report/1"},
+      {"source", r.source},
+      {"dataset", dataset.name},
+      {"configuration",
+       {{"frontend", r.frontend},
+        {"motion_model", io::ToString(dataset.motion.model)},
+        {"sigma_v", dataset.motion.noise.sigma_u0},
+        {"sigma_u1", dataset.motion.noise.sigma_u1},
+        {"sigma_v_scale", dataset.motion.noise.scale_u0},
+        {"sigma_u1_scale", dataset.motion.noise.scale_u1},
+        {"sigma_range", rb.sigma_range_m},
+        {"sigma_bearing", rb.sigma_bearing_rad},
+        {"min_range", rb.min_range_m},
+        {"max_range", rb.max_range_m},
+        {"association", frontend::ToString(options.ekf.association)},
+        {"gate_probability", options.ekf.gate_probability},
+        {"new_landmark_probability", options.ekf.new_landmark_probability},
+        {"existence_detection_probability", options.ekf.detection_probability},
+        {"existence_false_alarm_probability", options.ekf.false_alarm_probability}}},
+      {"counts",
+       {{"steps", r.steps},
+        {"scans", r.scans},
+        {"detections", r.detections},
+        {"submaps", 0},
+        {"landmarks", r.landmarks.size()}}},
+      {"estimator_counters", counters},
+      {"time_seconds", {{"total", r.wall_seconds}, {"stages", stage_times}}},
+      {"peak_rss_kb", r.peak_rss_kb},
+      {"metrics", metrics}};
+
+  if (!options.out_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(options.out_dir, ec);
+    if (ec) return absl::InternalError(absl::StrCat(options.out_dir, ": ", ec.message()));
+    const std::filesystem::path out(options.out_dir);
+    if (auto s = io::WriteTrajectoryCsv((out / "trajectory_online.csv").string(), r.online); !s.ok()) return s;
+    if (auto s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory); !s.ok()) return s;
+    if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
+    if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;
+  }
+  return r;
+}
+
+std::string SummaryTable(const RunResult& r) {
+  std::string s;
+  auto row = [&s](const std::string& key, const std::string& value) {
+    absl::StrAppendFormat(&s, "  %-34s %s\n", key, value);
+  };
+  row("ran", absl::StrCat(r.frontend, " on ", r.source));
+  row("steps / scans / detections", absl::StrCat(r.steps, " / ", r.scans, " / ", r.detections));
+  row("landmarks in map", absl::StrCat(r.landmarks.size()));
+  if (r.errors) {
+    const eval::TrajectoryErrors& e = *r.errors;
+    row("RMS position / heading", absl::StrFormat("%.3f m / %.3f deg", e.rms_position_m,
+                                                  RadToDeg(e.rms_heading_rad)));
+    row("max / final position error", absl::StrFormat("%.3f m / %.3f m", e.max_position_error_m,
+                                                      e.final_position_error_m));
+    row("mean pose NEES (3 dof)", absl::StrFormat("%.2f  (CI %.2f)", e.mean_nees,
+                                                  e.mean_consistency_index));
+    row("steps with NEES in 95% bounds", absl::StrFormat("%.1f %%", 100 * e.fraction_nees_in_bounds));
+    row("10-sigma failure test", e.failed ? "FAILED" : "passed");
+  }
+  if (r.map_errors) {
+    row("map: matched / spurious, RMS",
+        absl::StrFormat("%d / %d, %.3f m", r.map_errors->matched, r.map_errors->spurious,
+                        r.map_errors->rms_m));
+  }
+  if (r.gps_final) {
+    row("aligned RMS vs GPS (final)", absl::StrFormat("%.2f m (x %.2f, y %.2f; %d fixes)",
+                                                      r.gps_final->rms_m, r.gps_final->rms_x_m,
+                                                      r.gps_final->rms_y_m,
+                                                      r.gps_final->matched_fixes));
+  }
+  row("estimator time", absl::StrFormat("%.3f s", r.wall_seconds));
+  row("peak memory", absl::StrFormat("%.1f MB", r.peak_rss_kb / 1024.0));
+  return s;
+}
+
+}  // namespace subslam::app

@@ -1,0 +1,37 @@
+# Helpers shared by every module's CMakeLists.txt.
+
+# subslam_add_module(NAME SOURCES a.cc b.cc DEPS subslam::graph Eigen3::Eigen ...
+#                    [PRIVATE_DEPS ...])
+# Creates the static library subslam_<NAME>, alias subslam::<NAME>, whose public
+# headers live in <module>/include/subslam/<NAME>/ and are installed.
+function(subslam_add_module NAME)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;PRIVATE_DEPS" ${ARGN})
+  add_library(subslam_${NAME} ${ARG_SOURCES})
+  add_library(subslam::${NAME} ALIAS subslam_${NAME})
+  set_target_properties(subslam_${NAME} PROPERTIES EXPORT_NAME ${NAME}
+                        POSITION_INDEPENDENT_CODE ON)
+  target_compile_features(subslam_${NAME} PUBLIC cxx_std_20)
+  target_compile_options(subslam_${NAME} PRIVATE -Wall -Wextra)
+  target_include_directories(subslam_${NAME} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  target_link_libraries(subslam_${NAME} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  install(TARGETS subslam_${NAME} EXPORT subslamTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+endfunction()
+
+# subslam_add_test(NAME SOURCES a_test.cc DEPS subslam::graph ...)
+# One GoogleTest executable registered with CTest through gtest_discover_tests.
+function(subslam_add_test NAME)
+  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;LABELS" ${ARGN})
+  add_executable(${NAME} ${ARG_SOURCES})
+  target_compile_options(${NAME} PRIVATE -Wall -Wextra)
+  target_include_directories(${NAME} PRIVATE ${PROJECT_SOURCE_DIR}/tests)
+  target_compile_definitions(${NAME} PRIVATE
+    SUBSLAM_TEST_DATA_DIR="${PROJECT_SOURCE_DIR}/tests/data"
+    SUBSLAM_SHARED_DATA_DIR="${PROJECT_SOURCE_DIR}/../shared/data")
+  target_link_libraries(${NAME} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+  gtest_discover_tests(${NAME} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "${ARG_LABELS}")
+endfunction()

@@ -1,0 +1,67 @@
+// Errors of an estimated trajectory and map against ground truth.
+//
+// Trajectory: the truth is interpolated at each estimate's time (linear in position,
+// shortest-arc in heading); RMS of position ( √mean(ex² + ey²) ) and heading, per-axis
+// RMS, per-step pose NEES, the share of steps whose NEES lies inside the single-run
+// two-sided 95% χ²₃ interval, and the HybridSLAM failure test (§5: the true pose more
+// than `failure_sigma` standard deviations — Mahalanobis distance √NEES — from the
+// estimate for more than `failure_steps` consecutive steps).
+//
+// Map: each estimated landmark is matched to the nearest true landmark within
+// `match_radius_m` (one-to-one, greedy by distance); RMS over matched pairs, and the
+// unmatched estimates (spurious) and unmatched visible truths (missed) are counted.
+#ifndef SUBSLAM_EVAL_TRAJECTORY_ERRORS_H_
+#define SUBSLAM_EVAL_TRAJECTORY_ERRORS_H_
+
+#include <optional>
+#include <vector>
+
+#include "subslam/graph/estimates.h"
+#include "subslam/io/dataset.h"
+
+namespace subslam::eval {
+
+// Pose of a time-sorted truth sequence at time t (clamped to its ends).
+Pose2 InterpolatePose(const std::vector<io::TimedPose>& truth, double t);
+
+struct TrajectoryErrorOptions {
+  double failure_sigma = 10.0;  // HybridSLAM failure threshold (Mahalanobis distance)
+  int failure_steps = 20;       // ... exceeded for more than this many consecutive steps
+};
+
+struct TrajectoryErrors {
+  int steps = 0;
+  double rms_position_m = 0.0;
+  double rms_x_m = 0.0;
+  double rms_y_m = 0.0;
+  double rms_heading_rad = 0.0;
+  double max_position_error_m = 0.0;
+  double final_position_error_m = 0.0;
+  int nees_steps = 0;                    // steps whose covariance is non-singular
+  double mean_nees = 0.0;                // over nees_steps
+  double fraction_nees_in_bounds = 0.0;  // of nees_steps, inside [χ²₃(0.025), χ²₃(0.975)]
+  double mean_consistency_index = 0.0;
+  bool failed = false;                   // HybridSLAM failure test
+  int longest_excursion_steps = 0;       // longest run beyond failure_sigma
+  std::vector<double> nees;              // per step (NaN if P is singular)
+};
+
+TrajectoryErrors ComputeTrajectoryErrors(const Trajectory& estimate,
+                                         const std::vector<io::TimedPose>& truth,
+                                         const TrajectoryErrorOptions& options = {});
+
+struct MapErrors {
+  int estimated = 0;
+  int matched = 0;
+  int spurious = 0;        // estimates with no true landmark within the radius
+  double rms_m = 0.0;      // over matched pairs
+  double mean_nees = 0.0;  // over matched pairs
+};
+
+MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
+                           const std::vector<io::TruthLandmark>& truth,
+                           double match_radius_m = 5.0);
+
+}  // namespace subslam::eval
+
+#endif  // SUBSLAM_EVAL_TRAJECTORY_ERRORS_H_

@@ -1,0 +1,61 @@
+// Data association of one scan's detections to map landmarks with unknown identities.
+//
+// The caller builds an AssociationProblem: for each detection the individually
+// compatible landmarks (Mahalanobis d² = νᵀ S⁻¹ ν below the χ²₂ gate), and a function
+// giving the blocks of the joint innovation covariance. Two solvers:
+//
+//  * NearestNeighbour — one-to-one greedy assignment in increasing d² (each landmark
+//    takes at most one detection per scan).
+//  * JointCompatibility — branch and bound over hypotheses (Neira & Tardós, IEEE
+//    T-RA 2001, "JCBB"): the hypothesis with the most pairings whose joint innovation
+//    passes the χ²_{2k} gate, ties broken by the smaller joint d². The joint test uses
+//    an incrementally extended Cholesky factor, O(k²) per node; the search stops after
+//    `max_nodes` nodes and returns the best hypothesis found so far (reported).
+//
+// Not thread-safe per problem; the functions are re-entrant.
+#ifndef SUBSLAM_FRONTEND_DATA_ASSOCIATION_H_
+#define SUBSLAM_FRONTEND_DATA_ASSOCIATION_H_
+
+#include <Eigen/Core>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+
+namespace subslam::frontend {
+
+enum class AssociationMethod { kNearestNeighbour, kJointCompatibility };
+const char* ToString(AssociationMethod method);
+absl::StatusOr<AssociationMethod> AssociationMethodFromString(const std::string& name);
+
+struct AssociationCandidate {
+  int landmark = -1;                                    // caller's landmark index
+  double d2 = 0.0;                                      // individual Mahalanobis d²
+  Eigen::Vector2d innovation = Eigen::Vector2d::Zero(); // z − ẑ (bearing wrapped)
+};
+
+struct AssociationProblem {
+  // candidates[j]: individually compatible landmarks of detection j, sorted by d².
+  std::vector<std::vector<AssociationCandidate>> candidates;
+  // Block (a, b) of the joint innovation covariance H P Hᵀ + R for landmarks a and b;
+  // (a, a) includes the sensor noise R. Needed by JointCompatibility only.
+  std::function<Eigen::Matrix2d(int a, int b)> covariance_block;
+};
+
+struct AssociationResult {
+  std::vector<int> landmark_of_detection;  // −1: unassociated
+  int pairings = 0;
+  double joint_d2 = 0.0;   // JointCompatibility: of the chosen hypothesis
+  long nodes = 0;          // JointCompatibility: nodes visited
+  bool truncated = false;  // JointCompatibility: node limit reached
+};
+
+AssociationResult NearestNeighbour(const AssociationProblem& problem);
+
+AssociationResult JointCompatibility(const AssociationProblem& problem, double gate_probability,
+                                     long max_nodes);
+
+}  // namespace subslam::frontend
+
+#endif  // SUBSLAM_FRONTEND_DATA_ASSOCIATION_H_

@@ -1,0 +1,130 @@
+// EKF-SLAM with unknown data association: the single-map baseline (Smith, Self &
+// Cheeseman; as used in HybridSLAM §4 and FMJ §II), and the base of the EKF local
+// mapper of later issues.
+//
+// State [pose (3), landmark 1 (2), …] with a dense covariance (conventions.h).
+//  * Predict: the motion model on the pose block only — O(n).
+//  * Update, per scan: predicted measurements of the landmarks in range; individual
+//    compatibility gating by χ²₂(gate_probability); association by nearest neighbour
+//    or JCBB (data_association.h); one batch EKF update of all pairings,
+//    P ← P − (PHᵀ) S⁻¹ (PHᵀ)ᵀ as a symmetric rank-2k update — O(k n²).
+//  * New landmarks: a detection incompatible with every landmark at the larger
+//    χ²₂(new_landmark_probability) gate is initialised from the inverse sensor model
+//    with the exact cross-covariances. Detections between the two gates are ambiguous
+//    and dropped.
+//  * Existence (HybridSLAM §3.2, Eq. 11): each landmark carries P(exists). A detection
+//    applies p ← pα / (pα + (1 − p)β); a landmark predicted well inside the field of
+//    view that no detection even gated with applies the missed-detection update
+//    p ← p(1 − α) / (p(1 − α) + (1 − p)(1 − β)). Tentative landmarks (never confirmed)
+//    whose existence falls below `delete_existence` are removed from the state, so
+//    false alarms do not become landmarks; a landmark is confirmed — reported by Map()
+//    and kept for good — once its existence exceeds `confirm_existence`.
+//
+// Memory: the covariance lives in a capacity-doubling buffer, so adding a landmark is
+// O(n) amortised; deleting one compacts the state in O(n²).
+// Not thread-safe.
+#ifndef SUBSLAM_FRONTEND_EKF_SLAM_H_
+#define SUBSLAM_FRONTEND_EKF_SLAM_H_
+
+#include <memory>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/frontend/data_association.h"
+#include "subslam/frontend/online_estimator.h"
+#include "subslam/models/motion_model.h"
+#include "subslam/models/range_bearing_model.h"
+
+namespace subslam::frontend {
+
+struct EkfSlamOptions {
+  AssociationMethod association = AssociationMethod::kNearestNeighbour;
+  // Individual-compatibility gate, P(χ²₂ ≤ gate) (also the JCBB joint gate level).
+  double gate_probability = 0.99;
+  // A detection outside this gate for every landmark starts a new landmark.
+  double new_landmark_probability = 0.9999;
+  long jcbb_max_nodes = 20000;  // JCBB search budget per scan
+  // Existence model (HybridSLAM Eq. 11): the filter's α and β (not the simulator's).
+  double detection_probability = 0.9;
+  double false_alarm_probability = 0.05;
+  double prior_existence = 0.5;    // before the creating detection is applied
+  double confirm_existence = 0.95; // confirmed (reported, never deleted) above this
+  double delete_existence = 0.05;  // tentative landmarks below this are removed
+  double max_existence = 0.9999;   // keeps the log-odds finite
+  // A landmark is "expected" (a miss counts) only this far inside the sensor's range
+  // and field of view, to allow for its position uncertainty.
+  double expect_range_margin_m = 1.0;
+  double expect_bearing_margin_rad = 0.05;
+
+  absl::Status Validate() const;
+};
+
+struct EkfSlamCounters {
+  long scans = 0;
+  long detections = 0;
+  long associated = 0;
+  long new_landmarks = 0;
+  long ambiguous = 0;          // dropped between the two gates
+  long deleted_landmarks = 0;  // tentative landmarks removed
+  long jcbb_truncated = 0;
+};
+
+class EkfSlam final : public OnlineEstimator {
+ public:
+  EkfSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+          const Pose2& initial_pose, const EkfSlamOptions& options);
+
+  std::string Name() const override { return "ekfslam"; }
+  void Predict(const Eigen::Vector2d& u, double dt) override;
+  void Update(const io::Scan& scan) override;
+  Pose2 pose() const override;
+  Eigen::Matrix3d pose_covariance() const override;
+  std::vector<LandmarkEstimate> Map() const override;
+  StageTimes stage_times() const override { return times_; }
+  std::map<std::string, double> Counters() const override;
+
+  // All landmarks in the state, tentative ones included.
+  int num_landmarks() const { return static_cast<int>(landmarks_.size()); }
+  int state_dimension() const { return dim_; }
+  const EkfSlamCounters& counters() const { return counters_; }
+  // The full state mean and covariance (views valid until the next call).
+  Eigen::VectorXd mean() const { return x_.head(dim_); }
+  Eigen::MatrixXd covariance() const { return P_.topLeftCorner(dim_, dim_); }
+
+ private:
+  struct LandmarkInfo {
+    int id = 0;               // stable id reported in Map()
+    double existence = 0.5;
+    bool confirmed = false;
+  };
+  struct Prediction {  // of one landmark's measurement
+    int landmark = -1;
+    Eigen::Vector2d z = Eigen::Vector2d::Zero();
+    Matrix23d H_pose;
+    Eigen::Matrix2d H_landmark;
+    Eigen::Matrix2d S;
+  };
+
+  int Offset(int landmark) const { return 3 + 2 * landmark; }
+  void Reserve(int dim);
+  void AddLandmark(const Eigen::Vector2d& z, double existence);
+  void RemoveLandmarks(const std::vector<int>& sorted_indices);
+  Eigen::Matrix2d CrossCovariance(const Prediction& a, const Prediction& b) const;
+  void UpdateExistence(LandmarkInfo* info, bool detected) const;
+
+  std::unique_ptr<models::MotionModel> motion_;
+  models::RangeBearingModel sensor_;
+  EkfSlamOptions options_;
+  double gate_d2_ = 0.0, new_landmark_d2_ = 0.0;
+  int dim_ = 3;
+  Eigen::VectorXd x_;
+  Eigen::MatrixXd P_;  // capacity × capacity; the top-left dim_ × dim_ block is live
+  std::vector<LandmarkInfo> landmarks_;
+  int next_id_ = 0;
+  EkfSlamCounters counters_;
+  StageTimes times_;
+};
+
+}  // namespace subslam::frontend
+
+#endif  // SUBSLAM_FRONTEND_EKF_SLAM_H_

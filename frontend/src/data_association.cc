@@ -1,0 +1,147 @@
+#include "subslam/frontend/data_association.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::frontend {
+
+const char* ToString(AssociationMethod method) {
+  return method == AssociationMethod::kNearestNeighbour ? "nn" : "jcbb";
+}
+
+absl::StatusOr<AssociationMethod> AssociationMethodFromString(const std::string& name) {
+  if (name == "nn") return AssociationMethod::kNearestNeighbour;
+  if (name == "jcbb") return AssociationMethod::kJointCompatibility;
+  return absl::InvalidArgumentError(
+      absl::StrCat("unknown association method \"", name, "\" (expected nn or jcbb)"));
+}
+
+AssociationResult NearestNeighbour(const AssociationProblem& problem) {
+  const int m = static_cast<int>(problem.candidates.size());
+  struct Pair {
+    double d2;
+    int detection, landmark;
+  };
+  std::vector<Pair> pairs;
+  for (int j = 0; j < m; ++j) {
+    for (const AssociationCandidate& c : problem.candidates[j]) pairs.push_back({c.d2, j, c.landmark});
+  }
+  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+    return a.d2 < b.d2 || (a.d2 == b.d2 && a.detection < b.detection);
+  });
+  AssociationResult r;
+  r.landmark_of_detection.assign(m, -1);
+  std::vector<int> taken;
+  for (const Pair& p : pairs) {
+    if (r.landmark_of_detection[p.detection] != -1) continue;
+    if (std::find(taken.begin(), taken.end(), p.landmark) != taken.end()) continue;
+    r.landmark_of_detection[p.detection] = p.landmark;
+    taken.push_back(p.landmark);
+    r.joint_d2 += p.d2;
+    ++r.pairings;
+  }
+  return r;
+}
+
+namespace {
+
+// Depth-first JCBB with an incrementally grown Cholesky factor of the joint
+// innovation covariance of the current hypothesis.
+class Jcbb {
+ public:
+  Jcbb(const AssociationProblem& problem, double gate_probability, long max_nodes)
+      : p_(problem), gate_probability_(gate_probability), max_nodes_(max_nodes) {
+    const int m = static_cast<int>(problem.candidates.size());
+    L_.setZero(2 * m, 2 * m);
+    y_.setZero(2 * m);
+    current_.assign(m, -1);
+    best_.landmark_of_detection.assign(m, -1);
+    for (int k = 1; k <= m; ++k) gates_.push_back(models::ChiSquareQuantile(gate_probability_, 2 * k));
+  }
+
+  AssociationResult Solve() {
+    Recurse(0, 0, 0.0);
+    best_.nodes = nodes_;
+    best_.truncated = nodes_ >= max_nodes_;
+    return best_;
+  }
+
+ private:
+  void Recurse(int j, int k, double d2) {
+    const int m = static_cast<int>(p_.candidates.size());
+    if (nodes_++ >= max_nodes_) return;
+    if (j == m) {
+      if (k > best_.pairings || (k == best_.pairings && d2 < best_.joint_d2)) {
+        best_.pairings = k;
+        best_.joint_d2 = d2;
+        best_.landmark_of_detection = current_;
+      }
+      return;
+    }
+    for (const AssociationCandidate& c : p_.candidates[j]) {
+      if (std::find(current_.begin(), current_.begin() + j, c.landmark) != current_.begin() + j) {
+        continue;
+      }
+      double new_d2;
+      if (!Extend(j, k, c, &new_d2)) continue;
+      if (new_d2 > gates_[k]) continue;
+      current_[j] = c.landmark;
+      paired_detection_.push_back(j);
+      Recurse(j + 1, k + 1, new_d2);
+      paired_detection_.pop_back();
+      current_[j] = -1;
+    }
+    // The star branch: leave detection j unpaired if that can still beat the best.
+    if (k + (m - j - 1) >= best_.pairings) Recurse(j + 1, k, d2);
+  }
+
+  // Appends pairing (j, c) as block row k of L and y; returns the joint d².
+  bool Extend(int /*j*/, int k, const AssociationCandidate& c, double* d2) {
+    Eigen::Matrix<double, Eigen::Dynamic, 2> B(2 * k, 2);
+    for (int a = 0; a < k; ++a) {
+      const int landmark_a = current_[paired_detection_[a]];
+      B.block<2, 2>(2 * a, 0) = p_.covariance_block(landmark_a, c.landmark);
+    }
+    Eigen::Matrix<double, Eigen::Dynamic, 2> L21t = B;  // L11⁻¹ B
+    if (k > 0) {
+      L_.topLeftCorner(2 * k, 2 * k).triangularView<Eigen::Lower>().solveInPlace(L21t);
+    }
+    Eigen::Matrix2d C = p_.covariance_block(c.landmark, c.landmark) - L21t.transpose() * L21t;
+    Eigen::LLT<Eigen::Matrix2d> llt(C);
+    if (llt.info() != Eigen::Success) return false;
+    const Eigen::Matrix2d L22 = llt.matrixL();
+    L_.block(2 * k, 0, 2, 2 * k) = L21t.transpose();
+    L_.block<2, 2>(2 * k, 2 * k) = L22;
+    Eigen::Vector2d rhs = c.innovation;
+    if (k > 0) rhs -= L21t.transpose() * y_.head(2 * k);
+    const Eigen::Vector2d y2 = L22.triangularView<Eigen::Lower>().solve(rhs);
+    y_.segment<2>(2 * k) = y2;
+    *d2 = y_.head(2 * k + 2).squaredNorm();
+    return true;
+  }
+
+  const AssociationProblem& p_;
+  double gate_probability_;
+  long max_nodes_;
+  long nodes_ = 0;
+  std::vector<double> gates_;
+  Eigen::MatrixXd L_;
+  Eigen::VectorXd y_;
+  std::vector<int> current_;           // landmark per detection in the hypothesis
+  std::vector<int> paired_detection_;  // detection of block row a
+  AssociationResult best_;
+};
+
+}  // namespace
+
+AssociationResult JointCompatibility(const AssociationProblem& problem, double gate_probability,
+                                     long max_nodes) {
+  if (problem.candidates.empty()) return {};
+  return Jcbb(problem, gate_probability, max_nodes).Solve();
+}
+
+}  // namespace subslam::frontend

@@ -1,0 +1,328 @@
+#include "subslam/frontend/ekf_slam.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "subslam/graph/internal/check.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::frontend {
+namespace {
+
+class StageTimer {
+ public:
+  StageTimer(StageTimes* times, const char* stage) : times_(times), stage_(stage) {}
+  ~StageTimer() { (*times_)[stage_] += absl::ToDoubleSeconds(absl::Now() - start_); }
+
+ private:
+  StageTimes* times_;
+  const char* stage_;
+  absl::Time start_ = absl::Now();
+};
+
+bool InOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
+
+}  // namespace
+
+absl::Status EkfSlamOptions::Validate() const {
+  if (!InOpenUnit(gate_probability) || !InOpenUnit(new_landmark_probability) ||
+      new_landmark_probability < gate_probability) {
+    return absl::InvalidArgumentError(
+        "need 0 < gate_probability <= new_landmark_probability < 1");
+  }
+  if (!InOpenUnit(detection_probability) || !InOpenUnit(false_alarm_probability)) {
+    return absl::InvalidArgumentError(
+        "existence model: detection and false-alarm probabilities must be in (0, 1)");
+  }
+  if (!(InOpenUnit(prior_existence) && InOpenUnit(confirm_existence) &&
+        InOpenUnit(delete_existence) && InOpenUnit(max_existence) &&
+        delete_existence < confirm_existence && confirm_existence < max_existence)) {
+    return absl::InvalidArgumentError(
+        "existence thresholds must satisfy 0 < delete < confirm < max < 1");
+  }
+  if (jcbb_max_nodes < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0) {
+    return absl::InvalidArgumentError("jcbb_max_nodes >= 1 and margins >= 0 required");
+  }
+  return absl::OkStatus();
+}
+
+EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion,
+                 const models::RangeBearingConfig& sensor, const Pose2& initial_pose,
+                 const EkfSlamOptions& options)
+    : motion_(std::move(motion)), sensor_(sensor), options_(options) {
+  SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
+  gate_d2_ = models::ChiSquareQuantile(options_.gate_probability, 2);
+  new_landmark_d2_ = models::ChiSquareQuantile(options_.new_landmark_probability, 2);
+  x_.setZero(3 + 2 * 64);
+  P_.setZero(3 + 2 * 64, 3 + 2 * 64);
+  x_.head<3>() = initial_pose.vector();
+  P_.topLeftCorner<3, 3>().setZero();
+  for (const char* stage : {"predict", "associate", "update", "map_management"}) times_[stage] = 0;
+}
+
+void EkfSlam::Reserve(int dim) {
+  const int capacity = static_cast<int>(x_.size());
+  if (dim <= capacity) return;
+  const int new_capacity = std::max(dim, 2 * capacity);
+  Eigen::VectorXd x(new_capacity);
+  Eigen::MatrixXd P(new_capacity, new_capacity);
+  x.head(dim_) = x_.head(dim_);
+  P.topLeftCorner(dim_, dim_) = P_.topLeftCorner(dim_, dim_);
+  x_.swap(x);
+  P_.swap(P);
+}
+
+Pose2 EkfSlam::pose() const { return Pose2::FromVector(x_.head<3>()); }
+Eigen::Matrix3d EkfSlam::pose_covariance() const { return P_.topLeftCorner<3, 3>(); }
+
+void EkfSlam::Predict(const Eigen::Vector2d& u, double dt) {
+  if (dt <= 0.0) return;
+  StageTimer timer(&times_, "predict");
+  Eigen::Matrix3d F;
+  Matrix32d G;
+  const Pose2 next = motion_->Predict(pose(), u, dt, &F, &G);
+  x_.head<3>() = next.vector();
+  const int n = dim_ - 3;
+  P_.topLeftCorner<3, 3>() = F * P_.topLeftCorner<3, 3>() * F.transpose() +
+                             G * motion_->noise().Covariance(u) * G.transpose();
+  if (n > 0) {
+    const Eigen::Matrix<double, 3, Eigen::Dynamic> cross = F * P_.block(0, 3, 3, n);
+    P_.block(0, 3, 3, n) = cross;
+    P_.block(3, 0, n, 3) = cross.transpose();
+  }
+}
+
+Eigen::Matrix2d EkfSlam::CrossCovariance(const Prediction& a, const Prediction& b) const {
+  const int oa = Offset(a.landmark), ob = Offset(b.landmark);
+  return a.H_pose * P_.topLeftCorner<3, 3>() * b.H_pose.transpose() +
+         a.H_pose * P_.block<3, 2>(0, ob) * b.H_landmark.transpose() +
+         a.H_landmark * P_.block<2, 3>(oa, 0) * b.H_pose.transpose() +
+         a.H_landmark * P_.block<2, 2>(oa, ob) * b.H_landmark.transpose();
+}
+
+void EkfSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
+  const double a = options_.detection_probability, b = options_.false_alarm_probability;
+  const double p = info->existence;
+  const double q = detected ? p * a / (p * a + (1 - p) * b)
+                            : p * (1 - a) / (p * (1 - a) + (1 - p) * (1 - b));
+  info->existence = std::clamp(q, 1e-9, options_.max_existence);
+  if (info->existence > options_.confirm_existence) info->confirmed = true;
+}
+
+void EkfSlam::Update(const io::Scan& scan) {
+  ++counters_.scans;
+  const Pose2 p = pose();
+  const models::RangeBearingConfig& rb = sensor_.config();
+  const Eigen::Matrix2d R = sensor_.NoiseCovariance();
+
+  // Detections outside the sensor's valid range are not used.
+  std::vector<Eigen::Vector2d> z;
+  for (const io::Detection& d : scan.detections) {
+    if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
+    z.push_back(d.z());
+  }
+  counters_.detections += static_cast<long>(z.size());
+  const int m = static_cast<int>(z.size());
+
+  // 1. Predicted measurements and individual compatibility.
+  std::vector<Prediction> predictions;
+  AssociationProblem problem;
+  problem.candidates.resize(m);
+  std::vector<double> min_d2(m, INFINITY);
+  std::vector<bool> gated(landmarks_.size(), false);
+  {
+    StageTimer timer(&times_, "associate");
+    const double reach = rb.max_range_m + 10.0;
+    for (int i = 0; i < num_landmarks(); ++i) {
+      const Eigen::Vector2d l = x_.segment<2>(Offset(i));
+      if ((l - p.translation()).squaredNorm() > reach * reach) continue;
+      Prediction pr;
+      pr.landmark = i;
+      pr.z = sensor_.Observe(p, l, &pr.H_pose, &pr.H_landmark);
+      predictions.push_back(pr);
+    }
+    for (Prediction& pr : predictions) pr.S = CrossCovariance(pr, pr) + R;
+    for (int j = 0; j < m; ++j) {
+      for (const Prediction& pr : predictions) {
+        const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+        const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
+        SUBSLAM_CHECK(d2.has_value()) << "innovation covariance not positive definite";
+        min_d2[j] = std::min(min_d2[j], *d2);
+        if (*d2 < new_landmark_d2_) gated[pr.landmark] = true;
+        if (*d2 < gate_d2_) problem.candidates[j].push_back({pr.landmark, *d2, nu});
+      }
+      std::sort(problem.candidates[j].begin(), problem.candidates[j].end(),
+                [](const AssociationCandidate& a, const AssociationCandidate& b) {
+                  return a.d2 < b.d2;
+                });
+    }
+  }
+  AssociationResult association;
+  {
+    StageTimer timer(&times_, "associate");
+    if (options_.association == AssociationMethod::kJointCompatibility) {
+      std::vector<int> prediction_of_landmark(landmarks_.size(), -1);
+      for (int k = 0; k < static_cast<int>(predictions.size()); ++k) {
+        prediction_of_landmark[predictions[k].landmark] = k;
+      }
+      problem.covariance_block = [&](int a, int b) -> Eigen::Matrix2d {
+        const Prediction& pa = predictions[prediction_of_landmark[a]];
+        const Prediction& pb = predictions[prediction_of_landmark[b]];
+        return a == b ? pa.S : CrossCovariance(pa, pb);
+      };
+      association = JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
+      if (association.truncated) ++counters_.jcbb_truncated;
+    } else {
+      association = NearestNeighbour(problem);
+    }
+  }
+
+  // 2. Batch EKF update with all pairings.
+  std::vector<std::pair<int, const AssociationCandidate*>> pairs;  // (detection, candidate)
+  for (int j = 0; j < m; ++j) {
+    const int l = association.landmark_of_detection[j];
+    if (l < 0) continue;
+    for (const AssociationCandidate& c : problem.candidates[j]) {
+      if (c.landmark == l) pairs.push_back({j, &c});
+    }
+  }
+  if (!pairs.empty()) {
+    StageTimer timer(&times_, "update");
+    const int k = static_cast<int>(pairs.size());
+    std::vector<const Prediction*> pred(k);
+    for (int a = 0; a < k; ++a) {
+      for (const Prediction& pr : predictions) {
+        if (pr.landmark == pairs[a].second->landmark) pred[a] = &pr;
+      }
+    }
+    Eigen::MatrixXd PHt(dim_, 2 * k);
+    Eigen::VectorXd nu(2 * k);
+    for (int a = 0; a < k; ++a) {
+      PHt.middleCols<2>(2 * a) =
+          P_.topLeftCorner(dim_, 3) * pred[a]->H_pose.transpose() +
+          P_.block(0, Offset(pred[a]->landmark), dim_, 2) * pred[a]->H_landmark.transpose();
+      nu.segment<2>(2 * a) = pairs[a].second->innovation;
+    }
+    Eigen::MatrixXd S(2 * k, 2 * k);
+    for (int a = 0; a < k; ++a) {
+      for (int b = 0; b < k; ++b) {
+        S.block<2, 2>(2 * a, 2 * b) =
+            pred[a]->H_pose * PHt.block<3, 2>(0, 2 * b) +
+            pred[a]->H_landmark * PHt.block<2, 2>(Offset(pred[a]->landmark), 2 * b);
+      }
+      S.block<2, 2>(2 * a, 2 * a) += R;
+    }
+    S = 0.5 * (S + S.transpose()).eval();
+    Eigen::LLT<Eigen::MatrixXd> llt(S);
+    SUBSLAM_CHECK(llt.info() == Eigen::Success) << "joint innovation covariance not PD";
+    // W = PHᵀ L⁻ᵀ, so that K ν = W (L⁻¹ ν) and K S Kᵀ = W Wᵀ.
+    Eigen::MatrixXd Wt = PHt.transpose();
+    llt.matrixL().solveInPlace(Wt);
+    Eigen::VectorXd whitened = nu;
+    llt.matrixL().solveInPlace(whitened);
+    x_.head(dim_).noalias() += Wt.transpose() * whitened;
+    x_[2] = WrapAngle(x_[2]);
+    auto block = P_.topLeftCorner(dim_, dim_);
+    block.selfadjointView<Eigen::Lower>().rankUpdate(Wt.transpose(), -1.0);
+    block.triangularView<Eigen::StrictlyUpper>() = block.transpose();
+    counters_.associated += k;
+  }
+
+  // 3. Existence, new landmarks, deletion of false alarms.
+  StageTimer timer(&times_, "map_management");
+  for (const auto& [j, c] : pairs) UpdateExistence(&landmarks_[c->landmark], true);
+  for (const Prediction& pr : predictions) {
+    if (gated[pr.landmark]) continue;
+    if (sensor_.IsVisible(pr.z, options_.expect_range_margin_m, options_.expect_bearing_margin_rad)) {
+      UpdateExistence(&landmarks_[pr.landmark], false);
+    }
+  }
+  for (int j = 0; j < m; ++j) {
+    if (association.landmark_of_detection[j] >= 0) continue;
+    if (min_d2[j] > new_landmark_d2_) {
+      AddLandmark(z[j], options_.prior_existence);
+    } else {
+      ++counters_.ambiguous;
+    }
+  }
+  std::vector<int> doomed;
+  for (int i = 0; i < num_landmarks(); ++i) {
+    if (!landmarks_[i].confirmed && landmarks_[i].existence < options_.delete_existence) {
+      doomed.push_back(i);
+    }
+  }
+  if (!doomed.empty()) RemoveLandmarks(doomed);
+}
+
+void EkfSlam::AddLandmark(const Eigen::Vector2d& z, double existence) {
+  const Pose2 p = pose();
+  Matrix23d G_pose;
+  Eigen::Matrix2d G_z;
+  const Eigen::Vector2d l = sensor_.InverseObserve(p, z, &G_pose, &G_z);
+  Reserve(dim_ + 2);
+  const int o = dim_;
+  x_.segment<2>(o) = l;
+  const Eigen::MatrixXd cross = G_pose * P_.topLeftCorner(3, dim_);  // 2 × dim
+  P_.block(o, 0, 2, dim_) = cross;
+  P_.block(0, o, dim_, 2) = cross.transpose();
+  P_.block<2, 2>(o, o) = G_pose * P_.topLeftCorner<3, 3>() * G_pose.transpose() +
+                         G_z * sensor_.NoiseCovariance() * G_z.transpose();
+  dim_ += 2;
+  LandmarkInfo info;
+  info.id = next_id_++;
+  info.existence = existence;
+  UpdateExistence(&info, true);  // the creating detection
+  landmarks_.push_back(info);
+  ++counters_.new_landmarks;
+}
+
+void EkfSlam::RemoveLandmarks(const std::vector<int>& sorted_indices) {
+  std::vector<int> keep = {0, 1, 2};
+  std::vector<LandmarkInfo> kept;
+  size_t d = 0;
+  for (int i = 0; i < num_landmarks(); ++i) {
+    if (d < sorted_indices.size() && sorted_indices[d] == i) {
+      ++d;
+      continue;
+    }
+    keep.push_back(Offset(i));
+    keep.push_back(Offset(i) + 1);
+    kept.push_back(landmarks_[i]);
+  }
+  const int new_dim = static_cast<int>(keep.size());
+  const Eigen::MatrixXd P = P_(keep, keep);
+  const Eigen::VectorXd x = x_(keep);
+  P_.topLeftCorner(new_dim, new_dim) = P;
+  x_.head(new_dim) = x;
+  dim_ = new_dim;
+  counters_.deleted_landmarks += static_cast<long>(sorted_indices.size());
+  landmarks_ = std::move(kept);
+}
+
+std::vector<LandmarkEstimate> EkfSlam::Map() const {
+  std::vector<LandmarkEstimate> out;
+  for (int i = 0; i < num_landmarks(); ++i) {
+    if (!landmarks_[i].confirmed) continue;
+    out.push_back({landmarks_[i].id, x_.segment<2>(Offset(i)), P_.block<2, 2>(Offset(i), Offset(i))});
+  }
+  return out;
+}
+
+std::map<std::string, double> EkfSlam::Counters() const {
+  int confirmed = 0;
+  for (const LandmarkInfo& l : landmarks_) confirmed += l.confirmed ? 1 : 0;
+  return {{"scans", counters_.scans},
+          {"detections", counters_.detections},
+          {"associated", counters_.associated},
+          {"new_landmarks", counters_.new_landmarks},
+          {"ambiguous_detections", counters_.ambiguous},
+          {"deleted_landmarks", counters_.deleted_landmarks},
+          {"jcbb_truncated_scans", counters_.jcbb_truncated},
+          {"landmarks_in_state", num_landmarks()},
+          {"confirmed_landmarks", confirmed}};
+}
+
+}  // namespace subslam::frontend

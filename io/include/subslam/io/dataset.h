@@ -1,0 +1,103 @@
+// In-memory data set: what a `dataset.json` directory (../shared/design.md, "Data-set
+// directory") holds once read and checked, and what the simulators produce.
+//
+// Times are seconds (any origin), angles radians, lengths metres. Controls hold until
+// the next control record. Detections are grouped into scans by time; their bearings
+// are already in the vehicle (sensor) frame — the manifest's bearing_offset has been
+// applied. Ground truth is optional and is used for evaluation only.
+#ifndef SUBSLAM_IO_DATASET_H_
+#define SUBSLAM_IO_DATASET_H_
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "subslam/graph/pose2.h"
+#include "subslam/models/ackermann_model.h"
+#include "subslam/models/motion_model.h"
+#include "subslam/models/range_bearing_model.h"
+
+namespace subslam::io {
+
+enum class MotionModelType { kUnicycle, kAckermann };
+const char* ToString(MotionModelType type);
+absl::StatusOr<MotionModelType> MotionModelTypeFromString(const std::string& name);
+
+struct MotionConfig {
+  MotionModelType model = MotionModelType::kUnicycle;
+  models::AckermannGeometry geometry;  // used by kAckermann only
+  // Channel 0 is the speed; channel 1 is ω (unicycle) or the steering angle (ackermann).
+  models::ControlNoise noise;
+
+  // Builds the motion model this configuration describes.
+  std::unique_ptr<models::MotionModel> MakeModel() const;
+};
+
+struct SensorConfig {
+  models::RangeBearingConfig range_bearing;
+  bool has_signature = false;  // whether detections carry a signature
+  bool has_truth_id = false;   // whether detections carry the true landmark id
+};
+
+// Control held from time t until the next record: (v [m/s], ω [rad/s] or steer [rad]).
+struct ControlRecord {
+  double t = 0.0;
+  Eigen::Vector2d u = Eigen::Vector2d::Zero();
+};
+
+inline constexpr int kFalseAlarmId = -1;    // truth id of a false alarm
+inline constexpr int kUnknownTruthId = -2;  // no truth id in the data set
+
+struct Detection {
+  double range_m = 0.0;
+  double bearing_rad = 0.0;  // in the vehicle frame (offset applied)
+  double signature = std::numeric_limits<double>::quiet_NaN();  // NaN when absent
+  int truth_id = kUnknownTruthId;  // evaluation only; never read by estimators
+
+  Eigen::Vector2d z() const { return {range_m, bearing_rad}; }
+};
+
+// All detections with one time stamp.
+struct Scan {
+  double t = 0.0;
+  std::vector<Detection> detections;
+};
+
+struct TimedPose {
+  double t = 0.0;
+  Pose2 pose;
+};
+
+struct TimedPoint {
+  double t = 0.0;
+  Eigen::Vector2d p = Eigen::Vector2d::Zero();
+};
+
+struct TruthLandmark {
+  int id = 0;
+  Eigen::Vector2d p = Eigen::Vector2d::Zero();
+};
+
+struct Dataset {
+  std::string name;
+  std::string directory;  // where it was read from; empty when simulated
+  Pose2 initial_pose;
+  MotionConfig motion;
+  SensorConfig sensor;
+  std::vector<ControlRecord> controls;  // sorted by t
+  std::vector<Scan> scans;              // sorted by t, one per distinct time
+  // Optional ground truth (empty when absent).
+  std::vector<TimedPose> truth_poses;  // in the frame of initial_pose's parent
+  std::vector<TruthLandmark> truth_landmarks;
+  std::vector<TimedPoint> gps;  // own frame: align before comparing
+
+  size_t NumDetections() const;
+};
+
+}  // namespace subslam::io
+
+#endif  // SUBSLAM_IO_DATASET_H_

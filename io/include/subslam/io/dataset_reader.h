@@ -1,0 +1,24 @@
+// Reading a data-set directory (../shared/design.md, "Data-set directory").
+//
+// Everything is checked at this boundary; an error names the file, the line (for
+// text files) and the field: a missing or mistyped manifest field, a short or
+// non-numeric line, NaN or infinite values, times going backwards, a negative or
+// zero σ, a non-positive range. Unknown manifest keys are rejected too, so a typo
+// cannot silently fall back to a default. Nothing is half-loaded: on error no
+// Dataset is returned.
+#ifndef SUBSLAM_IO_DATASET_READER_H_
+#define SUBSLAM_IO_DATASET_READER_H_
+
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "subslam/io/dataset.h"
+
+namespace subslam::io {
+
+// Reads `directory`/dataset.json and the text files it names.
+absl::StatusOr<Dataset> ReadDataset(const std::string& directory);
+
+}  // namespace subslam::io
+
+#endif  // SUBSLAM_IO_DATASET_READER_H_

@@ -1,0 +1,75 @@
+#include "subslam/io/run_output_writer.h"
+
+#include <cstdio>
+#include <fstream>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
+#include "subslam/io/internal/text_table.h"
+
+namespace subslam::io {
+
+absl::Status WriteTextFile(const std::string& path, const std::string& content) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) return absl::PermissionDeniedError(absl::StrCat(path, ": cannot open for writing"));
+  out << content;
+  out.close();
+  if (!out) return absl::DataLossError(absl::StrCat(path, ": write failed"));
+  return absl::OkStatus();
+}
+
+absl::Status WriteTrajectoryCsv(const std::string& path, const Trajectory& trajectory) {
+  std::string text = "t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt\n";
+  text.reserve(trajectory.size() * 160);
+  for (const PoseEstimate& p : trajectory) {
+    const Eigen::Matrix3d& c = p.covariance;
+    absl::StrAppendFormat(&text, "%.6f,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g\n",
+                          p.t, p.pose.x, p.pose.y, p.pose.theta, c(0, 0), c(0, 1), c(0, 2),
+                          c(1, 1), c(1, 2), c(2, 2));
+  }
+  return WriteTextFile(path, text);
+}
+
+absl::Status WriteLandmarksCsv(const std::string& path,
+                               const std::vector<LandmarkEstimate>& landmarks) {
+  std::string text = "id,x,y,cov_xx,cov_xy,cov_yy\n";
+  for (const LandmarkEstimate& l : landmarks) {
+    absl::StrAppendFormat(&text, "%d,%.10g,%.10g,%.10g,%.10g,%.10g\n", l.id, l.position.x(),
+                          l.position.y(), l.covariance(0, 0), l.covariance(0, 1),
+                          l.covariance(1, 1));
+  }
+  return WriteTextFile(path, text);
+}
+
+absl::StatusOr<Trajectory> ReadTrajectoryCsv(const std::string& path) {
+  auto text = internal::ReadFileToString(path);
+  if (!text.ok()) return text.status();
+  Trajectory out;
+  int line_number = 0;
+  for (absl::string_view line : absl::StrSplit(*text, '\n', absl::SkipEmpty())) {
+    ++line_number;
+    if (line_number == 1) continue;  // header
+    std::vector<absl::string_view> f = absl::StrSplit(line, ',');
+    if (f.size() != 10) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ":", line_number, ": expected 10 columns, found ", f.size()));
+    }
+    double v[10];
+    for (int i = 0; i < 10; ++i) {
+      if (!absl::SimpleAtod(f[i], &v[i])) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(path, ":", line_number, ": column ", i + 1, " is not a number"));
+      }
+    }
+    PoseEstimate p;
+    p.t = v[0];
+    p.pose = Pose2(v[1], v[2], v[3]);
+    p.covariance << v[4], v[5], v[6], v[5], v[7], v[8], v[6], v[8], v[9];
+    out.push_back(p);
+  }
+  return out;
+}
+
+}  // namespace subslam::io

@@ -1,0 +1,74 @@
+#include "subslam/io/internal/text_table.h"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "absl/strings/strip.h"
+
+namespace subslam::internal {
+
+absl::StatusOr<std::string> ReadFileToString(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open file"));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  if (in.bad()) return absl::DataLossError(absl::StrCat(path, ": read error"));
+  return buffer.str();
+}
+
+absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
+                                                   const std::vector<std::string>& column_names,
+                                                   int max_columns, bool allow_empty) {
+  absl::StatusOr<std::string> text = ReadFileToString(path);
+  if (!text.ok()) return text.status();
+  std::vector<TextRow> rows;
+  int line_number = 0;
+  for (absl::string_view line : absl::StrSplit(*text, '\n')) {
+    ++line_number;
+    line = absl::StripAsciiWhitespace(line);
+    if (line.empty() || line.front() == '#') continue;
+    std::vector<absl::string_view> fields =
+        absl::StrSplit(line, absl::ByAnyChar(" \t\r"), absl::SkipEmpty());
+    const int n = static_cast<int>(fields.size());
+    if (n < static_cast<int>(column_names.size())) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          path, ":", line_number, ": expected at least ", column_names.size(),
+          " columns, found ", n, " (missing field '", column_names[n], "')"));
+    }
+    if (max_columns > 0 && n > max_columns) {
+      return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": expected at most ",
+                                                     max_columns, " columns, found ", n));
+    }
+    TextRow row;
+    row.line = line_number;
+    row.values.resize(n);
+    for (int i = 0; i < n; ++i) {
+      const std::string name = i < static_cast<int>(column_names.size())
+                                   ? column_names[i]
+                                   : absl::StrCat("column ", i + 1);
+      double value = 0.0;
+      if (!absl::SimpleAtod(fields[i], &value)) {
+        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name,
+                                                       "' (column ", i + 1, ") is not a number: '",
+                                                       fields[i], "'"));
+      }
+      if (!std::isfinite(value)) {
+        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name,
+                                                       "' (column ", i + 1,
+                                                       ") is not finite: '", fields[i], "'"));
+      }
+      row.values[i] = value;
+    }
+    rows.push_back(std::move(row));
+  }
+  if (rows.empty() && !allow_empty) {
+    return absl::InvalidArgumentError(absl::StrCat(path, ": file has no data lines"));
+  }
+  return rows;
+}
+
+}  // namespace subslam::internal
