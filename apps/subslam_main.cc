@@ -34,7 +34,7 @@ ABSL_FLAG(std::optional<double>, beta, std::nullopt,
 ABSL_FLAG(std::optional<double>, duration, std::nullopt, "truncate the simulation [s]");
 ABSL_FLAG(int, fmj_case, 1, "fmj-ellipse: case 1 (even landmarks) or 2 (uneven)");
 ABSL_FLAG(double, world_size, 200.0, "random scenario: world side [m]");
-ABSL_FLAG(int, landmarks, 100, "random scenario: number of landmarks");
+ABSL_FLAG(int, landmarks, 300, "random scenario: number of landmarks");
 ABSL_FLAG(double, path_length, 1000.0, "random scenario: distance driven [m]");
 ABSL_FLAG(double, noise_scale, 1.0, "random scenario: multiplies every sigma");
 ABSL_FLAG(bool, signature, false, "simulated detections carry a noisy signature");

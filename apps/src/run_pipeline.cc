@@ -155,6 +155,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     metrics["map"] = {{"estimated", r.map_errors->estimated},
                       {"matched", r.map_errors->matched},
                       {"spurious", r.map_errors->spurious},
+                      {"duplicates", r.map_errors->duplicates},
                       {"true_landmarks", dataset.truth_landmarks.size()},
                       {"rms_m", r.map_errors->rms_m},
                       {"mean_landmark_nees", r.map_errors->mean_nees}};
@@ -241,9 +242,9 @@ std::string SummaryTable(const RunResult& r) {
     row("10-sigma failure test", e.failed ? "FAILED" : "passed");
   }
   if (r.map_errors) {
-    row("map: matched / spurious, RMS",
-        absl::StrFormat("%d / %d, %.3f m", r.map_errors->matched, r.map_errors->spurious,
-                        r.map_errors->rms_m));
+    row("map: matched / spurious / duplicate",
+        absl::StrFormat("%d / %d / %d, RMS %.3f m", r.map_errors->matched, r.map_errors->spurious,
+                        r.map_errors->duplicates, r.map_errors->rms_m));
   }
   if (r.gps_final) {
     row("aligned RMS vs GPS (final)", absl::StrFormat("%.2f m (x %.2f, y %.2f; %d fixes)",

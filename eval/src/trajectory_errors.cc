@@ -98,7 +98,10 @@ MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
       ++nees_count;
     }
   }
-  m.spurious = m.estimated - m.matched;
+  std::vector<bool> near_truth(estimate.size(), false);
+  for (const Candidate& c : candidates) near_truth[c.e] = true;
+  for (size_t i = 0; i < estimate.size(); ++i) m.spurious += near_truth[i] ? 0 : 1;
+  m.duplicates = m.estimated - m.matched - m.spurious;
   m.rms_m = m.matched > 0 ? std::sqrt(sq / m.matched) : 0.0;
   m.mean_nees = nees_count > 0 ? nees / nees_count : 0.0;
   return m;

@@ -8,8 +8,9 @@
 // estimate for more than `failure_steps` consecutive steps).
 //
 // Map: each estimated landmark is matched to the nearest true landmark within
-// `match_radius_m` (one-to-one, greedy by distance); RMS over matched pairs, and the
-// unmatched estimates (spurious) and unmatched visible truths (missed) are counted.
+// `match_radius_m` (one-to-one, greedy by distance); RMS over matched pairs. Unmatched
+// estimates are counted as spurious (no true landmark within the radius: a false alarm
+// or a diverged landmark) or duplicates (a second estimate of a matched landmark).
 #ifndef SUBSLAM_EVAL_TRAJECTORY_ERRORS_H_
 #define SUBSLAM_EVAL_TRAJECTORY_ERRORS_H_
 
@@ -53,7 +54,8 @@ TrajectoryErrors ComputeTrajectoryErrors(const Trajectory& estimate,
 struct MapErrors {
   int estimated = 0;
   int matched = 0;
-  int spurious = 0;        // estimates with no true landmark within the radius
+  int spurious = 0;        // estimates with no true landmark within the radius at all
+  int duplicates = 0;      // unmatched estimates near a true landmark already matched
   double rms_m = 0.0;      // over matched pairs
   double mean_nees = 0.0;  // over matched pairs
 };

@@ -40,7 +40,7 @@ struct ScenarioOptions {
   int fmj_case = 1;                        // fmj-ellipse: 1 or 2
   // random scenario knobs.
   double random_world_size_m = 200.0;      // square world side
-  int random_landmarks = 100;              // uniformly placed landmarks
+  int random_landmarks = 300;              // uniformly placed landmarks
   double random_path_length_m = 1000.0;    // distance driven
   double random_noise_scale = 1.0;         // multiplies every σ
   bool with_signature = false;             // detections carry a noisy landmark signature

@@ -1,0 +1,116 @@
+// End-to-end benchmark of the foundation issue's Victoria Park run: reads the data
+// set, runs dead reckoning and EKF-SLAM, and prints wall time (read, estimator,
+// total), peak resident memory and the aligned RMS against GPS. Each front-end runs in
+// its own child process so that its peak memory is its own.
+//
+//   build/bench/victoria_park_bench [--dataset DIR] [--repeats N] [--out results.json]
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/time/clock.h"
+#include "subslam/app/run_pipeline.h"
+#include "subslam/io/dataset_reader.h"
+
+ABSL_FLAG(std::string, dataset, SUBSLAM_DEFAULT_VICTORIA_PARK, "Victoria Park data-set directory");
+ABSL_FLAG(int, repeats, 3, "runs per front-end (the median is reported)");
+ABSL_FLAG(std::string, out, "", "write the results as JSON here");
+
+namespace {
+
+struct Measurement {
+  double read_s = 0, estimator_s = 0, total_s = 0, rms_m = 0;
+  long peak_kb = 0;
+  size_t landmarks = 0;
+};
+
+// Runs one front-end in this (child) process and writes its measurement to `fd`.
+int RunChild(subslam::app::Frontend frontend, int fd) {
+  const absl::Time start = absl::Now();
+  auto d = subslam::io::ReadDataset(absl::GetFlag(FLAGS_dataset));
+  if (!d.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(d.status().message()).c_str());
+    return 1;
+  }
+  const double read_s = absl::ToDoubleSeconds(absl::Now() - start);
+  subslam::app::RunOptions options;
+  options.frontend = frontend;
+  auto r = subslam::app::RunPipeline(*std::move(d), options);
+  if (!r.ok() || !r->gps_final) return 1;
+  Measurement m;
+  m.read_s = read_s;
+  m.estimator_s = r->wall_seconds;
+  m.total_s = absl::ToDoubleSeconds(absl::Now() - start);
+  m.rms_m = r->gps_final->rms_m;
+  struct rusage usage {};
+  getrusage(RUSAGE_SELF, &usage);
+  m.peak_kb = usage.ru_maxrss;
+  m.landmarks = r->landmarks.size();
+  return write(fd, &m, sizeof(m)) == sizeof(m) ? 0 : 1;
+}
+
+bool Measure(subslam::app::Frontend frontend, Measurement* m) {
+  int fds[2];
+  if (pipe(fds) != 0) return false;
+  const pid_t pid = fork();
+  if (pid == 0) {
+    close(fds[0]);
+    _exit(RunChild(frontend, fds[1]));
+  }
+  close(fds[1]);
+  const bool ok = read(fds[0], m, sizeof(*m)) == sizeof(*m);
+  close(fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return ok && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  absl::ParseCommandLine(argc, argv);
+  const int repeats = std::max(1, absl::GetFlag(FLAGS_repeats));
+  nlohmann::json results = nlohmann::json::array();
+  std::printf("%-10s %8s %10s %9s %10s %9s %11s\n", "frontend", "read_s", "estimator_s", "total_s",
+              "peak_MB", "landmarks", "gps_rms_m");
+  for (auto frontend : {subslam::app::Frontend::kOdometry, subslam::app::Frontend::kEkfSlam}) {
+    std::vector<Measurement> runs;
+    for (int i = 0; i < repeats; ++i) {
+      Measurement m;
+      if (!Measure(frontend, &m)) {
+        std::fprintf(stderr, "run failed\n");
+        return 1;
+      }
+      runs.push_back(m);
+    }
+    std::sort(runs.begin(), runs.end(),
+              [](const Measurement& a, const Measurement& b) { return a.total_s < b.total_s; });
+    const Measurement& med = runs[runs.size() / 2];
+    long peak = 0;
+    for (const Measurement& m : runs) peak = std::max(peak, m.peak_kb);
+    std::printf("%-10s %8.3f %10.3f %9.3f %10.1f %9zu %11.2f\n", subslam::app::ToString(frontend),
+                med.read_s, med.estimator_s, med.total_s, peak / 1024.0, med.landmarks, med.rms_m);
+    results.push_back({{"frontend", subslam::app::ToString(frontend)},
+                       {"repeats", repeats},
+                       {"median_read_s", med.read_s},
+                       {"median_estimator_s", med.estimator_s},
+                       {"median_total_s", med.total_s},
+                       {"max_peak_rss_mb", peak / 1024.0},
+                       {"landmarks", med.landmarks},
+                       {"aligned_gps_rms_m", med.rms_m}});
+  }
+  if (!absl::GetFlag(FLAGS_out).empty()) {
+    std::ofstream(absl::GetFlag(FLAGS_out)) << results.dump(2) << "\n";
+  }
+  return 0;
+}

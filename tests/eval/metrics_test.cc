@@ -1,0 +1,108 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "subslam/eval/gps_alignment.h"
+#include "subslam/eval/nees.h"
+#include "subslam/eval/trajectory_errors.h"
+#include "test_util.h"
+
+namespace subslam::eval {
+namespace {
+
+TEST(Nees, KnownValues) {
+  Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+  P.diagonal() << 4.0, 1.0, 0.01;
+  // Errors of 1σ on each axis → 1 + 1 + 1.
+  EXPECT_NEAR(*PoseNees(Pose2(2, 1, 0.1), Pose2(0, 0, 0), P), 3.0, 1e-12);
+  // Heading difference across ±π wraps.
+  EXPECT_NEAR(*PoseNees(Pose2(0, 0, kPi - 0.05), Pose2(0, 0, -kPi + 0.05), P), 1.0, 1e-9);
+  EXPECT_FALSE(PoseNees(Pose2(), Pose2(), Eigen::Matrix3d::Zero()).has_value());
+  EXPECT_NEAR(*PointNees({1, 1}, {0, 0}, Eigen::Matrix2d::Identity() * 2), 1.0, 1e-12);
+}
+
+TEST(Nees, AverageBoundsAndConsistencyIndex) {
+  const NeesBounds b = AverageNeesBounds(3, 50);
+  EXPECT_NEAR(b.lower, 2.36, 0.005);  // ISEIF §4: [2.36, 3.72]
+  EXPECT_NEAR(b.upper, 3.72, 0.005);
+  EXPECT_TRUE(b.Contains(3.0));
+  EXPECT_FALSE(b.Contains(3.8));
+  const NeesBounds one = AverageNeesBounds(2, 1);
+  EXPECT_NEAR(one.lower, 0.0506356, 1e-6);
+  EXPECT_NEAR(one.upper, 7.3777589, 1e-6);
+  EXPECT_NEAR(ConsistencyIndex(7.814727903, 3), 1.0, 1e-9);
+}
+
+TEST(TrajectoryErrors, RmsAndFailureTest) {
+  std::vector<io::TimedPose> truth;
+  Trajectory est;
+  for (int k = 0; k < 100; ++k) {
+    truth.push_back({k * 1.0, Pose2(k, 0, 0)});
+    PoseEstimate e;
+    e.t = k;
+    e.pose = Pose2(k + 3.0, 4.0, 0.0);  // 5 m off
+    e.covariance = Eigen::Matrix3d::Identity() * (k < 50 ? 100.0 : 0.01);
+    est.push_back(e);
+  }
+  const TrajectoryErrors r = ComputeTrajectoryErrors(est, truth);
+  EXPECT_NEAR(r.rms_position_m, 5.0, 1e-12);
+  EXPECT_NEAR(r.rms_x_m, 3.0, 1e-12);
+  EXPECT_NEAR(r.rms_heading_rad, 0.0, 1e-12);
+  // Steps 50..99: 50 m / 0.1 m = 50σ for 50 consecutive steps > 20 → failed.
+  EXPECT_TRUE(r.failed);
+  EXPECT_EQ(r.longest_excursion_steps, 50);
+  EXPECT_NEAR(r.nees[0], 0.25, 1e-12);
+  est.resize(60);  // only 10 bad steps: passes
+  EXPECT_FALSE(ComputeTrajectoryErrors(est, truth).failed);
+}
+
+TEST(TrajectoryErrors, InterpolatesTruthInTime) {
+  const std::vector<io::TimedPose> truth = {{0.0, Pose2(0, 0, kPi - 0.1)}, {1.0, Pose2(2, 4, -kPi + 0.1)}};
+  const Pose2 mid = InterpolatePose(truth, 0.5);
+  EXPECT_NEAR(mid.x, 1.0, 1e-12);
+  EXPECT_NEAR(mid.y, 2.0, 1e-12);
+  EXPECT_NEAR(std::abs(mid.theta), kPi, 1e-12);  // through π, not through 0
+}
+
+TEST(MapErrors, MatchesNearestAndCountsSpurious) {
+  const std::vector<io::TruthLandmark> truth = {{0, {0, 0}}, {1, {10, 0}}, {2, {20, 0}}};
+  std::vector<LandmarkEstimate> est = {{5, {0.3, 0.4}, Eigen::Matrix2d::Identity()},
+                                       {6, {10, -0.5}, Eigen::Matrix2d::Identity()},
+                                       {7, {50, 50}, Eigen::Matrix2d::Identity()},
+                                       {8, {0.5, 0.0}, Eigen::Matrix2d::Identity()}};
+  const MapErrors m = ComputeMapErrors(est, truth, 2.0);
+  EXPECT_EQ(m.matched, 2);
+  EXPECT_EQ(m.spurious, 1);
+  EXPECT_EQ(m.duplicates, 1);
+  EXPECT_NEAR(m.rms_m, std::sqrt((0.25 + 0.25) / 2), 1e-12);
+}
+
+TEST(GpsAlignment, RecoversRigidTransformAndResidual) {
+  const Pose2 gps_T_est(5.0, -3.0, DegToRad(-33.0));
+  Trajectory traj;
+  std::vector<io::TimedPoint> gps;
+  for (int k = 0; k <= 100; ++k) {
+    const double t = 0.5 * k;
+    const Eigen::Vector2d p(10 * std::cos(0.1 * t), 7 * std::sin(0.2 * t));
+    traj.push_back({t, Pose2(p.x(), p.y(), 0.0), Eigen::Matrix3d::Identity()});
+    if (k % 2 == 1) {
+      // GPS between two estimate samples: time interpolation must be used.
+      const double tg = t - 0.25;
+      const Eigen::Vector2d pg(10 * std::cos(0.1 * tg), 7 * std::sin(0.2 * tg));
+      gps.push_back({tg, TransformFrom(gps_T_est, pg)});
+    }
+  }
+  absl::StatusOr<GpsComparison> c = CompareWithGps(traj, gps);
+  ASSERT_TRUE(c.ok()) << c.status();
+  EXPECT_EQ(c->matched_fixes, 50);
+  EXPECT_NEAR(c->gps_T_estimate.theta, gps_T_est.theta, 1e-3);
+  EXPECT_NEAR(c->gps_T_estimate.x, gps_T_est.x, 2e-2);
+  EXPECT_LT(c->rms_m, 0.05);  // linear interpolation error only
+  // A constant 1 m offset along x in GPS frame with exact poses: alignment absorbs it.
+  for (io::TimedPoint& g : gps) g.p.x() += 1.0;
+  EXPECT_LT(CompareWithGps(traj, gps)->rms_m, 0.05);
+  EXPECT_FALSE(RigidAlignment2D({{0, 0}}, {{1, 1}}).ok());
+}
+
+}  // namespace
+}  // namespace subslam::eval

@@ -1,0 +1,125 @@
+#include "subslam/graph/pose2.h"
+
+#include <gtest/gtest.h>
+
+#include "test_util.h"
+
+namespace subslam {
+namespace {
+
+using testing::kExactTolerance;
+using testing::kJacobianTolerance;
+using testing::MatricesNear;
+using testing::NumericalJacobian;
+using testing::TestPoses;
+
+Eigen::VectorXd V(const Pose2& p) { return p.vector(); }
+
+TEST(WrapAngle, MapsIntoHalfOpenInterval) {
+  EXPECT_DOUBLE_EQ(WrapAngle(kPi), kPi);
+  EXPECT_DOUBLE_EQ(WrapAngle(-kPi), kPi);
+  EXPECT_NEAR(WrapAngle(3 * kPi), kPi, kExactTolerance);
+  EXPECT_NEAR(WrapAngle(-3 * kPi + 0.1), -kPi + 0.1, kExactTolerance);
+  EXPECT_NEAR(WrapAngle(7.0), 7.0 - kTwoPi, kExactTolerance);
+  double J = 0;
+  EXPECT_DOUBLE_EQ(WrapAngle(0.3, &J), 0.3);
+  EXPECT_EQ(J, 1.0);
+  // Numerical derivative away from the cut.
+  for (double a : {-2.0, 0.0, 1.0, 4.0, -7.0}) {
+    const double d = (WrapAngle(a + 1e-6) - WrapAngle(a - 1e-6)) / 2e-6;
+    EXPECT_NEAR(d, 1.0, kJacobianTolerance);
+  }
+}
+
+TEST(Pose2, ComposeInverseIdentity) {
+  for (const Pose2& a : TestPoses()) {
+    const Pose2 id = Compose(Inverse(a), a);
+    EXPECT_NEAR(id.x, 0, 1e-9);
+    EXPECT_NEAR(id.y, 0, 1e-9);
+    EXPECT_NEAR(id.theta, 0, 1e-12);
+    const Pose2 b(0.3, -1.2, 2.0);
+    const Pose2 rel = Between(a, Compose(a, b));
+    EXPECT_NEAR(rel.x, b.x, 1e-9);
+    EXPECT_NEAR(rel.y, b.y, 1e-9);
+    EXPECT_NEAR(rel.theta, b.theta, 1e-12);
+  }
+}
+
+TEST(Pose2, ComposeMatchesHandComputedExample) {
+  // Frame a at (1, 2) rotated by 90°: its x axis is the world's y axis.
+  const Pose2 ab = Compose(Pose2(1, 2, kPi / 2), Pose2(3, 0, kPi / 2));
+  EXPECT_NEAR(ab.x, 1, kExactTolerance);
+  EXPECT_NEAR(ab.y, 5, kExactTolerance);
+  EXPECT_NEAR(ab.theta, kPi, kExactTolerance);
+  const Eigen::Vector2d q = TransformFrom(Pose2(1, 2, kPi / 2), Eigen::Vector2d(1, 0));
+  EXPECT_NEAR(q.x(), 1, kExactTolerance);
+  EXPECT_NEAR(q.y(), 3, kExactTolerance);
+}
+
+TEST(Pose2, JacobiansMatchNumericalDifferentiation) {
+  const std::vector<Pose2> poses = TestPoses();
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const Pose2& a = poses[i];
+    const Pose2& b = poses[(i + 3) % poses.size()];
+    Eigen::Matrix3d Ja, Jb;
+    Compose(a, b, &Ja, &Jb);
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Compose(Pose2::FromVector(v), b)); },
+                          a.vector(), {2}),
+        Ja, kJacobianTolerance));
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Compose(a, Pose2::FromVector(v))); },
+                          b.vector(), {2}),
+        Jb, kJacobianTolerance));
+    Eigen::Matrix3d Ji;
+    Inverse(a, &Ji);
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Inverse(Pose2::FromVector(v))); },
+                          a.vector(), {2}),
+        Ji, kJacobianTolerance));
+    Between(a, b, &Ja, &Jb);
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Between(Pose2::FromVector(v), b)); },
+                          a.vector(), {2}),
+        Ja, kJacobianTolerance));
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Between(a, Pose2::FromVector(v))); },
+                          b.vector(), {2}),
+        Jb, kJacobianTolerance));
+    const Eigen::Vector2d p(b.x, b.y);
+    Matrix23d Jf;
+    Eigen::Matrix2d Jp;
+    TransformFrom(a, p, &Jf, &Jp);
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+          return TransformFrom(Pose2::FromVector(v), p);
+        }, a.vector()),
+        Jf, kJacobianTolerance));
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+          return TransformFrom(a, Eigen::Vector2d(v));
+        }, p),
+        Jp, kJacobianTolerance));
+    TransformTo(a, p, &Jf, &Jp);
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+          return TransformTo(Pose2::FromVector(v), p);
+        }, a.vector()),
+        Jf, kJacobianTolerance));
+    EXPECT_TRUE(MatricesNear(
+        NumericalJacobian([&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+          return TransformTo(a, Eigen::Vector2d(v));
+        }, p),
+        Jp, kJacobianTolerance));
+  }
+}
+
+TEST(Pose2, TransformToInvertsTransformFrom) {
+  for (const Pose2& a : TestPoses()) {
+    const Eigen::Vector2d p(3.5, -2.25);
+    EXPECT_TRUE(MatricesNear(p, TransformTo(a, TransformFrom(a, p)), 1e-9));
+  }
+}
+
+}  // namespace
+}  // namespace subslam
