@@ -43,8 +43,10 @@ absl::Status EkfSlamOptions::Validate() const {
     return absl::InvalidArgumentError(
         "existence thresholds must satisfy 0 < delete < confirm < max < 1");
   }
-  if (jcbb_max_nodes < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0) {
-    return absl::InvalidArgumentError("jcbb_max_nodes >= 1 and margins >= 0 required");
+  if (jcbb_max_nodes < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0 ||
+      cull_every_scans < 1) {
+    return absl::InvalidArgumentError(
+        "jcbb_max_nodes >= 1, cull_every_scans >= 1 and margins >= 0 required");
   }
   return absl::OkStatus();
 }
@@ -248,6 +250,7 @@ void EkfSlam::Update(const io::Scan& scan) {
       ++counters_.ambiguous;
     }
   }
+  if (counters_.scans % options_.cull_every_scans != 0) return;
   std::vector<int> doomed;
   for (int i = 0; i < num_landmarks(); ++i) {
     if (!landmarks_[i].confirmed && landmarks_[i].existence < options_.delete_existence) {

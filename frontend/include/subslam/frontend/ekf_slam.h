@@ -18,7 +18,8 @@
 //    p ← p(1 − α) / (p(1 − α) + (1 − p)(1 − β)). Tentative landmarks (never confirmed)
 //    whose existence falls below `delete_existence` are removed from the state, so
 //    false alarms do not become landmarks; a landmark is confirmed — reported by Map()
-//    and kept for good — once its existence exceeds `confirm_existence`.
+//    and kept for good — once its existence exceeds `confirm_existence`. Removal is
+//    batched every `cull_every_scans` scans.
 //
 // Memory: the covariance lives in a capacity-doubling buffer, so adding a landmark is
 // O(n) amortised; deleting one compacts the state in O(n²).
@@ -55,6 +56,9 @@ struct EkfSlamOptions {
   // and field of view, to allow for its position uncertainty.
   double expect_range_margin_m = 1.0;
   double expect_bearing_margin_rad = 0.05;
+  // Tentative landmarks below delete_existence are removed every this many scans;
+  // removal compacts the dense state in O(n²), so batching it saves time on big maps.
+  int cull_every_scans = 10;
 
   absl::Status Validate() const;
 };
