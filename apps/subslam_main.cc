@@ -22,9 +22,15 @@
 #include "subslam/io/dataset_writer.h"
 #include "subslam/sim/simulator.h"
 
+// Flag defaults come from the option structs, so the tool and the library agree.
+namespace {
+const subslam::sim::ScenarioOptions kScenarioDefaults;
+const subslam::frontend::EkfSlamOptions kEkfDefaults;
+}  // namespace
+
 ABSL_FLAG(std::string, dataset, "", "data-set directory holding dataset.json");
 ABSL_FLAG(std::string, scenario, "", "simulated scenario name (see `subslam scenarios`)");
-ABSL_FLAG(uint64_t, seed, 1, "scenario seed (noise, detections, clutter)");
+ABSL_FLAG(uint64_t, seed, kScenarioDefaults.seed, "scenario seed (noise, detections, clutter)");
 ABSL_FLAG(std::optional<uint64_t>, world_seed, std::nullopt,
           "scenario world seed (landmarks, path jitter); default: --seed");
 ABSL_FLAG(std::optional<double>, alpha, std::nullopt,
@@ -32,20 +38,22 @@ ABSL_FLAG(std::optional<double>, alpha, std::nullopt,
 ABSL_FLAG(std::optional<double>, beta, std::nullopt,
           "simulated false-alarm probability beta per visible feature (default 0.0)");
 ABSL_FLAG(std::optional<double>, duration, std::nullopt, "truncate the simulation [s]");
-ABSL_FLAG(int, fmj_case, 1, "fmj-ellipse: case 1 (even landmarks) or 2 (uneven)");
-ABSL_FLAG(double, world_size, 200.0, "random scenario: world side [m]");
-ABSL_FLAG(int, landmarks, 300, "random scenario: number of landmarks");
-ABSL_FLAG(double, path_length, 1000.0, "random scenario: distance driven [m]");
-ABSL_FLAG(double, noise_scale, 1.0, "random scenario: multiplies every sigma");
-ABSL_FLAG(bool, signature, false, "simulated detections carry a noisy signature");
+ABSL_FLAG(int, fmj_case, kScenarioDefaults.fmj_case, "fmj-ellipse: case 1 (even landmarks) or 2 (uneven)");
+ABSL_FLAG(double, world_size, kScenarioDefaults.random_world_size_m, "random scenario: world side [m]");
+ABSL_FLAG(int, landmarks, kScenarioDefaults.random_landmarks, "random scenario: number of landmarks");
+ABSL_FLAG(double, path_length, kScenarioDefaults.random_path_length_m, "random scenario: distance driven [m]");
+ABSL_FLAG(double, noise_scale, kScenarioDefaults.random_noise_scale, "random scenario: multiplies every sigma");
+ABSL_FLAG(bool, signature, kScenarioDefaults.with_signature, "simulated detections carry a noisy signature");
 ABSL_FLAG(std::string, out, "", "output directory");
-ABSL_FLAG(std::string, frontend, "ekfslam", "odometry | ekfslam");
-ABSL_FLAG(std::string, association, "nn", "ekfslam data association: nn | jcbb");
-ABSL_FLAG(double, gate, 0.99, "individual compatibility gate probability (chi2, 2 dof)");
-ABSL_FLAG(double, new_landmark_gate, 0.9999,
+ABSL_FLAG(std::string, frontend, subslam::app::ToString(subslam::app::RunOptions{}.frontend),
+          "odometry | ekfslam");
+ABSL_FLAG(std::string, association, subslam::frontend::ToString(kEkfDefaults.association),
+          "ekfslam data association: nn | jcbb");
+ABSL_FLAG(double, gate, kEkfDefaults.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
+ABSL_FLAG(double, new_landmark_gate, kEkfDefaults.new_landmark_probability,
           "a detection outside this gate for every landmark starts a new one");
-ABSL_FLAG(double, existence_alpha, 0.9, "existence model: detection probability");
-ABSL_FLAG(double, existence_beta, 0.05, "existence model: false-alarm probability");
+ABSL_FLAG(double, existence_alpha, kEkfDefaults.detection_probability, "existence model: detection probability");
+ABSL_FLAG(double, existence_beta, kEkfDefaults.false_alarm_probability, "existence model: false-alarm probability");
 ABSL_FLAG(std::optional<double>, sigma_v, std::nullopt, "override speed noise sigma [m/s]");
 ABSL_FLAG(std::optional<double>, sigma_u1, std::nullopt,
           "override turn-rate [rad/s] or steering [rad] noise sigma");

@@ -23,8 +23,8 @@ void BM_ComposeWithJacobians(benchmark::State& state) {
 }
 BENCHMARK(BM_ComposeWithJacobians);
 
-void BM_AckermannPredict(benchmark::State& state) {
-  const models::AckermannModel model({2.83, 0.76, 3.78, 0.5}, {0.5, 0.05, 0, 0});
+// One prediction with both Jacobians per iteration.
+void PredictLoop(benchmark::State& state, const models::MotionModel& model) {
   Pose2 x;
   Eigen::Matrix3d F;
   Matrix32d G;
@@ -33,17 +33,14 @@ void BM_AckermannPredict(benchmark::State& state) {
     benchmark::DoNotOptimize(x);
   }
 }
+
+void BM_AckermannPredict(benchmark::State& state) {
+  PredictLoop(state, models::AckermannModel({2.83, 0.76, 3.78, 0.5}, {0.5, 0.05, 0, 0}));
+}
 BENCHMARK(BM_AckermannPredict);
 
 void BM_UnicyclePredict(benchmark::State& state) {
-  const models::UnicycleModel model({0.1, 0.01, 0, 0});
-  Pose2 x;
-  Eigen::Matrix3d F;
-  Matrix32d G;
-  for (auto _ : state) {
-    x = model.Predict(x, Eigen::Vector2d(2.0, 0.1), 0.025, &F, &G);
-    benchmark::DoNotOptimize(x);
-  }
+  PredictLoop(state, models::UnicycleModel({0.1, 0.01, 0, 0}));
 }
 BENCHMARK(BM_UnicyclePredict);
 

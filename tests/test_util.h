@@ -20,7 +20,6 @@ inline constexpr double kExactTolerance = 1e-12;     // algebraic identities
 inline constexpr double kJacobianTolerance = 1e-6;   // analytic vs central differences
 inline constexpr double kNumericStep = 1e-6;         // central-difference step
 
-inline std::string TestDataDir() { return SUBSLAM_TEST_DATA_DIR; }
 inline std::string VictoriaParkDir() { return std::string(SUBSLAM_SHARED_DATA_DIR) + "/victoria_park"; }
 
 // Central-difference Jacobian of f at x. Output entries listed in `angle_outputs` are
@@ -52,6 +51,13 @@ inline ::testing::AssertionResult MatricesNear(const Eigen::MatrixXd& expected,
   if (err <= tolerance * scale) return ::testing::AssertionSuccess();
   return ::testing::AssertionFailure() << "max abs difference " << err << " > " << tolerance * scale
                                        << "\nexpected:\n" << expected << "\nactual:\n" << actual;
+}
+
+// The reusable Jacobian check: `analytic` against central differences of f at x.
+inline ::testing::AssertionResult JacobianMatches(
+    const Eigen::MatrixXd& analytic, const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& f,
+    const Eigen::VectorXd& x, const std::vector<int>& angle_outputs = {}) {
+  return MatricesNear(NumericalJacobian(f, x, angle_outputs), analytic, kJacobianTolerance);
 }
 
 // Poses at which every Jacobian is checked: identity, near identity, near ±π, and

@@ -135,6 +135,7 @@ void EkfSlam::Update(const io::Scan& scan) {
   problem.candidates.resize(m);
   std::vector<double> min_d2(m, INFINITY);
   std::vector<bool> gated(landmarks_.size(), false);
+  std::vector<int> prediction_of_landmark(landmarks_.size(), -1);
   {
     StageTimer timer(&times_, "associate");
     const double reach = rb.max_range_m + 10.0;
@@ -147,6 +148,9 @@ void EkfSlam::Update(const io::Scan& scan) {
       predictions.push_back(pr);
     }
     for (Prediction& pr : predictions) pr.S = CrossCovariance(pr, pr) + R;
+    for (int k = 0; k < static_cast<int>(predictions.size()); ++k) {
+      prediction_of_landmark[predictions[k].landmark] = k;
+    }
     for (int j = 0; j < m; ++j) {
       for (const Prediction& pr : predictions) {
         const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
@@ -166,10 +170,6 @@ void EkfSlam::Update(const io::Scan& scan) {
   {
     StageTimer timer(&times_, "associate");
     if (options_.association == AssociationMethod::kJointCompatibility) {
-      std::vector<int> prediction_of_landmark(landmarks_.size(), -1);
-      for (int k = 0; k < static_cast<int>(predictions.size()); ++k) {
-        prediction_of_landmark[predictions[k].landmark] = k;
-      }
       problem.covariance_block = [&](int a, int b) -> Eigen::Matrix2d {
         const Prediction& pa = predictions[prediction_of_landmark[a]];
         const Prediction& pb = predictions[prediction_of_landmark[b]];
@@ -196,9 +196,7 @@ void EkfSlam::Update(const io::Scan& scan) {
     const int k = static_cast<int>(pairs.size());
     std::vector<const Prediction*> pred(k);
     for (int a = 0; a < k; ++a) {
-      for (const Prediction& pr : predictions) {
-        if (pr.landmark == pairs[a].second->landmark) pred[a] = &pr;
-      }
+      pred[a] = &predictions[prediction_of_landmark[pairs[a].second->landmark]];
     }
     Eigen::MatrixXd PHt(dim_, 2 * k);
     Eigen::VectorXd nu(2 * k);

@@ -2,15 +2,17 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include "test_util.h"
 
 namespace subslam {
 namespace {
 
 using testing::kExactTolerance;
+using testing::JacobianMatches;
 using testing::kJacobianTolerance;
 using testing::MatricesNear;
-using testing::NumericalJacobian;
 using testing::TestPoses;
 
 Eigen::VectorXd V(const Pose2& p) { return p.vector(); }
@@ -61,56 +63,46 @@ TEST(Pose2, JacobiansMatchNumericalDifferentiation) {
   for (size_t i = 0; i < poses.size(); ++i) {
     const Pose2& a = poses[i];
     const Pose2& b = poses[(i + 3) % poses.size()];
-    Eigen::Matrix3d Ja, Jb;
+    // Functions of the first (a) or second (b) argument, as plain vectors.
+    using Fn = std::function<Eigen::VectorXd(const Eigen::VectorXd&)>;
+    auto of_a = [&](auto op) -> Fn {
+      return [=](const Eigen::VectorXd& v) -> Eigen::VectorXd { return op(Pose2::FromVector(v), b); };
+    };
+    auto of_b = [&](auto op) -> Fn {
+      return [=](const Eigen::VectorXd& v) -> Eigen::VectorXd { return op(a, Pose2::FromVector(v)); };
+    };
+    auto compose = [](const Pose2& x, const Pose2& y) { return V(Compose(x, y)); };
+    auto between = [](const Pose2& x, const Pose2& y) { return V(Between(x, y)); };
+    Eigen::Matrix3d Ja, Jb, Ji;
     Compose(a, b, &Ja, &Jb);
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Compose(Pose2::FromVector(v), b)); },
-                          a.vector(), {2}),
-        Ja, kJacobianTolerance));
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Compose(a, Pose2::FromVector(v))); },
-                          b.vector(), {2}),
-        Jb, kJacobianTolerance));
-    Eigen::Matrix3d Ji;
-    Inverse(a, &Ji);
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Inverse(Pose2::FromVector(v))); },
-                          a.vector(), {2}),
-        Ji, kJacobianTolerance));
+    EXPECT_TRUE(JacobianMatches(Ja, of_a(compose), a.vector(), {2}));
+    EXPECT_TRUE(JacobianMatches(Jb, of_b(compose), b.vector(), {2}));
     Between(a, b, &Ja, &Jb);
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Between(Pose2::FromVector(v), b)); },
-                          a.vector(), {2}),
-        Ja, kJacobianTolerance));
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) { return V(Between(a, Pose2::FromVector(v))); },
-                          b.vector(), {2}),
-        Jb, kJacobianTolerance));
+    EXPECT_TRUE(JacobianMatches(Ja, of_a(between), a.vector(), {2}));
+    EXPECT_TRUE(JacobianMatches(Jb, of_b(between), b.vector(), {2}));
+    Inverse(a, &Ji);
+    EXPECT_TRUE(JacobianMatches(
+        Ji, [](const Eigen::VectorXd& v) -> Eigen::VectorXd { return V(Inverse(Pose2::FromVector(v))); },
+        a.vector(), {2}));
+
     const Eigen::Vector2d p(b.x, b.y);
-    Matrix23d Jf;
-    Eigen::Matrix2d Jp;
-    TransformFrom(a, p, &Jf, &Jp);
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-          return TransformFrom(Pose2::FromVector(v), p);
-        }, a.vector()),
-        Jf, kJacobianTolerance));
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-          return TransformFrom(a, Eigen::Vector2d(v));
-        }, p),
-        Jp, kJacobianTolerance));
-    TransformTo(a, p, &Jf, &Jp);
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-          return TransformTo(Pose2::FromVector(v), p);
-        }, a.vector()),
-        Jf, kJacobianTolerance));
-    EXPECT_TRUE(MatricesNear(
-        NumericalJacobian([&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-          return TransformTo(a, Eigen::Vector2d(v));
-        }, p),
-        Jp, kJacobianTolerance));
+    for (auto transform : {&TransformFrom, &TransformTo}) {
+      Matrix23d Jf;
+      Eigen::Matrix2d Jp;
+      transform(a, p, &Jf, &Jp);
+      EXPECT_TRUE(JacobianMatches(
+          Jf,
+          [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+            return transform(Pose2::FromVector(v), p, nullptr, nullptr);
+          },
+          a.vector()));
+      EXPECT_TRUE(JacobianMatches(
+          Jp,
+          [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+            return transform(a, Eigen::Vector2d(v), nullptr, nullptr);
+          },
+          p));
+    }
   }
 }
 

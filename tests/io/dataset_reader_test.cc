@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "subslam/io/dataset_writer.h"
+#include "subslam/io/run_output_writer.h"
 #include "subslam/io/steps.h"
 #include "subslam/sim/simulator.h"
 #include "test_util.h"
@@ -142,6 +143,45 @@ TEST_F(MalformedDataset, BadTruthIdAndRange) {
   ExpectError({"o.dat:1", "'truth_id'"});
   Write("o.dat", "0.1 -5 0.2 2\n");
   ExpectError({"o.dat:1", "'range'", "must be > 0"});
+}
+
+TEST_F(MalformedDataset, DuplicateTruthLandmarkId) {
+  Write("dataset.json", R"({"format": "subslam-dataset/1", "name": "tiny",
+  "motion": {"model": "unicycle", "controls_file": "c.dat", "sigma_v": 0.1, "sigma_omega": 0.01},
+  "sensor": {"type": "range_bearing", "observations_file": "o.dat", "sigma_range": 0.1,
+             "sigma_bearing": 0.01, "max_range": 30},
+  "ground_truth": {"landmarks_file": "l.dat"}})");
+  Write("l.dat", "0 1 2\n1 3 4\n0 5 6\n");
+  ExpectError({"l.dat:3", "'id'", "unique"});
+}
+
+TEST_F(MalformedDataset, UnknownModelAndSteeringOutOfRange) {
+  Write("dataset.json", R"({"format": "subslam-dataset/1", "name": "tiny",
+  "motion": {"model": "tricycle", "controls_file": "c.dat", "sigma_v": 0.1},
+  "sensor": {"type": "range_bearing", "observations_file": "o.dat", "sigma_range": 0.1,
+             "sigma_bearing": 0.01, "max_range": 30}})");
+  ExpectError({"motion.model", "tricycle"});
+  Write("dataset.json", R"({"format": "subslam-dataset/1", "name": "tiny",
+  "motion": {"model": "ackermann", "controls_file": "c.dat", "sigma_v": 0.1, "sigma_steer": 0.01,
+             "wheelbase": 2.5},
+  "sensor": {"type": "range_bearing", "observations_file": "o.dat", "sigma_range": 0.1,
+             "sigma_bearing": 0.01, "max_range": 30}})");
+  Write("c.dat", "0 1 0\n0.1 1 2.0\n");
+  ExpectError({"c.dat:2", "'steer'"});
+}
+
+TEST(ReadTrajectoryCsv, RejectsMalformedLines) {
+  const std::string path = ::testing::TempDir() + "/subslam_bad_trajectory.csv";
+  ASSERT_TRUE(WriteTextFile(path, "t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt\n"
+                                  "0,1,2,3,1,0,0,1,0,1\n0.1,1,2,3\n").ok());
+  absl::StatusOr<Trajectory> t = ReadTrajectoryCsv(path);
+  ASSERT_FALSE(t.ok());
+  EXPECT_NE(t.status().message().find(":3: expected 10 columns"), std::string::npos)
+      << t.status().message();
+  ASSERT_TRUE(WriteTextFile(path, "header\n0,1,x,3,1,0,0,1,0,1\n").ok());
+  t = ReadTrajectoryCsv(path);
+  ASSERT_FALSE(t.ok());
+  EXPECT_NE(t.status().message().find(":2: column 3"), std::string::npos) << t.status().message();
 }
 
 TEST(WriteDataset, RoundTripIsExact) {

@@ -9,28 +9,27 @@
 namespace subslam::models {
 namespace {
 
-using testing::kJacobianTolerance;
+using testing::JacobianMatches;
 using testing::MatricesNear;
-using testing::NumericalJacobian;
 using testing::TestPoses;
 
 void CheckJacobians(const MotionModel& model, const Pose2& x, const Eigen::Vector2d& u, double dt) {
   Eigen::Matrix3d Jx;
   Matrix32d Ju;
   model.Predict(x, u, dt, &Jx, &Ju);
-  EXPECT_TRUE(MatricesNear(NumericalJacobian(
-                               [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-                                 return model.Predict(Pose2::FromVector(v), u, dt).vector();
-                               },
-                               x.vector(), {2}),
-                           Jx, kJacobianTolerance))
+  EXPECT_TRUE(JacobianMatches(
+      Jx,
+      [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+        return model.Predict(Pose2::FromVector(v), u, dt).vector();
+      },
+      x.vector(), {2}))
       << model.Name() << " J_x at " << x << " u " << u.transpose();
-  EXPECT_TRUE(MatricesNear(NumericalJacobian(
-                               [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-                                 return model.Predict(x, Eigen::Vector2d(v), dt).vector();
-                               },
-                               u, {2}),
-                           Ju, kJacobianTolerance))
+  EXPECT_TRUE(JacobianMatches(
+      Ju,
+      [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+        return model.Predict(x, Eigen::Vector2d(v), dt).vector();
+      },
+      u, {2}))
       << model.Name() << " J_u at " << x << " u " << u.transpose();
 }
 

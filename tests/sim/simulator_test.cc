@@ -60,6 +60,25 @@ TEST(Simulator, PaperParameters) {
   EXPECT_FALSE(MakeScenario("no-such-scenario", o).ok());
 }
 
+TEST(ScenarioOptions, RejectsInvalidKnobs) {
+  ScenarioOptions o;
+  EXPECT_TRUE(o.Validate().ok());
+  o.detection_probability = 1.5;
+  EXPECT_FALSE(MakeScenario("hybrid-120m", o).ok());
+  o = {};
+  o.false_alarm_probability = -0.1;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.duration_s = 0.0;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.fmj_case = 3;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.random_noise_scale = 0.0;
+  EXPECT_FALSE(o.Validate().ok());
+}
+
 TEST(Simulator, DetectionsMatchTruthWithinNoise) {
   ScenarioOptions o;
   o.seed = 3;
