@@ -97,12 +97,35 @@ void EkfSlam::Predict(const Eigen::Vector2d& u, double dt) {
   }
 }
 
+Eigen::Matrix2d EkfSlam::LandmarkCovarianceBlock(int oa, int ob) const {
+  // Only the lower triangle of the landmark-landmark part is kept current.
+  if (oa < ob) return P_.block<2, 2>(ob, oa).transpose();
+  Eigen::Matrix2d block = P_.block<2, 2>(oa, ob);
+  if (oa == ob) block(0, 1) = block(1, 0);
+  return block;
+}
+
+void EkfSlam::LandmarkColumns(int o, Eigen::Ref<Eigen::MatrixXd> out) const {
+  // Rows above the diagonal block come from the lower triangle, transposed.
+  out.topRows(o) = P_.block(o, 0, 2, o).transpose();
+  out.bottomRows(dim_ - o) = P_.block(o, o, dim_ - o, 2);
+  out(o, 1) = P_(o + 1, o);
+}
+
+void EkfSlam::SyncPoseRows() {
+  // The pose rows are read directly (prediction, cross-covariances, new landmarks),
+  // so they are mirrored from the authoritative pose columns.
+  auto pose_block = P_.topLeftCorner<3, 3>();
+  pose_block.triangularView<Eigen::StrictlyUpper>() = pose_block.transpose();
+  P_.block(0, 3, 3, dim_ - 3) = P_.block(3, 0, dim_ - 3, 3).transpose();
+}
+
 Eigen::Matrix2d EkfSlam::CrossCovariance(const Prediction& a, const Prediction& b) const {
   const int oa = Offset(a.landmark), ob = Offset(b.landmark);
   return a.H_pose * P_.topLeftCorner<3, 3>() * b.H_pose.transpose() +
          a.H_pose * P_.block<3, 2>(0, ob) * b.H_landmark.transpose() +
          a.H_landmark * P_.block<2, 3>(oa, 0) * b.H_pose.transpose() +
-         a.H_landmark * P_.block<2, 2>(oa, ob) * b.H_landmark.transpose();
+         a.H_landmark * LandmarkCovarianceBlock(oa, ob) * b.H_landmark.transpose();
 }
 
 void EkfSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
@@ -199,11 +222,12 @@ void EkfSlam::Update(const io::Scan& scan) {
       pred[a] = &predictions[prediction_of_landmark[pairs[a].second->landmark]];
     }
     Eigen::MatrixXd PHt(dim_, 2 * k);
+    Eigen::MatrixXd landmark_columns(dim_, 2);
     Eigen::VectorXd nu(2 * k);
     for (int a = 0; a < k; ++a) {
-      PHt.middleCols<2>(2 * a) =
-          P_.topLeftCorner(dim_, 3) * pred[a]->H_pose.transpose() +
-          P_.block(0, Offset(pred[a]->landmark), dim_, 2) * pred[a]->H_landmark.transpose();
+      LandmarkColumns(Offset(pred[a]->landmark), landmark_columns);
+      PHt.middleCols<2>(2 * a).noalias() = P_.topLeftCorner(dim_, 3) * pred[a]->H_pose.transpose();
+      PHt.middleCols<2>(2 * a).noalias() += landmark_columns * pred[a]->H_landmark.transpose();
       nu.segment<2>(2 * a) = pairs[a].second->innovation;
     }
     Eigen::MatrixXd S(2 * k, 2 * k);
@@ -225,9 +249,9 @@ void EkfSlam::Update(const io::Scan& scan) {
     llt.matrixL().solveInPlace(whitened);
     x_.head(dim_).noalias() += Wt.transpose() * whitened;
     x_[2] = WrapAngle(x_[2]);
-    auto block = P_.topLeftCorner(dim_, dim_);
-    block.selfadjointView<Eigen::Lower>().rankUpdate(Wt.transpose(), -1.0);
-    block.triangularView<Eigen::StrictlyUpper>() = block.transpose();
+    // Lower triangle only: mirroring the whole matrix would cost as much as the update.
+    P_.topLeftCorner(dim_, dim_).selfadjointView<Eigen::Lower>().rankUpdate(Wt.transpose(), -1.0);
+    SyncPoseRows();
     counters_.associated += k;
   }
 
@@ -307,7 +331,8 @@ std::vector<LandmarkEstimate> EkfSlam::Map() const {
   std::vector<LandmarkEstimate> out;
   for (int i = 0; i < num_landmarks(); ++i) {
     if (!landmarks_[i].confirmed) continue;
-    out.push_back({landmarks_[i].id, x_.segment<2>(Offset(i)), P_.block<2, 2>(Offset(i), Offset(i))});
+    out.push_back({landmarks_[i].id, x_.segment<2>(Offset(i)),
+                   LandmarkCovarianceBlock(Offset(i), Offset(i))});
   }
   return out;
 }

@@ -14,6 +14,7 @@
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/frontend/dead_reckoning.h"
 #include "subslam/io/steps.h"
+#include "subslam/models/unicycle_model.h"
 #include "subslam/sim/simulator.h"
 #include "test_util.h"
 
@@ -212,6 +213,63 @@ TEST(EkfSlam, CovarianceStaysSymmetricPositiveDefinite) {
   EXPECT_LT((P - P.transpose()).cwiseAbs().maxCoeff(), 1e-9);
   Eigen::LLT<Eigen::MatrixXd> llt(P);
   EXPECT_EQ(llt.info(), Eigen::Success);
+}
+
+// The batch update equals the textbook EKF update x⁺ = x + Kν, P⁺ = (I − KH)P with
+// K = PHᵀ(HPHᵀ + R)⁻¹ computed densely from the state before the scan (H by numerical
+// differentiation of the sensor model). Covers the lower-triangle storage of P.
+TEST(EkfSlam, BatchUpdateEqualsDenseTextbookUpdate) {
+  models::RangeBearingConfig sensor;
+  sensor.sigma_range_m = 0.3;
+  sensor.sigma_bearing_rad = 0.03;
+  models::ControlNoise noise;
+  noise.sigma_u0 = 0.2;
+  noise.sigma_u1 = 0.05;
+  EkfSlam ekf(std::make_unique<models::UnicycleModel>(noise), sensor, Pose2(1.0, -2.0, 0.3), {});
+  const models::RangeBearingModel model(sensor);
+  const std::vector<Eigen::Vector2d> landmarks = {{10, 0}, {4, 9}, {-3, 8}, {12, -7}};
+  auto scan_from = [&](const Pose2& p, double perturbation) {
+    io::Scan scan;
+    for (size_t i = 0; i < landmarks.size(); ++i) {
+      const Eigen::Vector2d z = model.Observe(p, landmarks[i]);
+      scan.detections.push_back({z[0] + perturbation * (i + 1), z[1] - 0.2 * perturbation, NAN, 0});
+    }
+    return scan;
+  };
+  ekf.Update(scan_from(ekf.pose(), 0.0));  // four new landmarks, correlated through the pose
+  ASSERT_EQ(ekf.num_landmarks(), 4);
+  for (int k = 0; k < 3; ++k) {
+    ekf.Predict({1.0, 0.1}, 0.5);
+    const Eigen::VectorXd x = ekf.mean();
+    const Eigen::MatrixXd P = ekf.covariance();
+    const io::Scan scan = scan_from(ekf.pose(), 0.05);
+    const int n = static_cast<int>(x.size()), m = 2 * static_cast<int>(landmarks.size());
+    auto predict_all = [&](const Eigen::VectorXd& s) {
+      Eigen::VectorXd h(m);
+      for (int i = 0; i < m / 2; ++i) {
+        h.segment<2>(2 * i) = model.Observe(Pose2::FromVector(s.head<3>()), s.segment<2>(3 + 2 * i));
+      }
+      return h;
+    };
+    const Eigen::MatrixXd H = testing::NumericalJacobian(predict_all, x, {});
+    Eigen::VectorXd nu(m);
+    const Eigen::VectorXd h = predict_all(x);
+    for (int i = 0; i < m / 2; ++i) {
+      nu.segment<2>(2 * i) =
+          models::RangeBearingModel::Difference(scan.detections[i].z(), h.segment<2>(2 * i));
+    }
+    Eigen::MatrixXd R = Eigen::MatrixXd::Zero(m, m);
+    for (int i = 0; i < m / 2; ++i) R.block<2, 2>(2 * i, 2 * i) = model.NoiseCovariance();
+    const Eigen::MatrixXd S = H * P * H.transpose() + R;
+    const Eigen::MatrixXd K = S.ldlt().solve(H * P).transpose();  // S symmetric
+    const Eigen::VectorXd x_expected = x + K * nu;
+    const Eigen::MatrixXd P_expected = (Eigen::MatrixXd::Identity(n, n) - K * H) * P;
+
+    ekf.Update(scan);
+    ASSERT_EQ(ekf.num_landmarks(), 4) << "every detection must associate";
+    EXPECT_TRUE(testing::MatricesNear(ekf.mean(), x_expected, 1e-6)) << "scan " << k;
+    EXPECT_TRUE(testing::MatricesNear(ekf.covariance(), P_expected, 1e-6)) << "scan " << k;
+  }
 }
 
 TEST(EkfSlamOptions, ValidationRejectsNonsense) {

@@ -93,7 +93,9 @@ class EkfSlam final : public OnlineEstimator {
   const EkfSlamCounters& counters() const { return counters_; }
   // The full state mean and covariance (views valid until the next call).
   Eigen::VectorXd mean() const { return x_.head(dim_); }
-  Eigen::MatrixXd covariance() const { return P_.topLeftCorner(dim_, dim_); }
+  Eigen::MatrixXd covariance() const {
+    return P_.topLeftCorner(dim_, dim_).selfadjointView<Eigen::Lower>();
+  }
 
  private:
   struct LandmarkInfo {
@@ -114,6 +116,10 @@ class EkfSlam final : public OnlineEstimator {
   void AddLandmark(const Eigen::Vector2d& z, double existence);
   void RemoveLandmarks(const std::vector<int>& sorted_indices);
   Eigen::Matrix2d CrossCovariance(const Prediction& a, const Prediction& b) const;
+  // Covariance access under the storage invariant (see P_).
+  Eigen::Matrix2d LandmarkCovarianceBlock(int oa, int ob) const;
+  void LandmarkColumns(int offset, Eigen::Ref<Eigen::MatrixXd> out) const;
+  void SyncPoseRows();
   void UpdateExistence(LandmarkInfo* info, bool detected) const;
 
   std::unique_ptr<models::MotionModel> motion_;
@@ -122,7 +128,10 @@ class EkfSlam final : public OnlineEstimator {
   double gate_d2_ = 0.0, new_landmark_d2_ = 0.0;
   int dim_ = 3;
   Eigen::VectorXd x_;
-  Eigen::MatrixXd P_;  // capacity × capacity; the top-left dim_ × dim_ block is live
+  // capacity × capacity; the top-left dim_ × dim_ block is live. Storage invariant:
+  // the lower triangle and the pose rows (0-2) are current; the landmark-landmark
+  // part above the diagonal is stale (never read).
+  Eigen::MatrixXd P_;
   std::vector<LandmarkInfo> landmarks_;
   int next_id_ = 0;
   EkfSlamCounters counters_;
