@@ -5,23 +5,12 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
-#include "absl/time/clock.h"
+#include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/graph/internal/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
 namespace {
-
-class StageTimer {
- public:
-  StageTimer(StageTimes* times, const char* stage) : times_(times), stage_(stage) {}
-  ~StageTimer() { (*times_)[stage_] += absl::ToDoubleSeconds(absl::Now() - start_); }
-
- private:
-  StageTimes* times_;
-  const char* stage_;
-  absl::Time start_ = absl::Now();
-};
 
 bool InOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
 

@@ -1,0 +1,206 @@
+// FastSLAM 2.0 with unknown data association: the Rao-Blackwellised particle filter of
+// the local mapper (paper 001 §2-3, Montemerlo et al. 2003), usable on its own as the
+// single-map FastSLAM 2.0 baseline (`subslam run --frontend fastslam`).
+//
+// Each particle holds a pose hypothesis and its own map of 2-D Gaussian landmarks.
+//  * Between scans a particle's pose is a Gaussian N(x̄, Σ): the controls move x̄ and
+//    accumulate the linearised process noise in Σ (F Σ Fᵀ + G M Gᵀ), so the pose noise
+//    of all the steps since the last scan enters the FastSLAM 2.0 proposal at once.
+//  * Scan (per particle): each detection in turn is associated by maximum likelihood
+//    (or sampled, option) among the landmarks whose predicted measurement passes the
+//    χ²₂ individual gate, with predictive density N(ν; 0, H_x Σ H_xᵀ + H_l Σ_l H_lᵀ + R);
+//    a detection outside the larger new-landmark gate for every landmark starts a new
+//    landmark, one between the gates is left unexplained. An associated detection
+//    updates the proposal (x̄, Σ) by an EKF step with measurement noise H_l Σ_l H_lᵀ + R
+//    (the FastSLAM 2.0 proposal); after the scan the pose is sampled from it and Σ reset.
+//    The importance weight gains the predictive density of every associated detection
+//    and the constant new-landmark density p0 (see FastSlamOptions) for every other.
+//    Predicted measurements are computed once per scan and corrected to first order
+//    for the proposal's shift, so the inner association loop allocates nothing.
+//  * Landmarks are updated by 2-D EKFs at the sampled pose; new ones initialised by the
+//    inverse sensor model. An optional signature cue (e.g. trunk diameter) multiplies
+//    the association likelihood by N(s − s̄; 0, σ_s²(1 + 1/k)) over the k signatures seen.
+//  * Existence (HybridSLAM Eq. 11) per particle and landmark, with detection probability
+//    α and false-alarm probability β: detected → pα / (pα + (1 − p)β); expected inside
+//    the field of view but not even gated → p(1 − α) / (p(1 − α) + (1 − p)(1 − β)).
+//    Every `cull_every_scans` scans, tentative landmarks below `delete_existence` are
+//    removed, so false alarms do not survive.
+//  * Correspondence voting (HybridSLAM §3.1): each detection's decisions (ignore, new,
+//    or an existing landmark's common feature id) are tallied with the particles'
+//    weights; the winner's common id is written into every landmark the detection
+//    modified or created, overwriting earlier ids, so a consensus can be overturned.
+//  * Systematic resampling when the effective sample size falls below
+//    `resample_ess_ratio` × N.
+//  * Storage: a landmark's Gaussian is shared between particles (std::shared_ptr to
+//    const) and copied only when a particle that shares it updates it, so resampling
+//    copies pointers, never whole maps. Existence and the common id live in the
+//    particle's own small per-landmark record.
+//
+// Frames: the filter works in one frame, the one of `start` given to the constructor or
+// Reset() (the world for the single-map filter, the local map's start frame — identity
+// start — for the local mapper). Units: metres, radians, seconds.
+// Deterministic for a given seed. Not thread-safe.
+#ifndef SUBSLAM_FRONTEND_FASTSLAM_H_
+#define SUBSLAM_FRONTEND_FASTSLAM_H_
+
+#include <cstdint>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/frontend/moment_matching.h"
+#include "subslam/frontend/online_estimator.h"
+#include "subslam/models/motion_model.h"
+#include "subslam/models/range_bearing_model.h"
+
+namespace subslam::frontend {
+
+struct FastSlamOptions {
+  int num_particles = 100;
+  uint64_t seed = 1;
+  // Individual-compatibility gate, P(χ²₂ ≤ gate).
+  double gate_probability = 0.99;
+  // A detection outside this gate for every landmark of a particle starts a new one.
+  double new_landmark_probability = 0.9999;
+  // false: maximum-likelihood association; true: sample the association among the
+  // gated landmarks and "new" in proportion to their likelihoods.
+  bool sample_association = false;
+  // p0, the density of a detection explained by a new landmark or by clutter, is the
+  // Gaussian density N(·; 0, R) at the new-landmark gate's boundary, R the sensor noise.
+  // Resample when N_eff < resample_ess_ratio · N.
+  double resample_ess_ratio = 0.5;
+  // Existence model (HybridSLAM Eq. 11): the filter's α and β.
+  double detection_probability = 0.9;
+  double false_alarm_probability = 0.05;
+  double prior_existence = 0.5;
+  double confirm_existence = 0.95;
+  double delete_existence = 0.05;
+  double max_existence = 0.9999;
+  double expect_range_margin_m = 1.0;
+  double expect_bearing_margin_rad = 0.05;
+  int cull_every_scans = 10;
+  // Signature cue: σ of one signature measurement (same units as the signature);
+  // 0 disables the cue.
+  double sigma_signature = 0.0;
+  // Moment matching used by pose(), Map() and the local mapper.
+  MomentMatchingOptions moment_matching;
+
+  absl::Status Validate() const;
+};
+
+struct FastSlamCounters {
+  long scans = 0;
+  long detections = 0;
+  long resamples = 0;
+  long landmarks_created = 0;  // summed over particles
+  long landmarks_culled = 0;   // summed over particles
+  long landmark_copies = 0;    // copy-on-write copies
+  long features = 0;           // common feature ids issued
+};
+
+class FastSlam final : public OnlineEstimator {
+ public:
+  FastSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+           const Pose2& start, const FastSlamOptions& options);
+
+  std::string Name() const override { return "fastslam"; }
+  void Predict(const Eigen::Vector2d& u, double dt) override;
+  void Update(const io::Scan& scan) override;
+  // Moment-matched pose and covariance (Eqs. 6-7 over the pose block).
+  Pose2 pose() const override;
+  Eigen::Matrix3d pose_covariance() const override;
+  // Moment-matched landmarks with existence ≥ options.moment_matching.min_existence.
+  std::vector<LandmarkEstimate> Map() const override;
+  StageTimes stage_times() const override { return times_; }
+  std::map<std::string, double> Counters() const override;
+
+  // Starts over at `start` with zero uncertainty, no landmarks and equal weights (a new
+  // local map). Common feature ids keep increasing across resets.
+  void Reset(const Pose2& start);
+  // The particles as Gaussian hypotheses, ready for MomentMatch().
+  std::vector<ParticleHypothesis> Hypotheses() const;
+  MomentMatchedGaussian MomentMatched() const;
+
+  // N_eff / N of the current weights, in (0, 1].
+  double EffectiveSampleSizeRatio() const;
+  // Number of common features with existence ≥ confirm_existence (weighted over
+  // particles as in moment matching).
+  int NumConfirmedFeatures() const;
+  // The common feature id voted for each detection of the last scan (−1: ignored), in
+  // the order of the scan's detections that were in range.
+  const std::vector<int>& last_scan_features() const { return scan_features_; }
+  // The largest share of weight that voted against the winner, over the last scan's
+  // detections (0: unanimous).
+  double last_scan_disagreement() const { return scan_disagreement_; }
+  int num_particles() const { return static_cast<int>(particles_.size()); }
+  const FastSlamCounters& counters() const { return counters_; }
+
+ private:
+  struct LandmarkGaussian {
+    Eigen::Vector2d mean;
+    Eigen::Matrix2d covariance;
+    double signature_sum = 0.0;  // over `signatures` detections
+    int signatures = 0;
+  };
+  struct LandmarkRecord {  // per particle
+    std::shared_ptr<const LandmarkGaussian> gaussian;
+    double existence = 0.5;
+    int feature = -1;  // common feature id
+    bool confirmed = false;
+    bool gated = false;  // scratch: some detection of this scan within the new-landmark gate
+  };
+  struct Particle {
+    Pose2 pose;
+    Eigen::Matrix3d pose_covariance = Eigen::Matrix3d::Zero();
+    double log_weight = 0.0;  // normalised: Σ exp(log_weight) = 1 after each scan
+    std::vector<LandmarkRecord> landmarks;
+  };
+  struct Prediction {  // of one landmark of the particle being updated
+    Eigen::Vector2d z;
+    Matrix23d H_pose;
+    Eigen::Matrix2d Z;  // H_l Σ_l H_lᵀ + R
+    bool in_reach = false;
+    bool gated = false;  // some detection within the new-landmark gate
+    bool used = false;   // associated in this scan
+  };
+  static constexpr int kNew = -1;
+  static constexpr int kIgnore = -2;
+
+  void UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
+                      const std::vector<double>& signature, int* decisions);
+  void ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
+                      const std::vector<double>& signature, const int* decisions);
+  void Vote(int m);
+  void Normalise();
+  void Resample();
+  void UpdateExistence(LandmarkRecord* record, bool detected) const;
+  LandmarkGaussian* Mutable(LandmarkRecord* record);
+
+  std::unique_ptr<models::MotionModel> motion_;
+  models::RangeBearingModel sensor_;
+  FastSlamOptions options_;
+  double gate_d2_ = 0.0, new_landmark_d2_ = 0.0, log_p0_ = 0.0;
+  std::vector<Particle> particles_, resampled_;
+  std::mt19937_64 rng_;
+  int next_feature_ = 0;
+  // Scratch reused across scans.
+  std::vector<Prediction> predictions_;
+  std::vector<int> decisions_;        // particles × detections: landmark index | kNew | kIgnore
+  std::vector<int> decision_label_;   // the common id each decision votes for
+  std::vector<int> voted_label_;      // per detection: the id written into landmarks
+  std::vector<std::pair<int, double>> tally_;
+  std::vector<double> likelihoods_;
+  std::vector<int> scan_features_;
+  std::vector<Eigen::Vector2d> z_;
+  std::vector<double> signature_;
+  std::vector<bool> touched_;
+  mutable std::vector<int> features_scratch_;
+  double scan_disagreement_ = 0.0;
+  FastSlamCounters counters_;
+  StageTimes times_;
+};
+
+}  // namespace subslam::frontend
+
+#endif  // SUBSLAM_FRONTEND_FASTSLAM_H_

@@ -1,0 +1,79 @@
+// Conversion of a weighted set of particle hypotheses (a Gaussian mixture) to one
+// Gaussian by moment matching (HybridSLAM, paper 001 §2.2-3.2, Eqs. 6-9):
+//   x = Σ_p w_p x_p,   P = Σ_p w_p [P_p + (x_p − x)(x_p − x)ᵀ],
+// with x_p = [pose_p, μ_{δ(1,p)}, …, μ_{δ(N,p)}] ordered by common feature id and P_p
+// block-diagonal (the particle's pose covariance, then its landmark covariances).
+//
+// Headings are averaged as wrapped deviations from the heaviest particle's heading, so
+// particles on both sides of ±π average correctly.
+//
+// Corner cases (documented options):
+//  * A particle holding several landmarks voted to the same common feature: the one
+//    with the highest existence is used (HybridSLAM picks one at random), or the
+//    duplicates are fused (product of their Gaussians).
+//  * A common feature missing from some particles: kIgnoreParticle (HybridSLAM) leaves
+//    those particles out of that feature's moments — each mean and covariance block is
+//    taken over the particles holding the feature(s) involved, with the weights
+//    renormalised; kDiscardParticle (Combined SLAM) uses only the particles holding
+//    every exported feature. Ignoring can in rare cases give an indefinite matrix: it
+//    is then repaired by raising its eigenvalues to a floor, and the repair is counted.
+//  * Existence of a common feature: Σ_p w_p e_p with e_p = 0 for a particle lacking it,
+//    so features the particles disagree about get a low existence; only features with
+//    existence ≥ min_existence are exported.
+#ifndef SUBSLAM_FRONTEND_MOMENT_MATCHING_H_
+#define SUBSLAM_FRONTEND_MOMENT_MATCHING_H_
+
+#include <Eigen/Core>
+#include <limits>
+#include <span>
+#include <vector>
+
+#include "subslam/graph/pose2.h"
+
+namespace subslam::frontend {
+
+struct FeatureHypothesis {
+  int feature = 0;  // common feature id
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Identity();
+  double existence = 1.0;
+  double signature = std::numeric_limits<double>::quiet_NaN();  // NaN when absent
+};
+
+struct ParticleHypothesis {
+  double weight = 1.0;  // ≥ 0; normalised inside
+  Pose2 pose;
+  Eigen::Matrix3d pose_covariance = Eigen::Matrix3d::Zero();
+  std::vector<FeatureHypothesis> features;  // any order; ids may repeat
+};
+
+enum class MissingFeaturePolicy { kIgnoreParticle, kDiscardParticle };
+enum class DuplicateFeaturePolicy { kHighestExistence, kFuse };
+
+struct MomentMatchingOptions {
+  MissingFeaturePolicy missing = MissingFeaturePolicy::kIgnoreParticle;
+  DuplicateFeaturePolicy duplicates = DuplicateFeaturePolicy::kHighestExistence;
+  // Export only common features whose existence (see above) is at least this.
+  double min_existence = 0.95;
+  // Eigenvalue floor of a repaired covariance (relative to its largest eigenvalue).
+  double repair_relative_floor = 1e-9;
+};
+
+struct MomentMatchedGaussian {
+  Eigen::VectorXd mean;        // [pose (3), feature 1 (2), …], features by increasing id
+  Eigen::MatrixXd covariance;
+  std::vector<int> features;   // common ids, increasing
+  std::vector<double> existence;
+  std::vector<double> signature;  // weighted mean over particles holding it (NaN if none)
+  int covariance_repairs = 0;
+  int particles_used = 0;         // with nonzero weight (kDiscardParticle: holding all)
+  bool fell_back_to_ignore = false;  // kDiscardParticle found no particle holding all
+};
+
+// Requires at least one particle with positive weight.
+MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
+                                  const MomentMatchingOptions& options = {});
+
+}  // namespace subslam::frontend
+
+#endif  // SUBSLAM_FRONTEND_MOMENT_MATCHING_H_

@@ -1,0 +1,496 @@
+#include "subslam/frontend/fastslam.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "subslam/frontend/internal/stage_timer.h"
+#include "subslam/graph/internal/check.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::frontend {
+namespace {
+
+bool InOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
+
+// log N(ν; 0, S) for 2-D ν given S⁻¹ν·ν = d2.
+double LogGaussian2(double d2, const Eigen::Matrix2d& S) {
+  return -0.5 * d2 - std::log(2.0 * std::numbers::pi) - 0.5 * std::log(S.determinant());
+}
+
+}  // namespace
+
+absl::Status FastSlamOptions::Validate() const {
+  if (num_particles < 1) return absl::InvalidArgumentError("num_particles must be >= 1");
+  if (!InOpenUnit(gate_probability) || !InOpenUnit(new_landmark_probability) ||
+      new_landmark_probability < gate_probability) {
+    return absl::InvalidArgumentError(
+        "need 0 < gate_probability <= new_landmark_probability < 1");
+  }
+  if (!(resample_ess_ratio >= 0.0 && resample_ess_ratio <= 1.0)) {
+    return absl::InvalidArgumentError("resample_ess_ratio must be in [0, 1]");
+  }
+  if (!InOpenUnit(detection_probability) || !InOpenUnit(false_alarm_probability)) {
+    return absl::InvalidArgumentError(
+        "existence model: detection and false-alarm probabilities must be in (0, 1)");
+  }
+  if (!(InOpenUnit(prior_existence) && InOpenUnit(confirm_existence) &&
+        InOpenUnit(delete_existence) && InOpenUnit(max_existence) &&
+        delete_existence < confirm_existence && confirm_existence < max_existence)) {
+    return absl::InvalidArgumentError(
+        "existence thresholds must satisfy 0 < delete < confirm < max < 1");
+  }
+  if (cull_every_scans < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0) {
+    return absl::InvalidArgumentError("cull_every_scans >= 1 and margins >= 0 required");
+  }
+  if (!(sigma_signature >= 0.0 && std::isfinite(sigma_signature))) {
+    return absl::InvalidArgumentError("sigma_signature must be finite and >= 0");
+  }
+  if (!(moment_matching.min_existence >= 0.0 && moment_matching.min_existence <= 1.0)) {
+    return absl::InvalidArgumentError("moment_matching.min_existence must be in [0, 1]");
+  }
+  return absl::OkStatus();
+}
+
+FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
+                   const models::RangeBearingConfig& sensor, const Pose2& start,
+                   const FastSlamOptions& options)
+    : motion_(std::move(motion)), sensor_(sensor), options_(options), rng_(options.seed) {
+  SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
+  gate_d2_ = models::ChiSquareQuantile(options_.gate_probability, 2);
+  new_landmark_d2_ = models::ChiSquareQuantile(options_.new_landmark_probability, 2);
+  log_p0_ = LogGaussian2(new_landmark_d2_, sensor_.NoiseCovariance());
+  for (const char* stage : {"predict", "associate", "update", "resample"}) times_[stage] = 0;
+  Reset(start);
+}
+
+void FastSlam::Reset(const Pose2& start) {
+  particles_.assign(options_.num_particles, Particle{});
+  const double log_w = -std::log(static_cast<double>(options_.num_particles));
+  for (Particle& p : particles_) {
+    p.pose = start;
+    p.log_weight = log_w;
+  }
+  scan_features_.clear();
+  scan_disagreement_ = 0.0;
+}
+
+void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
+  if (dt <= 0.0) return;
+  StageTimer timer(&times_, "predict");
+  const Eigen::Matrix2d M = motion_->noise().Covariance(u);
+  Eigen::Matrix3d F;
+  Matrix32d G;
+  for (Particle& p : particles_) {
+    p.pose = motion_->Predict(p.pose, u, dt, &F, &G);
+    p.pose_covariance = F * p.pose_covariance * F.transpose() + G * M * G.transpose();
+  }
+}
+
+void FastSlam::UpdateExistence(LandmarkRecord* record, bool detected) const {
+  const double a = options_.detection_probability, b = options_.false_alarm_probability;
+  const double p = record->existence;
+  const double q = detected ? p * a / (p * a + (1 - p) * b)
+                            : p * (1 - a) / (p * (1 - a) + (1 - p) * (1 - b));
+  record->existence = std::clamp(q, 1e-9, options_.max_existence);
+  if (record->existence > options_.confirm_existence) record->confirmed = true;
+}
+
+FastSlam::LandmarkGaussian* FastSlam::Mutable(LandmarkRecord* record) {
+  if (record->gaussian.use_count() > 1) {
+    record->gaussian = std::make_shared<const LandmarkGaussian>(*record->gaussian);
+    ++counters_.landmark_copies;
+  }
+  // Sole owner: the object was created non-const, so writing through it is defined.
+  return const_cast<LandmarkGaussian*>(record->gaussian.get());
+}
+
+void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
+                              const std::vector<double>& signature, int* decisions) {
+  const Eigen::Matrix2d R = sensor_.NoiseCovariance();
+  const double reach = sensor_.config().max_range_m + 10.0;
+  const int n = static_cast<int>(particle->landmarks.size());
+  const int m = static_cast<int>(z.size());
+  const Pose2 x0 = particle->pose;
+  predictions_.resize(n);
+  for (int i = 0; i < n; ++i) {
+    Prediction& pr = predictions_[i];
+    const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
+    pr.used = pr.gated = false;
+    pr.in_reach = (l.mean - x0.translation()).squaredNorm() < reach * reach;
+    if (!pr.in_reach) continue;
+    Eigen::Matrix2d H_l;
+    pr.z = sensor_.Observe(x0, l.mean, &pr.H_pose, &H_l);
+    pr.Z = H_l * l.covariance * H_l.transpose() + R;
+  }
+  // Sequential FastSLAM 2.0 proposal: δ is the shift of the pose mean from x0.
+  Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d Sigma = particle->pose_covariance;
+  double log_w = 0.0;
+  for (int j = 0; j < m; ++j) {
+    int best = kNew;
+    double best_ll = -INFINITY, min_d2 = INFINITY;
+    likelihoods_.clear();
+    for (int i = 0; i < n; ++i) {
+      Prediction& pr = predictions_[i];
+      if (!pr.in_reach) continue;
+      Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+      nu -= pr.H_pose * delta;
+      nu[1] = WrapAngle(nu[1]);
+      const Eigen::Matrix2d S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
+      const std::optional<double> d2 = models::MahalanobisSquared2(nu, S);
+      SUBSLAM_CHECK(d2.has_value()) << "predictive covariance not positive definite";
+      min_d2 = std::min(min_d2, *d2);
+      if (*d2 < new_landmark_d2_) pr.gated = true;
+      if (*d2 >= gate_d2_ || pr.used) continue;
+      double ll = LogGaussian2(*d2, S);
+      const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
+      if (options_.sigma_signature > 0 && std::isfinite(signature[j]) && l.signatures > 0) {
+        const double var = options_.sigma_signature * options_.sigma_signature *
+                           (1.0 + 1.0 / l.signatures);
+        const double ds = signature[j] - l.signature_sum / l.signatures;
+        ll += -0.5 * ds * ds / var - 0.5 * std::log(2.0 * std::numbers::pi * var);
+      }
+      if (options_.sample_association) likelihoods_.push_back(static_cast<double>(i));
+      if (options_.sample_association) likelihoods_.push_back(ll);
+      if (ll > best_ll) {
+        best_ll = ll;
+        best = i;
+      }
+    }
+    if (options_.sample_association && !likelihoods_.empty()) {
+      // Sample among the gated landmarks and "new" (density p0).
+      double max_ll = std::max(best_ll, log_p0_), total = std::exp(log_p0_ - max_ll);
+      for (size_t k = 1; k < likelihoods_.size(); k += 2) total += std::exp(likelihoods_[k] - max_ll);
+      double r = std::uniform_real_distribution<double>(0.0, total)(rng_);
+      best = kNew;
+      for (size_t k = 0; k < likelihoods_.size(); k += 2) {
+        r -= std::exp(likelihoods_[k + 1] - max_ll);
+        if (r < 0) {
+          best = static_cast<int>(likelihoods_[k]);
+          best_ll = likelihoods_[k + 1];
+          break;
+        }
+      }
+    }
+    if (best >= 0) {
+      Prediction& pr = predictions_[best];
+      pr.used = true;
+      Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+      nu -= pr.H_pose * delta;
+      nu[1] = WrapAngle(nu[1]);
+      const Eigen::Matrix2d S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
+      const Eigen::Matrix<double, 3, 2> K = Sigma * pr.H_pose.transpose() * S.inverse();
+      delta += K * nu;
+      Sigma -= K * pr.H_pose * Sigma;
+      Sigma = 0.5 * (Sigma + Sigma.transpose()).eval();
+      log_w += best_ll;
+      decisions[j] = best;
+    } else {
+      // New landmark or unexplained: the density of an unmapped landmark or clutter.
+      log_w += log_p0_;
+      decisions[j] = (best == kNew && min_d2 > new_landmark_d2_) ? kNew : kIgnore;
+      if (options_.sample_association && min_d2 <= new_landmark_d2_ && !likelihoods_.empty()) {
+        decisions[j] = kNew;  // sampled "new" although something gated
+      }
+    }
+  }
+  // Sample the pose from the proposal N(x0 ⊕ δ, Σ).
+  Eigen::Vector3d x = x0.vector() + delta;
+  if (Sigma.trace() > 0.0) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+    eig.computeDirect(Sigma);
+    std::normal_distribution<double> normal;
+    Eigen::Vector3d xi(normal(rng_), normal(rng_), normal(rng_));
+    x += eig.eigenvectors() * (eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseProduct(xi));
+  }
+  for (int i = 0; i < n; ++i) particle->landmarks[i].gated = predictions_[i].gated;
+  particle->pose = Pose2::FromVector(x);
+  particle->pose.theta = WrapAngle(particle->pose.theta);
+  particle->pose_covariance.setZero();
+  particle->log_weight += log_w;
+}
+
+void FastSlam::Vote(int m) {
+  const int P = num_particles();
+  scan_features_.assign(m, -1);
+  voted_label_.assign(2 * m, kIgnore);  // [2j]: for modified landmarks, [2j+1]: for created
+  scan_disagreement_ = 0.0;
+  for (int j = 0; j < m; ++j) {
+    tally_.clear();
+    for (int p = 0; p < P; ++p) {
+      const int label = decision_label_[p * m + j];
+      const double w = std::exp(particles_[p].log_weight);
+      auto it = std::find_if(tally_.begin(), tally_.end(),
+                             [label](const auto& t) { return t.first == label; });
+      if (it == tally_.end()) {
+        tally_.push_back({label, w});
+      } else {
+        it->second += w;
+      }
+    }
+    const auto winner = std::max_element(tally_.begin(), tally_.end(), [](const auto& a, const auto& b) {
+      return a.second < b.second || (a.second == b.second && a.first > b.first);
+    });
+    double total = 0.0;
+    for (const auto& t : tally_) total += t.second;
+    scan_disagreement_ = std::max(scan_disagreement_, 1.0 - winner->second / total);
+    int label = winner->first;
+    if (label == kNew) {
+      label = next_feature_++;
+      ++counters_.features;
+    }
+    if (label >= 0) {
+      voted_label_[2 * j] = voted_label_[2 * j + 1] = label;
+      scan_features_[j] = label;
+    } else {
+      // Winner "ignore": landmarks that particles created anyway get a fresh minority id.
+      const bool created = std::any_of(tally_.begin(), tally_.end(),
+                                       [](const auto& t) { return t.first == kNew; });
+      if (created) {
+        voted_label_[2 * j + 1] = next_feature_++;
+        ++counters_.features;
+      }
+    }
+  }
+}
+
+void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
+                              const std::vector<double>& signature, const int* decisions) {
+  const Eigen::Matrix2d R = sensor_.NoiseCovariance();
+  const Pose2& x = particle->pose;
+  const int m = static_cast<int>(z.size());
+  const int n_before = static_cast<int>(particle->landmarks.size());
+  std::vector<LandmarkRecord>& landmarks = particle->landmarks;
+  std::vector<bool>& touched = touched_;
+  touched.assign(n_before, false);
+  for (int j = 0; j < m; ++j) {
+    const int d = decisions[j];
+    if (d >= 0) {
+      touched[d] = true;
+      LandmarkRecord& record = landmarks[d];
+      LandmarkGaussian* l = Mutable(&record);
+      Eigen::Matrix2d H_l;
+      const Eigen::Vector2d z_hat = sensor_.Observe(x, l->mean, nullptr, &H_l);
+      const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], z_hat);
+      const Eigen::Matrix2d S = H_l * l->covariance * H_l.transpose() + R;
+      const Eigen::Matrix2d K = l->covariance * H_l.transpose() * S.inverse();
+      l->mean += K * nu;
+      l->covariance -= K * H_l * l->covariance;
+      l->covariance = 0.5 * (l->covariance + l->covariance.transpose()).eval();
+      if (std::isfinite(signature[j])) {
+        l->signature_sum += signature[j];
+        ++l->signatures;
+      }
+      UpdateExistence(&record, true);
+      if (voted_label_[2 * j] != kIgnore) record.feature = voted_label_[2 * j];
+    } else if (d == kNew) {
+      auto l = std::make_shared<LandmarkGaussian>();
+      Eigen::Matrix2d G_z;
+      l->mean = sensor_.InverseObserve(x, z[j], nullptr, &G_z);
+      l->covariance = G_z * R * G_z.transpose();
+      if (std::isfinite(signature[j])) {
+        l->signature_sum = signature[j];
+        l->signatures = 1;
+      }
+      LandmarkRecord record;
+      record.gaussian = std::move(l);
+      record.existence = options_.prior_existence;
+      record.feature = voted_label_[2 * j + 1];
+      UpdateExistence(&record, true);
+      landmarks.push_back(std::move(record));
+      ++counters_.landmarks_created;
+    }
+  }
+  // Expected but missed: inside the field of view, not gated by any detection.
+  const double reach = sensor_.config().max_range_m + 10.0;
+  for (int i = 0; i < n_before; ++i) {
+    if (touched[i]) continue;
+    const LandmarkGaussian& l = *landmarks[i].gaussian;
+    if ((l.mean - x.translation()).squaredNorm() > reach * reach) continue;
+    const Eigen::Vector2d z_hat = sensor_.Observe(x, l.mean);
+    if (landmarks[i].gated || !sensor_.IsVisible(z_hat, options_.expect_range_margin_m,
+                                                 options_.expect_bearing_margin_rad)) {
+      continue;
+    }
+    UpdateExistence(&landmarks[i], false);
+  }
+  if (counters_.scans % options_.cull_every_scans == 0) {
+    const auto doomed = [this](const LandmarkRecord& r) {
+      return !r.confirmed && r.existence < options_.delete_existence;
+    };
+    const auto first = std::remove_if(landmarks.begin(), landmarks.end(), doomed);
+    counters_.landmarks_culled += landmarks.end() - first;
+    landmarks.erase(first, landmarks.end());
+  }
+}
+
+void FastSlam::Update(const io::Scan& scan) {
+  ++counters_.scans;
+  const models::RangeBearingConfig& rb = sensor_.config();
+  z_.clear();
+  signature_.clear();
+  for (const io::Detection& d : scan.detections) {
+    if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
+    z_.push_back(d.z());
+    signature_.push_back(d.signature);
+  }
+  const int m = static_cast<int>(z_.size());
+  const int P = num_particles();
+  counters_.detections += m;
+  decisions_.assign(static_cast<size_t>(P) * m, kIgnore);
+  decision_label_.assign(static_cast<size_t>(P) * m, kIgnore);
+  {
+    StageTimer timer(&times_, "associate");
+    for (int p = 0; p < P; ++p) {
+      Particle& particle = particles_[p];
+      int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
+      UpdateParticle(&particle, z_, signature_, decisions);
+      for (int j = 0; j < m; ++j) {
+        decision_label_[p * m + j] =
+            decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
+      }
+    }
+    Normalise();
+    Vote(m);
+  }
+  {
+    StageTimer timer(&times_, "update");
+    for (int p = 0; p < P; ++p) {
+      ApplyDecisions(&particles_[p], z_, signature_, decisions_.data() + static_cast<size_t>(p) * m);
+    }
+  }
+  StageTimer timer(&times_, "resample");
+  if (EffectiveSampleSizeRatio() < options_.resample_ess_ratio) Resample();
+}
+
+void FastSlam::Normalise() {
+  double max_log = -INFINITY;
+  for (const Particle& p : particles_) max_log = std::max(max_log, p.log_weight);
+  SUBSLAM_CHECK(std::isfinite(max_log)) << "every particle weight is zero or NaN";
+  double total = 0.0;
+  for (const Particle& p : particles_) total += std::exp(p.log_weight - max_log);
+  const double log_total = max_log + std::log(total);
+  for (Particle& p : particles_) p.log_weight -= log_total;
+}
+
+double FastSlam::EffectiveSampleSizeRatio() const {
+  double sum_sq = 0.0;
+  for (const Particle& p : particles_) sum_sq += std::exp(2.0 * p.log_weight);
+  return 1.0 / (sum_sq * num_particles());
+}
+
+void FastSlam::Resample() {
+  const int P = num_particles();
+  std::uniform_real_distribution<double> uniform(0.0, 1.0 / P);
+  const double u0 = uniform(rng_);
+  resampled_.resize(P);
+  double cumulative = std::exp(particles_[0].log_weight);
+  int source = 0;
+  for (int i = 0; i < P; ++i) {
+    const double u = u0 + static_cast<double>(i) / P;
+    while (u > cumulative && source + 1 < P) cumulative += std::exp(particles_[++source].log_weight);
+    resampled_[i] = particles_[source];  // copies landmark pointers, not landmarks
+  }
+  particles_.swap(resampled_);
+  const double log_w = -std::log(static_cast<double>(P));
+  for (Particle& p : particles_) p.log_weight = log_w;
+  ++counters_.resamples;
+}
+
+Pose2 FastSlam::pose() const {
+  size_t heaviest = 0;
+  for (size_t p = 1; p < particles_.size(); ++p) {
+    if (particles_[p].log_weight > particles_[heaviest].log_weight) heaviest = p;
+  }
+  const double reference = particles_[heaviest].pose.theta;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  double total = 0.0;
+  for (const Particle& p : particles_) {
+    const double w = std::exp(p.log_weight);
+    mean += w * Eigen::Vector3d(p.pose.x, p.pose.y, WrapAngle(p.pose.theta - reference));
+    total += w;
+  }
+  mean /= total;
+  return Pose2(mean.x(), mean.y(), WrapAngle(mean.z() + reference));
+}
+
+Eigen::Matrix3d FastSlam::pose_covariance() const {
+  const Pose2 mean = pose();
+  Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+  double total = 0.0;
+  for (const Particle& p : particles_) {
+    const double w = std::exp(p.log_weight);
+    const Eigen::Vector3d d(p.pose.x - mean.x, p.pose.y - mean.y, WrapAngle(p.pose.theta - mean.theta));
+    P += w * (p.pose_covariance + d * d.transpose());
+    total += w;
+  }
+  return P / total;
+}
+
+std::vector<ParticleHypothesis> FastSlam::Hypotheses() const {
+  std::vector<ParticleHypothesis> out(particles_.size());
+  for (size_t p = 0; p < particles_.size(); ++p) {
+    const Particle& particle = particles_[p];
+    out[p].weight = std::exp(particle.log_weight);
+    out[p].pose = particle.pose;
+    out[p].pose_covariance = particle.pose_covariance;
+    out[p].features.reserve(particle.landmarks.size());
+    for (const LandmarkRecord& r : particle.landmarks) {
+      const LandmarkGaussian& l = *r.gaussian;
+      out[p].features.push_back(
+          {r.feature, l.mean, l.covariance, r.existence,
+           l.signatures > 0 ? l.signature_sum / l.signatures
+                            : std::numeric_limits<double>::quiet_NaN()});
+    }
+  }
+  return out;
+}
+
+MomentMatchedGaussian FastSlam::MomentMatched() const {
+  const std::vector<ParticleHypothesis> h = Hypotheses();
+  return MomentMatch(h, options_.moment_matching);
+}
+
+std::vector<LandmarkEstimate> FastSlam::Map() const {
+  const MomentMatchedGaussian g = MomentMatched();
+  std::vector<LandmarkEstimate> out;
+  for (size_t k = 0; k < g.features.size(); ++k) {
+    const int o = 3 + 2 * static_cast<int>(k);
+    out.push_back({g.features[k], g.mean.segment<2>(o), g.covariance.block<2, 2>(o, o)});
+  }
+  return out;
+}
+
+int FastSlam::NumConfirmedFeatures() const {
+  // The heaviest particle's distinct confirmed features (cheap, once per scan).
+  size_t heaviest = 0;
+  for (size_t p = 1; p < particles_.size(); ++p) {
+    if (particles_[p].log_weight > particles_[heaviest].log_weight) heaviest = p;
+  }
+  features_scratch_.clear();
+  for (const LandmarkRecord& r : particles_[heaviest].landmarks) {
+    if (r.confirmed) features_scratch_.push_back(r.feature);
+  }
+  std::sort(features_scratch_.begin(), features_scratch_.end());
+  return static_cast<int>(std::unique(features_scratch_.begin(), features_scratch_.end()) -
+                          features_scratch_.begin());
+}
+
+std::map<std::string, double> FastSlam::Counters() const {
+  double landmarks = 0;
+  for (const Particle& p : particles_) landmarks += static_cast<double>(p.landmarks.size());
+  return {{"scans", counters_.scans},
+          {"detections", counters_.detections},
+          {"particles", num_particles()},
+          {"resamples", counters_.resamples},
+          {"landmarks_created_all_particles", counters_.landmarks_created},
+          {"landmarks_culled_all_particles", counters_.landmarks_culled},
+          {"landmark_copies", counters_.landmark_copies},
+          {"common_features_issued", counters_.features},
+          {"mean_landmarks_per_particle", landmarks / num_particles()}};
+}
+
+}  // namespace subslam::frontend

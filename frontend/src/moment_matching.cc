@@ -1,0 +1,197 @@
+#include "subslam/frontend/moment_matching.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "subslam/graph/internal/check.h"
+
+namespace subslam::frontend {
+namespace {
+
+// One particle's resolved hypothesis about one common feature.
+struct Resolved {
+  Eigen::Vector2d mean;
+  Eigen::Matrix2d covariance;
+  double existence;
+  double signature;
+};
+
+Resolved Fuse(const Resolved& a, const FeatureHypothesis& b) {
+  // Product of the two Gaussians (information form).
+  const Eigen::Matrix2d ia = a.covariance.inverse(), ib = b.covariance.inverse();
+  Resolved out = a;
+  out.covariance = (ia + ib).inverse();
+  out.mean = out.covariance * (ia * a.mean + ib * b.mean);
+  out.existence = std::max(a.existence, b.existence);
+  return out;
+}
+
+std::map<int, Resolved> ResolveDuplicates(const ParticleHypothesis& p,
+                                          DuplicateFeaturePolicy policy) {
+  std::map<int, Resolved> out;
+  for (const FeatureHypothesis& f : p.features) {
+    const Resolved r{f.mean, f.covariance, f.existence, f.signature};
+    auto [it, inserted] = out.try_emplace(f.feature, r);
+    if (inserted) continue;
+    if (policy == DuplicateFeaturePolicy::kFuse) {
+      it->second = Fuse(it->second, f);
+    } else if (f.existence > it->second.existence) {
+      it->second = r;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
+                                  const MomentMatchingOptions& options) {
+  double total = 0.0;
+  size_t heaviest = 0;
+  for (size_t p = 0; p < particles.size(); ++p) {
+    const double w = particles[p].weight;
+    SUBSLAM_CHECK(std::isfinite(w) && w >= 0.0) << "particle weight " << w;
+    total += w;
+    if (w > particles[heaviest].weight) heaviest = p;
+  }
+  SUBSLAM_CHECK(total > 0.0) << "moment matching needs a particle with positive weight";
+
+  // Per-particle features, duplicates resolved; the common feature set and existence.
+  std::vector<std::map<int, Resolved>> resolved(particles.size());
+  std::map<int, double> existence;
+  for (size_t p = 0; p < particles.size(); ++p) {
+    resolved[p] = ResolveDuplicates(particles[p], options.duplicates);
+    for (const auto& [id, r] : resolved[p]) {
+      existence[id] += particles[p].weight / total * r.existence;
+    }
+  }
+  MomentMatchedGaussian out;
+  for (const auto& [id, e] : existence) {
+    if (e >= options.min_existence && e > 0.0) {  // e > 0: a holder has weight
+      out.features.push_back(id);
+      out.existence.push_back(std::min(e, 1.0));
+    }
+  }
+  const int n = static_cast<int>(out.features.size());
+  const int dim = 3 + 2 * n;
+
+  // Which particles take part, and which features each holds.
+  std::vector<double> w(particles.size());
+  std::vector<std::vector<const Resolved*>> held(particles.size(),
+                                                 std::vector<const Resolved*>(n, nullptr));
+  for (size_t p = 0; p < particles.size(); ++p) {
+    w[p] = particles[p].weight / total;
+    for (int k = 0; k < n; ++k) {
+      auto it = resolved[p].find(out.features[k]);
+      if (it != resolved[p].end()) held[p][k] = &it->second;
+    }
+  }
+  if (options.missing == MissingFeaturePolicy::kDiscardParticle) {
+    double kept = 0.0;
+    for (size_t p = 0; p < particles.size(); ++p) {
+      const bool all = std::all_of(held[p].begin(), held[p].end(),
+                                   [](const Resolved* r) { return r != nullptr; });
+      if (all) kept += w[p];
+    }
+    if (kept > 0.0) {
+      for (size_t p = 0; p < particles.size(); ++p) {
+        const bool all = std::all_of(held[p].begin(), held[p].end(),
+                                     [](const Resolved* r) { return r != nullptr; });
+        w[p] = all ? w[p] / kept : 0.0;
+      }
+    } else {
+      out.fell_back_to_ignore = true;
+    }
+  }
+  for (double wp : w) out.particles_used += wp > 0.0 ? 1 : 0;
+
+  // Means: the pose over every particle (heading as wrapped deviations), each feature
+  // over the particles holding it.
+  const double reference = particles[heaviest].pose.theta;
+  out.mean = Eigen::VectorXd::Zero(dim);
+  Eigen::VectorXd weight_of(n + 1);
+  weight_of.setZero();
+  out.signature.assign(n, 0.0);
+  std::vector<double> signature_weight(n, 0.0);
+  for (size_t p = 0; p < particles.size(); ++p) {
+    if (w[p] == 0.0) continue;
+    const Pose2& pose = particles[p].pose;
+    out.mean.head<3>() += w[p] * Eigen::Vector3d(pose.x, pose.y, WrapAngle(pose.theta - reference));
+    weight_of[0] += w[p];
+    for (int k = 0; k < n; ++k) {
+      const Resolved* r = held[p][k];
+      if (r == nullptr) continue;
+      out.mean.segment<2>(3 + 2 * k) += w[p] * r->mean;
+      weight_of[k + 1] += w[p];
+      if (std::isfinite(r->signature)) {
+        out.signature[k] += w[p] * r->signature;
+        signature_weight[k] += w[p];
+      }
+    }
+  }
+  out.mean.head<3>() /= weight_of[0];
+  for (int k = 0; k < n; ++k) {
+    out.mean.segment<2>(3 + 2 * k) /= weight_of[k + 1];  // > 0 since existence > 0
+    out.signature[k] = signature_weight[k] > 0.0 ? out.signature[k] / signature_weight[k]
+                                                 : std::numeric_limits<double>::quiet_NaN();
+  }
+  out.mean[2] = WrapAngle(out.mean[2] + reference);
+
+  // Covariance blocks: each over the particles holding both of its variables.
+  out.covariance = Eigen::MatrixXd::Zero(dim, dim);
+  Eigen::MatrixXd pair_weight = Eigen::MatrixXd::Zero(n + 1, n + 1);
+  Eigen::VectorXd d(dim);
+  std::vector<bool> has(n + 1);
+  for (size_t p = 0; p < particles.size(); ++p) {
+    if (w[p] == 0.0) continue;
+    const Pose2& pose = particles[p].pose;
+    d.head<2>() = Eigen::Vector2d(pose.x, pose.y) - out.mean.head<2>();
+    d[2] = WrapAngle(pose.theta - out.mean[2]);
+    has[0] = true;
+    for (int k = 0; k < n; ++k) {
+      has[k + 1] = held[p][k] != nullptr;
+      d.segment<2>(3 + 2 * k) =
+          has[k + 1] ? Eigen::Vector2d(held[p][k]->mean - out.mean.segment<2>(3 + 2 * k))
+                     : Eigen::Vector2d::Zero();
+    }
+    auto offset = [](int b) { return b == 0 ? 0 : 3 + 2 * (b - 1); };
+    auto size = [](int b) { return b == 0 ? 3 : 2; };
+    for (int a = 0; a <= n; ++a) {
+      if (!has[a]) continue;
+      for (int b = 0; b <= a; ++b) {
+        if (!has[b]) continue;
+        pair_weight(a, b) += w[p];
+        out.covariance.block(offset(a), offset(b), size(a), size(b)) +=
+            w[p] * d.segment(offset(a), size(a)) * d.segment(offset(b), size(b)).transpose();
+      }
+      out.covariance.block(offset(a), offset(a), size(a), size(a)) +=
+          w[p] * (a == 0 ? Eigen::MatrixXd(particles[p].pose_covariance)
+                         : Eigen::MatrixXd(held[p][a - 1]->covariance));
+    }
+  }
+  for (int a = 0; a <= n; ++a) {
+    const int oa = a == 0 ? 0 : 3 + 2 * (a - 1), sa = a == 0 ? 3 : 2;
+    for (int b = 0; b <= a; ++b) {
+      const int ob = b == 0 ? 0 : 3 + 2 * (b - 1), sb = b == 0 ? 3 : 2;
+      if (pair_weight(a, b) > 0.0) out.covariance.block(oa, ob, sa, sb) /= pair_weight(a, b);
+      out.covariance.block(ob, oa, sb, sa) = out.covariance.block(oa, ob, sa, sb).transpose();
+    }
+  }
+
+  // Positive definiteness: repair (counted) if the per-block weighting broke it.
+  if (Eigen::LLT<Eigen::MatrixXd>(out.covariance).info() != Eigen::Success) {
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(out.covariance);
+    const double floor =
+        std::max(options.repair_relative_floor * eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-15);
+    const Eigen::VectorXd clipped = eig.eigenvalues().cwiseMax(floor);
+    out.covariance = eig.eigenvectors() * clipped.asDiagonal() * eig.eigenvectors().transpose();
+    out.covariance = 0.5 * (out.covariance + out.covariance.transpose()).eval();
+    ++out.covariance_repairs;
+  }
+  return out;
+}
+
+}  // namespace subslam::frontend

@@ -1,0 +1,55 @@
+// A local map reduced to one Gaussian: the unit the front-end hands to the back-end
+// (../shared/design.md, "The submap factor" and "Local maps exchange").
+//
+// Local map k starts at anchor P_s (the end pose of local map k − 1, or the initial pose)
+// with zero uncertainty and no landmarks. Its Gaussian is over
+//   mean = [end pose (x, y, θ), landmark 1 (x, y), …, landmark n (x, y)]
+// all expressed in the frame of P_s (metres, radians, θ wrapped to (−π, π]), with a
+// symmetric positive-definite (3 + 2n)² covariance. `landmarks[i]` describes the
+// landmark at mean.segment<2>(3 + 2i).
+#ifndef SUBSLAM_GRAPH_LOCAL_SUBMAP_H_
+#define SUBSLAM_GRAPH_LOCAL_SUBMAP_H_
+
+#include <Eigen/Core>
+#include <limits>
+#include <optional>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/graph/pose2.h"
+
+namespace subslam {
+
+struct LocalSubmapLandmark {
+  int local_id = 0;  // the front-end's feature id (unique within the local map)
+  double signature = std::numeric_limits<double>::quiet_NaN();  // NaN when absent
+  double existence = 1.0;      // P(exists) at export, in [0, 1]
+  std::optional<int> truth_id; // evaluation / known-association studies only
+};
+
+struct LocalSubmap {
+  int id = 0;
+  double t_start = 0.0;  // s
+  double t_end = 0.0;    // s
+  Eigen::VectorXd mean;        // 3 + 2n, in the start-pose frame
+  Eigen::MatrixXd covariance;  // (3 + 2n) × (3 + 2n)
+  std::vector<LocalSubmapLandmark> landmarks;
+  // How many times the conversion had to repair the covariance to make it positive
+  // definite (0 normally; reported, never silent).
+  int covariance_repairs = 0;
+
+  int num_landmarks() const { return static_cast<int>(landmarks.size()); }
+  Pose2 end_pose() const { return Pose2::FromVector(mean.head<3>()); }
+  Eigen::Vector2d landmark(int i) const { return mean.segment<2>(3 + 2 * i); }
+  Eigen::Matrix2d landmark_covariance(int i) const {
+    return covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+  }
+
+  // Sizes agree, values finite, t_start ≤ t_end, heading wrapped, local ids unique,
+  // existence in [0, 1], covariance symmetric (to 1e-9 relative) and positive definite.
+  absl::Status Validate() const;
+};
+
+}  // namespace subslam
+
+#endif  // SUBSLAM_GRAPH_LOCAL_SUBMAP_H_

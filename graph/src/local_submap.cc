@@ -1,0 +1,44 @@
+#include "subslam/graph/local_submap.h"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <set>
+
+#include "absl/strings/str_cat.h"
+
+namespace subslam {
+
+absl::Status LocalSubmap::Validate() const {
+  const auto error = [this](auto&&... parts) {
+    return absl::InvalidArgumentError(absl::StrCat("local map ", id, ": ", parts...));
+  };
+  const Eigen::Index n = 3 + 2 * static_cast<Eigen::Index>(landmarks.size());
+  if (mean.size() != n) return error("state has ", mean.size(), " entries, expected ", n);
+  if (covariance.rows() != n || covariance.cols() != n) {
+    return error("covariance is ", covariance.rows(), "x", covariance.cols(), ", expected ", n,
+                 "x", n);
+  }
+  if (!std::isfinite(t_start) || !std::isfinite(t_end) || t_end < t_start) {
+    return error("time span [", t_start, ", ", t_end, "] is not a finite interval");
+  }
+  if (!mean.allFinite()) return error("state has a non-finite entry");
+  if (!covariance.allFinite()) return error("covariance has a non-finite entry");
+  if (std::abs(WrapAngle(mean[2]) - mean[2]) > 1e-12) return error("heading is not wrapped");
+  std::set<int> ids;
+  for (const LocalSubmapLandmark& l : landmarks) {
+    if (!ids.insert(l.local_id).second) return error("local id ", l.local_id, " repeats");
+    if (!(l.existence >= 0.0 && l.existence <= 1.0)) {
+      return error("landmark ", l.local_id, ": existence ", l.existence, " outside [0, 1]");
+    }
+  }
+  const double scale = std::max(1.0, covariance.cwiseAbs().maxCoeff());
+  if ((covariance - covariance.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) {
+    return error("covariance is not symmetric");
+  }
+  if (Eigen::LLT<Eigen::MatrixXd>(covariance).info() != Eigen::Success) {
+    return error("covariance is not positive definite");
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace subslam
