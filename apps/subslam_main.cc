@@ -1,7 +1,7 @@
 // subslam — command-line tool.
 //
 //   subslam simulate --scenario NAME [--seed S] --out DIR [scenario flags]
-//   subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam
+//   subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf
 //               --out DIR [estimator and noise flags]
 //   subslam scenarios
 //
@@ -26,6 +26,8 @@
 namespace {
 const subslam::sim::ScenarioOptions kScenarioDefaults;
 const subslam::frontend::EkfSlamOptions kEkfDefaults;
+const subslam::frontend::FastSlamOptions kFastSlamDefaults;
+const subslam::frontend::SubmapPolicyOptions kPolicyDefaults;
 }  // namespace
 
 ABSL_FLAG(std::string, dataset, "", "data-set directory holding dataset.json");
@@ -46,13 +48,41 @@ ABSL_FLAG(double, noise_scale, kScenarioDefaults.random_noise_scale, "random sce
 ABSL_FLAG(bool, signature, kScenarioDefaults.with_signature, "simulated detections carry a noisy signature");
 ABSL_FLAG(std::string, out, "", "output directory");
 ABSL_FLAG(std::string, frontend, subslam::app::ToString(subslam::app::RunOptions{}.frontend),
-          "odometry | ekfslam");
+          "odometry | ekfslam | fastslam | rbpf");
 ABSL_FLAG(std::string, association, subslam::frontend::ToString(kEkfDefaults.association),
           "ekfslam data association: nn | jcbb");
 ABSL_FLAG(double, gate, kEkfDefaults.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
 ABSL_FLAG(double, new_landmark_gate, kEkfDefaults.new_landmark_probability,
           "a detection outside this gate for every landmark starts a new one");
 ABSL_FLAG(double, existence_alpha, kEkfDefaults.detection_probability, "existence model: detection probability");
+ABSL_FLAG(int, particles, kFastSlamDefaults.num_particles, "fastslam / rbpf: number of particles");
+ABSL_FLAG(uint64_t, filter_seed, kFastSlamDefaults.seed, "fastslam / rbpf: seed of the particle filter's random draws");
+ABSL_FLAG(bool, sample_association, kFastSlamDefaults.sample_association,
+          "fastslam / rbpf: sample the data association instead of maximum likelihood");
+ABSL_FLAG(double, resample_ess, kFastSlamDefaults.resample_ess_ratio,
+          "fastslam / rbpf: resample when N_eff / N falls below this");
+ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
+          "fastslam / rbpf: sigma of the signature cue (0: cue off)");
+ABSL_FLAG(double, submap_min_duration, kPolicyDefaults.min_duration_s,
+          "rbpf: a local map is never closed younger than this [s]");
+ABSL_FLAG(double, submap_max_duration, kPolicyDefaults.max_duration_s,
+          "rbpf: close a local map after this long [s] (0: off)");
+ABSL_FLAG(int, submap_max_features, kPolicyDefaults.max_features,
+          "rbpf: close a local map holding this many confirmed features (0: off)");
+ABSL_FLAG(double, submap_min_ess, kPolicyDefaults.min_ess_ratio,
+          "rbpf: close when N_eff / N falls below this (0: off)");
+ABSL_FLAG(double, submap_min_diversity, kPolicyDefaults.min_lineage_diversity,
+          "rbpf: close when the share of distinct ancestors at the map's first scan falls "
+          "below this (0: off)");
+ABSL_FLAG(double, submap_max_pose_sigma, kPolicyDefaults.max_pose_sigma_ratio,
+          "rbpf: close when the local pose sigma exceeds this many sensor sigmas (0: off)");
+ABSL_FLAG(int, submap_density_features, kPolicyDefaults.density_min_features,
+          "rbpf: landmark-density rule: close once the map holds this many features and "
+          "--submap_density_visible of them are in range (0: off)");
+ABSL_FLAG(int, submap_density_visible, kPolicyDefaults.density_min_visible,
+          "rbpf: see --submap_density_features");
+ABSL_FLAG(bool, submap_delay_ambiguous, kPolicyDefaults.delay_while_ambiguous,
+          "rbpf: postpone closing while the particles disagree about identities");
 ABSL_FLAG(double, existence_beta, kEkfDefaults.false_alarm_probability, "existence model: false-alarm probability");
 ABSL_FLAG(std::optional<double>, sigma_v, std::nullopt, "override speed noise sigma [m/s]");
 ABSL_FLAG(std::optional<double>, sigma_u1, std::nullopt,
@@ -125,6 +155,24 @@ int Run() {
   options.ekf.new_landmark_probability = absl::GetFlag(FLAGS_new_landmark_gate);
   options.ekf.detection_probability = absl::GetFlag(FLAGS_existence_alpha);
   options.ekf.false_alarm_probability = absl::GetFlag(FLAGS_existence_beta);
+  options.policy.min_duration_s = absl::GetFlag(FLAGS_submap_min_duration);
+  options.policy.max_duration_s = absl::GetFlag(FLAGS_submap_max_duration);
+  options.policy.max_features = absl::GetFlag(FLAGS_submap_max_features);
+  options.policy.min_ess_ratio = absl::GetFlag(FLAGS_submap_min_ess);
+  options.policy.min_lineage_diversity = absl::GetFlag(FLAGS_submap_min_diversity);
+  options.policy.max_pose_sigma_ratio = absl::GetFlag(FLAGS_submap_max_pose_sigma);
+  options.policy.density_min_features = absl::GetFlag(FLAGS_submap_density_features);
+  options.policy.density_min_visible = absl::GetFlag(FLAGS_submap_density_visible);
+  options.policy.delay_while_ambiguous = absl::GetFlag(FLAGS_submap_delay_ambiguous);
+  options.fastslam.num_particles = absl::GetFlag(FLAGS_particles);
+  options.fastslam.seed = absl::GetFlag(FLAGS_filter_seed);
+  options.fastslam.sample_association = absl::GetFlag(FLAGS_sample_association);
+  options.fastslam.resample_ess_ratio = absl::GetFlag(FLAGS_resample_ess);
+  options.fastslam.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
+  options.fastslam.gate_probability = options.ekf.gate_probability;
+  options.fastslam.new_landmark_probability = options.ekf.new_landmark_probability;
+  options.fastslam.detection_probability = options.ekf.detection_probability;
+  options.fastslam.false_alarm_probability = options.ekf.false_alarm_probability;
   options.noise.sigma_v = absl::GetFlag(FLAGS_sigma_v);
   options.noise.sigma_u1 = absl::GetFlag(FLAGS_sigma_u1);
   options.noise.sigma_range = absl::GetFlag(FLAGS_sigma_range);
@@ -161,7 +209,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "submap-based landmark SLAM\n"
       "  subslam simulate --scenario NAME [--seed S] --out DIR\n"
-      "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam "
+      "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf "
       "--out DIR\n"
       "  subslam scenarios");
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);

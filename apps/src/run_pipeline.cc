@@ -9,7 +9,11 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "subslam/eval/local_map_errors.h"
+#include "subslam/frontend/chained_local_maps.h"
 #include "subslam/frontend/dead_reckoning.h"
+#include "subslam/io/submaps_jsonl.h"
+#include "subslam/models/gating.h"
 #include "subslam/io/run_output_writer.h"
 #include "subslam/io/steps.h"
 
@@ -75,17 +79,49 @@ class Progress {
   absl::Time start_ = absl::Now(), last_ = absl::InfinitePast();
 };
 
+// Labels each local-map feature with the majority true id of the detections voted to it
+// (evaluation only: the estimators never see truth ids).
+class TruthVotes {
+ public:
+  void Add(int map_id, const std::vector<int>& features, const io::Scan& scan) {
+    for (size_t k = 0; k < features.size() && k < scan.detections.size(); ++k) {
+      const int truth = scan.detections[k].truth_id;
+      if (features[k] < 0 || truth == io::kUnknownTruthId) continue;
+      ++votes_[{map_id, features[k]}][truth];
+    }
+  }
+  void Label(LocalSubmap* s) const {
+    for (LocalSubmapLandmark& l : s->landmarks) {
+      auto it = votes_.find({s->id, l.local_id});
+      if (it == votes_.end()) continue;
+      const auto best = std::max_element(it->second.begin(), it->second.end(),
+                                         [](const auto& a, const auto& b) { return a.second < b.second; });
+      l.truth_id = best->first;
+    }
+  }
+
+ private:
+  std::map<std::pair<int, int>, std::map<int, int>> votes_;
+};
+
 }  // namespace
 
 const char* ToString(Frontend frontend) {
-  return frontend == Frontend::kOdometry ? "odometry" : "ekfslam";
+  switch (frontend) {
+    case Frontend::kOdometry: return "odometry";
+    case Frontend::kEkfSlam: return "ekfslam";
+    case Frontend::kFastSlam: return "fastslam";
+    case Frontend::kRbpf: return "rbpf";
+  }
+  return "?";
 }
 
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name) {
-  if (name == "odometry") return Frontend::kOdometry;
-  if (name == "ekfslam") return Frontend::kEkfSlam;
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown front-end \"", name, "\" (expected odometry or ekfslam)"));
+  for (Frontend f : {Frontend::kOdometry, Frontend::kEkfSlam, Frontend::kFastSlam, Frontend::kRbpf}) {
+    if (name == ToString(f)) return f;
+  }
+  return absl::InvalidArgumentError(absl::StrCat(
+      "unknown front-end \"", name, "\" (expected odometry, ekfslam, fastslam or rbpf)"));
 }
 
 absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
@@ -111,10 +147,26 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
 absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& options) {
   if (absl::Status s = options.noise.ApplyTo(&dataset); !s.ok()) return s;
   if (absl::Status s = options.ekf.Validate(); !s.ok()) return s;
+  if (absl::Status s = options.fastslam.Validate(); !s.ok()) return s;
+  if (absl::Status s = options.policy.Validate(); !s.ok()) return s;
   std::unique_ptr<frontend::OnlineEstimator> estimator;
+  frontend::ChainedLocalMaps* chain = nullptr;  // set for the local-map front-ends
   if (options.frontend == Frontend::kOdometry) {
     estimator = std::make_unique<frontend::DeadReckoning>(dataset.motion.MakeModel(),
                                                           dataset.initial_pose);
+  } else if (options.frontend == Frontend::kRbpf) {
+    const double t0 = dataset.controls.empty() ? 0.0 : dataset.controls.front().t;
+    auto mapper = std::make_unique<frontend::RbpfLocalMapper>(
+        dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.fastslam,
+        options.policy, t0);
+    auto chained = std::make_unique<frontend::ChainedLocalMaps>(std::move(mapper),
+                                                                dataset.initial_pose);
+    chain = chained.get();
+    estimator = std::move(chained);
+  } else if (options.frontend == Frontend::kFastSlam) {
+    estimator = std::make_unique<frontend::FastSlam>(dataset.motion.MakeModel(),
+                                                     dataset.sensor.range_bearing,
+                                                     dataset.initial_pose, options.fastslam);
   } else {
     estimator = std::make_unique<frontend::EkfSlam>(
         dataset.motion.MakeModel(), dataset.sensor.range_bearing, dataset.initial_pose, options.ekf);
@@ -128,17 +180,31 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   r.scans = static_cast<int>(dataset.scans.size());
   r.detections = static_cast<long>(dataset.NumDetections());
   r.online.reserve(steps.size());
+  TruthVotes truth_votes;
   {
     Progress progress(options.progress, steps.size());
     const absl::Time start = absl::Now();
     for (size_t k = 0; k < steps.size(); ++k) {
       const io::Step& step = steps[k];
       estimator->Predict(step.control, step.dt);
-      if (step.scan_index >= 0) estimator->Update(dataset.scans[step.scan_index]);
+      if (step.scan_index >= 0) {
+        const io::Scan& scan = dataset.scans[step.scan_index];
+        estimator->Update(scan);
+        if (chain != nullptr) truth_votes.Add(chain->last_scan_map_id(), chain->last_scan_features(), scan);
+      }
       r.online.push_back({step.t, estimator->pose(), estimator->pose_covariance()});
       progress.Tick(k, step.t);
     }
+    if (chain != nullptr) chain->Finish();
     r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  }
+  if (chain != nullptr) {
+    for (const frontend::ClosedLocalMap& c : chain->local_maps()) {
+      LocalSubmap s = c.submap;
+      truth_votes.Label(&s);
+      r.local_maps.push_back(std::move(s));
+      r.close_reasons.push_back(frontend::ToString(c.reason));
+    }
   }
   r.peak_rss_kb = PeakRssKb();
   r.final_trajectory = r.online;  // single-map filters: nothing to re-express
@@ -173,6 +239,34 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     }
   }
 
+  if (!r.local_maps.empty() && !dataset.truth_poses.empty()) {
+    json per_map = json::array();
+    LocalMapSummary summary;
+    for (const LocalSubmap& s : r.local_maps) {
+      const std::optional<eval::LocalMapNees> e =
+          eval::EvaluateLocalMap(s, dataset.truth_poses, dataset.truth_landmarks);
+      if (!e) continue;
+      ++summary.evaluated;
+      summary.inside += e->inside() ? 1 : 0;
+      summary.pose_inside += e->pose_nees <= models::ChiSquareQuantile(0.975, 3) &&
+                                     e->pose_nees >= models::ChiSquareQuantile(0.025, 3)
+                                 ? 1 : 0;
+      summary.nees_per_dof += e->nees / e->dof;
+      summary.false_alarms += e->false_alarms;
+      per_map.push_back({{"id", e->id}, {"nees", e->nees}, {"dof", e->dof},
+                         {"pose_nees", e->pose_nees}, {"landmarks", e->landmarks_evaluated},
+                         {"false_alarms", e->false_alarms}, {"inside_95", e->inside()}});
+    }
+    if (summary.evaluated > 0) summary.nees_per_dof /= summary.evaluated;
+    r.local_map_summary = summary;
+    metrics["local_maps"] = {{"evaluated", summary.evaluated},
+                             {"nees_inside_95", summary.inside},
+                             {"pose_nees_inside_95", summary.pose_inside},
+                             {"mean_nees_per_dof", summary.nees_per_dof},
+                             {"false_alarms_exported", summary.false_alarms},
+                             {"per_map", per_map}};
+  }
+
   json stage_times = json::object();
   for (const auto& [stage, seconds] : estimator->stage_times()) stage_times[stage] = seconds;
   json counters = json::object();
@@ -202,7 +296,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
        {{"steps", r.steps},
         {"scans", r.scans},
         {"detections", r.detections},
-        {"submaps", 0},
+        {"submaps", r.local_maps.size()},
         {"landmarks", r.landmarks.size()}}},
       {"estimator_counters", counters},
       {"time_seconds", {{"total", r.wall_seconds}, {"stages", stage_times}}},
@@ -218,6 +312,9 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     if (auto s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory); !s.ok()) return s;
     if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
     if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;
+    if (chain != nullptr) {
+      if (auto s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps); !s.ok()) return s;
+    }
   }
   return r;
 }
@@ -251,6 +348,20 @@ std::string SummaryTable(const RunResult& r) {
                                                       r.gps_final->rms_m, r.gps_final->rms_x_m,
                                                       r.gps_final->rms_y_m,
                                                       r.gps_final->matched_fixes));
+  }
+  if (!r.local_maps.empty()) {
+    std::map<std::string, int> reasons;
+    for (const std::string& reason : r.close_reasons) ++reasons[reason];
+    std::string text;
+    for (const auto& [reason, count] : reasons) absl::StrAppend(&text, text.empty() ? "" : ", ", reason, " ", count);
+    row("local maps (closed by)", absl::StrCat(r.local_maps.size(), " (", text, ")"));
+  }
+  if (r.local_map_summary) {
+    const LocalMapSummary& m = *r.local_map_summary;
+    row("local maps: NEES in 95% bounds",
+        absl::StrFormat("%d / %d joint, %d / %d end pose; mean NEES/dof %.2f", m.inside,
+                        m.evaluated, m.pose_inside, m.evaluated, m.nees_per_dof));
+    row("local maps: false alarms exported", absl::StrCat(m.false_alarms));
   }
   row("estimator time", absl::StrFormat("%.3f s", r.wall_seconds));
   row("peak memory", absl::StrFormat("%.1f MB", r.peak_rss_kb / 1024.0));

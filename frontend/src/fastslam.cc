@@ -75,10 +75,15 @@ void FastSlam::Reset(const Pose2& start) {
   }
   scan_features_.clear();
   scan_disagreement_ = 0.0;
+  resample_pending_ = false;
 }
 
 void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
   if (dt <= 0.0) return;
+  if (resample_pending_) {
+    StageTimer timer(&times_, "resample");
+    Resample();
+  }
   StageTimer timer(&times_, "predict");
   const Eigen::Matrix2d M = motion_->noise().Covariance(u);
   Eigen::Matrix3d F;
@@ -328,18 +333,28 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
 }
 
 void FastSlam::Update(const io::Scan& scan) {
+  if (resample_pending_) {
+    StageTimer timer(&times_, "resample");
+    Resample();
+  }
   ++counters_.scans;
   const models::RangeBearingConfig& rb = sensor_.config();
   z_.clear();
   signature_.clear();
-  for (const io::Detection& d : scan.detections) {
+  detection_index_.clear();
+  for (size_t k = 0; k < scan.detections.size(); ++k) {
+    const io::Detection& d = scan.detections[k];
     if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
     z_.push_back(d.z());
     signature_.push_back(d.signature);
+    detection_index_.push_back(static_cast<int>(k));
   }
   const int m = static_cast<int>(z_.size());
   const int P = num_particles();
   counters_.detections += m;
+  if (particles_[0].lineage < 0) {
+    for (int p = 0; p < P; ++p) particles_[p].lineage = p;
+  }
   decisions_.assign(static_cast<size_t>(P) * m, kIgnore);
   decision_label_.assign(static_cast<size_t>(P) * m, kIgnore);
   {
@@ -354,7 +369,11 @@ void FastSlam::Update(const io::Scan& scan) {
       }
     }
     Normalise();
+    last_ess_ratio_ = EffectiveSampleSizeRatio();
     Vote(m);
+    std::vector<int> per_detection(scan.detections.size(), -1);
+    for (int j = 0; j < m; ++j) per_detection[detection_index_[j]] = scan_features_[j];
+    scan_features_.swap(per_detection);
   }
   {
     StageTimer timer(&times_, "update");
@@ -362,8 +381,9 @@ void FastSlam::Update(const io::Scan& scan) {
       ApplyDecisions(&particles_[p], z_, signature_, decisions_.data() + static_cast<size_t>(p) * m);
     }
   }
-  StageTimer timer(&times_, "resample");
-  if (EffectiveSampleSizeRatio() < options_.resample_ess_ratio) Resample();
+  // Resampling is deferred to the next Predict or Update, so that pose(), Map() and a
+  // local map closed now see the weighted particles rather than resampled duplicates.
+  resample_pending_ = last_ess_ratio_ < options_.resample_ess_ratio;
 }
 
 void FastSlam::Normalise() {
@@ -374,6 +394,19 @@ void FastSlam::Normalise() {
   for (const Particle& p : particles_) total += std::exp(p.log_weight - max_log);
   const double log_total = max_log + std::log(total);
   for (Particle& p : particles_) p.log_weight -= log_total;
+}
+
+double FastSlam::LineageDiversity() const {
+  if (particles_[0].lineage < 0) return 1.0;
+  lineage_seen_.assign(particles_.size(), 0);
+  int distinct = 0;
+  for (const Particle& p : particles_) {
+    if (!lineage_seen_[p.lineage]) {
+      lineage_seen_[p.lineage] = 1;
+      ++distinct;
+    }
+  }
+  return static_cast<double>(distinct) / num_particles();
 }
 
 double FastSlam::EffectiveSampleSizeRatio() const {
@@ -395,6 +428,7 @@ void FastSlam::Resample() {
     resampled_[i] = particles_[source];  // copies landmark pointers, not landmarks
   }
   particles_.swap(resampled_);
+  resample_pending_ = false;
   const double log_w = -std::log(static_cast<double>(P));
   for (Particle& p : particles_) p.log_weight = log_w;
   ++counters_.resamples;
@@ -464,19 +498,26 @@ std::vector<LandmarkEstimate> FastSlam::Map() const {
   return out;
 }
 
-int FastSlam::NumConfirmedFeatures() const {
-  // The heaviest particle's distinct confirmed features (cheap, once per scan).
+FastSlam::FeatureCounts FastSlam::ConfirmedFeatureCounts() const {
   size_t heaviest = 0;
   for (size_t p = 1; p < particles_.size(); ++p) {
     if (particles_[p].log_weight > particles_[heaviest].log_weight) heaviest = p;
   }
+  const Particle& particle = particles_[heaviest];
+  const double range = sensor_.config().max_range_m;
+  FeatureCounts counts;
   features_scratch_.clear();
-  for (const LandmarkRecord& r : particles_[heaviest].landmarks) {
-    if (r.confirmed) features_scratch_.push_back(r.feature);
+  for (const LandmarkRecord& r : particle.landmarks) {
+    if (!r.confirmed) continue;
+    features_scratch_.push_back(r.feature);
+    if ((r.gaussian->mean - particle.pose.translation()).squaredNorm() <= range * range) {
+      ++counts.within_range;
+    }
   }
   std::sort(features_scratch_.begin(), features_scratch_.end());
-  return static_cast<int>(std::unique(features_scratch_.begin(), features_scratch_.end()) -
-                          features_scratch_.begin());
+  counts.total = static_cast<int>(std::unique(features_scratch_.begin(), features_scratch_.end()) -
+                                  features_scratch_.begin());
+  return counts;
 }
 
 std::map<std::string, double> FastSlam::Counters() const {

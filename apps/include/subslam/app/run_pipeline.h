@@ -8,7 +8,8 @@
 //                          single-map filters of this module (odometry, ekfslam) there
 //                          are no anchors to re-express, so it equals the online one;
 //   landmarks.csv          the final map (confirmed landmarks);
-//   report.json            configuration, counts, time per stage, metrics.
+//   report.json            configuration, counts, time per stage, metrics;
+//   submaps.jsonl          (rbpf) the local maps, in the exchange format.
 #ifndef SUBSLAM_APP_RUN_PIPELINE_H_
 #define SUBSLAM_APP_RUN_PIPELINE_H_
 
@@ -21,12 +22,15 @@
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/frontend/ekf_slam.h"
+#include "subslam/frontend/fastslam.h"
+#include "subslam/frontend/submap_policy.h"
+#include "subslam/graph/local_submap.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/io/dataset.h"
 
 namespace subslam::app {
 
-enum class Frontend { kOdometry, kEkfSlam };
+enum class Frontend { kOdometry, kEkfSlam, kFastSlam, kRbpf };
 const char* ToString(Frontend frontend);
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name);
 
@@ -44,10 +48,20 @@ struct NoiseOverrides {
 struct RunOptions {
   Frontend frontend = Frontend::kEkfSlam;
   frontend::EkfSlamOptions ekf;
+  frontend::FastSlamOptions fastslam;
+  frontend::SubmapPolicyOptions policy;  // rbpf
   NoiseOverrides noise;
   std::string out_dir;          // empty: write nothing
   bool progress = false;        // progress line on stderr (when it is a terminal)
   std::string source;           // what was run, for the report ("scenario hybrid-120m seed 1")
+};
+
+struct LocalMapSummary {
+  int evaluated = 0;
+  int inside = 0;       // joint NEES inside its two-sided 95% χ² bounds
+  int pose_inside = 0;  // end-pose NEES inside the 3-dof bounds
+  double nees_per_dof = 0.0;  // mean over maps of NEES / dof
+  int false_alarms = 0; // exported features whose detections were false alarms
 };
 
 struct RunResult {
@@ -65,6 +79,11 @@ struct RunResult {
   std::optional<eval::MapErrors> map_errors;          // vs true landmarks
   std::optional<eval::GpsComparison> gps_online;      // vs GPS, aligned
   std::optional<eval::GpsComparison> gps_final;
+  // Local-map front-ends: the local maps (truth ids attached when the data set has
+  // them), why each was closed, and their consistency against ground truth.
+  std::vector<LocalSubmap> local_maps;
+  std::vector<std::string> close_reasons;
+  std::optional<LocalMapSummary> local_map_summary;
   nlohmann::json report;
 };
 

@@ -30,7 +30,9 @@
 //    weights; the winner's common id is written into every landmark the detection
 //    modified or created, overwriting earlier ids, so a consensus can be overturned.
 //  * Systematic resampling when the effective sample size falls below
-//    `resample_ess_ratio` × N.
+//    `resample_ess_ratio` × N, deferred to the next Predict/Update so that estimates
+//    taken after a scan (pose(), Map(), a local map closed now) use the weighted
+//    particles, not resampled duplicates.
 //  * Storage: a landmark's Gaussian is shared between particles (std::shared_ptr to
 //    const) and copied only when a particle that shares it updates it, so resampling
 //    copies pointers, never whole maps. Existence and the common id live in the
@@ -124,11 +126,22 @@ class FastSlam final : public OnlineEstimator {
 
   // N_eff / N of the current weights, in (0, 1].
   double EffectiveSampleSizeRatio() const;
-  // Number of common features with existence ≥ confirm_existence (weighted over
-  // particles as in moment matching).
-  int NumConfirmedFeatures() const;
-  // The common feature id voted for each detection of the last scan (−1: ignored), in
-  // the order of the scan's detections that were in range.
+  // The heaviest particle's distinct confirmed features: all of them, and those within
+  // the sensor's range of its pose (cheap; used by the submap policy after each scan).
+  struct FeatureCounts {
+    int total = 0;
+    int within_range = 0;
+  };
+  FeatureCounts ConfirmedFeatureCounts() const;
+  // Path diversity: the share of the particles' distinct ancestors at the first scan
+  // after the last Reset() (1 until then). Resampling only lowers it; once it is small,
+  // the landmarks mapped early rest on a few pose hypotheses and the particle set
+  // under-represents the local map's uncertainty.
+  double LineageDiversity() const;
+  // N_eff / N after the last scan's weight update, before any resampling.
+  double last_scan_ess_ratio() const { return last_ess_ratio_; }
+  // The common feature id voted for each detection of the last scan, aligned with the
+  // scan's detections (−1: out of range or ignored).
   const std::vector<int>& last_scan_features() const { return scan_features_; }
   // The largest share of weight that voted against the winner, over the last scan's
   // detections (0: unanimous).
@@ -154,6 +167,7 @@ class FastSlam final : public OnlineEstimator {
     Pose2 pose;
     Eigen::Matrix3d pose_covariance = Eigen::Matrix3d::Zero();
     double log_weight = 0.0;  // normalised: Σ exp(log_weight) = 1 after each scan
+    int lineage = -1;         // index of the ancestor at the first scan after Reset()
     std::vector<LandmarkRecord> landmarks;
   };
   struct Prediction {  // of one landmark of the particle being updated
@@ -192,10 +206,14 @@ class FastSlam final : public OnlineEstimator {
   std::vector<std::pair<int, double>> tally_;
   std::vector<double> likelihoods_;
   std::vector<int> scan_features_;
+  std::vector<int> detection_index_;
+  double last_ess_ratio_ = 1.0;
+  bool resample_pending_ = false;
   std::vector<Eigen::Vector2d> z_;
   std::vector<double> signature_;
   std::vector<bool> touched_;
   mutable std::vector<int> features_scratch_;
+  mutable std::vector<char> lineage_seen_;
   double scan_disagreement_ = 0.0;
   FastSlamCounters counters_;
   StageTimes times_;

@@ -1,0 +1,77 @@
+#include "subslam/frontend/submap_policy.h"
+
+#include <cmath>
+
+#include "subslam/graph/internal/check.h"
+
+namespace subslam::frontend {
+
+absl::Status SubmapPolicyOptions::Validate() const {
+  const auto nonnegative = [](double v) { return std::isfinite(v) && v >= 0.0; };
+  if (!nonnegative(min_duration_s) || !nonnegative(max_duration_s) ||
+      !nonnegative(max_pose_sigma_ratio) || !nonnegative(max_delay_s)) {
+    return absl::InvalidArgumentError("submap policy: durations and ratios must be >= 0");
+  }
+  if (!(min_ess_ratio >= 0.0 && min_ess_ratio <= 1.0) ||
+      !(min_lineage_diversity >= 0.0 && min_lineage_diversity <= 1.0) ||
+      !(ambiguity_threshold >= 0.0 && ambiguity_threshold <= 1.0)) {
+    return absl::InvalidArgumentError(
+        "submap policy: min_ess_ratio, min_lineage_diversity and ambiguity_threshold must be "
+        "in [0, 1]");
+  }
+  if (max_features < 0 || density_min_features < 0 || density_min_visible < 1) {
+    return absl::InvalidArgumentError(
+        "submap policy: feature counts must be >= 0 (density_min_visible >= 1)");
+  }
+  return absl::OkStatus();
+}
+
+const char* ToString(CloseReason reason) {
+  switch (reason) {
+    case CloseReason::kKeepOpen: return "keep_open";
+    case CloseReason::kElapsedTime: return "elapsed_time";
+    case CloseReason::kPoseUncertainty: return "pose_uncertainty";
+    case CloseReason::kDiversity: return "particle_diversity";
+    case CloseReason::kFeatureCount: return "feature_count";
+    case CloseReason::kLandmarkDensity: return "landmark_density";
+    case CloseReason::kEndOfRun: return "end_of_run";
+  }
+  return "?";
+}
+
+SubmapPolicy::SubmapPolicy(const SubmapPolicyOptions& options, double sigma_range_m,
+                           double sigma_bearing_rad)
+    : options_(options), sigma_range_m_(sigma_range_m), sigma_bearing_rad_(sigma_bearing_rad) {
+  SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
+  SUBSLAM_CHECK(sigma_range_m > 0 && sigma_bearing_rad > 0) << "sensor sigmas must be > 0";
+}
+
+SubmapDecision SubmapPolicy::Decide(const SubmapStatus& s) const {
+  const SubmapPolicyOptions& o = options_;
+  if (!o.enabled || s.elapsed_s < o.min_duration_s) return {};
+  CloseReason reason = CloseReason::kKeepOpen;
+  const Eigen::Vector3d sigma = s.pose_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+  const double pose_ratio = std::max({sigma.x() / sigma_range_m_, sigma.y() / sigma_range_m_,
+                                      sigma.z() / sigma_bearing_rad_});
+  if (o.max_duration_s > 0 && s.elapsed_s >= o.max_duration_s) {
+    reason = CloseReason::kElapsedTime;
+  } else if (o.max_pose_sigma_ratio > 0 && pose_ratio > o.max_pose_sigma_ratio) {
+    reason = CloseReason::kPoseUncertainty;
+  } else if ((o.min_ess_ratio > 0 && s.ess_ratio < o.min_ess_ratio) ||
+             (o.min_lineage_diversity > 0 && s.lineage_diversity < o.min_lineage_diversity)) {
+    reason = CloseReason::kDiversity;
+  } else if (o.max_features > 0 && s.confirmed_features >= o.max_features) {
+    reason = CloseReason::kFeatureCount;
+  } else if (o.density_min_features > 0 && s.confirmed_features >= o.density_min_features &&
+             s.visible_features >= o.density_min_visible) {
+    reason = CloseReason::kLandmarkDensity;
+  }
+  if (reason == CloseReason::kKeepOpen) return {};
+  if (o.delay_while_ambiguous && s.disagreement > o.ambiguity_threshold &&
+      s.delayed_for_s < o.max_delay_s) {
+    return {CloseReason::kKeepOpen, true};
+  }
+  return {reason, false};
+}
+
+}  // namespace subslam::frontend

@@ -1,0 +1,210 @@
+#include "subslam/io/submaps_jsonl.h"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+
+namespace subslam::io {
+namespace {
+
+using nlohmann::json;
+
+json NumberOrNull(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+json ToJson(const LocalSubmap& s) {
+  json state = json::array(), cov = json::array(), landmarks = json::array();
+  for (Eigen::Index i = 0; i < s.mean.size(); ++i) state.push_back(s.mean[i]);
+  for (Eigen::Index r = 0; r < s.covariance.rows(); ++r) {
+    for (Eigen::Index c = 0; c < s.covariance.cols(); ++c) cov.push_back(s.covariance(r, c));
+  }
+  for (const LocalSubmapLandmark& l : s.landmarks) {
+    landmarks.push_back({{"local_id", l.local_id},
+                         {"signature", NumberOrNull(l.signature)},
+                         {"existence", l.existence},
+                         {"truth_id", l.truth_id ? json(*l.truth_id) : json(nullptr)}});
+  }
+  json out = {{"id", s.id},       {"t_start", s.t_start}, {"t_end", s.t_end},
+              {"state", state},   {"cov", cov},           {"landmarks", landmarks}};
+  if (s.covariance_repairs > 0) out["covariance_repairs"] = s.covariance_repairs;
+  return out;
+}
+
+// Field access with errors naming file, line and field.
+class LineReader {
+ public:
+  LineReader(const std::string& file, int line) : file_(file), line_(line) {}
+
+  absl::Status Error(const std::string& field, const std::string& what) const {
+    return absl::InvalidArgumentError(
+        absl::StrCat(file_, ":", line_, ": field '", field, "': ", what));
+  }
+  absl::Status CheckKeys(const json& object, const std::string& path,
+                         const std::set<std::string>& allowed) const {
+    for (const auto& [key, value] : object.items()) {
+      if (!allowed.contains(key)) {
+        return Error(path.empty() ? key : absl::StrCat(path, ".", key),
+                     absl::StrCat("unknown key (allowed: ", absl::StrJoin(allowed, ", "), ")"));
+      }
+    }
+    return absl::OkStatus();
+  }
+  absl::StatusOr<double> Number(const json& object, const std::string& key,
+                                const std::string& field) const {
+    if (!object.contains(key)) return Error(field, "missing");
+    const json& v = object.at(key);
+    if (!v.is_number()) return Error(field, absl::StrCat("expected a number, got ", v.dump()));
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) return Error(field, "not finite");
+    return d;
+  }
+  absl::StatusOr<int> Integer(const json& object, const std::string& key,
+                              const std::string& field) const {
+    if (!object.contains(key)) return Error(field, "missing");
+    const json& v = object.at(key);
+    if (!v.is_number_integer()) {
+      return Error(field, absl::StrCat("expected an integer, got ", v.dump()));
+    }
+    return v.get<int>();
+  }
+  absl::StatusOr<std::vector<double>> Numbers(const json& object, const std::string& key) const {
+    if (!object.contains(key)) return Error(key, "missing");
+    const json& v = object.at(key);
+    if (!v.is_array()) return Error(key, "expected an array of numbers");
+    std::vector<double> out;
+    out.reserve(v.size());
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
+        return Error(absl::StrCat(key, "[", i, "]"),
+                     absl::StrCat("expected a finite number, got ", v[i].dump()));
+      }
+      out.push_back(v[i].get<double>());
+    }
+    return out;
+  }
+
+ private:
+  std::string file_;
+  int line_;
+};
+
+absl::StatusOr<LocalSubmap> FromJson(const json& j, const LineReader& r) {
+  if (!j.is_object()) return r.Error("(line)", "expected a JSON object");
+  if (auto s = r.CheckKeys(j, "", {"id", "t_start", "t_end", "state", "cov", "landmarks",
+                                   "covariance_repairs"});
+      !s.ok()) {
+    return s;
+  }
+  LocalSubmap s;
+  auto id = r.Integer(j, "id", "id");
+  if (!id.ok()) return id.status();
+  s.id = *id;
+  auto t0 = r.Number(j, "t_start", "t_start");
+  if (!t0.ok()) return t0.status();
+  auto t1 = r.Number(j, "t_end", "t_end");
+  if (!t1.ok()) return t1.status();
+  s.t_start = *t0;
+  s.t_end = *t1;
+  if (s.t_end < s.t_start) return r.Error("t_end", "is before t_start");
+  if (j.contains("covariance_repairs")) {
+    auto repairs = r.Integer(j, "covariance_repairs", "covariance_repairs");
+    if (!repairs.ok()) return repairs.status();
+    if (*repairs < 0) return r.Error("covariance_repairs", "must be >= 0");
+    s.covariance_repairs = *repairs;
+  }
+  if (!j.contains("landmarks")) return r.Error("landmarks", "missing");
+  const json& landmarks = j.at("landmarks");
+  if (!landmarks.is_array()) return r.Error("landmarks", "expected an array");
+  for (size_t i = 0; i < landmarks.size(); ++i) {
+    const json& l = landmarks[i];
+    const std::string path = absl::StrCat("landmarks[", i, "]");
+    if (!l.is_object()) return r.Error(path, "expected an object");
+    if (auto st = r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id"});
+        !st.ok()) {
+      return st;
+    }
+    LocalSubmapLandmark out;
+    auto local_id = r.Integer(l, "local_id", path + ".local_id");
+    if (!local_id.ok()) return local_id.status();
+    out.local_id = *local_id;
+    auto existence = r.Number(l, "existence", path + ".existence");
+    if (!existence.ok()) return existence.status();
+    if (*existence < 0.0 || *existence > 1.0) {
+      return r.Error(path + ".existence", absl::StrCat("must be in [0, 1], got ", *existence));
+    }
+    out.existence = *existence;
+    if (l.contains("signature") && !l.at("signature").is_null()) {
+      auto sig = r.Number(l, "signature", path + ".signature");
+      if (!sig.ok()) return sig.status();
+      out.signature = *sig;
+    }
+    if (l.contains("truth_id") && !l.at("truth_id").is_null()) {
+      auto truth = r.Integer(l, "truth_id", path + ".truth_id");
+      if (!truth.ok()) return truth.status();
+      if (*truth < -1) return r.Error(path + ".truth_id", "must be >= -1 (-1: false alarm)");
+      out.truth_id = *truth;
+    }
+    s.landmarks.push_back(out);
+  }
+  const size_t n = 3 + 2 * s.landmarks.size();
+  auto state = r.Numbers(j, "state");
+  if (!state.ok()) return state.status();
+  if (state->size() != n) {
+    return r.Error("state", absl::StrCat("has ", state->size(), " numbers, expected 3 + 2 × ",
+                                         s.landmarks.size(), " landmarks = ", n));
+  }
+  auto cov = r.Numbers(j, "cov");
+  if (!cov.ok()) return cov.status();
+  if (cov->size() != n * n) {
+    return r.Error("cov", absl::StrCat("has ", cov->size(), " numbers, expected ", n * n));
+  }
+  s.mean = Eigen::Map<const Eigen::VectorXd>(state->data(), static_cast<Eigen::Index>(n));
+  s.covariance = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic,
+                                               Eigen::RowMajor>>(
+      cov->data(), static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  if (absl::Status valid = s.Validate(); !valid.ok()) return r.Error("(local map)", std::string(valid.message()));
+  return s;
+}
+
+}  // namespace
+
+absl::Status WriteSubmapsJsonl(const std::string& path, const std::vector<LocalSubmap>& submaps) {
+  std::ofstream out(path);
+  if (!out) return absl::UnavailableError(absl::StrCat(path, ": cannot open for writing"));
+  for (const LocalSubmap& s : submaps) out << ToJson(s).dump() << '\n';
+  out.flush();
+  if (!out) return absl::DataLossError(absl::StrCat(path, ": write failed"));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<LocalSubmap>> ReadSubmapsJsonl(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open"));
+  std::vector<LocalSubmap> out;
+  std::string text;
+  int line = 0;
+  while (std::getline(in, text)) {
+    ++line;
+    if (text.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const LineReader reader(path, line);
+    json j;
+    try {
+      j = json::parse(text);
+    } catch (const json::parse_error& e) {
+      return reader.Error("(line)", absl::StrCat("invalid JSON: ", e.what()));
+    }
+    absl::StatusOr<LocalSubmap> s = FromJson(j, reader);
+    if (!s.ok()) return s.status();
+    if (!out.empty() && s->id <= out.back().id) {
+      return reader.Error("id", absl::StrCat("ids must increase (", s->id, " after ", out.back().id, ")"));
+    }
+    out.push_back(*std::move(s));
+  }
+  if (out.empty()) return absl::InvalidArgumentError(absl::StrCat(path, ": no local maps (empty file)"));
+  return out;
+}
+
+}  // namespace subslam::io
