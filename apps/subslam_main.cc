@@ -59,6 +59,8 @@ ABSL_FLAG(int, particles, kFastSlamDefaults.num_particles, "fastslam / rbpf: num
 ABSL_FLAG(uint64_t, filter_seed, kFastSlamDefaults.seed, "fastslam / rbpf: seed of the particle filter's random draws");
 ABSL_FLAG(bool, sample_association, kFastSlamDefaults.sample_association,
           "fastslam / rbpf: sample the data association instead of maximum likelihood");
+ABSL_FLAG(int, landmark_iterations, kFastSlamDefaults.landmark_update_iterations,
+          "fastslam / rbpf: landmark update iterations (1: EKF, more: iterated EKF)");
 ABSL_FLAG(double, resample_ess, kFastSlamDefaults.resample_ess_ratio,
           "fastslam / rbpf: resample when N_eff / N falls below this");
 ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
@@ -168,6 +170,7 @@ int Run() {
   options.fastslam.seed = absl::GetFlag(FLAGS_filter_seed);
   options.fastslam.sample_association = absl::GetFlag(FLAGS_sample_association);
   options.fastslam.resample_ess_ratio = absl::GetFlag(FLAGS_resample_ess);
+  options.fastslam.landmark_update_iterations = absl::GetFlag(FLAGS_landmark_iterations);
   options.fastslam.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   options.fastslam.gate_probability = options.ekf.gate_probability;
   options.fastslam.new_landmark_probability = options.ekf.new_landmark_probability;

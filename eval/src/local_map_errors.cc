@@ -1,6 +1,7 @@
 #include "subslam/eval/local_map_errors.h"
 
 #include <Eigen/Cholesky>
+#include <limits>
 #include <map>
 
 #include "subslam/eval/nees.h"
@@ -45,6 +46,9 @@ std::optional<LocalMapNees> EvaluateLocalMap(const LocalSubmap& s,
       continue;
     }
     const Eigen::Vector2d e = s.landmark(i) - TransformTo(start, it->second);
+    const std::optional<double> marginal =
+        PointNees(TransformTo(start, it->second), s.landmark(i), s.landmark_covariance(i));
+    r.landmark_nees.push_back(marginal.value_or(std::numeric_limits<double>::infinity()));
     index.push_back(3 + 2 * i);
     index.push_back(4 + 2 * i);
     error.push_back(e[0]);

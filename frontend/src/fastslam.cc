@@ -42,6 +42,9 @@ absl::Status FastSlamOptions::Validate() const {
     return absl::InvalidArgumentError(
         "existence thresholds must satisfy 0 < delete < confirm < max < 1");
   }
+  if (landmark_update_iterations < 1) {
+    return absl::InvalidArgumentError("landmark_update_iterations must be >= 1");
+  }
   if (cull_every_scans < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0) {
     return absl::InvalidArgumentError("cull_every_scans >= 1 and margins >= 0 required");
   }
@@ -112,6 +115,28 @@ FastSlam::LandmarkGaussian* FastSlam::Mutable(LandmarkRecord* record) {
   return const_cast<LandmarkGaussian*>(record->gaussian.get());
 }
 
+FastSlam::PairScore FastSlam::Score(const Particle& particle, int i, const Eigen::Vector2d& z,
+                                    double signature, const Eigen::Vector3d& delta,
+                                    const Eigen::Matrix3d& Sigma) const {
+  const Prediction& pr = predictions_[i];
+  PairScore out;
+  out.nu = models::RangeBearingModel::Difference(z, pr.z) - pr.H_pose * delta;
+  out.nu[1] = WrapAngle(out.nu[1]);
+  out.S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
+  const std::optional<double> d2 = models::MahalanobisSquared2(out.nu, out.S);
+  SUBSLAM_CHECK(d2.has_value()) << "predictive covariance not positive definite";
+  out.d2 = *d2;
+  out.log_likelihood = LogGaussian2(out.d2, out.S);
+  const LandmarkGaussian& l = *particle.landmarks[i].gaussian;
+  if (options_.sigma_signature > 0 && std::isfinite(signature) && l.signatures > 0) {
+    const double var =
+        options_.sigma_signature * options_.sigma_signature * (1.0 + 1.0 / l.signatures);
+    const double ds = signature - l.signature_sum / l.signatures;
+    out.log_likelihood += -0.5 * ds * ds / var - 0.5 * std::log(2.0 * std::numbers::pi * var);
+  }
+  return out;
+}
+
 void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
                               const std::vector<double>& signature, int* decisions) {
   const Eigen::Matrix2d R = sensor_.NoiseCovariance();
@@ -130,79 +155,92 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     pr.z = sensor_.Observe(x0, l.mean, &pr.H_pose, &H_l);
     pr.Z = H_l * l.covariance * H_l.transpose() + R;
   }
-  // Sequential FastSLAM 2.0 proposal: δ is the shift of the pose mean from x0.
+  // The proposal N(x0 ⊕ δ, Σ), updated by each associated detection in turn.
   Eigen::Vector3d delta = Eigen::Vector3d::Zero();
   Eigen::Matrix3d Sigma = particle->pose_covariance;
   double log_w = 0.0;
+  const auto update_proposal = [&](const Prediction& pr, const PairScore& score) {
+    const Eigen::Matrix<double, 3, 2> K = Sigma * pr.H_pose.transpose() * score.S.inverse();
+    delta += K * score.nu;
+    Sigma -= K * pr.H_pose * Sigma;
+    Sigma = 0.5 * (Sigma + Sigma.transpose()).eval();
+  };
+
+  // 1. Score every gated (detection, landmark) pair at the prior proposal.
+  min_d2_.assign(m, INFINITY);
+  pairs_.clear();
   for (int j = 0; j < m; ++j) {
-    int best = kNew;
-    double best_ll = -INFINITY, min_d2 = INFINITY;
-    likelihoods_.clear();
+    decisions[j] = kIgnore;
     for (int i = 0; i < n; ++i) {
-      Prediction& pr = predictions_[i];
-      if (!pr.in_reach) continue;
-      Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
-      nu -= pr.H_pose * delta;
-      nu[1] = WrapAngle(nu[1]);
-      const Eigen::Matrix2d S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
-      const std::optional<double> d2 = models::MahalanobisSquared2(nu, S);
-      SUBSLAM_CHECK(d2.has_value()) << "predictive covariance not positive definite";
-      min_d2 = std::min(min_d2, *d2);
-      if (*d2 < new_landmark_d2_) pr.gated = true;
-      if (*d2 >= gate_d2_ || pr.used) continue;
-      double ll = LogGaussian2(*d2, S);
-      const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
-      if (options_.sigma_signature > 0 && std::isfinite(signature[j]) && l.signatures > 0) {
-        const double var = options_.sigma_signature * options_.sigma_signature *
-                           (1.0 + 1.0 / l.signatures);
-        const double ds = signature[j] - l.signature_sum / l.signatures;
-        ll += -0.5 * ds * ds / var - 0.5 * std::log(2.0 * std::numbers::pi * var);
-      }
-      if (options_.sample_association) likelihoods_.push_back(static_cast<double>(i));
-      if (options_.sample_association) likelihoods_.push_back(ll);
-      if (ll > best_ll) {
-        best_ll = ll;
-        best = i;
-      }
+      if (!predictions_[i].in_reach) continue;
+      const PairScore score = Score(*particle, i, z[j], signature[j], delta, Sigma);
+      min_d2_[j] = std::min(min_d2_[j], score.d2);
+      if (score.d2 < new_landmark_d2_) predictions_[i].gated = true;
+      if (score.d2 >= gate_d2_) continue;
+      const double rank = options_.association_score == AssociationScore::kLikelihood
+                              ? score.log_likelihood : -score.d2;
+      pairs_.push_back({rank, j, i});
     }
-    if (options_.sample_association && !likelihoods_.empty()) {
-      // Sample among the gated landmarks and "new" (density p0).
-      double max_ll = std::max(best_ll, log_p0_), total = std::exp(log_p0_ - max_ll);
-      for (size_t k = 1; k < likelihoods_.size(); k += 2) total += std::exp(likelihoods_[k] - max_ll);
+  }
+  if (!options_.sample_association) {
+    // 2a. One-to-one greedy assignment, best pair first; then the proposal updates in
+    //     that order, each pair rescored at the current proposal for the weight.
+    std::sort(pairs_.begin(), pairs_.end(), [](const GatedPair& a, const GatedPair& b) {
+      return a.rank > b.rank || (a.rank == b.rank && (a.detection < b.detection ||
+                                                      (a.detection == b.detection && a.landmark < b.landmark)));
+    });
+    for (const GatedPair& p : pairs_) {
+      if (decisions[p.detection] >= 0 || predictions_[p.landmark].used) continue;
+      const PairScore score = Score(*particle, p.landmark, z[p.detection], signature[p.detection],
+                                    delta, Sigma);
+      predictions_[p.landmark].used = true;
+      decisions[p.detection] = p.landmark;
+      log_w += score.log_likelihood;
+      update_proposal(predictions_[p.landmark], score);
+      ++counters_.associated;
+    }
+  } else {
+    // 2b. Data-association sampling, detection by detection: among the still unused
+    //     gated landmarks and "new", in proportion to their likelihoods at the current
+    //     proposal.
+    for (int j = 0; j < m; ++j) {
+      likelihoods_.clear();
+      double max_ll = log_p0_;
+      for (const GatedPair& p : pairs_) {
+        if (p.detection != j || predictions_[p.landmark].used) continue;
+        const PairScore score = Score(*particle, p.landmark, z[j], signature[j], delta, Sigma);
+        if (score.d2 >= gate_d2_) continue;
+        likelihoods_.push_back({p.landmark, score.log_likelihood});
+        max_ll = std::max(max_ll, score.log_likelihood);
+      }
+      if (likelihoods_.empty()) continue;
+      double total = std::exp(log_p0_ - max_ll);
+      for (const auto& [i, ll] : likelihoods_) total += std::exp(ll - max_ll);
       double r = std::uniform_real_distribution<double>(0.0, total)(rng_);
-      best = kNew;
-      for (size_t k = 0; k < likelihoods_.size(); k += 2) {
-        r -= std::exp(likelihoods_[k + 1] - max_ll);
+      for (const auto& [i, ll] : likelihoods_) {
+        r -= std::exp(ll - max_ll);
         if (r < 0) {
-          best = static_cast<int>(likelihoods_[k]);
-          best_ll = likelihoods_[k + 1];
+          const PairScore score = Score(*particle, i, z[j], signature[j], delta, Sigma);
+          predictions_[i].used = true;
+          decisions[j] = i;
+          log_w += score.log_likelihood;
+          update_proposal(predictions_[i], score);
+          ++counters_.associated;
           break;
         }
       }
-    }
-    if (best >= 0) {
-      Prediction& pr = predictions_[best];
-      pr.used = true;
-      Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
-      nu -= pr.H_pose * delta;
-      nu[1] = WrapAngle(nu[1]);
-      const Eigen::Matrix2d S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
-      const Eigen::Matrix<double, 3, 2> K = Sigma * pr.H_pose.transpose() * S.inverse();
-      delta += K * nu;
-      Sigma -= K * pr.H_pose * Sigma;
-      Sigma = 0.5 * (Sigma + Sigma.transpose()).eval();
-      log_w += best_ll;
-      decisions[j] = best;
-    } else {
-      // New landmark or unexplained: the density of an unmapped landmark or clutter.
-      log_w += log_p0_;
-      decisions[j] = (best == kNew && min_d2 > new_landmark_d2_) ? kNew : kIgnore;
-      if (options_.sample_association && min_d2 <= new_landmark_d2_ && !likelihoods_.empty()) {
-        decisions[j] = kNew;  // sampled "new" although something gated
-      }
+      if (decisions[j] < 0) decisions[j] = kNew;  // sampled "new" although something gated
     }
   }
-  // Sample the pose from the proposal N(x0 ⊕ δ, Σ).
+  // 3. Unexplained detections: a new landmark beyond the new-landmark gate of every
+  //    landmark, otherwise ignored; both with the density p0.
+  for (int j = 0; j < m; ++j) {
+    if (decisions[j] >= 0) continue;
+    log_w += log_p0_;
+    if (decisions[j] != kNew) decisions[j] = min_d2_[j] > new_landmark_d2_ ? kNew : kIgnore;
+    if (decisions[j] == kIgnore) ++counters_.ignored;
+  }
+  // Sample the pose from the proposal.
   Eigen::Vector3d x = x0.vector() + delta;
   if (Sigma.trace() > 0.0) {
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
@@ -277,13 +315,25 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       touched[d] = true;
       LandmarkRecord& record = landmarks[d];
       LandmarkGaussian* l = Mutable(&record);
-      Eigen::Matrix2d H_l;
-      const Eigen::Vector2d z_hat = sensor_.Observe(x, l->mean, nullptr, &H_l);
-      const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], z_hat);
-      const Eigen::Matrix2d S = H_l * l->covariance * H_l.transpose() + R;
-      const Eigen::Matrix2d K = l->covariance * H_l.transpose() * S.inverse();
-      l->mean += K * nu;
-      l->covariance -= K * H_l * l->covariance;
+      // Iterated EKF: relinearise the measurement at the updated landmark mean.
+      const Eigen::Vector2d prior_mean = l->mean;
+      const Eigen::Matrix2d prior_cov = l->covariance;
+      Eigen::Vector2d mean = prior_mean;
+      Eigen::Matrix2d H_l, K;
+      for (int it = 0; it < options_.landmark_update_iterations; ++it) {
+        const Eigen::Vector2d z_hat = sensor_.Observe(x, mean, nullptr, &H_l);
+        Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], z_hat);
+        nu += H_l * (mean - prior_mean);
+        nu[1] = WrapAngle(nu[1]);
+        const Eigen::Matrix2d S = H_l * prior_cov * H_l.transpose() + R;
+        K = prior_cov * H_l.transpose() * S.inverse();
+        const Eigen::Vector2d next = prior_mean + K * nu;
+        const bool converged = (next - mean).squaredNorm() < 1e-16;
+        mean = next;
+        if (converged) break;
+      }
+      l->mean = mean;
+      l->covariance = prior_cov - K * H_l * prior_cov;
       l->covariance = 0.5 * (l->covariance + l->covariance.transpose()).eval();
       if (std::isfinite(signature[j])) {
         l->signature_sum += signature[j];
@@ -527,6 +577,8 @@ std::map<std::string, double> FastSlam::Counters() const {
           {"detections", counters_.detections},
           {"particles", num_particles()},
           {"resamples", counters_.resamples},
+          {"associated_all_particles", counters_.associated},
+          {"ignored_all_particles", counters_.ignored},
           {"landmarks_created_all_particles", counters_.landmarks_created},
           {"landmarks_culled_all_particles", counters_.landmarks_culled},
           {"landmark_copies", counters_.landmark_copies},

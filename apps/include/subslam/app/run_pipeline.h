@@ -61,6 +61,8 @@ struct LocalMapSummary {
   int inside = 0;       // joint NEES inside its two-sided 95% χ² bounds
   int pose_inside = 0;  // end-pose NEES inside the 3-dof bounds
   double nees_per_dof = 0.0;  // mean over maps of NEES / dof
+  int landmarks = 0;          // features evaluated, over all maps
+  int landmarks_inside = 0;   // their 2-dof marginal NEES inside the 95% bounds
   int false_alarms = 0; // exported features whose detections were false alarms
 };
 

@@ -23,6 +23,7 @@ struct LocalMapNees {
   int dof = 3;
   double pose_nees = 0.0;  // end pose alone, 3 dof
   int landmarks_evaluated = 0;
+  std::vector<double> landmark_nees;  // per evaluated feature, its 2-dof marginal
   int false_alarms = 0;    // exported features whose truth_id is −1
   int unlabelled = 0;      // exported features without a truth id
   double lower = 0.0, upper = 0.0;  // two-sided 95% χ²_dof bounds

@@ -6,18 +6,20 @@
 //  * Between scans a particle's pose is a Gaussian N(x̄, Σ): the controls move x̄ and
 //    accumulate the linearised process noise in Σ (F Σ Fᵀ + G M Gᵀ), so the pose noise
 //    of all the steps since the last scan enters the FastSLAM 2.0 proposal at once.
-//  * Scan (per particle): each detection in turn is associated by maximum likelihood
-//    (or sampled, option) among the landmarks whose predicted measurement passes the
-//    χ²₂ individual gate, with predictive density N(ν; 0, H_x Σ H_xᵀ + H_l Σ_l H_lᵀ + R);
-//    a detection outside the larger new-landmark gate for every landmark starts a new
-//    landmark, one between the gates is left unexplained. An associated detection
-//    updates the proposal (x̄, Σ) by an EKF step with measurement noise H_l Σ_l H_lᵀ + R
-//    (the FastSLAM 2.0 proposal); after the scan the pose is sampled from it and Σ reset.
+//  * Scan (per particle): every (detection, landmark) pair whose predicted measurement
+//    passes the χ²₂ individual gate is scored by its predictive density
+//    N(ν; 0, S), S = H_x Σ H_xᵀ + H_l Σ_l H_lᵀ + R (maximum likelihood; or by
+//    Mahalanobis distance, option) and assigned one-to-one, best pair first (or sampled
+//    detection by detection: data-association sampling, option). A detection outside the
+//    larger new-landmark gate for every landmark starts a new landmark; one between the
+//    gates is left unexplained. Each associated detection, in assignment order, updates
+//    the proposal (x̄, Σ) by an EKF step with measurement noise H_l Σ_l H_lᵀ + R (the
+//    FastSLAM 2.0 proposal); after the scan the pose is sampled from it and Σ reset.
 //    The importance weight gains the predictive density of every associated detection
 //    and the constant new-landmark density p0 (see FastSlamOptions) for every other.
 //    Predicted measurements are computed once per scan and corrected to first order
 //    for the proposal's shift, so the inner association loop allocates nothing.
-//  * Landmarks are updated by 2-D EKFs at the sampled pose; new ones initialised by the
+//  * Landmarks are updated by 2-D EKFs (optionally iterated) at the sampled pose; new ones initialised by the
 //    inverse sensor model. An optional signature cue (e.g. trunk diameter) multiplies
 //    the association likelihood by N(s − s̄; 0, σ_s²(1 + 1/k)) over the k signatures seen.
 //  * Existence (HybridSLAM Eq. 11) per particle and landmark, with detection probability
@@ -58,6 +60,12 @@
 
 namespace subslam::frontend {
 
+// How gated (detection, landmark) pairs are ranked for the one-to-one assignment.
+enum class AssociationScore {
+  kLikelihood,   // maximum likelihood: N(ν; 0, S), signature cue included
+  kMahalanobis,  // nearest neighbour: smallest νᵀS⁻¹ν (as EKF-SLAM's NN)
+};
+
 struct FastSlamOptions {
   int num_particles = 100;
   uint64_t seed = 1;
@@ -65,9 +73,11 @@ struct FastSlamOptions {
   double gate_probability = 0.99;
   // A detection outside this gate for every landmark of a particle starts a new one.
   double new_landmark_probability = 0.9999;
-  // false: maximum-likelihood association; true: sample the association among the
-  // gated landmarks and "new" in proportion to their likelihoods.
+  // false: one-to-one greedy assignment of the gated pairs, best `association_score`
+  // first; true: data-association sampling — each detection in turn picks one of the
+  // unused gated landmarks or "new" at random in proportion to their likelihoods.
   bool sample_association = false;
+  AssociationScore association_score = AssociationScore::kLikelihood;
   // p0, the density of a detection explained by a new landmark or by clutter, is the
   // Gaussian density N(·; 0, R) at the new-landmark gate's boundary, R the sensor noise.
   // Resample when N_eff < resample_ess_ratio · N.
@@ -82,6 +92,9 @@ struct FastSlamOptions {
   double expect_range_margin_m = 1.0;
   double expect_bearing_margin_rad = 0.05;
   int cull_every_scans = 10;
+  // Landmark EKF update iterations (1: plain EKF; more: iterated EKF, relinearising the
+  // measurement at the updated mean — better with large bearing noise at long range).
+  int landmark_update_iterations = 1;
   // Signature cue: σ of one signature measurement (same units as the signature);
   // 0 disables the cue.
   double sigma_signature = 0.0;
@@ -95,6 +108,8 @@ struct FastSlamCounters {
   long scans = 0;
   long detections = 0;
   long resamples = 0;
+  long associated = 0;         // detection-landmark pairings, summed over particles
+  long ignored = 0;            // detections left unexplained (between the gates), summed
   long landmarks_created = 0;  // summed over particles
   long landmarks_culled = 0;   // summed over particles
   long landmark_copies = 0;    // copy-on-write copies
@@ -170,6 +185,17 @@ class FastSlam final : public OnlineEstimator {
     int lineage = -1;         // index of the ancestor at the first scan after Reset()
     std::vector<LandmarkRecord> landmarks;
   };
+  struct PairScore {
+    Eigen::Vector2d nu;
+    Eigen::Matrix2d S;
+    double d2 = 0.0;
+    double log_likelihood = 0.0;
+  };
+  struct GatedPair {
+    double rank;
+    int detection;
+    int landmark;
+  };
   struct Prediction {  // of one landmark of the particle being updated
     Eigen::Vector2d z;
     Matrix23d H_pose;
@@ -181,6 +207,9 @@ class FastSlam final : public OnlineEstimator {
   static constexpr int kNew = -1;
   static constexpr int kIgnore = -2;
 
+  PairScore Score(const Particle& particle, int landmark, const Eigen::Vector2d& z,
+                  double signature, const Eigen::Vector3d& delta,
+                  const Eigen::Matrix3d& Sigma) const;
   void UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
                       const std::vector<double>& signature, int* decisions);
   void ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
@@ -204,7 +233,9 @@ class FastSlam final : public OnlineEstimator {
   std::vector<int> decision_label_;   // the common id each decision votes for
   std::vector<int> voted_label_;      // per detection: the id written into landmarks
   std::vector<std::pair<int, double>> tally_;
-  std::vector<double> likelihoods_;
+  std::vector<std::pair<int, double>> likelihoods_;
+  std::vector<GatedPair> pairs_;
+  std::vector<double> min_d2_;
   std::vector<int> scan_features_;
   std::vector<int> detection_index_;
   double last_ess_ratio_ = 1.0;

@@ -33,10 +33,10 @@ namespace subslam::frontend {
 
 struct SubmapPolicyOptions {
   bool enabled = true;
-  double min_duration_s = 2.0;
-  double max_duration_s = 30.0;       // 0: off
+  double min_duration_s = 1.0;
+  double max_duration_s = 10.0;       // 0: off (10 s: HybridSLAM §5)
   double max_pose_sigma_ratio = 0.0;  // 0: off
-  double min_lineage_diversity = 0.0; // 0: off
+  double min_lineage_diversity = 0.3; // 0: off (ours: see bench/RESULTS.md)
   double min_ess_ratio = 0.0;         // 0: off
   int max_features = 30;              // 0: off (10 × the pose dimension)
   int density_min_features = 0;      // 0: off

@@ -1,0 +1,139 @@
+#include "subslam/frontend/fastslam.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "subslam/frontend/ekf_slam.h"
+#include "subslam/graph/internal/check.h"
+#include "subslam/io/steps.h"
+#include "subslam/models/unicycle_model.h"
+#include "subslam/sim/simulator.h"
+#include "test_util.h"
+
+namespace subslam::frontend {
+namespace {
+
+io::Dataset Simulate(const std::string& scenario, uint64_t seed, double duration_s) {
+  sim::ScenarioOptions o;
+  o.seed = seed;
+  o.duration_s = duration_s;
+  absl::StatusOr<io::Dataset> d = sim::SimulateScenario(scenario, o);
+  SUBSLAM_CHECK(d.ok()) << d.status().message();
+  return *std::move(d);
+}
+
+Trajectory RunFilter(OnlineEstimator* estimator, const io::Dataset& d) {
+  Trajectory out;
+  for (const io::Step& step : io::BuildSteps(d)) {
+    estimator->Predict(step.control, step.dt);
+    if (step.scan_index >= 0) estimator->Update(d.scans[step.scan_index]);
+    out.push_back({step.t, estimator->pose(), estimator->pose_covariance()});
+  }
+  return out;
+}
+
+TEST(FastSlam, SameSeedSameRunBitForBit) {
+  const io::Dataset d = Simulate("hybrid-120m", 4, 30.0);
+  FastSlamOptions options;
+  options.num_particles = 50;
+  FastSlam a(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  FastSlam b(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  const Trajectory ta = RunFilter(&a, d), tb = RunFilter(&b, d);
+  ASSERT_EQ(ta.size(), tb.size());
+  for (size_t k = 0; k < ta.size(); ++k) {
+    ASSERT_EQ(ta[k].pose.x, tb[k].pose.x) << k;
+    ASSERT_EQ(ta[k].pose.theta, tb[k].pose.theta) << k;
+  }
+  options.seed = 2;
+  FastSlam c(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  const Trajectory tc = RunFilter(&c, d);
+  EXPECT_NE(ta.back().pose.x, tc.back().pose.x);
+}
+
+// With no motion noise the pose is known: every particle equals the one sample, and each
+// landmark is an independent EKF at the same linearisation points as EKF-SLAM with a
+// zero pose covariance, so the two maps agree.
+TEST(FastSlam, WithoutMotionNoiseEqualsEkfSlam) {
+  const io::Dataset d = Simulate("hybrid-120m", 2, 40.0);
+  const models::ControlNoise none;
+  FastSlamOptions fo;
+  fo.num_particles = 3;
+  fo.association_score = AssociationScore::kMahalanobis;  // as EKF-SLAM's NN
+  FastSlam fast(std::make_unique<models::UnicycleModel>(none), d.sensor.range_bearing,
+                d.initial_pose, fo);
+  EkfSlamOptions eo;
+  EkfSlam ekf(std::make_unique<models::UnicycleModel>(none), d.sensor.range_bearing,
+              d.initial_pose, eo);
+  RunFilter(&fast, d);
+  RunFilter(&ekf, d);
+  // Every landmark, tentative ones included: EKF-SLAM's state against the particles'.
+  MomentMatchingOptions all;
+  all.min_existence = 0.0;
+  const MomentMatchedGaussian g = MomentMatch(fast.Hypotheses(), all);
+  const Eigen::VectorXd x = ekf.mean();
+  const Eigen::MatrixXd P = ekf.covariance();
+  ASSERT_GE(ekf.num_landmarks(), 8);
+  EXPECT_EQ(fast.counters().associated, fo.num_particles * ekf.counters().associated);
+  EXPECT_EQ(fast.counters().ignored, fo.num_particles * ekf.counters().ambiguous);
+  ASSERT_EQ(static_cast<int>(g.features.size()), ekf.num_landmarks());
+  for (int k = 0; k < ekf.num_landmarks(); ++k) {  // pair each with its nearest
+    const int j = 3 + 2 * k;
+    int best = 0;
+    for (size_t f = 1; f < g.features.size(); ++f) {
+      if ((g.mean.segment<2>(3 + 2 * f) - x.segment<2>(j)).norm() <
+          (g.mean.segment<2>(3 + 2 * best) - x.segment<2>(j)).norm()) {
+        best = static_cast<int>(f);
+      }
+    }
+    const int i = 3 + 2 * best;
+    EXPECT_TRUE(testing::MatricesNear(x.segment<2>(j), g.mean.segment<2>(i), 1e-9)) << k;
+    EXPECT_TRUE(testing::MatricesNear(P.block<2, 2>(j, j), g.covariance.block<2, 2>(i, i), 1e-9)) << k;
+  }
+  EXPECT_TRUE(testing::MatricesNear(ekf.pose().vector(), fast.pose().vector(), 1e-12));
+}
+
+// Resampling shares landmark Gaussians between particles; updating a shared one copies
+// it (copy-on-write), and the particles' maps stay independent.
+TEST(FastSlam, ResamplingSharesLandmarksCopyOnWrite) {
+  const io::Dataset d = Simulate("hybrid-120m", 5, 30.0);
+  FastSlamOptions options;
+  options.num_particles = 40;
+  FastSlam f(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  RunFilter(&f, d);
+  EXPECT_GT(f.counters().resamples, 0);
+  EXPECT_GT(f.counters().landmark_copies, 0);
+  // Far fewer copies than landmark updates: untouched landmarks stay shared.
+  EXPECT_LT(f.counters().landmark_copies, f.counters().detections * options.num_particles);
+  const MomentMatchedGaussian g = f.MomentMatched();
+  EXPECT_GE(g.features.size(), 3u);
+  EXPECT_LE(f.LineageDiversity(), 1.0);
+}
+
+TEST(FastSlam, ResetStartsAnEmptyMapAtTheGivenPose) {
+  const io::Dataset d = Simulate("hybrid-120m", 6, 20.0);
+  FastSlam f(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, {});
+  RunFilter(&f, d);
+  ASSERT_FALSE(f.Map().empty());
+  f.Reset(Pose2(1, 2, 0.5));
+  EXPECT_TRUE(f.Map().empty());
+  EXPECT_TRUE(testing::MatricesNear(Eigen::Vector3d(1, 2, 0.5), f.pose().vector(), 0.0));
+  EXPECT_TRUE(testing::MatricesNear(Eigen::Matrix3d::Zero(), f.pose_covariance(), 0.0));
+  EXPECT_EQ(f.LineageDiversity(), 1.0);
+}
+
+TEST(FastSlamOptions, ValidationRejectsNonsense) {
+  FastSlamOptions o;
+  EXPECT_TRUE(o.Validate().ok());
+  o.num_particles = 0;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.resample_ess_ratio = 1.5;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.sigma_signature = -1;
+  EXPECT_FALSE(o.Validate().ok());
+}
+
+}  // namespace
+}  // namespace subslam::frontend
