@@ -126,15 +126,16 @@ FastSlam::PairScore FastSlam::Score(const Particle& particle, int i, const Eigen
   const std::optional<double> d2 = models::MahalanobisSquared2(out.nu, out.S);
   SUBSLAM_CHECK(d2.has_value()) << "predictive covariance not positive definite";
   out.d2 = *d2;
-  out.log_likelihood = LogGaussian2(out.d2, out.S);
-  const LandmarkGaussian& l = *particle.landmarks[i].gaussian;
-  if (options_.sigma_signature > 0 && std::isfinite(signature) && l.signatures > 0) {
-    const double var =
-        options_.sigma_signature * options_.sigma_signature * (1.0 + 1.0 / l.signatures);
-    const double ds = signature - l.signature_sum / l.signatures;
-    out.log_likelihood += -0.5 * ds * ds / var - 0.5 * std::log(2.0 * std::numbers::pi * var);
-  }
+  out.log_likelihood = LogGaussian2(out.d2, out.S) +
+                       SignatureLogLikelihood(*particle.landmarks[i].gaussian, signature);
   return out;
+}
+
+double FastSlam::SignatureLogLikelihood(const LandmarkGaussian& l, double signature) const {
+  if (!(options_.sigma_signature > 0) || !std::isfinite(signature) || l.signatures == 0) return 0.0;
+  const double var = options_.sigma_signature * options_.sigma_signature * (1.0 + 1.0 / l.signatures);
+  const double ds = signature - l.signature_sum / l.signatures;
+  return -0.5 * ds * ds / var - 0.5 * std::log(2.0 * std::numbers::pi * var);
 }
 
 void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
@@ -166,19 +167,39 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     Sigma = 0.5 * (Sigma + Sigma.transpose()).eval();
   };
 
-  // 1. Score every gated (detection, landmark) pair at the prior proposal.
+  // 1. Score every (detection, landmark) pair at the prior proposal, where S depends on
+  //    the landmark only: one 2×2 inverse per landmark, a few flops per pair.
+  for (int i = 0; i < n; ++i) {
+    Prediction& pr = predictions_[i];
+    if (!pr.in_reach) continue;
+    pr.S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
+    const double det = pr.S.determinant();
+    SUBSLAM_CHECK(det > 0.0) << "predictive covariance not positive definite";
+    pr.S_inv = pr.S.inverse();
+    pr.log_norm = NAN;  // computed when a pair gates
+    pr.det = det;
+  }
   min_d2_.assign(m, INFINITY);
   pairs_.clear();
   for (int j = 0; j < m; ++j) {
     decisions[j] = kIgnore;
     for (int i = 0; i < n; ++i) {
-      if (!predictions_[i].in_reach) continue;
-      const PairScore score = Score(*particle, i, z[j], signature[j], delta, Sigma);
-      min_d2_[j] = std::min(min_d2_[j], score.d2);
-      if (score.d2 < new_landmark_d2_) predictions_[i].gated = true;
-      if (score.d2 >= gate_d2_) continue;
-      const double rank = options_.association_score == AssociationScore::kLikelihood
-                              ? score.log_likelihood : -score.d2;
+      Prediction& pr = predictions_[i];
+      if (!pr.in_reach) continue;
+      const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+      const double d2 = nu.dot(pr.S_inv * nu);
+      min_d2_[j] = std::min(min_d2_[j], d2);
+      if (d2 >= new_landmark_d2_) continue;
+      pr.gated = true;
+      if (d2 >= gate_d2_) continue;
+      double rank = -d2;
+      if (options_.association_score == AssociationScore::kLikelihood) {
+        if (std::isnan(pr.log_norm)) {
+          pr.log_norm = -std::log(2.0 * std::numbers::pi) - 0.5 * std::log(pr.det);
+        }
+        rank = pr.log_norm - 0.5 * d2 +
+               SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
+      }
       pairs_.push_back({rank, j, i});
     }
   }
@@ -243,13 +264,26 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   // Sample the pose from the proposal.
   Eigen::Vector3d x = x0.vector() + delta;
   if (Sigma.trace() > 0.0) {
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    eig.computeDirect(Sigma);
     std::normal_distribution<double> normal;
-    Eigen::Vector3d xi(normal(rng_), normal(rng_), normal(rng_));
-    x += eig.eigenvectors() * (eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseProduct(xi));
+    const Eigen::Vector3d xi(normal(rng_), normal(rng_), normal(rng_));
+    const Eigen::LLT<Eigen::Matrix3d> llt(Sigma);
+    if (llt.info() == Eigen::Success) {
+      x += llt.matrixL() * xi;
+    } else {  // positive semi-definite (e.g. no noise on one axis)
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+      eig.computeDirect(Sigma);
+      x += eig.eigenvectors() * (eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseProduct(xi));
+    }
   }
-  for (int i = 0; i < n; ++i) particle->landmarks[i].gated = predictions_[i].gated;
+  // Expected but missed: predicted well inside the field of view (at the prior pose:
+  // the sample moves it by centimetres) and not even within the new-landmark gate of
+  // any detection.
+  for (int i = 0; i < n; ++i) {
+    const Prediction& pr = predictions_[i];
+    particle->landmarks[i].missed =
+        pr.in_reach && !pr.gated &&
+        sensor_.IsVisible(pr.z, options_.expect_range_margin_m, options_.expect_bearing_margin_rad);
+  }
   particle->pose = Pose2::FromVector(x);
   particle->pose.theta = WrapAngle(particle->pose.theta);
   particle->pose_covariance.setZero();
@@ -261,11 +295,13 @@ void FastSlam::Vote(int m) {
   scan_features_.assign(m, -1);
   voted_label_.assign(2 * m, kIgnore);  // [2j]: for modified landmarks, [2j+1]: for created
   scan_disagreement_ = 0.0;
+  weights_.resize(P);
+  for (int p = 0; p < P; ++p) weights_[p] = std::exp(particles_[p].log_weight);
   for (int j = 0; j < m; ++j) {
     tally_.clear();
     for (int p = 0; p < P; ++p) {
       const int label = decision_label_[p * m + j];
-      const double w = std::exp(particles_[p].log_weight);
+      const double w = weights_[p];
       auto it = std::find_if(tally_.begin(), tally_.end(),
                              [label](const auto& t) { return t.first == label; });
       if (it == tally_.end()) {
@@ -307,12 +343,9 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
   const int m = static_cast<int>(z.size());
   const int n_before = static_cast<int>(particle->landmarks.size());
   std::vector<LandmarkRecord>& landmarks = particle->landmarks;
-  std::vector<bool>& touched = touched_;
-  touched.assign(n_before, false);
   for (int j = 0; j < m; ++j) {
     const int d = decisions[j];
     if (d >= 0) {
-      touched[d] = true;
       LandmarkRecord& record = landmarks[d];
       LandmarkGaussian* l = Mutable(&record);
       // Iterated EKF: relinearise the measurement at the updated landmark mean.
@@ -359,18 +392,9 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       ++counters_.landmarks_created;
     }
   }
-  // Expected but missed: inside the field of view, not gated by any detection.
-  const double reach = sensor_.config().max_range_m + 10.0;
+  // Expected but missed (flagged by UpdateParticle): the missed-detection update.
   for (int i = 0; i < n_before; ++i) {
-    if (touched[i]) continue;
-    const LandmarkGaussian& l = *landmarks[i].gaussian;
-    if ((l.mean - x.translation()).squaredNorm() > reach * reach) continue;
-    const Eigen::Vector2d z_hat = sensor_.Observe(x, l.mean);
-    if (landmarks[i].gated || !sensor_.IsVisible(z_hat, options_.expect_range_margin_m,
-                                                 options_.expect_bearing_margin_rad)) {
-      continue;
-    }
-    UpdateExistence(&landmarks[i], false);
+    if (landmarks[i].missed) UpdateExistence(&landmarks[i], false);
   }
   if (counters_.scans % options_.cull_every_scans == 0) {
     const auto doomed = [this](const LandmarkRecord& r) {

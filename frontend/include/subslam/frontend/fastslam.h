@@ -176,7 +176,7 @@ class FastSlam final : public OnlineEstimator {
     double existence = 0.5;
     int feature = -1;  // common feature id
     bool confirmed = false;
-    bool gated = false;  // scratch: some detection of this scan within the new-landmark gate
+    bool missed = false;  // scratch: expected in the last scan but not detected
   };
   struct Particle {
     Pose2 pose;
@@ -200,6 +200,9 @@ class FastSlam final : public OnlineEstimator {
     Eigen::Vector2d z;
     Matrix23d H_pose;
     Eigen::Matrix2d Z;  // H_l Σ_l H_lᵀ + R
+    Eigen::Matrix2d S, S_inv;  // at the prior proposal: H_x Σ H_xᵀ + Z
+    double det = 0.0;          // det S
+    double log_norm = 0.0;     // −log 2π − ½ log det S (NaN until needed)
     bool in_reach = false;
     bool gated = false;  // some detection within the new-landmark gate
     bool used = false;   // associated in this scan
@@ -210,6 +213,7 @@ class FastSlam final : public OnlineEstimator {
   PairScore Score(const Particle& particle, int landmark, const Eigen::Vector2d& z,
                   double signature, const Eigen::Vector3d& delta,
                   const Eigen::Matrix3d& Sigma) const;
+  double SignatureLogLikelihood(const LandmarkGaussian& l, double signature) const;
   void UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
                       const std::vector<double>& signature, int* decisions);
   void ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
@@ -236,13 +240,13 @@ class FastSlam final : public OnlineEstimator {
   std::vector<std::pair<int, double>> likelihoods_;
   std::vector<GatedPair> pairs_;
   std::vector<double> min_d2_;
+  std::vector<double> weights_;
   std::vector<int> scan_features_;
   std::vector<int> detection_index_;
   double last_ess_ratio_ = 1.0;
   bool resample_pending_ = false;
   std::vector<Eigen::Vector2d> z_;
   std::vector<double> signature_;
-  std::vector<bool> touched_;
   mutable std::vector<int> features_scratch_;
   mutable std::vector<char> lineage_seen_;
   double scan_disagreement_ = 0.0;
