@@ -73,12 +73,15 @@ void FastSlam::Reset(const Pose2& start) {
   particles_.assign(options_.num_particles, Particle{});
   const double log_w = -std::log(static_cast<double>(options_.num_particles));
   for (Particle& p : particles_) {
-    p.pose = start;
+    SetPose(&p, start);
     p.log_weight = log_w;
   }
+  pose_cache_valid_ = false;
   scan_features_.clear();
   scan_disagreement_ = 0.0;
   resample_pending_ = false;
+  motion_since_scan_ = Pose2();
+  motion_covariance_.setZero();
 }
 
 void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
@@ -88,13 +91,33 @@ void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
     Resample();
   }
   StageTimer timer(&times_, "predict");
-  const Eigen::Matrix2d M = motion_->noise().Covariance(u);
+  pose_cache_valid_ = false;
+  // The motion since the last scan, shared by every particle (the models are
+  // SE(2)-equivariant: f(a ∘ r, u) = a ∘ f(r, u)), so prediction is O(1), not O(N).
   Eigen::Matrix3d F;
   Matrix32d G;
-  for (Particle& p : particles_) {
-    p.pose = motion_->Predict(p.pose, u, dt, &F, &G);
-    p.pose_covariance = F * p.pose_covariance * F.transpose() + G * M * G.transpose();
+  motion_since_scan_ = motion_->Predict(motion_since_scan_, u, dt, &F, &G);
+  motion_covariance_ = F * motion_covariance_ * F.transpose() +
+                       G * motion_->noise().Covariance(u) * G.transpose();
+}
+
+Pose2 FastSlam::CurrentPose(const Particle& p, Eigen::Matrix3d* covariance) const {
+  // p.pose ∘ r with the particle's cached cos / sin; ∂/∂r = diag(R(θ_p), 1).
+  const Pose2& r = motion_since_scan_;
+  const double c = p.cos_theta, s = p.sin_theta;
+  if (covariance != nullptr) {
+    Eigen::Matrix3d J;
+    J << c, -s, 0, s, c, 0, 0, 0, 1;
+    *covariance = J * motion_covariance_ * J.transpose();
   }
+  return Pose2(p.pose.x + c * r.x - s * r.y, p.pose.y + s * r.x + c * r.y,
+               WrapAngle(p.pose.theta + r.theta));
+}
+
+void FastSlam::SetPose(Particle* p, const Pose2& pose) {
+  p->pose = pose;
+  p->cos_theta = std::cos(pose.theta);
+  p->sin_theta = std::sin(pose.theta);
 }
 
 void FastSlam::UpdateExistence(LandmarkRecord* record, bool detected) const {
@@ -144,7 +167,8 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   const double reach = sensor_.config().max_range_m + 10.0;
   const int n = static_cast<int>(particle->landmarks.size());
   const int m = static_cast<int>(z.size());
-  const Pose2 x0 = particle->pose;
+  Eigen::Matrix3d Sigma;  // of the proposal, below
+  const Pose2 x0 = CurrentPose(*particle, &Sigma);
   predictions_.resize(n);
   for (int i = 0; i < n; ++i) {
     Prediction& pr = predictions_[i];
@@ -158,7 +182,6 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   }
   // The proposal N(x0 ⊕ δ, Σ), updated by each associated detection in turn.
   Eigen::Vector3d delta = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d Sigma = particle->pose_covariance;
   double log_w = 0.0;
   const auto update_proposal = [&](const Prediction& pr, const PairScore& score) {
     const Eigen::Matrix<double, 3, 2> K = Sigma * pr.H_pose.transpose() * score.S.inverse();
@@ -186,6 +209,9 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     for (int i = 0; i < n; ++i) {
       Prediction& pr = predictions_[i];
       if (!pr.in_reach) continue;
+      // νᵀS⁻¹ν ≥ ν_r² / S_rr: most pairs are rejected on range alone.
+      const double nu_r = z[j][0] - pr.z[0];
+      if (nu_r * nu_r >= new_landmark_d2_ * pr.S(0, 0)) continue;
       const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
       const double d2 = nu.dot(pr.S_inv * nu);
       min_d2_[j] = std::min(min_d2_[j], d2);
@@ -284,9 +310,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
         pr.in_reach && !pr.gated &&
         sensor_.IsVisible(pr.z, options_.expect_range_margin_m, options_.expect_bearing_margin_rad);
   }
-  particle->pose = Pose2::FromVector(x);
-  particle->pose.theta = WrapAngle(particle->pose.theta);
-  particle->pose_covariance.setZero();
+  SetPose(particle, Pose2(x[0], x[1], WrapAngle(x[2])));
   particle->log_weight += log_w;
 }
 
@@ -442,6 +466,9 @@ void FastSlam::Update(const io::Scan& scan) {
             decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
       }
     }
+    pose_cache_valid_ = false;
+    motion_since_scan_ = Pose2();  // every particle now holds its sampled pose
+    motion_covariance_.setZero();
     Normalise();
     last_ess_ratio_ = EffectiveSampleSizeRatio();
     Vote(m);
@@ -503,39 +530,47 @@ void FastSlam::Resample() {
   }
   particles_.swap(resampled_);
   resample_pending_ = false;
+  pose_cache_valid_ = false;
   const double log_w = -std::log(static_cast<double>(P));
   for (Particle& p : particles_) p.log_weight = log_w;
   ++counters_.resamples;
 }
 
-Pose2 FastSlam::pose() const {
+void FastSlam::UpdatePoseCache() const {
+  if (pose_cache_valid_) return;
   size_t heaviest = 0;
   for (size_t p = 1; p < particles_.size(); ++p) {
     if (particles_[p].log_weight > particles_[heaviest].log_weight) heaviest = p;
   }
-  const double reference = particles_[heaviest].pose.theta;
+  const double reference = CurrentPose(particles_[heaviest]).theta;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d second = Eigen::Matrix3d::Zero();  // Σ w (R Σ_r Rᵀ + d dᵀ), d about reference
   double total = 0.0;
   for (const Particle& p : particles_) {
     const double w = std::exp(p.log_weight);
-    mean += w * Eigen::Vector3d(p.pose.x, p.pose.y, WrapAngle(p.pose.theta - reference));
+    Eigen::Matrix3d cov;
+    const Pose2 x = CurrentPose(p, &cov);
+    const Eigen::Vector3d v(x.x, x.y, WrapAngle(x.theta - reference));
+    mean += w * v;
+    second += w * (cov + v * v.transpose());
     total += w;
   }
   mean /= total;
-  return Pose2(mean.x(), mean.y(), WrapAngle(mean.z() + reference));
+  second /= total;
+  cached_pose_ = Pose2(mean.x(), mean.y(), WrapAngle(mean.z() + reference));
+  cached_pose_covariance_ = second - mean * mean.transpose();
+  cached_pose_covariance_ = 0.5 * (cached_pose_covariance_ + cached_pose_covariance_.transpose()).eval();
+  pose_cache_valid_ = true;
+}
+
+Pose2 FastSlam::pose() const {
+  UpdatePoseCache();
+  return cached_pose_;
 }
 
 Eigen::Matrix3d FastSlam::pose_covariance() const {
-  const Pose2 mean = pose();
-  Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
-  double total = 0.0;
-  for (const Particle& p : particles_) {
-    const double w = std::exp(p.log_weight);
-    const Eigen::Vector3d d(p.pose.x - mean.x, p.pose.y - mean.y, WrapAngle(p.pose.theta - mean.theta));
-    P += w * (p.pose_covariance + d * d.transpose());
-    total += w;
-  }
-  return P / total;
+  UpdatePoseCache();
+  return cached_pose_covariance_;
 }
 
 std::vector<ParticleHypothesis> FastSlam::Hypotheses() const {
@@ -543,8 +578,7 @@ std::vector<ParticleHypothesis> FastSlam::Hypotheses() const {
   for (size_t p = 0; p < particles_.size(); ++p) {
     const Particle& particle = particles_[p];
     out[p].weight = std::exp(particle.log_weight);
-    out[p].pose = particle.pose;
-    out[p].pose_covariance = particle.pose_covariance;
+    out[p].pose = CurrentPose(particle, &out[p].pose_covariance);
     out[p].features.reserve(particle.landmarks.size());
     for (const LandmarkRecord& r : particle.landmarks) {
       const LandmarkGaussian& l = *r.gaussian;
@@ -584,7 +618,7 @@ FastSlam::FeatureCounts FastSlam::ConfirmedFeatureCounts() const {
   for (const LandmarkRecord& r : particle.landmarks) {
     if (!r.confirmed) continue;
     features_scratch_.push_back(r.feature);
-    if ((r.gaussian->mean - particle.pose.translation()).squaredNorm() <= range * range) {
+    if ((r.gaussian->mean - CurrentPose(particle).translation()).squaredNorm() <= range * range) {
       ++counts.within_range;
     }
   }

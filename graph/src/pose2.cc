@@ -4,14 +4,6 @@
 
 namespace subslam {
 
-double WrapAngle(double angle_rad, double* J_wrapped_angle) {
-  if (J_wrapped_angle != nullptr) *J_wrapped_angle = 1.0;
-  if (angle_rad > -kPi && angle_rad <= kPi) return angle_rad;
-  double wrapped = std::remainder(angle_rad, kTwoPi);  // in [−π, π]
-  if (wrapped <= -kPi) wrapped += kTwoPi;
-  return wrapped;
-}
-
 Eigen::Matrix2d Pose2::rotation() const {
   const double c = std::cos(theta), s = std::sin(theta);
   Eigen::Matrix2d r;

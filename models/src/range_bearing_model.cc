@@ -80,8 +80,4 @@ bool RangeBearingModel::IsVisible(const Eigen::Vector2d& z, double range_margin_
          z[1] <= config_.fov_max_rad - bearing_margin_rad;
 }
 
-Eigen::Vector2d RangeBearingModel::Difference(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-  return {a[0] - b[0], WrapAngle(a[1] - b[1])};
-}
-
 }  // namespace subslam::models

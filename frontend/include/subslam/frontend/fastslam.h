@@ -3,9 +3,12 @@
 // single-map FastSLAM 2.0 baseline (`subslam run --frontend fastslam`).
 //
 // Each particle holds a pose hypothesis and its own map of 2-D Gaussian landmarks.
-//  * Between scans a particle's pose is a Gaussian N(x̄, Σ): the controls move x̄ and
-//    accumulate the linearised process noise in Σ (F Σ Fᵀ + G M Gᵀ), so the pose noise
-//    of all the steps since the last scan enters the FastSLAM 2.0 proposal at once.
+//  * Between scans a particle's pose is a Gaussian: its pose at the last scan composed
+//    with the motion since, r ~ N(r̄, Σ_r), whose linearised process noise accumulates
+//    as Σ_r ← F Σ_r Fᵀ + G M Gᵀ, so the pose noise of all the steps since the last scan
+//    enters the FastSLAM 2.0 proposal at once. The motion models are SE(2)-equivariant
+//    (f(a ∘ r, u) = a ∘ f(r, u); tested for each model), so r̄ and Σ_r are the same for
+//    every particle and prediction costs O(1), not O(N).
 //  * Scan (per particle): every (detection, landmark) pair whose predicted measurement
 //    passes the χ²₂ individual gate is scored by its predictive density
 //    N(ν; 0, S), S = H_x Σ H_xᵀ + H_l Σ_l H_lᵀ + R (maximum likelihood; or by
@@ -179,8 +182,8 @@ class FastSlam final : public OnlineEstimator {
     bool missed = false;  // scratch: expected in the last scan but not detected
   };
   struct Particle {
-    Pose2 pose;
-    Eigen::Matrix3d pose_covariance = Eigen::Matrix3d::Zero();
+    Pose2 pose;  // at the last scan (or Reset); now: CurrentPose(). Set by SetPose().
+    double cos_theta = 1.0, sin_theta = 0.0;  // of pose.theta
     double log_weight = 0.0;  // normalised: Σ exp(log_weight) = 1 after each scan
     int lineage = -1;         // index of the ancestor at the first scan after Reset()
     std::vector<LandmarkRecord> landmarks;
@@ -210,6 +213,10 @@ class FastSlam final : public OnlineEstimator {
   static constexpr int kNew = -1;
   static constexpr int kIgnore = -2;
 
+  // The particle's pose now, and its covariance (the motion since the last scan).
+  Pose2 CurrentPose(const Particle& p, Eigen::Matrix3d* covariance = nullptr) const;
+  static void SetPose(Particle* p, const Pose2& pose);
+  void UpdatePoseCache() const;
   PairScore Score(const Particle& particle, int landmark, const Eigen::Vector2d& z,
                   double signature, const Eigen::Vector3d& delta,
                   const Eigen::Matrix3d& Sigma) const;
@@ -244,6 +251,12 @@ class FastSlam final : public OnlineEstimator {
   std::vector<int> scan_features_;
   std::vector<int> detection_index_;
   double last_ess_ratio_ = 1.0;
+  Pose2 motion_since_scan_;  // shared by all particles (see above)
+  Eigen::Matrix3d motion_covariance_ = Eigen::Matrix3d::Zero();
+  // pose() / pose_covariance(), computed once per change.
+  mutable bool pose_cache_valid_ = false;
+  mutable Pose2 cached_pose_;
+  mutable Eigen::Matrix3d cached_pose_covariance_;
   bool resample_pending_ = false;
   std::vector<Eigen::Vector2d> z_;
   std::vector<double> signature_;

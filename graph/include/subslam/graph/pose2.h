@@ -8,6 +8,7 @@
 #define SUBSLAM_GRAPH_POSE2_H_
 
 #include <Eigen/Core>
+#include <cmath>
 #include <ostream>
 
 #include "subslam/graph/conventions.h"
@@ -19,7 +20,14 @@ using Matrix32d = Eigen::Matrix<double, 3, 2>;
 
 // Wraps an angle to (−π, π]. d wrap(a) / d a = 1 away from the cut (see WrapAngle
 // below), which is the Jacobian every caller uses.
-double WrapAngle(double angle_rad, double* J_wrapped_angle = nullptr);
+// Inline: it sits in every inner loop.
+inline double WrapAngle(double angle_rad, double* J_wrapped_angle = nullptr) {
+  if (J_wrapped_angle != nullptr) *J_wrapped_angle = 1.0;
+  if (angle_rad > -kPi && angle_rad <= kPi) return angle_rad;
+  double wrapped = std::remainder(angle_rad, kTwoPi);  // in [−π, π]
+  if (wrapped <= -kPi) wrapped += kTwoPi;
+  return wrapped;
+}
 
 // A rigid 2-D transform (x [m], y [m], theta [rad]); see conventions.h.
 struct Pose2 {

@@ -51,7 +51,9 @@ class RangeBearingModel {
                  double bearing_margin_rad = 0.0) const;
 
   // a − b with the bearing difference wrapped.
-  static Eigen::Vector2d Difference(const Eigen::Vector2d& a, const Eigen::Vector2d& b);
+  static Eigen::Vector2d Difference(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return {a[0] - b[0], WrapAngle(a[1] - b[1])};
+  }
 
   const RangeBearingConfig& config() const { return config_; }
 
