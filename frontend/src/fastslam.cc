@@ -65,6 +65,10 @@ FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
   gate_d2_ = models::ChiSquareQuantile(options_.gate_probability, 2);
   new_landmark_d2_ = models::ChiSquareQuantile(options_.new_landmark_probability, 2);
   log_p0_ = LogGaussian2(new_landmark_d2_, sensor_.NoiseCovariance());
+  const models::RangeBearingConfig& rb = sensor_.config();
+  fov_center_ = 0.5 * (rb.fov_min_rad + rb.fov_max_rad);
+  const double half = 0.5 * (rb.fov_max_rad - rb.fov_min_rad) + kFovMarginRad;
+  fov_cos_limit_ = half >= kPi ? -2.0 : std::cos(half);  // −2: no bearing limit
   for (const char* stage : {"predict", "associate", "update", "resample"}) times_[stage] = 0;
   Reset(start);
 }
@@ -170,11 +174,17 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   Eigen::Matrix3d Sigma;  // of the proposal, below
   const Pose2 x0 = CurrentPose(*particle, &Sigma);
   predictions_.resize(n);
+  // Cheap visibility cull before the atan2 of Observe: within reach, and inside the
+  // field of view widened by kFovMarginRad (cos of the bearing off the FOV's centre).
+  const double c_axis = std::cos(x0.theta + fov_center_), s_axis = std::sin(x0.theta + fov_center_);
   for (int i = 0; i < n; ++i) {
     Prediction& pr = predictions_[i];
     const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
     pr.used = pr.gated = false;
-    pr.in_reach = (l.mean - x0.translation()).squaredNorm() < reach * reach;
+    const Eigen::Vector2d d = l.mean - x0.translation();
+    const double d2 = d.squaredNorm();
+    pr.in_reach = d2 < reach * reach &&
+                  (c_axis * d.x() + s_axis * d.y()) >= fov_cos_limit_ * std::sqrt(d2);
     if (!pr.in_reach) continue;
     Eigen::Matrix2d H_l;
     pr.z = sensor_.Observe(x0, l.mean, &pr.H_pose, &H_l);

@@ -4,7 +4,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <map>
 
 #include "subslam/graph/internal/check.h"
 
@@ -29,17 +28,29 @@ Resolved Fuse(const Resolved& a, const FeatureHypothesis& b) {
   return out;
 }
 
-std::map<int, Resolved> ResolveDuplicates(const ParticleHypothesis& p,
-                                          DuplicateFeaturePolicy policy) {
-  std::map<int, Resolved> out;
-  for (const FeatureHypothesis& f : p.features) {
+// The particle's features sorted by common id, duplicates resolved.
+std::vector<std::pair<int, Resolved>> ResolveDuplicates(const ParticleHypothesis& p,
+                                                        DuplicateFeaturePolicy policy) {
+  // Sort indices, not the Eigen-holding records (std::stable_sort's scratch buffer is
+  // not over-aligned for fixed-size Eigen members).
+  std::vector<int> order(p.features.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
+  std::sort(order.begin(), order.end(), [&p](int a, int b) {
+    return p.features[a].feature < p.features[b].feature ||
+           (p.features[a].feature == p.features[b].feature && a < b);
+  });
+  std::vector<std::pair<int, Resolved>> out;
+  out.reserve(order.size());
+  for (int k : order) {
+    const FeatureHypothesis& f = p.features[k];
+    const int id = f.feature;
     const Resolved r{f.mean, f.covariance, f.existence, f.signature};
-    auto [it, inserted] = out.try_emplace(f.feature, r);
-    if (inserted) continue;
-    if (policy == DuplicateFeaturePolicy::kFuse) {
-      it->second = Fuse(it->second, f);
-    } else if (f.existence > it->second.existence) {
-      it->second = r;
+    if (out.empty() || out.back().first != id) {
+      out.push_back({id, r});
+    } else if (policy == DuplicateFeaturePolicy::kFuse) {
+      out.back().second = Fuse(out.back().second, f);
+    } else if (r.existence > out.back().second.existence) {
+      out.back().second = r;
     }
   }
   return out;
@@ -60,12 +71,19 @@ MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
   SUBSLAM_CHECK(total > 0.0) << "moment matching needs a particle with positive weight";
 
   // Per-particle features, duplicates resolved; the common feature set and existence.
-  std::vector<std::map<int, Resolved>> resolved(particles.size());
-  std::map<int, double> existence;
+  std::vector<std::vector<std::pair<int, Resolved>>> resolved(particles.size());
+  std::vector<std::pair<int, double>> all;  // (id, weighted existence) from every particle
   for (size_t p = 0; p < particles.size(); ++p) {
     resolved[p] = ResolveDuplicates(particles[p], options.duplicates);
-    for (const auto& [id, r] : resolved[p]) {
-      existence[id] += particles[p].weight / total * r.existence;
+    for (const auto& [id, r] : resolved[p]) all.push_back({id, particles[p].weight / total * r.existence});
+  }
+  std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<std::pair<int, double>> existence;
+  for (const auto& [id, e] : all) {
+    if (existence.empty() || existence.back().first != id) {
+      existence.push_back({id, e});
+    } else {
+      existence.back().second += e;
     }
   }
   MomentMatchedGaussian out;
@@ -84,9 +102,12 @@ MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
                                                  std::vector<const Resolved*>(n, nullptr));
   for (size_t p = 0; p < particles.size(); ++p) {
     w[p] = particles[p].weight / total;
+    size_t next = 0;  // both lists are sorted by id: merge
     for (int k = 0; k < n; ++k) {
-      auto it = resolved[p].find(out.features[k]);
-      if (it != resolved[p].end()) held[p][k] = &it->second;
+      while (next < resolved[p].size() && resolved[p][next].first < out.features[k]) ++next;
+      if (next < resolved[p].size() && resolved[p][next].first == out.features[k]) {
+        held[p][k] = &resolved[p][next].second;
+      }
     }
   }
   if (options.missing == MissingFeaturePolicy::kDiscardParticle) {

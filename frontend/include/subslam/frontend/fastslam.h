@@ -210,6 +210,8 @@ class FastSlam final : public OnlineEstimator {
     bool gated = false;  // some detection within the new-landmark gate
     bool used = false;   // associated in this scan
   };
+  // Landmarks further than this outside the field of view are not predicted.
+  static constexpr double kFovMarginRad = 0.35;
   static constexpr int kNew = -1;
   static constexpr int kIgnore = -2;
 
@@ -235,6 +237,7 @@ class FastSlam final : public OnlineEstimator {
   models::RangeBearingModel sensor_;
   FastSlamOptions options_;
   double gate_d2_ = 0.0, new_landmark_d2_ = 0.0, log_p0_ = 0.0;
+  double fov_center_ = 0.0, fov_cos_limit_ = -2.0;
   std::vector<Particle> particles_, resampled_;
   std::mt19937_64 rng_;
   int next_feature_ = 0;
