@@ -1,7 +1,7 @@
 // subslam — command-line tool.
 //
 //   subslam simulate --scenario NAME [--seed S] --out DIR [scenario flags]
-//   subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf
+//   subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf|ekf
 //               --out DIR [estimator and noise flags]
 //   subslam scenarios
 //
@@ -48,7 +48,7 @@ ABSL_FLAG(double, noise_scale, kScenarioDefaults.random_noise_scale, "random sce
 ABSL_FLAG(bool, signature, kScenarioDefaults.with_signature, "simulated detections carry a noisy signature");
 ABSL_FLAG(std::string, out, "", "output directory");
 ABSL_FLAG(std::string, frontend, subslam::app::ToString(subslam::app::RunOptions{}.frontend),
-          "odometry | ekfslam | fastslam | rbpf");
+          "odometry | ekfslam | fastslam | rbpf | ekf");
 ABSL_FLAG(std::string, association, subslam::frontend::ToString(kEkfDefaults.association),
           "ekfslam data association: nn | jcbb");
 ABSL_FLAG(double, gate, kEkfDefaults.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
@@ -212,7 +212,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "submap-based landmark SLAM\n"
       "  subslam simulate --scenario NAME [--seed S] --out DIR\n"
-      "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf "
+      "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf|ekf "
       "--out DIR\n"
       "  subslam scenarios");
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);

@@ -12,6 +12,7 @@
 #include "subslam/eval/local_map_errors.h"
 #include "subslam/frontend/chained_local_maps.h"
 #include "subslam/frontend/dead_reckoning.h"
+#include "subslam/frontend/ekf_local_mapper.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/models/gating.h"
 #include "subslam/io/run_output_writer.h"
@@ -112,16 +113,18 @@ const char* ToString(Frontend frontend) {
     case Frontend::kEkfSlam: return "ekfslam";
     case Frontend::kFastSlam: return "fastslam";
     case Frontend::kRbpf: return "rbpf";
+    case Frontend::kEkfLocal: return "ekf";
   }
   return "?";
 }
 
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name) {
-  for (Frontend f : {Frontend::kOdometry, Frontend::kEkfSlam, Frontend::kFastSlam, Frontend::kRbpf}) {
+  for (Frontend f : {Frontend::kOdometry, Frontend::kEkfSlam, Frontend::kFastSlam, Frontend::kRbpf,
+                     Frontend::kEkfLocal}) {
     if (name == ToString(f)) return f;
   }
   return absl::InvalidArgumentError(absl::StrCat(
-      "unknown front-end \"", name, "\" (expected odometry, ekfslam, fastslam or rbpf)"));
+      "unknown front-end \"", name, "\" (expected odometry, ekfslam, fastslam, rbpf or ekf)"));
 }
 
 absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
@@ -154,11 +157,18 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (options.frontend == Frontend::kOdometry) {
     estimator = std::make_unique<frontend::DeadReckoning>(dataset.motion.MakeModel(),
                                                           dataset.initial_pose);
-  } else if (options.frontend == Frontend::kRbpf) {
+  } else if (options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal) {
     const double t0 = dataset.controls.empty() ? 0.0 : dataset.controls.front().t;
-    auto mapper = std::make_unique<frontend::RbpfLocalMapper>(
-        dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.fastslam,
-        options.policy, t0);
+    std::unique_ptr<frontend::LocalMapper> mapper;
+    if (options.frontend == Frontend::kRbpf) {
+      mapper = std::make_unique<frontend::RbpfLocalMapper>(
+          dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.fastslam,
+          options.policy, t0);
+    } else {
+      mapper = std::make_unique<frontend::EkfLocalMapper>(
+          dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.ekf, options.policy,
+          t0, options.fastslam.moment_matching.min_existence);
+    }
     auto chained = std::make_unique<frontend::ChainedLocalMaps>(std::move(mapper),
                                                                 dataset.initial_pose);
     chain = chained.get();

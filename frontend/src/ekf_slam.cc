@@ -1,6 +1,8 @@
 #include "subslam/frontend/ekf_slam.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <limits>
 #include <algorithm>
 #include <cmath>
 
@@ -134,10 +136,14 @@ void EkfSlam::Update(const io::Scan& scan) {
 
   // Detections outside the sensor's valid range are not used.
   std::vector<Eigen::Vector2d> z;
-  for (const io::Detection& d : scan.detections) {
+  std::vector<int> detection_index;
+  for (size_t k = 0; k < scan.detections.size(); ++k) {
+    const io::Detection& d = scan.detections[k];
     if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
     z.push_back(d.z());
+    detection_index.push_back(static_cast<int>(k));
   }
+  scan_features_.assign(scan.detections.size(), -1);
   counters_.detections += static_cast<long>(z.size());
   const int m = static_cast<int>(z.size());
 
@@ -246,7 +252,10 @@ void EkfSlam::Update(const io::Scan& scan) {
 
   // 3. Existence, new landmarks, deletion of false alarms.
   StageTimer timer(&times_, "map_management");
-  for (const auto& [j, c] : pairs) UpdateExistence(&landmarks_[c->landmark], true);
+  for (const auto& [j, c] : pairs) {
+    UpdateExistence(&landmarks_[c->landmark], true);
+    scan_features_[detection_index[j]] = landmarks_[c->landmark].id;
+  }
   for (const Prediction& pr : predictions) {
     if (gated[pr.landmark]) continue;
     if (sensor_.IsVisible(pr.z, options_.expect_range_margin_m, options_.expect_bearing_margin_rad)) {
@@ -257,6 +266,7 @@ void EkfSlam::Update(const io::Scan& scan) {
     if (association.landmark_of_detection[j] >= 0) continue;
     if (min_d2[j] > new_landmark_d2_) {
       AddLandmark(z[j], options_.prior_existence);
+      scan_features_[detection_index[j]] = landmarks_.back().id;
     } else {
       ++counters_.ambiguous;
     }
@@ -314,6 +324,54 @@ void EkfSlam::RemoveLandmarks(const std::vector<int>& sorted_indices) {
   dim_ = new_dim;
   counters_.deleted_landmarks += static_cast<long>(sorted_indices.size());
   landmarks_ = std::move(kept);
+}
+
+void EkfSlam::Reset(const Pose2& start) {
+  dim_ = 3;
+  x_.head<3>() = start.vector();
+  P_.topLeftCorner<3, 3>().setZero();
+  landmarks_.clear();
+  scan_features_.clear();
+}
+
+MomentMatchedGaussian EkfSlam::Export(double min_existence) const {
+  MomentMatchedGaussian g;
+  std::vector<int> index = {0, 1, 2};
+  for (int i = 0; i < num_landmarks(); ++i) {
+    if (landmarks_[i].existence < min_existence) continue;
+    index.push_back(Offset(i));
+    index.push_back(Offset(i) + 1);
+    g.features.push_back(landmarks_[i].id);
+    g.existence.push_back(landmarks_[i].existence);
+    g.signature.push_back(std::numeric_limits<double>::quiet_NaN());
+  }
+  g.mean = x_(index);
+  g.covariance = covariance()(index, index);
+  g.particles_used = 1;
+  if (Eigen::LLT<Eigen::MatrixXd>(g.covariance).info() != Eigen::Success) {
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(g.covariance);
+    const double floor = std::max(1e-9 * eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-15);
+    g.covariance = eig.eigenvectors() * eig.eigenvalues().cwiseMax(floor).asDiagonal() *
+                   eig.eigenvectors().transpose();
+    g.covariance = 0.5 * (g.covariance + g.covariance.transpose()).eval();
+    ++g.covariance_repairs;
+  }
+  return g;
+}
+
+int EkfSlam::NumConfirmed() const {
+  int n = 0;
+  for (const LandmarkInfo& l : landmarks_) n += l.confirmed ? 1 : 0;
+  return n;
+}
+
+int EkfSlam::NumConfirmedWithinRange() const {
+  const double r2 = sensor_.config().max_range_m * sensor_.config().max_range_m;
+  int n = 0;
+  for (int i = 0; i < num_landmarks(); ++i) {
+    if (landmarks_[i].confirmed && (x_.segment<2>(Offset(i)) - x_.head<2>()).squaredNorm() <= r2) ++n;
+  }
+  return n;
 }
 
 std::vector<LandmarkEstimate> EkfSlam::Map() const {

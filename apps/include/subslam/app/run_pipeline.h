@@ -9,7 +9,7 @@
 //                          are no anchors to re-express, so it equals the online one;
 //   landmarks.csv          the final map (confirmed landmarks);
 //   report.json            configuration, counts, time per stage, metrics;
-//   submaps.jsonl          (rbpf) the local maps, in the exchange format.
+//   submaps.jsonl          (rbpf, ekf) the local maps, in the exchange format.
 #ifndef SUBSLAM_APP_RUN_PIPELINE_H_
 #define SUBSLAM_APP_RUN_PIPELINE_H_
 
@@ -30,7 +30,9 @@
 
 namespace subslam::app {
 
-enum class Frontend { kOdometry, kEkfSlam, kFastSlam, kRbpf };
+// odometry: dead reckoning; ekfslam, fastslam: single-map filters; rbpf, ekf: local
+// mappers (FastSLAM 2.0 / EKF-SLAM per local map) chained end to start (no back-end yet).
+enum class Frontend { kOdometry, kEkfSlam, kFastSlam, kRbpf, kEkfLocal };
 const char* ToString(Frontend frontend);
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name);
 
@@ -49,7 +51,7 @@ struct RunOptions {
   Frontend frontend = Frontend::kEkfSlam;
   frontend::EkfSlamOptions ekf;
   frontend::FastSlamOptions fastslam;
-  frontend::SubmapPolicyOptions policy;  // rbpf
+  frontend::SubmapPolicyOptions policy;  // rbpf, ekf
   NoiseOverrides noise;
   std::string out_dir;          // empty: write nothing
   bool progress = false;        // progress line on stderr (when it is a terminal)

@@ -32,6 +32,7 @@
 
 #include "absl/status/status.h"
 #include "subslam/frontend/data_association.h"
+#include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
 #include "subslam/models/range_bearing_model.h"
@@ -87,6 +88,20 @@ class EkfSlam final : public OnlineEstimator {
   StageTimes stage_times() const override { return times_; }
   std::map<std::string, double> Counters() const override;
 
+  // Starts over at `start` with zero uncertainty and no landmarks (a new local map).
+  // Landmark ids keep increasing across resets.
+  void Reset(const Pose2& start);
+  // The pose and the landmarks with existence ≥ min_existence as one Gaussian, in the
+  // filter's frame: mean [pose, l_1, …], features = landmark ids (increasing), the
+  // existence of each; signature NaN (EKF-SLAM does not track signatures).
+  MomentMatchedGaussian Export(double min_existence) const;
+  // The landmark id each detection of the last scan was associated with or created
+  // (−1: out of range, ambiguous), aligned with the scan's detections.
+  const std::vector<int>& last_scan_features() const { return scan_features_; }
+  // Confirmed landmarks, and those within sensor range of the current pose.
+  int NumConfirmed() const;
+  int NumConfirmedWithinRange() const;
+
   // All landmarks in the state, tentative ones included.
   int num_landmarks() const { return static_cast<int>(landmarks_.size()); }
   int state_dimension() const { return dim_; }
@@ -136,6 +151,7 @@ class EkfSlam final : public OnlineEstimator {
   int next_id_ = 0;
   EkfSlamCounters counters_;
   StageTimes times_;
+  std::vector<int> scan_features_;
 };
 
 }  // namespace subslam::frontend
