@@ -9,7 +9,10 @@
 #include <boost/math/distributions/binomial.hpp>
 
 #include "subslam/app/run_pipeline.h"
+#include "subslam/io/submaps_jsonl.h"
 #include "subslam/sim/simulator.h"
+
+#include <set>
 
 namespace subslam::app {
 namespace {
@@ -69,6 +72,51 @@ TEST(RbpfLocalMaps, Hybrid120mJointNeesIsConsistent) {
   EXPECT_GE(t.inside, BinomialLowerBound(t.maps)) << t.inside << " / " << t.maps;
   EXPECT_GE(t.landmarks_inside, BinomialLowerBound(t.landmarks))
       << t.landmarks_inside << " / " << t.landmarks;
+}
+
+// The EKF local mapper under the same policy: its local maps are consistent too.
+TEST(EkfLocalMaps, Hybrid120mJointNeesIsConsistent) {
+  RunOptions options;
+  options.frontend = Frontend::kEkfLocal;
+  const Totals t = RunLocalMaps("hybrid-120m", {1, 2}, 150.0, options);
+  ASSERT_GT(t.maps, 20);
+  EXPECT_GE(t.inside, BinomialLowerBound(t.maps)) << t.inside << " / " << t.maps;
+}
+
+// The run writes its local maps to submaps.jsonl; they read back as written, consecutive
+// maps share features (the next map re-observes the boundary), and each map starts
+// where the previous one ended.
+TEST(RbpfLocalMaps, WritesSubmapsJsonlAndConsecutiveMapsShareFeatures) {
+  sim::ScenarioOptions o;
+  o.seed = 7;
+  o.duration_s = 60;
+  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", o);
+  ASSERT_TRUE(d.ok());
+  RunOptions options = Rbpf(100);
+  options.out_dir = ::testing::TempDir() + "/subslam_rbpf_run";
+  absl::StatusOr<RunResult> r = RunPipeline(*std::move(d), options);
+  ASSERT_TRUE(r.ok()) << r.status();
+  absl::StatusOr<std::vector<LocalSubmap>> back =
+      io::ReadSubmapsJsonl(options.out_dir + "/submaps.jsonl");
+  ASSERT_TRUE(back.ok()) << back.status();
+  ASSERT_EQ(back->size(), r->local_maps.size());
+  ASSERT_GT(back->size(), 4u);
+  int sharing = 0;
+  for (size_t k = 0; k < back->size(); ++k) {
+    EXPECT_EQ((*back)[k].mean, r->local_maps[k].mean);
+    if (k == 0) continue;
+    EXPECT_EQ((*back)[k].t_start, (*back)[k - 1].t_end);
+    std::set<int> previous;
+    for (const LocalSubmapLandmark& l : (*back)[k - 1].landmarks) {
+      if (l.truth_id && *l.truth_id >= 0) previous.insert(*l.truth_id);
+    }
+    bool shares = false;
+    for (const LocalSubmapLandmark& l : (*back)[k].landmarks) {
+      shares = shares || (l.truth_id && previous.contains(*l.truth_id));
+    }
+    sharing += shares ? 1 : 0;
+  }
+  EXPECT_GE(sharing, static_cast<int>(back->size()) - 2);
 }
 
 // combined-2km (noisy sensor: σ 0.5 m / 5°, sparse features): the local maps are not yet

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "subslam/eval/gps_alignment.h"
+#include "subslam/eval/local_map_errors.h"
 #include "subslam/eval/nees.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "test_util.h"
@@ -102,6 +103,39 @@ TEST(GpsAlignment, RecoversRigidTransformAndResidual) {
   for (io::TimedPoint& g : gps) g.p.x() += 1.0;
   EXPECT_LT(CompareWithGps(traj, gps)->rms_m, 0.05);
   EXPECT_FALSE(RigidAlignment2D({{0, 0}}, {{1, 1}}).ok());
+}
+
+// The local map is compared with the truth in the TRUE start frame: the end pose is
+// Between(start, end) and each feature the true landmark seen from the start pose.
+TEST(LocalMapNees, KnownValue) {
+  const std::vector<io::TimedPose> truth = {{0.0, Pose2(10, 0, kPi / 2)}, {10.0, Pose2(10, 5, kPi / 2)}};
+  const std::vector<io::TruthLandmark> landmarks = {{3, Eigen::Vector2d(8, 4)}};
+  LocalSubmap s;
+  s.t_start = 0.0;
+  s.t_end = 10.0;
+  s.mean = Eigen::VectorXd(5);
+  // True end pose in the start frame: (5, 0, 0); true landmark: (4, 2).
+  s.mean << 5.1, 0.0, 0.0, 4.0, 2.2;
+  s.covariance = 0.01 * Eigen::MatrixXd::Identity(5, 5);
+  s.landmarks = {{0, NAN, 1.0, 3}};
+  const std::optional<LocalMapNees> e = EvaluateLocalMap(s, truth, landmarks);
+  ASSERT_TRUE(e.has_value());
+  EXPECT_EQ(e->dof, 5);
+  EXPECT_EQ(e->landmarks_evaluated, 1);
+  EXPECT_NEAR(e->pose_nees, 0.01 / 0.01, 1e-9);
+  EXPECT_NEAR(e->nees, (0.01 + 0.04) / 0.01, 1e-9);
+  ASSERT_EQ(e->landmark_nees.size(), 1u);
+  EXPECT_NEAR(e->landmark_nees[0], 4.0, 1e-9);
+  EXPECT_NEAR(e->lower, 0.831, 1e-3);  // χ²₅ 2.5% and 97.5%
+  EXPECT_NEAR(e->upper, 12.833, 1e-3);
+  // A false alarm and an unlabelled feature are counted, not evaluated.
+  s.landmarks[0].truth_id = -1;
+  EXPECT_EQ(EvaluateLocalMap(s, truth, landmarks)->false_alarms, 1);
+  s.landmarks[0].truth_id.reset();
+  EXPECT_EQ(EvaluateLocalMap(s, truth, landmarks)->unlabelled, 1);
+  // Outside the truth's time span: nothing to compare.
+  s.t_end = 11.0;
+  EXPECT_FALSE(EvaluateLocalMap(s, truth, landmarks).has_value());
 }
 
 }  // namespace

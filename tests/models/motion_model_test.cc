@@ -101,5 +101,25 @@ TEST(MotionModel, ProcessCovarianceIsPropagatedControlNoise) {
   EXPECT_FALSE((ControlNoise{-1.0, 0.1, 0, 0}).Validate().ok());
 }
 
+// The particle filter shares the motion since the last scan between particles, which
+// needs f(a ∘ r, u) = a ∘ f(r, u) with the matching noise Jacobians J_u(a ∘ r) = A J_u(r),
+// A = ∂(a ∘ ·)/∂r.
+TEST(MotionModel, ModelsAreSe2Equivariant) {
+  const UnicycleModel unicycle({0.1, 0.02, 0.25, 0.35});
+  const AckermannModel vp({2.83, 0.76, 3.78, 0.50}, {0.5, 0.05, 0, 0});
+  for (const MotionModel* model : std::initializer_list<const MotionModel*>{&unicycle, &vp}) {
+    for (const Pose2& a : TestPoses()) {
+      const Pose2 r(0.3, -0.2, 0.4);
+      const Eigen::Vector2d u(2.0, 0.3);
+      Matrix32d J_direct, J_relative;
+      const Pose2 direct = model->Predict(Compose(a, r), u, 0.05, nullptr, &J_direct);
+      Eigen::Matrix3d A;
+      const Pose2 relative = Compose(a, model->Predict(r, u, 0.05, nullptr, &J_relative), nullptr, &A);
+      EXPECT_TRUE(MatricesNear(direct.vector(), relative.vector(), 1e-12)) << model->Name() << a;
+      EXPECT_TRUE(MatricesNear(J_direct, A * J_relative, 1e-12)) << model->Name() << a;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace subslam::models

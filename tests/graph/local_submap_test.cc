@@ -1,0 +1,48 @@
+#include "subslam/graph/local_submap.h"
+
+#include <gtest/gtest.h>
+
+namespace subslam {
+namespace {
+
+LocalSubmap Valid() {
+  LocalSubmap s;
+  s.id = 4;
+  s.t_start = 10.0;
+  s.t_end = 20.0;
+  s.mean = Eigen::VectorXd(7);
+  s.mean << 5.0, 1.0, 0.2, 3.0, 4.0, -2.0, 6.0;
+  s.covariance = Eigen::MatrixXd::Identity(7, 7) * 0.1;
+  s.covariance(0, 3) = s.covariance(3, 0) = 0.05;
+  s.landmarks = {{0, 0.3, 0.99, 17}, {5, NAN, 0.97, std::nullopt}};
+  return s;
+}
+
+TEST(LocalSubmap, AcceptsAValidMapAndReadsBlocks) {
+  const LocalSubmap s = Valid();
+  EXPECT_TRUE(s.Validate().ok()) << s.Validate();
+  EXPECT_EQ(s.num_landmarks(), 2);
+  EXPECT_EQ(s.end_pose().theta, 0.2);
+  EXPECT_EQ(s.landmark(1), Eigen::Vector2d(-2.0, 6.0));
+  EXPECT_EQ(s.landmark_covariance(0)(0, 0), 0.1);
+}
+
+TEST(LocalSubmap, RejectsEachBrokenInvariant) {
+  const auto broken = [](auto&& edit) {
+    LocalSubmap s = Valid();
+    edit(s);
+    return !s.Validate().ok();
+  };
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.mean.conservativeResize(5); }));
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.covariance.conservativeResize(5, 5); }));
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.t_end = 5.0; }));
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.mean[4] = NAN; }));
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.mean[2] = 4.0; }));  // heading not wrapped
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.landmarks[1].local_id = 0; }));
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.landmarks[0].existence = 1.5; }));
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.covariance(0, 1) = 0.01; }));  // asymmetric
+  EXPECT_TRUE(broken([](LocalSubmap& s) { s.covariance(6, 6) = -0.1; }));  // not PD
+}
+
+}  // namespace
+}  // namespace subslam
