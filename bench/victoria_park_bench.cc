@@ -1,9 +1,11 @@
-// End-to-end benchmark of the foundation issue's Victoria Park run: reads the data
-// set, runs dead reckoning and EKF-SLAM, and prints wall time (read, estimator,
-// total), peak resident memory and the aligned RMS against GPS. Each front-end runs in
-// its own child process so that its peak memory is its own.
+// End-to-end benchmark of the Victoria Park runs: reads the data set, runs each
+// front-end (dead reckoning, EKF-SLAM, the RBPF and EKF local mappers) and prints wall
+// time (read; estimator, i.e. the whole step loop; front-end, i.e. the sum of the
+// filter's stage times; total), time per scan, local maps, peak resident memory and the
+// aligned RMS of trajectory_final against GPS. Each front-end runs in its own child
+// process so that its peak memory is its own.
 //
-//   build/bench/victoria_park_bench [--dataset DIR] [--repeats N] [--out results.json]
+//   build/bench/victoria_park_bench [--dataset DIR] [--frontends a,b] [--repeats N] [--out results.json]
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -18,6 +20,7 @@
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
+#include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/io/dataset_reader.h"
@@ -25,13 +28,15 @@
 ABSL_FLAG(std::string, dataset, SUBSLAM_DEFAULT_VICTORIA_PARK, "Victoria Park data-set directory");
 ABSL_FLAG(int, repeats, 3, "runs per front-end (the median is reported)");
 ABSL_FLAG(std::string, out, "", "write the results as JSON here");
+ABSL_FLAG(std::string, frontends, "odometry,ekfslam,rbpf,ekf", "front-ends to run, comma-separated");
 
 namespace {
 
 struct Measurement {
-  double read_s = 0, estimator_s = 0, total_s = 0, rms_m = 0;
+  double read_s = 0, estimator_s = 0, frontend_s = 0, total_s = 0, rms_m = 0;
   long peak_kb = 0;
-  size_t landmarks = 0;
+  size_t landmarks = 0, local_maps = 0;
+  int scans = 0;
 };
 
 // Runs one front-end in this (child) process and writes its measurement to `fd`.
@@ -56,6 +61,11 @@ int RunChild(subslam::app::Frontend frontend, int fd) {
   getrusage(RUSAGE_SELF, &usage);
   m.peak_kb = usage.ru_maxrss;
   m.landmarks = r->landmarks.size();
+  m.local_maps = r->local_maps.size();
+  m.scans = r->scans;
+  for (const auto& [stage, seconds] : r->report["time_seconds"]["stages"].items()) {
+    m.frontend_s += seconds.get<double>();
+  }
   return write(fd, &m, sizeof(m)) == sizeof(m) ? 0 : 1;
 }
 
@@ -81,9 +91,17 @@ int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
   const int repeats = std::max(1, absl::GetFlag(FLAGS_repeats));
   nlohmann::json results = nlohmann::json::array();
-  std::printf("%-10s %8s %10s %9s %10s %9s %11s\n", "frontend", "read_s", "estimator_s", "total_s",
-              "peak_MB", "landmarks", "gps_rms_m");
-  for (auto frontend : {subslam::app::Frontend::kOdometry, subslam::app::Frontend::kEkfSlam}) {
+  std::printf("%-9s %7s %11s %10s %8s %11s %8s %10s %9s %10s\n", "frontend", "read_s",
+              "estimator_s", "frontend_s", "total_s", "us_per_scan", "peak_MB", "local_maps",
+              "landmarks", "gps_rms_m");
+  const std::vector<std::string> names = absl::StrSplit(absl::GetFlag(FLAGS_frontends), ',');
+  for (const std::string& name : names) {
+    const absl::StatusOr<subslam::app::Frontend> parsed = subslam::app::FrontendFromString(name);
+    if (!parsed.ok()) {
+      std::fprintf(stderr, "%s\n", std::string(parsed.status().message()).c_str());
+      return 1;
+    }
+    const subslam::app::Frontend frontend = *parsed;
     std::vector<Measurement> runs;
     for (int i = 0; i < repeats; ++i) {
       Measurement m;
@@ -98,12 +116,17 @@ int main(int argc, char** argv) {
     const Measurement& med = runs[runs.size() / 2];
     long peak = 0;
     for (const Measurement& m : runs) peak = std::max(peak, m.peak_kb);
-    std::printf("%-10s %8.3f %10.3f %9.3f %10.1f %9zu %11.2f\n", subslam::app::ToString(frontend),
-                med.read_s, med.estimator_s, med.total_s, peak / 1024.0, med.landmarks, med.rms_m);
+    std::printf("%-9s %7.3f %11.3f %10.3f %8.3f %11.1f %8.1f %10zu %9zu %10.2f\n",
+                subslam::app::ToString(frontend), med.read_s, med.estimator_s, med.frontend_s,
+                med.total_s, 1e6 * med.frontend_s / std::max(1, med.scans), peak / 1024.0,
+                med.local_maps, med.landmarks, med.rms_m);
     results.push_back({{"frontend", subslam::app::ToString(frontend)},
                        {"repeats", repeats},
                        {"median_read_s", med.read_s},
                        {"median_estimator_s", med.estimator_s},
+                       {"median_frontend_s", med.frontend_s},
+                       {"frontend_us_per_scan", 1e6 * med.frontend_s / std::max(1, med.scans)},
+                       {"local_maps", med.local_maps},
                        {"median_total_s", med.total_s},
                        {"max_peak_rss_mb", peak / 1024.0},
                        {"landmarks", med.landmarks},
