@@ -37,6 +37,9 @@ struct Measurement {
   long peak_kb = 0;
   size_t landmarks = 0, local_maps = 0;
   int scans = 0;
+  double mean_map_landmarks = 0;
+  int max_map_landmarks = 0;
+  double tenths[10] = {};  // seconds spent in each tenth of the steps
 };
 
 // Runs one front-end in this (child) process and writes its measurement to `fd`.
@@ -62,6 +65,14 @@ int RunChild(subslam::app::Frontend frontend, int fd) {
   m.peak_kb = usage.ru_maxrss;
   m.landmarks = r->landmarks.size();
   m.local_maps = r->local_maps.size();
+  for (const subslam::LocalSubmap& s : r->local_maps) {
+    m.mean_map_landmarks += s.num_landmarks();
+    m.max_map_landmarks = std::max(m.max_map_landmarks, s.num_landmarks());
+  }
+  if (m.local_maps > 0) m.mean_map_landmarks /= static_cast<double>(m.local_maps);
+  for (size_t k = 0; k < r->wall_seconds_by_tenth.size() && k < 10; ++k) {
+    m.tenths[k] = r->wall_seconds_by_tenth[k] - (k == 0 ? 0.0 : r->wall_seconds_by_tenth[k - 1]);
+  }
   m.scans = r->scans;
   for (const auto& [stage, seconds] : r->report["time_seconds"]["stages"].items()) {
     m.frontend_s += seconds.get<double>();
@@ -127,10 +138,21 @@ int main(int argc, char** argv) {
                        {"median_frontend_s", med.frontend_s},
                        {"frontend_us_per_scan", 1e6 * med.frontend_s / std::max(1, med.scans)},
                        {"local_maps", med.local_maps},
+                       {"mean_landmarks_per_local_map", med.mean_map_landmarks},
+                       {"max_landmarks_per_local_map", med.max_map_landmarks},
+                       {"seconds_per_tenth_of_steps", std::vector<double>(med.tenths, med.tenths + 10)},
                        {"median_total_s", med.total_s},
                        {"max_peak_rss_mb", peak / 1024.0},
                        {"landmarks", med.landmarks},
                        {"aligned_gps_rms_m", med.rms_m}});
+  }
+  std::printf("\nseconds spent in each tenth of the steps (median run):\n");
+  for (const auto& entry : results) {
+    std::printf("%-9s", entry["frontend"].get<std::string>().c_str());
+    for (double t : entry["seconds_per_tenth_of_steps"]) std::printf(" %6.3f", t);
+    std::printf("   local maps: mean %.1f, max %d landmarks\n",
+                entry["mean_landmarks_per_local_map"].get<double>(),
+                entry["max_landmarks_per_local_map"].get<int>());
   }
   if (!absl::GetFlag(FLAGS_out).empty()) {
     std::ofstream(absl::GetFlag(FLAGS_out)) << results.dump(2) << "\n";

@@ -78,6 +78,7 @@ struct RunResult {
   Trajectory final_trajectory;
   std::vector<LandmarkEstimate> landmarks;
   double wall_seconds = 0.0;        // estimator time (excludes reading and writing)
+  std::vector<double> wall_seconds_by_tenth;  // cumulative, after each tenth of the steps
   long peak_rss_kb = 0;             // process peak resident memory after the run
   std::optional<eval::TrajectoryErrors> errors;       // vs true poses
   std::optional<eval::MapErrors> map_errors;          // vs true landmarks
