@@ -161,44 +161,76 @@ MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
   }
   out.mean[2] = WrapAngle(out.mean[2] + reference);
 
-  // Covariance blocks: each over the particles holding both of its variables.
-  out.covariance = Eigen::MatrixXd::Zero(dim, dim);
-  Eigen::MatrixXd pair_weight = Eigen::MatrixXd::Zero(n + 1, n + 1);
-  Eigen::VectorXd d(dim);
-  std::vector<bool> has(n + 1);
-  for (size_t p = 0; p < particles.size(); ++p) {
+  // Covariance. Fast path when every particle taking part holds every exported feature
+  // (the usual case): P = Σ_p w_p P_p + D W Dᵀ with D the deviations, one product.
+  bool complete = true;
+  for (size_t p = 0; p < particles.size() && complete; ++p) {
     if (w[p] == 0.0) continue;
-    const Pose2& pose = particles[p].pose;
-    d.head<2>() = Eigen::Vector2d(pose.x, pose.y) - out.mean.head<2>();
-    d[2] = WrapAngle(pose.theta - out.mean[2]);
-    has[0] = true;
-    for (int k = 0; k < n; ++k) {
-      has[k + 1] = held[p][k] != nullptr;
-      d.segment<2>(3 + 2 * k) =
-          has[k + 1] ? Eigen::Vector2d(held[p][k]->mean - out.mean.segment<2>(3 + 2 * k))
-                     : Eigen::Vector2d::Zero();
-    }
-    auto offset = [](int b) { return b == 0 ? 0 : 3 + 2 * (b - 1); };
-    auto size = [](int b) { return b == 0 ? 3 : 2; };
-    for (int a = 0; a <= n; ++a) {
-      if (!has[a]) continue;
-      for (int b = 0; b <= a; ++b) {
-        if (!has[b]) continue;
-        pair_weight(a, b) += w[p];
-        out.covariance.block(offset(a), offset(b), size(a), size(b)) +=
-            w[p] * d.segment(offset(a), size(a)) * d.segment(offset(b), size(b)).transpose();
-      }
-      out.covariance.block(offset(a), offset(a), size(a), size(a)) +=
-          w[p] * (a == 0 ? Eigen::MatrixXd(particles[p].pose_covariance)
-                         : Eigen::MatrixXd(held[p][a - 1]->covariance));
-    }
+    for (int k = 0; k < n; ++k) complete = complete && held[p][k] != nullptr;
   }
-  for (int a = 0; a <= n; ++a) {
-    const int oa = a == 0 ? 0 : 3 + 2 * (a - 1), sa = a == 0 ? 3 : 2;
-    for (int b = 0; b <= a; ++b) {
-      const int ob = b == 0 ? 0 : 3 + 2 * (b - 1), sb = b == 0 ? 3 : 2;
-      if (pair_weight(a, b) > 0.0) out.covariance.block(oa, ob, sa, sb) /= pair_weight(a, b);
-      out.covariance.block(ob, oa, sb, sa) = out.covariance.block(oa, ob, sa, sb).transpose();
+  if (complete) {
+    int used = 0;
+    for (double wp : w) used += wp > 0.0 ? 1 : 0;
+    Eigen::MatrixXd D(dim, used);
+    out.covariance = Eigen::MatrixXd::Zero(dim, dim);
+    int c = 0;
+    for (size_t p = 0; p < particles.size(); ++p) {
+      if (w[p] == 0.0) continue;
+      const Pose2& pose = particles[p].pose;
+      const double sw = std::sqrt(w[p]);
+      D(0, c) = sw * (pose.x - out.mean[0]);
+      D(1, c) = sw * (pose.y - out.mean[1]);
+      D(2, c) = sw * WrapAngle(pose.theta - out.mean[2]);
+      out.covariance.topLeftCorner<3, 3>() += w[p] * particles[p].pose_covariance;
+      for (int k = 0; k < n; ++k) {
+        const int o = 3 + 2 * k;
+        D.block<2, 1>(o, c) = sw * (held[p][k]->mean - out.mean.segment<2>(o));
+        out.covariance.block<2, 2>(o, o) += w[p] * held[p][k]->covariance;
+      }
+      ++c;
+    }
+    out.covariance.selfadjointView<Eigen::Lower>().rankUpdate(D);
+    out.covariance.triangularView<Eigen::StrictlyUpper>() = out.covariance.transpose();
+  } else {
+    // Covariance blocks: each over the particles holding both of its variables.
+    out.covariance = Eigen::MatrixXd::Zero(dim, dim);
+    Eigen::MatrixXd pair_weight = Eigen::MatrixXd::Zero(n + 1, n + 1);
+    Eigen::VectorXd d(dim);
+    std::vector<bool> has(n + 1);
+    for (size_t p = 0; p < particles.size(); ++p) {
+      if (w[p] == 0.0) continue;
+      const Pose2& pose = particles[p].pose;
+      d.head<2>() = Eigen::Vector2d(pose.x, pose.y) - out.mean.head<2>();
+      d[2] = WrapAngle(pose.theta - out.mean[2]);
+      has[0] = true;
+      for (int k = 0; k < n; ++k) {
+        has[k + 1] = held[p][k] != nullptr;
+        d.segment<2>(3 + 2 * k) =
+            has[k + 1] ? Eigen::Vector2d(held[p][k]->mean - out.mean.segment<2>(3 + 2 * k))
+                       : Eigen::Vector2d::Zero();
+      }
+      auto offset = [](int b) { return b == 0 ? 0 : 3 + 2 * (b - 1); };
+      auto size = [](int b) { return b == 0 ? 3 : 2; };
+      for (int a = 0; a <= n; ++a) {
+        if (!has[a]) continue;
+        for (int b = 0; b <= a; ++b) {
+          if (!has[b]) continue;
+          pair_weight(a, b) += w[p];
+          out.covariance.block(offset(a), offset(b), size(a), size(b)) +=
+              w[p] * d.segment(offset(a), size(a)) * d.segment(offset(b), size(b)).transpose();
+        }
+        out.covariance.block(offset(a), offset(a), size(a), size(a)) +=
+            w[p] * (a == 0 ? Eigen::MatrixXd(particles[p].pose_covariance)
+                           : Eigen::MatrixXd(held[p][a - 1]->covariance));
+      }
+    }
+    for (int a = 0; a <= n; ++a) {
+      const int oa = a == 0 ? 0 : 3 + 2 * (a - 1), sa = a == 0 ? 3 : 2;
+      for (int b = 0; b <= a; ++b) {
+        const int ob = b == 0 ? 0 : 3 + 2 * (b - 1), sb = b == 0 ? 3 : 2;
+        if (pair_weight(a, b) > 0.0) out.covariance.block(oa, ob, sa, sb) /= pair_weight(a, b);
+        out.covariance.block(ob, oa, sb, sa) = out.covariance.block(oa, ob, sa, sb).transpose();
+      }
     }
   }
 
