@@ -150,11 +150,15 @@ FastSlam::PairScore FastSlam::Score(const Particle& particle, int i, const Eigen
   out.nu = models::RangeBearingModel::Difference(z, pr.z) - pr.H_pose * delta;
   out.nu[1] = WrapAngle(out.nu[1]);
   out.S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
-  const std::optional<double> d2 = models::MahalanobisSquared2(out.nu, out.S);
-  SUBSLAM_CHECK(d2.has_value()) << "predictive covariance not positive definite";
-  out.d2 = *d2;
-  out.log_likelihood = LogGaussian2(out.d2, out.S) +
-                       SignatureLogLikelihood(*particle.landmarks[i].gaussian, signature);
+  out.det = out.S(0, 0) * out.S(1, 1) - out.S(0, 1) * out.S(1, 0);
+  SUBSLAM_CHECK(out.S(0, 0) > 0.0 && out.det > 0.0) << "predictive covariance not positive definite";
+  out.S_inv << out.S(1, 1), -out.S(0, 1), -out.S(1, 0), out.S(0, 0);
+  out.S_inv /= out.det;
+  out.d2 = out.nu.dot(out.S_inv * out.nu);
+  // log N(ν; 0, S) without its −½ log det S, which callers add (or accumulate as a
+  // product of determinants, one log per particle and scan).
+  out.log_likelihood_but_det = -0.5 * out.d2 - std::log(2.0 * std::numbers::pi) +
+                               SignatureLogLikelihood(*particle.landmarks[i].gaussian, signature);
   return out;
 }
 
@@ -193,8 +197,9 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   // The proposal N(x0 ⊕ δ, Σ), updated by each associated detection in turn.
   Eigen::Vector3d delta = Eigen::Vector3d::Zero();
   double log_w = 0.0;
+  double det_product = 1.0;  // of the associated pairs' S, folded into log_w at the end
   const auto update_proposal = [&](const Prediction& pr, const PairScore& score) {
-    const Eigen::Matrix<double, 3, 2> K = Sigma * pr.H_pose.transpose() * score.S.inverse();
+    const Eigen::Matrix<double, 3, 2> K = Sigma * pr.H_pose.transpose() * score.S_inv;
     delta += K * score.nu;
     Sigma -= K * pr.H_pose * Sigma;
     Sigma = 0.5 * (Sigma + Sigma.transpose()).eval();
@@ -252,7 +257,12 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
                                     delta, Sigma);
       predictions_[p.landmark].used = true;
       decisions[p.detection] = p.landmark;
-      log_w += score.log_likelihood;
+      log_w += score.log_likelihood_but_det;
+      det_product *= score.det;
+      if (det_product < 1e-200 || det_product > 1e200) {
+        log_w -= 0.5 * std::log(det_product);
+        det_product = 1.0;
+      }
       update_proposal(predictions_[p.landmark], score);
       ++counters_.associated;
     }
@@ -267,8 +277,9 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
         if (p.detection != j || predictions_[p.landmark].used) continue;
         const PairScore score = Score(*particle, p.landmark, z[j], signature[j], delta, Sigma);
         if (score.d2 >= gate_d2_) continue;
-        likelihoods_.push_back({p.landmark, score.log_likelihood});
-        max_ll = std::max(max_ll, score.log_likelihood);
+        const double ll = score.log_likelihood_but_det - 0.5 * std::log(score.det);
+        likelihoods_.push_back({p.landmark, ll});
+        max_ll = std::max(max_ll, ll);
       }
       if (likelihoods_.empty()) continue;
       double total = std::exp(log_p0_ - max_ll);
@@ -280,7 +291,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
           const PairScore score = Score(*particle, i, z[j], signature[j], delta, Sigma);
           predictions_[i].used = true;
           decisions[j] = i;
-          log_w += score.log_likelihood;
+          log_w += score.log_likelihood_but_det - 0.5 * std::log(score.det);
           update_proposal(predictions_[i], score);
           ++counters_.associated;
           break;
@@ -289,6 +300,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
       if (decisions[j] < 0) decisions[j] = kNew;  // sampled "new" although something gated
     }
   }
+  log_w -= 0.5 * std::log(det_product);
   // 3. Unexplained detections: a new landmark beyond the new-landmark gate of every
   //    landmark, otherwise ignored; both with the density p0.
   for (int j = 0; j < m; ++j) {

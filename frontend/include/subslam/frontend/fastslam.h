@@ -190,9 +190,10 @@ class FastSlam final : public OnlineEstimator {
   };
   struct PairScore {
     Eigen::Vector2d nu;
-    Eigen::Matrix2d S;
+    Eigen::Matrix2d S, S_inv;
+    double det = 0.0;  // det S
     double d2 = 0.0;
-    double log_likelihood = 0.0;
+    double log_likelihood_but_det = 0.0;  // log N(ν; 0, S) + ½ log det S (+ signature)
   };
   struct GatedPair {
     double rank;
