@@ -199,8 +199,9 @@ int Run() {
   if (!absl::GetFlag(FLAGS_quiet)) {
     std::printf("subslam run summary\n%s", subslam::app::SummaryTable(*result).c_str());
     if (!options.out_dir.empty()) {
-      std::printf("  %-34s %s/{trajectory_online,trajectory_final,landmarks}.csv, report.json\n",
-                  "outputs", options.out_dir.c_str());
+      const bool local_maps = !result->local_maps.empty();
+      std::printf("  %-34s %s/{trajectory_online,trajectory_final,landmarks}.csv, report.json%s\n",
+                  "outputs", options.out_dir.c_str(), local_maps ? ", submaps.jsonl" : "");
     }
   }
   return 0;
