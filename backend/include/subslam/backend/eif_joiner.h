@@ -1,0 +1,147 @@
+// The incremental, exactly sparse extended information filter that joins local maps
+// into the global map (paper 000 §5; ../shared/design.md, "The submap factor").
+//
+// State: the anchors P1 … Pk (P0, the initial pose, is fixed and not a variable) and the
+// global landmarks, in the order they were created. Each local map adds one factor,
+// linearised at the current estimate x̂_f:
+//   Λ += Jᵀ Q⁻¹ J,   η += Jᵀ Q⁻¹ (J x̂_f − r(x̂_f)),     r = h(x̂_f) ⊖ z,
+// so Λ stays exactly sparse (a factor touches its two anchors and its landmarks; nothing
+// is marginalised). Λ is factorised by CHOLMOD (supernodal Cholesky with its
+// fill-reducing ordering, through Eigen's CholmodSupport) and the estimate is Λ⁻¹η.
+// Headings are kept continuous in the state (never wrapped between linearisations) so
+// every stored linear model stays valid; they are wrapped in the outputs.
+//
+// Per local map, in order (Combined SLAM, Algorithm 1):
+//  1. data association: earlier local maps whose anchors lie within
+//     `anchor_search_radius_m` (2·TH1) of the start anchor give candidate landmarks; those
+//     within `landmark_search_radius_m` (TH2) of a feature's world position are tested.
+//     The joint marginal covariance of the start anchor and the candidates is recovered
+//     by sparse solves with the factor (never the dense inverse); each pair's innovation
+//     ν = P_s⁻¹ · L_j − l_i with S = J Σ Jᵀ + Q_ii is gated at χ²₂(gate_probability)
+//     (plus the signature cue when both have one, option), then assigned one-to-one,
+//     nearest first. Or known association: features with the same truth_id are the same
+//     landmark (evaluation studies);
+//  2. the end anchor and the new landmarks are initialised through the start anchor;
+//  3. the information update above;
+//  4. state recovery by one solve.
+// Optional relinearisation (ISEIF's adaptive stop, paper 004 §2.3): rebuild every factor
+// at the current estimate and re-solve while the largest state change exceeds
+// `relinearize_tolerance`, every `relinearize_every` joins and/or at Finish(); iterated to
+// convergence this is Gauss-Newton over the submap graph.
+// Time per stage (association, covariance recovery, update, factorisation, recovery) is
+// accumulated as in Table 1 of paper 000.
+// Not thread-safe.
+#ifndef SUBSLAM_BACKEND_EIF_JOINER_H_
+#define SUBSLAM_BACKEND_EIF_JOINER_H_
+
+#include <Eigen/SparseCore>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/graph/local_submap.h"
+#include "subslam/graph/submap_graph.h"
+
+namespace subslam::backend {
+
+struct EifJoinerOptions {
+  // Association (Algorithm 1). 2·TH1 with TH1 ≈ the sensor range, and TH2.
+  double anchor_search_radius_m = 60.0;
+  double landmark_search_radius_m = 10.0;
+  double gate_probability = 0.99;  // χ²₂ individual gate
+  // Signature cue: σ of the difference of two signatures (0: off). When both the feature
+  // and the landmark have one, (Δs/σ)² is added to d² and the gate uses 3 dof.
+  double sigma_signature = 0.0;
+  bool known_association = false;  // associate by truth_id instead
+  // Relinearisation.
+  int relinearize_every = 0;       // every K joins (0: never during the run)
+  bool relinearize_at_end = false; // at Finish()
+  double relinearize_tolerance = 1e-6;  // stop when max |Δx| (m, rad) falls below
+  int max_relinearizations = 20;
+
+  absl::Status Validate() const;
+};
+
+struct EifJoinerCounters {
+  long joins = 0;
+  long associated = 0;      // features matched to an existing landmark
+  long new_landmarks = 0;
+  long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
+};
+
+class EifJoiner {
+ public:
+  EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options);
+  ~EifJoiner();
+
+  // Joins the next local map (its start anchor is the last anchor). Errors: an invalid
+  // local map, a start time before the previous end, or a numerically failed factorisation.
+  absl::Status Join(const LocalSubmap& submap);
+  // Relinearises to convergence if relinearize_at_end.
+  absl::Status Finish();
+
+  const SubmapGraph& graph() const { return graph_; }
+  int num_anchors() const { return graph_.num_anchors(); }
+  int num_landmarks() const { return graph_.num_landmarks(); }
+  // Current estimates (headings wrapped).
+  Pose2 anchor(int k) const;
+  Eigen::Vector2d landmark(int j) const { return graph_.landmarks()[j]; }
+  // Marginal covariances by sparse solves (anchor 0 is fixed: zero).
+  Eigen::Matrix3d AnchorCovariance(int k) const;
+  Eigen::Matrix2d LandmarkCovariance(int j) const;
+  // Joint marginal covariance of the listed anchors then landmarks (anchor 0 contributes
+  // zero rows and columns).
+  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
+                                  const std::vector<int>& landmarks) const;
+  // For the last joined map: the global landmark of each feature.
+  const std::vector<int>& last_association() const { return last_association_; }
+  // The information matrix and vector (for tests and tools).
+  const Eigen::SparseMatrix<double>& information() const { return Lambda_; }
+  int state_dimension() const { return dim_; }
+  // Where a variable sits in Λ and η (−1 for the fixed P0).
+  int anchor_offset(int k) const { return anchor_offset_[k]; }
+  int landmark_offset(int j) const { return landmark_offset_[j]; }
+  std::map<std::string, double> stage_times() const { return times_; }
+  const EifJoinerCounters& counters() const { return counters_; }
+
+ private:
+  struct Factor {
+    int index = 0;                  // into graph_.factors()
+    std::vector<int> offsets;       // state offset of each variable block (−1: fixed P0)
+    std::vector<int> sizes;         // 3 or 2
+    Eigen::MatrixXd H;              // Jᵀ Q⁻¹ J over the stacked variable blocks
+    Eigen::VectorXd b;              // Jᵀ Q⁻¹ (J x̂ − r)
+  };
+
+  void Linearize(Factor* f) const;
+  absl::Status Rebuild();           // Λ, η from the factors; factorise; solve; write back
+  absl::Status Relinearize();
+  std::vector<int> Associate(const LocalSubmap& s, int start_anchor);
+  Eigen::VectorXd StateVector() const;
+  void SetState(const Eigen::VectorXd& x);
+
+  EifJoinerOptions options_;
+  SubmapGraph graph_;
+  std::vector<int> anchor_offset_;    // −1 for P0
+  std::vector<int> landmark_offset_;
+  std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
+  int dim_ = 0;
+  std::vector<Factor> factors_;
+  Eigen::SparseMatrix<double> Lambda_;
+  Eigen::VectorXd eta_;
+  struct Solver;
+  std::unique_ptr<Solver> solver_;
+  std::map<int, int> landmark_of_truth_;  // known association
+  std::vector<double> landmark_signature_sum_;  // of the features associated with it
+  std::vector<int> landmark_signature_count_;
+  std::vector<int> last_association_;
+  std::map<std::string, double> times_;
+  EifJoinerCounters counters_;
+  double last_t_end_ = -1e300;
+};
+
+}  // namespace subslam::backend
+
+#endif  // SUBSLAM_BACKEND_EIF_JOINER_H_

@@ -1,0 +1,399 @@
+#include "subslam/backend/eif_joiner.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/CholmodSupport>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "subslam/backend/submap_factor.h"
+#include "subslam/graph/internal/check.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::backend {
+namespace {
+
+class StageTimer {
+ public:
+  StageTimer(std::map<std::string, double>* times, const char* stage) : times_(times), stage_(stage) {}
+  ~StageTimer() { (*times_)[stage_] += absl::ToDoubleSeconds(absl::Now() - start_); }
+
+ private:
+  std::map<std::string, double>* times_;
+  const char* stage_;
+  absl::Time start_ = absl::Now();
+};
+
+}  // namespace
+
+struct EifJoiner::Solver {
+  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
+  Eigen::Index analyzed_rows = -1, analyzed_nonzeros = -1;
+  bool ready = false;
+};
+
+absl::Status EifJoinerOptions::Validate() const {
+  if (!(anchor_search_radius_m >= 0 && landmark_search_radius_m >= 0)) {
+    return absl::InvalidArgumentError("search radii must be >= 0");
+  }
+  if (!(gate_probability > 0 && gate_probability < 1)) {
+    return absl::InvalidArgumentError("gate_probability must be in (0, 1)");
+  }
+  if (!(sigma_signature >= 0 && std::isfinite(sigma_signature))) {
+    return absl::InvalidArgumentError("sigma_signature must be finite and >= 0");
+  }
+  if (relinearize_every < 0 || max_relinearizations < 1 || !(relinearize_tolerance > 0)) {
+    return absl::InvalidArgumentError(
+        "relinearize_every >= 0, max_relinearizations >= 1, relinearize_tolerance > 0");
+  }
+  return absl::OkStatus();
+}
+
+EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
+    : options_(options), graph_(initial_pose), solver_(std::make_unique<Solver>()) {
+  SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
+  anchor_offset_.push_back(-1);  // P0 is fixed
+  anchor_theta_.push_back(initial_pose.theta);
+  for (const char* stage : {"association", "covariance_recovery", "update", "factorization", "recovery"}) {
+    times_[stage] = 0.0;
+  }
+}
+
+EifJoiner::~EifJoiner() = default;
+
+Pose2 EifJoiner::anchor(int k) const { return graph_.anchors()[k]; }
+
+Eigen::VectorXd EifJoiner::StateVector() const {
+  Eigen::VectorXd x(dim_);
+  for (int k = 1; k < graph_.num_anchors(); ++k) {
+    const Pose2& p = graph_.anchors()[k];
+    x.segment<3>(anchor_offset_[k]) << p.x, p.y, anchor_theta_[k];
+  }
+  for (int j = 0; j < graph_.num_landmarks(); ++j) {
+    x.segment<2>(landmark_offset_[j]) = graph_.landmarks()[j];
+  }
+  return x;
+}
+
+void EifJoiner::SetState(const Eigen::VectorXd& x) {
+  for (int k = 1; k < graph_.num_anchors(); ++k) {
+    const Eigen::Vector3d v = x.segment<3>(anchor_offset_[k]);
+    anchor_theta_[k] = v[2];
+    graph_.anchor(k) = Pose2(v[0], v[1], WrapAngle(v[2]));
+  }
+  for (int j = 0; j < graph_.num_landmarks(); ++j) {
+    graph_.landmark(j) = x.segment<2>(landmark_offset_[j]);
+  }
+}
+
+void EifJoiner::Linearize(Factor* f) const {
+  const SubmapFactor& record = graph_.factors()[f->index];
+  const LocalSubmap& s = record.submap;
+  const auto pose = [this](int k) {
+    const Pose2& p = graph_.anchors()[k];
+    return Pose2(p.x, p.y, anchor_theta_[k]);
+  };
+  const Pose2 start = pose(record.start_anchor), end = pose(record.end_anchor);
+  std::vector<Eigen::Vector2d> landmarks;
+  for (int j : record.landmark_of_feature) landmarks.push_back(graph_.landmarks()[j]);
+  const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
+
+  // Stack the Jacobian over the variable blocks (P0, fixed, has none) and x̂.
+  const bool start_fixed = record.start_anchor == 0;
+  const int m = static_cast<int>(lin.residual.size());
+  const int cols = (start_fixed ? 0 : 3) + 3 + 2 * s.num_landmarks();
+  Eigen::MatrixXd J(m, cols);
+  Eigen::VectorXd x(cols);
+  int c = 0;
+  if (!start_fixed) {
+    J.middleCols<3>(c) = lin.J_start;
+    x.segment<3>(c) = start.vector();
+    c += 3;
+  }
+  J.middleCols<3>(c) = lin.J_end;
+  x.segment<3>(c) = end.vector();
+  c += 3;
+  J.rightCols(2 * s.num_landmarks()) = lin.J_landmarks;
+  for (int i = 0; i < s.num_landmarks(); ++i) x.segment<2>(c + 2 * i) = landmarks[i];
+
+  // Whiten with Q = L Lᵀ: A = L⁻¹ J, e = L⁻¹ (J x̂ − r).
+  const Eigen::LLT<Eigen::MatrixXd> llt(s.covariance);
+  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
+  Eigen::MatrixXd A = J;
+  llt.matrixL().solveInPlace(A);
+  Eigen::VectorXd e = J * x - lin.residual;
+  llt.matrixL().solveInPlace(e);
+  f->H = A.transpose() * A;
+  f->b = A.transpose() * e;
+}
+
+absl::Status EifJoiner::Rebuild() {
+  {
+    StageTimer timer(&times_, "update");
+    std::vector<Eigen::Triplet<double>> triplets;
+    size_t count = 0;
+    for (const Factor& f : factors_) count += static_cast<size_t>(f.H.size());
+    triplets.reserve(count);
+    eta_ = Eigen::VectorXd::Zero(dim_);
+    for (const Factor& f : factors_) {
+      int row = 0;
+      for (size_t a = 0; a < f.offsets.size(); ++a) {
+        int col = 0;
+        for (size_t b = 0; b < f.offsets.size(); ++b) {
+          for (int i = 0; i < f.sizes[a]; ++i) {
+            for (int j = 0; j < f.sizes[b]; ++j) {
+              triplets.emplace_back(f.offsets[a] + i, f.offsets[b] + j, f.H(row + i, col + j));
+            }
+          }
+          col += f.sizes[b];
+        }
+        eta_.segment(f.offsets[a], f.sizes[a]) += f.b.segment(row, f.sizes[a]);
+        row += f.sizes[a];
+      }
+    }
+    Lambda_.resize(dim_, dim_);
+    Lambda_.setFromTriplets(triplets.begin(), triplets.end());
+  }
+  {
+    StageTimer timer(&times_, "factorization");
+    if (Lambda_.rows() != solver_->analyzed_rows || Lambda_.nonZeros() != solver_->analyzed_nonzeros) {
+      solver_->llt.analyzePattern(Lambda_);  // CHOLMOD's fill-reducing ordering
+      solver_->analyzed_rows = Lambda_.rows();
+      solver_->analyzed_nonzeros = Lambda_.nonZeros();
+    }
+    solver_->llt.factorize(Lambda_);
+    solver_->ready = solver_->llt.info() == Eigen::Success;
+    if (!solver_->ready) {
+      return absl::InternalError("EIF: the information matrix is not positive definite");
+    }
+  }
+  StageTimer timer(&times_, "recovery");
+  const Eigen::VectorXd x = solver_->llt.solve(eta_);
+  if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
+  SetState(x);
+  return absl::OkStatus();
+}
+
+absl::Status EifJoiner::Relinearize() {
+  for (int it = 0; it < options_.max_relinearizations; ++it) {
+    const Eigen::VectorXd before = StateVector();
+    {
+      StageTimer timer(&times_, "update");
+      for (Factor& f : factors_) Linearize(&f);
+    }
+    if (absl::Status s = Rebuild(); !s.ok()) return s;
+    ++counters_.relinearizations;
+    if ((StateVector() - before).cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
+  }
+  return absl::OkStatus();
+}
+
+Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors,
+                                           const std::vector<int>& landmarks) const {
+  std::vector<int> offsets, sizes;
+  for (int k : anchors) {
+    offsets.push_back(anchor_offset_[k]);
+    sizes.push_back(3);
+  }
+  for (int j : landmarks) {
+    offsets.push_back(landmark_offset_[j]);
+    sizes.push_back(2);
+  }
+  int c = 0;
+  for (int s : sizes) c += s;
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(c, c);
+  if (dim_ == 0) return out;
+  SUBSLAM_CHECK(solver_->ready) << "no factorisation to recover covariances from";
+  // Columns of Λ⁻¹ for the selected variables: Λ X = E, by sparse solves.
+  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(dim_, c);
+  int col = 0;
+  for (size_t v = 0; v < offsets.size(); ++v) {
+    if (offsets[v] >= 0) {
+      for (int i = 0; i < sizes[v]; ++i) E(offsets[v] + i, col + i) = 1.0;
+    }
+    col += sizes[v];
+  }
+  const Eigen::MatrixXd X = solver_->llt.solve(E);
+  int row = 0;
+  for (size_t v = 0; v < offsets.size(); ++v) {
+    if (offsets[v] >= 0) out.middleRows(row, sizes[v]) = X.middleRows(offsets[v], sizes[v]);
+    row += sizes[v];
+  }
+  // Fixed P0: its rows and columns are zero.
+  row = 0;
+  for (size_t v = 0; v < offsets.size(); ++v) {
+    if (offsets[v] < 0) {
+      out.middleRows(row, sizes[v]).setZero();
+      out.middleCols(row, sizes[v]).setZero();
+    }
+    row += sizes[v];
+  }
+  return 0.5 * (out + out.transpose());
+}
+
+Eigen::Matrix3d EifJoiner::AnchorCovariance(int k) const { return JointCovariance({k}, {}); }
+Eigen::Matrix2d EifJoiner::LandmarkCovariance(int j) const { return JointCovariance({}, {j}); }
+
+std::vector<int> EifJoiner::Associate(const LocalSubmap& s, int start_anchor) {
+  const int n = s.num_landmarks();
+  std::vector<int> out(n, -1);
+  if (options_.known_association) {
+    for (int i = 0; i < n; ++i) {
+      const std::optional<int>& t = s.landmarks[i].truth_id;
+      if (!t.has_value() || *t < 0) continue;  // unknown or false alarm: a new landmark
+      auto it = landmark_of_truth_.find(*t);
+      if (it != landmark_of_truth_.end()) out[i] = it->second;
+    }
+    return out;
+  }
+  const Pose2 P_s = graph_.anchors()[start_anchor];
+  // Candidate landmarks: those of earlier maps with an anchor near the start anchor, and
+  // near a feature's world position.
+  std::vector<char> is_candidate(graph_.num_landmarks(), 0);
+  const double r1 = options_.anchor_search_radius_m, r2 = options_.landmark_search_radius_m;
+  for (const SubmapFactor& f : graph_.factors()) {
+    const bool near = (graph_.anchors()[f.start_anchor].translation() - P_s.translation()).norm() <= r1 ||
+                      (graph_.anchors()[f.end_anchor].translation() - P_s.translation()).norm() <= r1;
+    if (!near) continue;
+    for (int j : f.landmark_of_feature) is_candidate[j] = 1;
+  }
+  std::vector<Eigen::Vector2d> world(n);
+  for (int i = 0; i < n; ++i) world[i] = TransformFrom(P_s, s.landmark(i));
+  std::vector<int> candidates;
+  for (int j = 0; j < graph_.num_landmarks(); ++j) {
+    if (!is_candidate[j]) continue;
+    for (int i = 0; i < n; ++i) {
+      if ((graph_.landmarks()[j] - world[i]).norm() <= r2) {
+        candidates.push_back(j);
+        break;
+      }
+    }
+  }
+  if (candidates.empty()) return out;
+  Eigen::MatrixXd Sigma;
+  {
+    StageTimer timer(&times_, "covariance_recovery");
+    Sigma = JointCovariance({start_anchor}, candidates);
+  }
+  struct Pair {
+    double d2;
+    int feature, landmark;
+  };
+  std::vector<Pair> pairs;
+  const double gate2 = models::ChiSquareQuantile(options_.gate_probability, 2);
+  const double gate3 = models::ChiSquareQuantile(options_.gate_probability, 3);
+  for (size_t c = 0; c < candidates.size(); ++c) {
+    const int j = candidates[c];
+    for (int i = 0; i < n; ++i) {
+      if ((graph_.landmarks()[j] - world[i]).norm() > r2) continue;
+      Matrix23d J_frame;
+      Eigen::Matrix2d J_point;
+      const Eigen::Vector2d nu = TransformTo(P_s, graph_.landmarks()[j], &J_frame, &J_point) - s.landmark(i);
+      Eigen::Matrix<double, 2, 5> J;
+      J << J_frame, J_point;
+      Eigen::Matrix<double, 5, 5> block;
+      const int o = 3 + 2 * static_cast<int>(c);
+      block.topLeftCorner<3, 3>() = Sigma.topLeftCorner<3, 3>();
+      block.topRightCorner<3, 2>() = Sigma.block<3, 2>(0, o);
+      block.bottomLeftCorner<2, 3>() = Sigma.block<2, 3>(o, 0);
+      block.bottomRightCorner<2, 2>() = Sigma.block<2, 2>(o, o);
+      const Eigen::Matrix2d S = J * block * J.transpose() + s.landmark_covariance(i);
+      const std::optional<double> d2 = models::MahalanobisSquared2(nu, S);
+      if (!d2.has_value()) continue;
+      double score = *d2, gate = gate2;
+      const double sig_l = landmark_signature_count_[j] > 0
+                               ? landmark_signature_sum_[j] / landmark_signature_count_[j]
+                               : NAN;
+      if (options_.sigma_signature > 0 && std::isfinite(s.landmarks[i].signature) && std::isfinite(sig_l)) {
+        const double ds = (s.landmarks[i].signature - sig_l) / options_.sigma_signature;
+        score += ds * ds;
+        gate = gate3;
+      }
+      if (score < gate) pairs.push_back({score, i, j});
+    }
+  }
+  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+    return a.d2 < b.d2 || (a.d2 == b.d2 && (a.feature < b.feature || (a.feature == b.feature && a.landmark < b.landmark)));
+  });
+  std::vector<char> used(graph_.num_landmarks(), 0);
+  for (const Pair& p : pairs) {
+    if (out[p.feature] >= 0 || used[p.landmark]) continue;
+    out[p.feature] = p.landmark;
+    used[p.landmark] = 1;
+  }
+  return out;
+}
+
+absl::Status EifJoiner::Join(const LocalSubmap& s) {
+  if (absl::Status v = s.Validate(); !v.ok()) return v;
+  if (s.t_start < last_t_end_ - 1e-9) {
+    return absl::InvalidArgumentError(absl::StrCat("local map ", s.id, " starts at ", s.t_start,
+                                                   " before the previous one ended (", last_t_end_, ")"));
+  }
+  const int start = graph_.num_anchors() - 1;
+  std::vector<int> assoc;
+  {
+    StageTimer timer(&times_, "association");
+    assoc = Associate(s, start);
+  }
+  // Initialise the end anchor and the new landmarks through the start anchor.
+  const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
+  const Pose2 end_local = s.end_pose();
+  const Pose2 end = Compose(P_s, end_local);
+  const int end_anchor = graph_.AddAnchor(Pose2(end.x, end.y, WrapAngle(end.theta)));
+  anchor_theta_.push_back(anchor_theta_[start] + end_local.theta);
+  anchor_offset_.push_back(dim_);
+  dim_ += 3;
+  for (int i = 0; i < s.num_landmarks(); ++i) {
+    if (assoc[i] >= 0) {
+      ++counters_.associated;
+    } else {
+      assoc[i] = graph_.AddLandmark(TransformFrom(P_s, s.landmark(i)));
+      landmark_offset_.push_back(dim_);
+      landmark_signature_sum_.push_back(0.0);
+      landmark_signature_count_.push_back(0);
+      dim_ += 2;
+      ++counters_.new_landmarks;
+      const std::optional<int>& t = s.landmarks[i].truth_id;
+      if (options_.known_association && t.has_value() && *t >= 0) landmark_of_truth_[*t] = assoc[i];
+    }
+    if (std::isfinite(s.landmarks[i].signature)) {
+      landmark_signature_sum_[assoc[i]] += s.landmarks[i].signature;
+      ++landmark_signature_count_[assoc[i]];
+    }
+  }
+  graph_.AddFactor({s, start, end_anchor, assoc});
+  Factor f;
+  f.index = static_cast<int>(graph_.factors().size()) - 1;
+  if (start != 0) {
+    f.offsets.push_back(anchor_offset_[start]);
+    f.sizes.push_back(3);
+  }
+  f.offsets.push_back(anchor_offset_[end_anchor]);
+  f.sizes.push_back(3);
+  for (int j : assoc) {
+    f.offsets.push_back(landmark_offset_[j]);
+    f.sizes.push_back(2);
+  }
+  {
+    StageTimer timer(&times_, "update");
+    Linearize(&f);
+  }
+  factors_.push_back(std::move(f));
+  last_association_ = assoc;
+  last_t_end_ = s.t_end;
+  ++counters_.joins;
+  if (absl::Status st = Rebuild(); !st.ok()) return st;
+  if (options_.relinearize_every > 0 && counters_.joins % options_.relinearize_every == 0) {
+    return Relinearize();
+  }
+  return absl::OkStatus();
+}
+
+absl::Status EifJoiner::Finish() {
+  if (options_.relinearize_at_end && !factors_.empty()) return Relinearize();
+  return absl::OkStatus();
+}
+
+}  // namespace subslam::backend

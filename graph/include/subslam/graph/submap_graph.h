@@ -1,0 +1,65 @@
+// The global problem the back-ends solve (../shared/design.md, "The submap factor"):
+// anchor poses P0 … Pk in the world frame (P0 = the initial pose, fixed; Pk = the end pose
+// of local map k), global landmarks, and one factor per local map linking its start and
+// end anchors and the global landmarks its features were associated with.
+//
+// Factor k: local map k (a LocalSubmap), start anchor k, end anchor k + 1, and for each of
+// its features the global landmark index (the association table).
+#ifndef SUBSLAM_GRAPH_SUBMAP_GRAPH_H_
+#define SUBSLAM_GRAPH_SUBMAP_GRAPH_H_
+
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/graph/local_submap.h"
+#include "subslam/graph/pose2.h"
+
+namespace subslam {
+
+struct SubmapFactor {
+  LocalSubmap submap;
+  int start_anchor = 0;
+  int end_anchor = 1;
+  std::vector<int> landmark_of_feature;  // global landmark index per local feature
+};
+
+class SubmapGraph {
+ public:
+  explicit SubmapGraph(const Pose2& initial_pose) : anchors_{initial_pose} {}
+
+  int AddAnchor(const Pose2& pose) {
+    anchors_.push_back(pose);
+    return static_cast<int>(anchors_.size()) - 1;
+  }
+  int AddLandmark(const Eigen::Vector2d& position) {
+    landmarks_.push_back(position);
+    return static_cast<int>(landmarks_.size()) - 1;
+  }
+  void AddFactor(SubmapFactor factor) { factors_.push_back(std::move(factor)); }
+
+  int num_anchors() const { return static_cast<int>(anchors_.size()); }
+  int num_landmarks() const { return static_cast<int>(landmarks_.size()); }
+  const std::vector<Pose2>& anchors() const { return anchors_; }
+  const std::vector<Eigen::Vector2d>& landmarks() const { return landmarks_; }
+  const std::vector<SubmapFactor>& factors() const { return factors_; }
+  Pose2& anchor(int k) { return anchors_[k]; }
+  Eigen::Vector2d& landmark(int j) { return landmarks_[j]; }
+
+  // g2o text: VERTEX_SE2 (anchors, ids 0 … k; P0 marked FIX), VERTEX_XY (landmarks, ids
+  // k + 1 …), and each factor split into its marginal blocks — one EDGE_SE2 start → end
+  // with the inverse of the end-pose block of Q, one EDGE_SE2_XY start → landmark per
+  // feature with the inverse of its 2×2 block. This DROPS the cross-correlations inside a
+  // local map (pose–feature and feature–feature), so optimising the g2o file is not the
+  // same problem: it over-counts shared information and is over-confident.
+  absl::Status WriteG2o(const std::string& path) const;
+
+ private:
+  std::vector<Pose2> anchors_;
+  std::vector<Eigen::Vector2d> landmarks_;
+  std::vector<SubmapFactor> factors_;
+};
+
+}  // namespace subslam
+
+#endif  // SUBSLAM_GRAPH_SUBMAP_GRAPH_H_
