@@ -17,7 +17,9 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "subslam/app/join_pipeline.h"
 #include "subslam/app/run_pipeline.h"
+#include "subslam/io/submaps_jsonl.h"
 #include "subslam/io/dataset_reader.h"
 #include "subslam/io/dataset_writer.h"
 #include "subslam/sim/simulator.h"
@@ -28,6 +30,7 @@ const subslam::sim::ScenarioOptions kScenarioDefaults;
 const subslam::frontend::EkfSlamOptions kEkfDefaults;
 const subslam::frontend::FastSlamOptions kFastSlamDefaults;
 const subslam::frontend::SubmapPolicyOptions kPolicyDefaults;
+const subslam::backend::EifJoinerOptions kEifDefaults;
 }  // namespace
 
 ABSL_FLAG(std::string, dataset, "", "data-set directory holding dataset.json");
@@ -65,6 +68,21 @@ ABSL_FLAG(double, resample_ess, kFastSlamDefaults.resample_ess_ratio,
           "fastslam / rbpf: resample when N_eff / N falls below this");
 ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
           "fastslam / rbpf: sigma of the signature cue (0: cue off)");
+ABSL_FLAG(std::string, backend, "none",
+          "rbpf / ekf: how local maps are joined: none (chained end to start) | eif");
+ABSL_FLAG(double, join_anchor_radius, kEifDefaults.anchor_search_radius_m,
+          "eif: earlier local maps with an anchor within this of the start anchor give "
+          "association candidates [m] (2·TH1)");
+ABSL_FLAG(double, join_landmark_radius, kEifDefaults.landmark_search_radius_m,
+          "eif: candidate landmarks within this of a feature [m] (TH2)");
+ABSL_FLAG(double, join_gate, kEifDefaults.gate_probability, "eif: association gate probability (chi2)");
+ABSL_FLAG(int, relinearize_every, kEifDefaults.relinearize_every,
+          "eif: relinearise to convergence every K joins (0: never during the run)");
+ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
+          "eif: relinearise to convergence after the last join");
+ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
+ABSL_FLAG(bool, known_association, false,
+          "join: associate features by their truth_id instead of by nearest neighbour");
 ABSL_FLAG(double, submap_min_duration, kPolicyDefaults.min_duration_s,
           "rbpf: a local map is never closed younger than this [s]");
 ABSL_FLAG(double, submap_max_duration, kPolicyDefaults.max_duration_s,
@@ -140,6 +158,57 @@ int Simulate() {
   return 0;
 }
 
+subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
+  subslam::backend::EifJoinerOptions o;
+  o.anchor_search_radius_m = absl::GetFlag(FLAGS_join_anchor_radius);
+  o.landmark_search_radius_m = absl::GetFlag(FLAGS_join_landmark_radius);
+  o.gate_probability = absl::GetFlag(FLAGS_join_gate);
+  o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
+  o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
+  o.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
+  o.known_association = absl::GetFlag(FLAGS_known_association);
+  return o;
+}
+
+int Join() {
+  const std::string path = absl::GetFlag(FLAGS_submaps);
+  if (path.empty()) return Fail(absl::InvalidArgumentError("join needs --submaps FILE"));
+  if (absl::GetFlag(FLAGS_backend) != "eif") {
+    return Fail(absl::InvalidArgumentError("join: only --backend eif exists so far"));
+  }
+  auto submaps = subslam::io::ReadSubmapsJsonl(path);
+  if (!submaps.ok()) return Fail(submaps.status());
+  subslam::app::JoinOptions options;
+  options.eif = EifOptionsFromFlags();
+  options.out_dir = absl::GetFlag(FLAGS_out);
+  // The initial pose and the ground truth come from the data set or the scenario the
+  // local maps were built on, when given.
+  const std::string dataset_dir = absl::GetFlag(FLAGS_dataset);
+  const std::string scenario = absl::GetFlag(FLAGS_scenario);
+  absl::StatusOr<subslam::io::Dataset> dataset = absl::NotFoundError("");
+  if (!dataset_dir.empty()) {
+    dataset = subslam::io::ReadDataset(dataset_dir);
+  } else if (!scenario.empty()) {
+    dataset = subslam::sim::SimulateScenario(scenario, ScenarioOptionsFromFlags());
+  }
+  if (!dataset_dir.empty() || !scenario.empty()) {
+    if (!dataset.ok()) return Fail(dataset.status());
+    options.initial_pose = dataset->initial_pose;
+    options.truth_poses = dataset->truth_poses;
+    options.truth_landmarks = dataset->truth_landmarks;
+  }
+  auto r = subslam::app::RunJoin(*submaps, options);
+  if (!r.ok()) return Fail(r.status());
+  if (!absl::GetFlag(FLAGS_quiet)) {
+    std::printf("subslam join summary\n%s", r->report.dump(2).c_str());
+    std::printf("\n");
+    if (!options.out_dir.empty()) {
+      std::printf("outputs: %s/{anchors,landmarks}.csv, graph.g2o, report.json\n", options.out_dir.c_str());
+    }
+  }
+  return 0;
+}
+
 int Run() {
   const std::string dataset_dir = absl::GetFlag(FLAGS_dataset);
   const std::string scenario = absl::GetFlag(FLAGS_scenario);
@@ -157,6 +226,10 @@ int Run() {
   options.ekf.new_landmark_probability = absl::GetFlag(FLAGS_new_landmark_gate);
   options.ekf.detection_probability = absl::GetFlag(FLAGS_existence_alpha);
   options.ekf.false_alarm_probability = absl::GetFlag(FLAGS_existence_beta);
+  auto backend = subslam::app::BackendFromString(absl::GetFlag(FLAGS_backend));
+  if (!backend.ok()) return Fail(backend.status());
+  options.backend = *backend;
+  options.eif = EifOptionsFromFlags();
   options.policy.min_duration_s = absl::GetFlag(FLAGS_submap_min_duration);
   options.policy.max_duration_s = absl::GetFlag(FLAGS_submap_max_duration);
   options.policy.max_features = absl::GetFlag(FLAGS_submap_max_features);
@@ -215,6 +288,8 @@ int main(int argc, char** argv) {
       "  subslam simulate --scenario NAME [--seed S] --out DIR\n"
       "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf|ekf "
       "--out DIR\n"
+      "  subslam join --submaps FILE --backend eif [--known_association] "
+      "[--dataset DIR | --scenario NAME --seed S] --out DIR\n"
       "  subslam scenarios");
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);
   if (args.size() != 2) {
@@ -224,6 +299,7 @@ int main(int argc, char** argv) {
   const std::string command = args[1];
   if (command == "simulate") return Simulate();
   if (command == "run") return Run();
+  if (command == "join") return Join();
   if (command == "scenarios") {
     std::printf("%s\n", absl::StrJoin(subslam::sim::ScenarioNames(), "\n").c_str());
     return 0;

@@ -10,7 +10,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "subslam/eval/local_map_errors.h"
-#include "subslam/frontend/chained_local_maps.h"
+#include "subslam/app/submap_slam.h"
 #include "subslam/frontend/dead_reckoning.h"
 #include "subslam/frontend/ekf_local_mapper.h"
 #include "subslam/io/submaps_jsonl.h"
@@ -153,7 +153,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (absl::Status s = options.fastslam.Validate(); !s.ok()) return s;
   if (absl::Status s = options.policy.Validate(); !s.ok()) return s;
   std::unique_ptr<frontend::OnlineEstimator> estimator;
-  frontend::ChainedLocalMaps* chain = nullptr;  // set for the local-map front-ends
+  SubmapSlam* chain = nullptr;  // set for the local-map front-ends
   if (options.frontend == Frontend::kOdometry) {
     estimator = std::make_unique<frontend::DeadReckoning>(dataset.motion.MakeModel(),
                                                           dataset.initial_pose);
@@ -169,8 +169,9 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
           dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.ekf, options.policy,
           t0, options.fastslam.moment_matching.min_existence);
     }
-    auto chained = std::make_unique<frontend::ChainedLocalMaps>(std::move(mapper),
-                                                                dataset.initial_pose);
+    if (absl::Status st = options.eif.Validate(); !st.ok()) return st;
+    auto chained = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose,
+                                                options.backend, options.eif);
     chain = chained.get();
     estimator = std::move(chained);
   } else if (options.frontend == Frontend::kFastSlam) {
@@ -203,6 +204,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         if (chain != nullptr) truth_votes.Add(chain->last_scan_map_id(), chain->last_scan_features(), scan);
       }
       r.online.push_back({step.t, estimator->pose(), estimator->pose_covariance()});
+      if (chain != nullptr) chain->RecordStep(step.t);
       progress.Tick(k, step.t);
       // Wall time at the end of each tenth of the run: flat increments mean the time
       // per step does not grow with the length of the run.
@@ -210,7 +212,9 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         r.wall_seconds_by_tenth.push_back(absl::ToDoubleSeconds(absl::Now() - start));
       }
     }
-    if (chain != nullptr) chain->Finish();
+    if (chain != nullptr) {
+      if (absl::Status st = chain->Finish(); !st.ok()) return st;
+    }
     r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
   }
   if (chain != nullptr) {
@@ -222,7 +226,9 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     }
   }
   r.peak_rss_kb = PeakRssKb();
-  r.final_trajectory = r.online;  // single-map filters: nothing to re-express
+  // Single-map filters have nothing to re-express; the submap pipeline re-expresses
+  // every step with the final anchors.
+  r.final_trajectory = chain != nullptr ? chain->FinalTrajectory() : r.online;
   r.landmarks = estimator->Map();
 
   // Evaluation against the ground truth the data set has.
@@ -230,6 +236,10 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (!dataset.truth_poses.empty()) {
     r.errors = eval::ComputeTrajectoryErrors(r.final_trajectory, dataset.truth_poses);
     metrics["trajectory"] = ErrorsJson(*r.errors);
+    if (chain != nullptr) {
+      r.errors_online = eval::ComputeTrajectoryErrors(r.online, dataset.truth_poses);
+      metrics["trajectory_online"] = ErrorsJson(*r.errors_online);
+    }
   }
   if (!dataset.truth_landmarks.empty()) {
     r.map_errors = eval::ComputeMapErrors(r.landmarks, dataset.truth_landmarks);

@@ -1,5 +1,6 @@
 #include "subslam/graph/submap_graph.h"
 
+#include <Eigen/LU>
 #include <cstdio>
 #include <memory>
 

@@ -4,9 +4,9 @@
 //
 // Outputs (in RunOptions::out_dir, when set):
 //   trajectory_online.csv  the pose and covariance after every step, as it was then;
-//   trajectory_final.csv   every step re-expressed with the final estimate — for the
-//                          single-map filters of this module (odometry, ekfslam) there
-//                          are no anchors to re-express, so it equals the online one;
+//   trajectory_final.csv   every step re-expressed with the final anchors (local-map
+//                          pipelines); the single-map filters have no anchors, so for
+//                          them it equals the online one;
 //   landmarks.csv          the final map (confirmed landmarks);
 //   report.json            configuration, counts, time per stage, metrics;
 //   submaps.jsonl          (rbpf, ekf) the local maps, in the exchange format.
@@ -23,6 +23,7 @@
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
+#include "subslam/app/submap_slam.h"
 #include "subslam/frontend/submap_policy.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/estimates.h"
@@ -31,7 +32,7 @@
 namespace subslam::app {
 
 // odometry: dead reckoning; ekfslam, fastslam: single-map filters; rbpf, ekf: local
-// mappers (FastSLAM 2.0 / EKF-SLAM per local map) chained end to start (no back-end yet).
+// mappers (FastSLAM 2.0 / EKF-SLAM per local map), joined by RunOptions::backend.
 enum class Frontend { kOdometry, kEkfSlam, kFastSlam, kRbpf, kEkfLocal };
 const char* ToString(Frontend frontend);
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name);
@@ -52,6 +53,8 @@ struct RunOptions {
   frontend::EkfSlamOptions ekf;
   frontend::FastSlamOptions fastslam;
   frontend::SubmapPolicyOptions policy;  // rbpf, ekf
+  Backend backend = Backend::kNone;       // rbpf, ekf: how local maps are joined
+  backend::EifJoinerOptions eif;
   NoiseOverrides noise;
   std::string out_dir;          // empty: write nothing
   bool progress = false;        // progress line on stderr (when it is a terminal)
@@ -80,7 +83,8 @@ struct RunResult {
   double wall_seconds = 0.0;        // estimator time (excludes reading and writing)
   std::vector<double> wall_seconds_by_tenth;  // cumulative, after each tenth of the steps
   long peak_rss_kb = 0;             // process peak resident memory after the run
-  std::optional<eval::TrajectoryErrors> errors;       // vs true poses
+  std::optional<eval::TrajectoryErrors> errors;       // final trajectory vs true poses
+  std::optional<eval::TrajectoryErrors> errors_online;  // local-map pipelines: online one
   std::optional<eval::MapErrors> map_errors;          // vs true landmarks
   std::optional<eval::GpsComparison> gps_online;      // vs GPS, aligned
   std::optional<eval::GpsComparison> gps_final;

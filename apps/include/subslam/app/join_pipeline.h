@@ -1,0 +1,57 @@
+// The `subslam join` job: run a back-end alone on recorded local maps (submaps.jsonl),
+// so back-ends can be compared on identical input and local maps built elsewhere joined.
+//
+// Outputs (JoinOptions::out_dir, when set):
+//   anchors.csv     k,t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt — anchor k is
+//                   the start of local map k (anchor 0: the initial pose, fixed) and the
+//                   end of map k − 1; t is that time;
+//   landmarks.csv   the global map (id,x,y,cov_xx,cov_xy,cov_yy);
+//   graph.g2o       the submap graph in g2o text (see SubmapGraph::WriteG2o: marginal blocks);
+//   report.json     configuration, counts, time per stage, and — when ground truth is given —
+//                   anchor and landmark errors.
+#ifndef SUBSLAM_APP_JOIN_PIPELINE_H_
+#define SUBSLAM_APP_JOIN_PIPELINE_H_
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/status/statusor.h"
+#include "subslam/backend/eif_joiner.h"
+#include "subslam/graph/estimates.h"
+#include "subslam/graph/local_submap.h"
+#include "subslam/io/dataset.h"
+
+namespace subslam::app {
+
+struct JoinOptions {
+  backend::EifJoinerOptions eif;
+  Pose2 initial_pose;           // anchor 0
+  std::string out_dir;          // empty: write nothing
+  // Ground truth for the report (optional): true poses (anchors compared at their times)
+  // and true landmarks (map errors).
+  std::vector<io::TimedPose> truth_poses;
+  std::vector<io::TruthLandmark> truth_landmarks;
+};
+
+struct JoinResult {
+  int local_maps = 0;
+  std::vector<double> anchor_times;  // s
+  Trajectory anchors;                // with marginal covariances
+  std::vector<LandmarkEstimate> landmarks;
+  double wall_seconds = 0.0;
+  // Association against truth_id (when the local maps carry them): pairs of features that
+  // share a true landmark and were joined to the same global landmark (correct), to
+  // different ones (missed), and pairs joined to the same global landmark whose true
+  // landmarks differ (wrong).
+  long correct = 0, missed = 0, wrong = 0;
+  nlohmann::json report;
+};
+
+absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options);
+
+}  // namespace subslam::app
+
+#endif  // SUBSLAM_APP_JOIN_PIPELINE_H_

@@ -1,0 +1,90 @@
+// The whole submap pipeline behind the OnlineEstimator interface: a local mapper (RBPF or
+// EKF-SLAM local maps) and a back-end that joins each closed local map into the global map.
+//
+// Back-ends:
+//  * kNone — no joining: each map's start anchor is the previous anchor composed with the
+//    previous map's end pose (first-order covariance); no fusion, no loop closure;
+//  * kEif  — the exactly sparse EIF joiner (backend/eif_joiner.h).
+//
+// pose() is the current start anchor composed with the local map's pose; its covariance
+// adds the anchor's marginal and the local pose's covariance (their correlation is
+// ignored). After Finish(), FinalTrajectory() re-expresses every recorded step with the
+// final anchors, and Map() is the global map (kNone: every local map's features through
+// its anchor, id = map · 10⁶ + feature, duplicates included).
+#ifndef SUBSLAM_APP_SUBMAP_SLAM_H_
+#define SUBSLAM_APP_SUBMAP_SLAM_H_
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/backend/eif_joiner.h"
+#include "subslam/frontend/local_mapper.h"
+#include "subslam/frontend/online_estimator.h"
+
+namespace subslam::app {
+
+enum class Backend { kNone, kEif };
+const char* ToString(Backend backend);
+absl::StatusOr<Backend> BackendFromString(const std::string& name);
+
+class SubmapSlam final : public frontend::OnlineEstimator {
+ public:
+  SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
+             Backend backend, const backend::EifJoinerOptions& eif = {});
+
+  std::string Name() const override;
+  void Predict(const Eigen::Vector2d& u, double dt) override { mapper_->Predict(u, dt); }
+  void Update(const io::Scan& scan) override;
+  Pose2 pose() const override;
+  Eigen::Matrix3d pose_covariance() const override;
+  std::vector<LandmarkEstimate> Map() const override;
+  frontend::StageTimes stage_times() const override;
+  std::map<std::string, double> Counters() const override;
+
+  // Remembers the current step (its map and local pose) for FinalTrajectory().
+  void RecordStep(double t);
+  // Closes and joins the open local map (and relinearises, if the joiner is set to).
+  // Returns the first error any join met.
+  absl::Status Finish();
+  Trajectory FinalTrajectory() const;
+
+  const std::vector<frontend::ClosedLocalMap>& local_maps() const { return closed_; }
+  int last_scan_map_id() const { return last_scan_map_id_; }
+  const std::vector<int>& last_scan_features() const { return mapper_->last_scan_features(); }
+  const backend::EifJoiner* eif() const { return eif_.get(); }
+  static constexpr int kFeatureIdStride = 1000000;
+
+ private:
+  void JoinClosed();
+  // The start anchor of local map k and its marginal covariance.
+  Pose2 Anchor(int k) const;
+  Eigen::Matrix3d AnchorCovariance(int k) const;
+
+  std::unique_ptr<frontend::LocalMapper> mapper_;
+  Backend backend_;
+  std::unique_ptr<backend::EifJoiner> eif_;
+  std::vector<frontend::ClosedLocalMap> closed_;
+  // kNone: the chained anchors (index k = start of map k) and covariances.
+  std::vector<Pose2> chain_;
+  std::vector<Eigen::Matrix3d> chain_covariance_;
+  // The current start anchor, cached after each join.
+  Pose2 anchor_;
+  Eigen::Matrix3d anchor_covariance_ = Eigen::Matrix3d::Zero();
+  struct StepRecord {
+    double t;
+    int map;
+    Pose2 local;
+    Eigen::Matrix3d local_covariance;
+  };
+  std::vector<StepRecord> steps_;
+  int last_scan_map_id_ = 0;
+  absl::Status status_;
+  double join_seconds_ = 0.0;
+};
+
+}  // namespace subslam::app
+
+#endif  // SUBSLAM_APP_SUBMAP_SLAM_H_

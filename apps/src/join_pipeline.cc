@@ -1,0 +1,110 @@
+#include "subslam/app/join_pipeline.h"
+
+#include <filesystem>
+#include <map>
+#include <set>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/time/clock.h"
+#include "subslam/eval/trajectory_errors.h"
+#include "subslam/io/run_output_writer.h"
+
+namespace subslam::app {
+
+absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options) {
+  if (absl::Status s = options.eif.Validate(); !s.ok()) return s;
+  if (submaps.empty()) return absl::InvalidArgumentError("no local maps to join");
+  backend::EifJoiner eif(options.initial_pose, options.eif);
+  JoinResult r;
+  const absl::Time start = absl::Now();
+  // Association bookkeeping against truth ids: global landmark → true ids joined to it.
+  std::map<int, std::set<int>> truths_of_global;
+  std::map<int, std::set<int>> globals_of_truth;
+  for (const LocalSubmap& s : submaps) {
+    if (absl::Status st = eif.Join(s); !st.ok()) {
+      return absl::Status(st.code(), absl::StrCat("joining local map ", s.id, ": ", st.message()));
+    }
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      const std::optional<int>& t = s.landmarks[i].truth_id;
+      if (!t.has_value() || *t < 0) continue;
+      truths_of_global[eif.last_association()[i]].insert(*t);
+      globals_of_truth[*t].insert(eif.last_association()[i]);
+    }
+  }
+  if (absl::Status st = eif.Finish(); !st.ok()) return st;
+  r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  for (const auto& [g, truths] : truths_of_global) r.wrong += static_cast<long>(truths.size()) - 1;
+  for (const auto& [t, globals] : globals_of_truth) {
+    r.missed += static_cast<long>(globals.size()) - 1;
+    r.correct += 1;
+  }
+  r.local_maps = static_cast<int>(submaps.size());
+  r.anchor_times.push_back(submaps.front().t_start);
+  for (const LocalSubmap& s : submaps) r.anchor_times.push_back(s.t_end);
+  for (int k = 0; k < eif.num_anchors(); ++k) {
+    r.anchors.push_back({r.anchor_times[k], eif.anchor(k), eif.AnchorCovariance(k)});
+  }
+  for (int j = 0; j < eif.num_landmarks(); ++j) {
+    r.landmarks.push_back({j, eif.landmark(j), eif.LandmarkCovariance(j)});
+  }
+
+  nlohmann::json metrics = nlohmann::json::object();
+  if (!options.truth_poses.empty()) {
+    const eval::TrajectoryErrors e = eval::ComputeTrajectoryErrors(r.anchors, options.truth_poses);
+    metrics["anchors"] = {{"rms_position_m", e.rms_position_m},
+                          {"rms_heading_rad", e.rms_heading_rad},
+                          {"mean_pose_nees", e.mean_nees},
+                          {"fraction_nees_in_bounds", e.fraction_nees_in_bounds}};
+  }
+  if (!options.truth_landmarks.empty()) {
+    const eval::MapErrors m = eval::ComputeMapErrors(r.landmarks, options.truth_landmarks);
+    metrics["map"] = {{"estimated", m.estimated}, {"matched", m.matched},
+                      {"spurious", m.spurious},   {"duplicates", m.duplicates},
+                      {"rms_m", m.rms_m},         {"mean_landmark_nees", m.mean_nees}};
+  }
+  metrics["association_vs_truth_id"] = {{"true_landmarks_seen", r.correct},
+                                        {"missed_merges", r.missed},
+                                        {"wrong_merges", r.wrong}};
+  nlohmann::json stages = nlohmann::json::object();
+  for (const auto& [stage, seconds] : eif.stage_times()) stages[stage] = seconds;
+  r.report = {{"format", "subslam-join-report/1"},
+              {"configuration",
+               {{"backend", "eif"},
+                {"known_association", options.eif.known_association},
+                {"anchor_search_radius_m", options.eif.anchor_search_radius_m},
+                {"landmark_search_radius_m", options.eif.landmark_search_radius_m},
+                {"gate_probability", options.eif.gate_probability},
+                {"relinearize_every", options.eif.relinearize_every},
+                {"relinearize_at_end", options.eif.relinearize_at_end}}},
+              {"counts",
+               {{"local_maps", r.local_maps},
+                {"anchors", eif.num_anchors()},
+                {"landmarks", eif.num_landmarks()},
+                {"associated_features", eif.counters().associated},
+                {"relinearizations", eif.counters().relinearizations}}},
+              {"time_seconds", {{"total", r.wall_seconds}, {"stages", stages}}},
+              {"metrics", metrics}};
+
+  if (!options.out_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(options.out_dir, ec);
+    if (ec) return absl::InternalError(absl::StrCat(options.out_dir, ": ", ec.message()));
+    const std::filesystem::path out(options.out_dir);
+    std::string csv = "k,t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt\n";
+    for (size_t k = 0; k < r.anchors.size(); ++k) {
+      const PoseEstimate& a = r.anchors[k];
+      const Eigen::Matrix3d& c = a.covariance;
+      absl::StrAppendFormat(&csv, "%d,%.6f,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g\n",
+                            static_cast<int>(k), a.t, a.pose.x, a.pose.y, a.pose.theta, c(0, 0),
+                            c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2));
+    }
+    if (auto s = io::WriteTextFile((out / "anchors.csv").string(), csv); !s.ok()) return s;
+    if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
+    if (auto s = eif.graph().WriteG2o((out / "graph.g2o").string()); !s.ok()) return s;
+    if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;
+  }
+  return r;
+}
+
+}  // namespace subslam::app

@@ -1,0 +1,144 @@
+#include "subslam/app/submap_slam.h"
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+
+namespace subslam::app {
+
+const char* ToString(Backend backend) { return backend == Backend::kEif ? "eif" : "none"; }
+
+absl::StatusOr<Backend> BackendFromString(const std::string& name) {
+  if (name == "none") return Backend::kNone;
+  if (name == "eif") return Backend::kEif;
+  return absl::InvalidArgumentError(absl::StrCat("unknown back-end \"", name, "\" (expected none or eif)"));
+}
+
+SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
+                       Backend backend, const backend::EifJoinerOptions& eif)
+    : mapper_(std::move(mapper)), backend_(backend), anchor_(initial_pose) {
+  chain_.push_back(initial_pose);
+  chain_covariance_.push_back(Eigen::Matrix3d::Zero());
+  if (backend_ == Backend::kEif) eif_ = std::make_unique<backend::EifJoiner>(initial_pose, eif);
+}
+
+std::string SubmapSlam::Name() const {
+  return backend_ == Backend::kNone ? mapper_->Name() : absl::StrCat(mapper_->Name(), "+", ToString(backend_));
+}
+
+void SubmapSlam::Update(const io::Scan& scan) {
+  last_scan_map_id_ = mapper_->current_map_id();
+  mapper_->Update(scan);
+  JoinClosed();
+}
+
+void SubmapSlam::JoinClosed() {
+  const absl::Time start = absl::Now();
+  for (frontend::ClosedLocalMap& c : mapper_->TakeClosed()) {
+    const LocalSubmap& s = c.submap;
+    if (backend_ == Backend::kEif) {
+      if (absl::Status st = eif_->Join(s); !st.ok() && status_.ok()) status_ = st;
+    }
+    Eigen::Matrix3d J_a, J_e;
+    const Pose2 next = Compose(chain_.back(), s.end_pose(), &J_a, &J_e);
+    chain_covariance_.push_back(J_a * chain_covariance_.back() * J_a.transpose() +
+                                J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose());
+    chain_.push_back(next);
+    closed_.push_back(std::move(c));
+  }
+  const int k = mapper_->current_map_id();
+  anchor_ = Anchor(k);
+  anchor_covariance_ = AnchorCovariance(k);
+  join_seconds_ += absl::ToDoubleSeconds(absl::Now() - start);
+}
+
+Pose2 SubmapSlam::Anchor(int k) const {
+  if (backend_ == Backend::kEif && k < eif_->num_anchors()) return eif_->anchor(k);
+  return chain_[k];
+}
+
+Eigen::Matrix3d SubmapSlam::AnchorCovariance(int k) const {
+  if (backend_ == Backend::kEif && k < eif_->num_anchors()) return eif_->AnchorCovariance(k);
+  return chain_covariance_[k];
+}
+
+Pose2 SubmapSlam::pose() const { return Compose(anchor_, mapper_->local_pose()); }
+
+Eigen::Matrix3d SubmapSlam::pose_covariance() const {
+  Eigen::Matrix3d J_a, J_l;
+  Compose(anchor_, mapper_->local_pose(), &J_a, &J_l);
+  return J_a * anchor_covariance_ * J_a.transpose() +
+         J_l * mapper_->local_pose_covariance() * J_l.transpose();
+}
+
+void SubmapSlam::RecordStep(double t) {
+  steps_.push_back({t, mapper_->current_map_id(), mapper_->local_pose(), mapper_->local_pose_covariance()});
+}
+
+absl::Status SubmapSlam::Finish() {
+  mapper_->Finish();
+  JoinClosed();
+  if (backend_ == Backend::kEif && status_.ok()) status_ = eif_->Finish();
+  return status_;
+}
+
+Trajectory SubmapSlam::FinalTrajectory() const {
+  Trajectory out;
+  out.reserve(steps_.size());
+  int cached = -1;
+  Pose2 anchor;
+  Eigen::Matrix3d anchor_cov;
+  for (const StepRecord& r : steps_) {
+    if (r.map != cached) {
+      anchor = Anchor(r.map);
+      anchor_cov = AnchorCovariance(r.map);
+      cached = r.map;
+    }
+    Eigen::Matrix3d J_a, J_l;
+    const Pose2 p = Compose(anchor, r.local, &J_a, &J_l);
+    out.push_back({r.t, p, J_a * anchor_cov * J_a.transpose() + J_l * r.local_covariance * J_l.transpose()});
+  }
+  return out;
+}
+
+std::vector<LandmarkEstimate> SubmapSlam::Map() const {
+  std::vector<LandmarkEstimate> out;
+  if (backend_ == Backend::kEif) {
+    for (int j = 0; j < eif_->num_landmarks(); ++j) {
+      out.push_back({j, eif_->landmark(j), eif_->LandmarkCovariance(j)});
+    }
+    return out;
+  }
+  for (size_t k = 0; k < closed_.size(); ++k) {
+    const LocalSubmap& s = closed_[k].submap;
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      Matrix23d J_pose;
+      Eigen::Matrix2d J_point;
+      const Eigen::Vector2d p = TransformFrom(chain_[k], s.landmark(i), &J_pose, &J_point);
+      out.push_back({s.id * kFeatureIdStride + s.landmarks[i].local_id, p,
+                     J_pose * chain_covariance_[k] * J_pose.transpose() +
+                         J_point * s.landmark_covariance(i) * J_point.transpose()});
+    }
+  }
+  return out;
+}
+
+frontend::StageTimes SubmapSlam::stage_times() const {
+  frontend::StageTimes times = mapper_->stage_times();
+  if (eif_) {
+    for (const auto& [stage, seconds] : eif_->stage_times()) times["join_" + stage] = seconds;
+  }
+  return times;
+}
+
+std::map<std::string, double> SubmapSlam::Counters() const {
+  std::map<std::string, double> out = mapper_->Counters();
+  if (eif_) {
+    out["join_associated_features"] = eif_->counters().associated;
+    out["join_new_landmarks"] = eif_->counters().new_landmarks;
+    out["join_relinearizations"] = eif_->counters().relinearizations;
+    out["global_landmarks"] = eif_->num_landmarks();
+  }
+  return out;
+}
+
+}  // namespace subslam::app
