@@ -21,6 +21,8 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   // Association bookkeeping against truth ids: global landmark → true ids joined to it.
   std::map<int, std::set<int>> truths_of_global;
   std::map<int, std::set<int>> globals_of_truth;
+  std::map<int, std::pair<int, int>> last_seen;  // truth id → (local map index, global id)
+  int map_index = 0;
   for (const LocalSubmap& s : submaps) {
     if (absl::Status st = eif.Join(s); !st.ok()) {
       return absl::Status(st.code(), absl::StrCat("joining local map ", s.id, ": ", st.message()));
@@ -28,9 +30,18 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     for (int i = 0; i < s.num_landmarks(); ++i) {
       const std::optional<int>& t = s.landmarks[i].truth_id;
       if (!t.has_value() || *t < 0) continue;
-      truths_of_global[eif.last_association()[i]].insert(*t);
-      globals_of_truth[*t].insert(eif.last_association()[i]);
+      const int g = eif.last_association()[i];
+      truths_of_global[g].insert(*t);
+      globals_of_truth[*t].insert(g);
+      auto seen = last_seen.find(*t);
+      if (seen != last_seen.end()) {
+        const bool loop = map_index - seen->second.first > 2;
+        const bool merged = seen->second.second == g;
+        (loop ? (merged ? r.loop_merged : r.loop_missed) : (merged ? r.recent_merged : r.recent_missed)) += 1;
+      }
+      last_seen[*t] = {map_index, g};
     }
+    ++map_index;
   }
   if (absl::Status st = eif.Finish(); !st.ok()) return st;
   r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
@@ -65,7 +76,11 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   }
   metrics["association_vs_truth_id"] = {{"true_landmarks_seen", r.correct},
                                         {"missed_merges", r.missed},
-                                        {"wrong_merges", r.wrong}};
+                                        {"wrong_merges", r.wrong},
+                                        {"reobserved_recent_merged", r.recent_merged},
+                                        {"reobserved_recent_missed", r.recent_missed},
+                                        {"reobserved_loop_merged", r.loop_merged},
+                                        {"reobserved_loop_missed", r.loop_missed}};
   nlohmann::json stages = nlohmann::json::object();
   for (const auto& [stage, seconds] : eif.stage_times()) stages[stage] = seconds;
   r.report = {{"format", "subslam-join-report/1"},

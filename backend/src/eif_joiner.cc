@@ -2,12 +2,14 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/CholmodSupport>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "subslam/backend/submap_factor.h"
+#include "subslam/frontend/data_association.h"
 #include "subslam/graph/internal/check.h"
 #include "subslam/models/gating.h"
 
@@ -43,6 +45,7 @@ absl::Status EifJoinerOptions::Validate() const {
   if (!(sigma_signature >= 0 && std::isfinite(sigma_signature))) {
     return absl::InvalidArgumentError("sigma_signature must be finite and >= 0");
   }
+  if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
   if (relinearize_every < 0 || max_relinearizations < 1 || !(relinearize_tolerance > 0)) {
     return absl::InvalidArgumentError(
         "relinearize_every >= 0, max_relinearizations >= 1, relinearize_tolerance > 0");
@@ -249,9 +252,18 @@ std::vector<int> EifJoiner::Associate(const LocalSubmap& s, int start_anchor) {
   }
   const Pose2 P_s = graph_.anchors()[start_anchor];
   // Candidate landmarks: those of earlier maps with an anchor near the start anchor, and
-  // near a feature's world position.
+  // near a feature's world position. Both radii grow by three standard deviations of the
+  // start anchor's uncertainty (position, and heading times the feature's distance), so
+  // a loop is still found after a long drift.
+  Eigen::Matrix3d Sigma_s;
+  {
+    StageTimer timer(&times_, "covariance_recovery");
+    Sigma_s = AnchorCovariance(start_anchor);
+  }
+  const double sigma_xy = std::sqrt(std::max(0.0, Sigma_s.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff()));
+  const double sigma_theta = std::sqrt(std::max(0.0, Sigma_s(2, 2)));
   std::vector<char> is_candidate(graph_.num_landmarks(), 0);
-  const double r1 = options_.anchor_search_radius_m, r2 = options_.landmark_search_radius_m;
+  const double r1 = options_.anchor_search_radius_m + 3.0 * sigma_xy;
   for (const SubmapFactor& f : graph_.factors()) {
     const bool near = (graph_.anchors()[f.start_anchor].translation() - P_s.translation()).norm() <= r1 ||
                       (graph_.anchors()[f.end_anchor].translation() - P_s.translation()).norm() <= r1;
@@ -259,12 +271,16 @@ std::vector<int> EifJoiner::Associate(const LocalSubmap& s, int start_anchor) {
     for (int j : f.landmark_of_feature) is_candidate[j] = 1;
   }
   std::vector<Eigen::Vector2d> world(n);
-  for (int i = 0; i < n; ++i) world[i] = TransformFrom(P_s, s.landmark(i));
+  std::vector<double> r2(n);
+  for (int i = 0; i < n; ++i) {
+    world[i] = TransformFrom(P_s, s.landmark(i));
+    r2[i] = options_.landmark_search_radius_m + 3.0 * (sigma_xy + sigma_theta * s.landmark(i).norm());
+  }
   std::vector<int> candidates;
   for (int j = 0; j < graph_.num_landmarks(); ++j) {
     if (!is_candidate[j]) continue;
     for (int i = 0; i < n; ++i) {
-      if ((graph_.landmarks()[j] - world[i]).norm() <= r2) {
+      if ((graph_.landmarks()[j] - world[i]).norm() <= r2[i]) {
         candidates.push_back(j);
         break;
       }
@@ -276,30 +292,34 @@ std::vector<int> EifJoiner::Associate(const LocalSubmap& s, int start_anchor) {
     StageTimer timer(&times_, "covariance_recovery");
     Sigma = JointCovariance({start_anchor}, candidates);
   }
-  struct Pair {
-    double d2;
-    int feature, landmark;
+  // Individual compatibility of each (feature, candidate) pair.
+  const int c_count = static_cast<int>(candidates.size());
+  std::vector<Matrix23d> J_frame(c_count);
+  std::vector<Eigen::Matrix2d> J_point(c_count);
+  std::vector<Eigen::Vector2d> predicted(c_count);
+  for (int c = 0; c < c_count; ++c) {
+    predicted[c] = TransformTo(P_s, graph_.landmarks()[candidates[c]], &J_frame[c], &J_point[c]);
+  }
+  // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate].
+  const auto cross = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
+    const int oa = 3 + 2 * a, ob = 3 + 2 * b;
+    Eigen::Matrix2d m = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
+                        J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
+                        J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
+                        J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
+    m += s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
+    return m;
   };
-  std::vector<Pair> pairs;
   const double gate2 = models::ChiSquareQuantile(options_.gate_probability, 2);
   const double gate3 = models::ChiSquareQuantile(options_.gate_probability, 3);
-  for (size_t c = 0; c < candidates.size(); ++c) {
+  frontend::AssociationProblem problem;
+  problem.candidates.resize(n);
+  for (int c = 0; c < c_count; ++c) {
     const int j = candidates[c];
     for (int i = 0; i < n; ++i) {
-      if ((graph_.landmarks()[j] - world[i]).norm() > r2) continue;
-      Matrix23d J_frame;
-      Eigen::Matrix2d J_point;
-      const Eigen::Vector2d nu = TransformTo(P_s, graph_.landmarks()[j], &J_frame, &J_point) - s.landmark(i);
-      Eigen::Matrix<double, 2, 5> J;
-      J << J_frame, J_point;
-      Eigen::Matrix<double, 5, 5> block;
-      const int o = 3 + 2 * static_cast<int>(c);
-      block.topLeftCorner<3, 3>() = Sigma.topLeftCorner<3, 3>();
-      block.topRightCorner<3, 2>() = Sigma.block<3, 2>(0, o);
-      block.bottomLeftCorner<2, 3>() = Sigma.block<2, 3>(o, 0);
-      block.bottomRightCorner<2, 2>() = Sigma.block<2, 2>(o, o);
-      const Eigen::Matrix2d S = J * block * J.transpose() + s.landmark_covariance(i);
-      const std::optional<double> d2 = models::MahalanobisSquared2(nu, S);
+      if ((graph_.landmarks()[j] - world[i]).norm() > r2[i]) continue;
+      const Eigen::Vector2d nu = predicted[c] - s.landmark(i);
+      const std::optional<double> d2 = models::MahalanobisSquared2(nu, cross(i, c, i, c));
       if (!d2.has_value()) continue;
       double score = *d2, gate = gate2;
       const double sig_l = landmark_signature_count_[j] > 0
@@ -310,17 +330,24 @@ std::vector<int> EifJoiner::Associate(const LocalSubmap& s, int start_anchor) {
         score += ds * ds;
         gate = gate3;
       }
-      if (score < gate) pairs.push_back({score, i, j});
+      if (score < gate) problem.candidates[i].push_back({c, score, nu});
     }
   }
-  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
-    return a.d2 < b.d2 || (a.d2 == b.d2 && (a.feature < b.feature || (a.feature == b.feature && a.landmark < b.landmark)));
-  });
-  std::vector<char> used(graph_.num_landmarks(), 0);
-  for (const Pair& p : pairs) {
-    if (out[p.feature] >= 0 || used[p.landmark]) continue;
-    out[p.feature] = p.landmark;
-    used[p.landmark] = 1;
+  for (auto& list : problem.candidates) {
+    std::sort(list.begin(), list.end(), [](const auto& a, const auto& b) {
+      return a.d2 < b.d2 || (a.d2 == b.d2 && a.landmark < b.landmark);
+    });
+  }
+  frontend::AssociationResult result;
+  if (options_.joint_compatibility) {
+    problem.covariance_block = cross;
+    result = frontend::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
+    if (result.truncated) ++counters_.jcbb_truncated;
+  } else {
+    result = frontend::NearestNeighbour(problem);
+  }
+  for (int i = 0; i < n; ++i) {
+    if (result.landmark_of_detection[i] >= 0) out[i] = candidates[result.landmark_of_detection[i]];
   }
   return out;
 }

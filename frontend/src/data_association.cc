@@ -100,17 +100,17 @@ class Jcbb {
   }
 
   // Appends pairing (j, c) as block row k of L and y; returns the joint d².
-  bool Extend(int /*j*/, int k, const AssociationCandidate& c, double* d2) {
+  bool Extend(int j, int k, const AssociationCandidate& c, double* d2) {
     Eigen::Matrix<double, Eigen::Dynamic, 2> B(2 * k, 2);
     for (int a = 0; a < k; ++a) {
-      const int landmark_a = current_[paired_detection_[a]];
-      B.block<2, 2>(2 * a, 0) = p_.covariance_block(landmark_a, c.landmark);
+      const int detection_a = paired_detection_[a];
+      B.block<2, 2>(2 * a, 0) = p_.covariance_block(detection_a, current_[detection_a], j, c.landmark);
     }
     Eigen::Matrix<double, Eigen::Dynamic, 2> L21t = B;  // L11⁻¹ B
     if (k > 0) {
       L_.topLeftCorner(2 * k, 2 * k).triangularView<Eigen::Lower>().solveInPlace(L21t);
     }
-    Eigen::Matrix2d C = p_.covariance_block(c.landmark, c.landmark) - L21t.transpose() * L21t;
+    Eigen::Matrix2d C = p_.covariance_block(j, c.landmark, j, c.landmark) - L21t.transpose() * L21t;
     Eigen::LLT<Eigen::Matrix2d> llt(C);
     if (llt.info() != Eigen::Success) return false;
     const Eigen::Matrix2d L22 = llt.matrixL();

@@ -188,7 +188,7 @@ void EkfSlam::Update(const io::Scan& scan) {
   {
     StageTimer timer(&times_, "associate");
     if (options_.association == AssociationMethod::kJointCompatibility) {
-      problem.covariance_block = [&](int a, int b) -> Eigen::Matrix2d {
+      problem.covariance_block = [&](int, int a, int, int b) -> Eigen::Matrix2d {
         const Prediction& pa = predictions[prediction_of_landmark[a]];
         const Prediction& pb = predictions[prediction_of_landmark[b]];
         return a == b ? pa.S : CrossCovariance(pa, pb);

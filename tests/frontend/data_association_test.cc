@@ -25,7 +25,7 @@ TEST(JointCompatibility, RejectsJointlyIncompatiblePairings) {
   // directions, which the joint covariance makes implausible.
   AssociationProblem p;
   p.candidates = {{C(0, 2.0, 0)}, {C(1, -2.0, 0)}};
-  p.covariance_block = [](int a, int b) -> Eigen::Matrix2d {
+  p.covariance_block = [](int, int a, int, int b) -> Eigen::Matrix2d {
     return Eigen::Matrix2d::Identity() * (a == b ? 1.0 : 0.95);
   };
   const AssociationResult nn = NearestNeighbour(p);
@@ -34,7 +34,7 @@ TEST(JointCompatibility, RejectsJointlyIncompatiblePairings) {
   EXPECT_EQ(jc.pairings, 1);
   EXPECT_FALSE(jc.truncated);
   // With independent landmarks, both pairings are jointly compatible.
-  p.covariance_block = [](int a, int b) -> Eigen::Matrix2d {
+  p.covariance_block = [](int, int a, int, int b) -> Eigen::Matrix2d {
     return Eigen::Matrix2d::Identity() * (a == b ? 1.0 : 0.0);
   };
   const AssociationResult both = JointCompatibility(p, 0.99, 1000);
@@ -47,7 +47,7 @@ TEST(JointCompatibility, PrefersConsistentShiftedHypothesis) {
   // landmarks that agree on the shift rather than the individually nearest ones.
   AssociationProblem p;
   p.candidates = {{C(1, 0.2, 0), C(0, 1.5, 0)}, {C(1, 1.5, 0), C(2, -2.8, 0)}};
-  p.covariance_block = [](int a, int b) -> Eigen::Matrix2d {
+  p.covariance_block = [](int, int a, int, int b) -> Eigen::Matrix2d {
     return Eigen::Matrix2d::Identity() * (a == b ? 1.0 : 0.9);
   };
   EXPECT_EQ(NearestNeighbour(p).landmark_of_detection, (std::vector<int>{1, 2}));

@@ -47,6 +47,10 @@ struct JoinResult {
   // different ones (missed), and pairs joined to the same global landmark whose true
   // landmarks differ (wrong).
   long correct = 0, missed = 0, wrong = 0;
+  // Re-observations of a true landmark, by how long ago it was last seen: within the
+  // last two local maps (recent) or earlier (a loop), and whether they were joined to the
+  // same global landmark as then.
+  long recent_merged = 0, recent_missed = 0, loop_merged = 0, loop_missed = 0;
   nlohmann::json report;
 };
 

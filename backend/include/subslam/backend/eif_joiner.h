@@ -15,12 +15,16 @@
 //  1. data association: earlier local maps whose anchors lie within
 //     `anchor_search_radius_m` (2·TH1) of the start anchor give candidate landmarks; those
 //     within `landmark_search_radius_m` (TH2) of a feature's world position are tested.
+//     Both radii grow by 3σ of the start anchor's recovered uncertainty (position, and
+//     heading × the feature's distance; ours), so a loop is found after a long drift.
 //     The joint marginal covariance of the start anchor and the candidates is recovered
 //     by sparse solves with the factor (never the dense inverse); each pair's innovation
 //     ν = P_s⁻¹ · L_j − l_i with S = J Σ Jᵀ + Q_ii is gated at χ²₂(gate_probability)
-//     (plus the signature cue when both have one, option), then assigned one-to-one,
-//     nearest first. Or known association: features with the same truth_id are the same
-//     landmark (evaluation studies);
+//     (plus the signature cue when both have one, option); the hypothesis is then chosen
+//     by joint compatibility (JCBB, default: the pairings' joint innovation, with the
+//     local map's correlations Q_ik between features, must pass χ²_{2k}) or by nearest
+//     neighbour, one-to-one. Or known association: features with the same truth_id are
+//     the same landmark (evaluation studies);
 //  2. the end anchor and the new landmarks are initialised through the start anchor;
 //  3. the information update above;
 //  4. state recovery by one solve.
@@ -50,7 +54,11 @@ struct EifJoinerOptions {
   // Association (Algorithm 1). 2·TH1 with TH1 ≈ the sensor range, and TH2.
   double anchor_search_radius_m = 60.0;
   double landmark_search_radius_m = 10.0;
-  double gate_probability = 0.99;  // χ²₂ individual gate
+  double gate_probability = 0.99;  // χ²₂ individual gate (and JCBB's joint gate)
+  // true: joint compatibility (JCBB over the map's features, with the local map's own
+  // feature correlations); false: nearest neighbour, one-to-one.
+  bool joint_compatibility = true;
+  long jcbb_max_nodes = 20000;
   // Signature cue: σ of the difference of two signatures (0: off). When both the feature
   // and the landmark have one, (Δs/σ)² is added to d² and the gate uses 3 dof.
   double sigma_signature = 0.0;
@@ -69,6 +77,7 @@ struct EifJoinerCounters {
   long associated = 0;      // features matched to an existing landmark
   long new_landmarks = 0;
   long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
+  long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
 };
 
 class EifJoiner {

@@ -38,9 +38,10 @@ struct AssociationCandidate {
 struct AssociationProblem {
   // candidates[j]: individually compatible landmarks of detection j, sorted by d².
   std::vector<std::vector<AssociationCandidate>> candidates;
-  // Block (a, b) of the joint innovation covariance H P Hᵀ + R for landmarks a and b;
-  // (a, a) includes the sensor noise R. Needed by JointCompatibility only.
-  std::function<Eigen::Matrix2d(int a, int b)> covariance_block;
+  // Block of the joint innovation covariance between pairing (detection i, landmark a)
+  // and pairing (detection j, landmark b); the diagonal (i = j, a = b) includes the
+  // measurement noise. Needed by JointCompatibility only.
+  std::function<Eigen::Matrix2d(int i, int a, int j, int b)> covariance_block;
 };
 
 struct AssociationResult {
