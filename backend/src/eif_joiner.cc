@@ -131,32 +131,47 @@ void EifJoiner::Linearize(Factor* f) const {
   f->b = A.transpose() * e;
 }
 
-absl::Status EifJoiner::Rebuild() {
+void EifJoiner::Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,
+                        Eigen::VectorXd* eta) const {
+  int row = 0;
+  for (size_t a = 0; a < f.offsets.size(); ++a) {
+    int col = 0;
+    for (size_t b = 0; b < f.offsets.size(); ++b) {
+      for (int i = 0; i < f.sizes[a]; ++i) {
+        for (int j = 0; j < f.sizes[b]; ++j) {
+          triplets->emplace_back(f.offsets[a] + i, f.offsets[b] + j, f.H(row + i, col + j));
+        }
+      }
+      col += f.sizes[b];
+    }
+    eta->segment(f.offsets[a], f.sizes[a]) += f.b.segment(row, f.sizes[a]);
+    row += f.sizes[a];
+  }
+}
+
+absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   {
     StageTimer timer(&times_, "update");
     std::vector<Eigen::Triplet<double>> triplets;
-    size_t count = 0;
-    for (const Factor& f : factors_) count += static_cast<size_t>(f.H.size());
-    triplets.reserve(count);
-    eta_ = Eigen::VectorXd::Zero(dim_);
-    for (const Factor& f : factors_) {
-      int row = 0;
-      for (size_t a = 0; a < f.offsets.size(); ++a) {
-        int col = 0;
-        for (size_t b = 0; b < f.offsets.size(); ++b) {
-          for (int i = 0; i < f.sizes[a]; ++i) {
-            for (int j = 0; j < f.sizes[b]; ++j) {
-              triplets.emplace_back(f.offsets[a] + i, f.offsets[b] + j, f.H(row + i, col + j));
-            }
-          }
-          col += f.sizes[b];
-        }
-        eta_.segment(f.offsets[a], f.sizes[a]) += f.b.segment(row, f.sizes[a]);
-        row += f.sizes[a];
-      }
+    if (only_last_factor) {
+      // Λ grows by the new variables and gains the new factor's blocks: O(nnz(Λ)).
+      const Eigen::Index old_dim = eta_.size();
+      eta_.conservativeResize(dim_);
+      eta_.tail(dim_ - old_dim).setZero();
+      Scatter(factors_.back(), &triplets, &eta_);
+      Eigen::SparseMatrix<double> added(dim_, dim_);
+      added.setFromTriplets(triplets.begin(), triplets.end());
+      Lambda_.conservativeResize(dim_, dim_);
+      Lambda_ += added;
+    } else {
+      size_t count = 0;
+      for (const Factor& f : factors_) count += static_cast<size_t>(f.H.size());
+      triplets.reserve(count);
+      eta_ = Eigen::VectorXd::Zero(dim_);
+      for (const Factor& f : factors_) Scatter(f, &triplets, &eta_);
+      Lambda_.resize(dim_, dim_);
+      Lambda_.setFromTriplets(triplets.begin(), triplets.end());
     }
-    Lambda_.resize(dim_, dim_);
-    Lambda_.setFromTriplets(triplets.begin(), triplets.end());
   }
   {
     StageTimer timer(&times_, "factorization");
@@ -185,7 +200,7 @@ absl::Status EifJoiner::Relinearize() {
       StageTimer timer(&times_, "update");
       for (Factor& f : factors_) Linearize(&f);
     }
-    if (absl::Status s = Rebuild(); !s.ok()) return s;
+    if (absl::Status s = Rebuild(/*only_last_factor=*/false); !s.ok()) return s;
     ++counters_.relinearizations;
     if ((StateVector() - before).cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
   }
@@ -411,7 +426,7 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   last_association_ = assoc;
   last_t_end_ = s.t_end;
   ++counters_.joins;
-  if (absl::Status st = Rebuild(); !st.ok()) return st;
+  if (absl::Status st = Rebuild(/*only_last_factor=*/true); !st.ok()) return st;
   if (options_.relinearize_every > 0 && counters_.joins % options_.relinearize_every == 0) {
     return Relinearize();
   }

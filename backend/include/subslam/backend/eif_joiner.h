@@ -125,7 +125,12 @@ class EifJoiner {
   };
 
   void Linearize(Factor* f) const;
-  absl::Status Rebuild();           // Λ, η from the factors; factorise; solve; write back
+  // Adds a factor's blocks to triplets and η.
+  void Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,
+               Eigen::VectorXd* eta) const;
+  // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
+  // solve; write the estimate back.
+  absl::Status Rebuild(bool only_last_factor);
   absl::Status Relinearize();
   std::vector<int> Associate(const LocalSubmap& s, int start_anchor);
   Eigen::VectorXd StateVector() const;
