@@ -91,14 +91,21 @@ class TruthVotes {
       ++votes_[{map_id, features[k]}][truth];
     }
   }
-  void Label(LocalSubmap* s) const {
+  // Returns how many of the map's exported features mix detections of several true
+  // landmarks (the front-end merged them).
+  int Label(LocalSubmap* s) const {
+    int impure = 0;
     for (LocalSubmapLandmark& l : s->landmarks) {
       auto it = votes_.find({s->id, l.local_id});
       if (it == votes_.end()) continue;
       const auto best = std::max_element(it->second.begin(), it->second.end(),
                                          [](const auto& a, const auto& b) { return a.second < b.second; });
       l.truth_id = best->first;
+      int true_landmarks = 0;
+      for (const auto& [truth, count] : it->second) true_landmarks += truth >= 0 ? 1 : 0;
+      impure += true_landmarks > 1 ? 1 : 0;
     }
+    return impure;
   }
 
  private:
@@ -220,7 +227,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (chain != nullptr) {
     for (const frontend::ClosedLocalMap& c : chain->local_maps()) {
       LocalSubmap s = c.submap;
-      truth_votes.Label(&s);
+      r.impure_features += truth_votes.Label(&s);
       r.local_maps.push_back(std::move(s));
       r.close_reasons.push_back(frontend::ToString(c.reason));
     }
@@ -297,6 +304,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
                              {"landmarks_evaluated", summary.landmarks},
                              {"landmark_marginal_nees_inside_95", summary.landmarks_inside},
                              {"false_alarms_exported", summary.false_alarms},
+                             {"features_mixing_true_landmarks", r.impure_features},
                              {"per_map", per_map}};
   }
 
@@ -400,6 +408,7 @@ std::string SummaryTable(const RunResult& r) {
     row("local maps: landmark NEES in bounds",
         absl::StrFormat("%d / %d (2-dof marginals)", m.landmarks_inside, m.landmarks));
     row("local maps: false alarms exported", absl::StrCat(m.false_alarms));
+    row("local maps: features mixing landmarks", absl::StrCat(r.impure_features));
   }
   row("estimator time", absl::StrFormat("%.3f s", r.wall_seconds));
   row("peak memory", absl::StrFormat("%.1f MB", r.peak_rss_kb / 1024.0));

@@ -93,6 +93,7 @@ struct RunResult {
   std::vector<LocalSubmap> local_maps;
   std::vector<std::string> close_reasons;
   std::optional<LocalMapSummary> local_map_summary;
+  int impure_features = 0;  // exported features built from detections of ≥ 2 true landmarks
   nlohmann::json report;
 };
 
