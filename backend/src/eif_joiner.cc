@@ -10,24 +10,12 @@
 #include "absl/time/clock.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/data_association.h"
+#include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/graph/internal/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
-namespace {
-
-class StageTimer {
- public:
-  StageTimer(std::map<std::string, double>* times, const char* stage) : times_(times), stage_(stage) {}
-  ~StageTimer() { (*times_)[stage_] += absl::ToDoubleSeconds(absl::Now() - start_); }
-
- private:
-  std::map<std::string, double>* times_;
-  const char* stage_;
-  absl::Time start_ = absl::Now();
-};
-
-}  // namespace
+using frontend::StageTimer;
 
 struct EifJoiner::Solver {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;

@@ -1,7 +1,6 @@
 #include "subslam/frontend/ekf_slam.h"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <limits>
 #include <algorithm>
 #include <cmath>
@@ -348,14 +347,7 @@ MomentMatchedGaussian EkfSlam::Export(double min_existence) const {
   g.mean = x_(index);
   g.covariance = covariance()(index, index);
   g.particles_used = 1;
-  if (Eigen::LLT<Eigen::MatrixXd>(g.covariance).info() != Eigen::Success) {
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(g.covariance);
-    const double floor = std::max(1e-9 * eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-15);
-    g.covariance = eig.eigenvectors() * eig.eigenvalues().cwiseMax(floor).asDiagonal() *
-                   eig.eigenvectors().transpose();
-    g.covariance = 0.5 * (g.covariance + g.covariance.transpose()).eval();
-    ++g.covariance_repairs;
-  }
+  if (RepairCovariance(&g.covariance, 1e-9)) ++g.covariance_repairs;
   return g;
 }
 

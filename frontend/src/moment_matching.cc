@@ -58,6 +58,16 @@ std::vector<std::pair<int, Resolved>> ResolveDuplicates(const ParticleHypothesis
 
 }  // namespace
 
+bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor) {
+  if (Eigen::LLT<Eigen::MatrixXd>(*covariance).info() == Eigen::Success) return false;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(*covariance);
+  const double floor = std::max(relative_floor * eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-15);
+  *covariance = eig.eigenvectors() * eig.eigenvalues().cwiseMax(floor).asDiagonal() *
+                eig.eigenvectors().transpose();
+  *covariance = 0.5 * (*covariance + covariance->transpose()).eval();
+  return true;
+}
+
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
                                   const MomentMatchingOptions& options) {
   double total = 0.0;
@@ -235,15 +245,7 @@ MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
   }
 
   // Positive definiteness: repair (counted) if the per-block weighting broke it.
-  if (Eigen::LLT<Eigen::MatrixXd>(out.covariance).info() != Eigen::Success) {
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(out.covariance);
-    const double floor =
-        std::max(options.repair_relative_floor * eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-15);
-    const Eigen::VectorXd clipped = eig.eigenvalues().cwiseMax(floor);
-    out.covariance = eig.eigenvectors() * clipped.asDiagonal() * eig.eigenvectors().transpose();
-    out.covariance = 0.5 * (out.covariance + out.covariance.transpose()).eval();
-    ++out.covariance_repairs;
-  }
+  if (RepairCovariance(&out.covariance, options.repair_relative_floor)) ++out.covariance_repairs;
   return out;
 }
 

@@ -70,6 +70,10 @@ struct MomentMatchedGaussian {
   bool fell_back_to_ignore = false;  // kDiscardParticle found no particle holding all
 };
 
+// Makes a symmetric matrix positive definite if it is not, by raising its eigenvalues
+// to relative_floor × the largest (at least 1e-15). Returns whether it repaired.
+bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor);
+
 // Requires at least one particle with positive weight.
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
                                   const MomentMatchingOptions& options = {});
