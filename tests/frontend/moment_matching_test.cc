@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <random>
 
 #include "test_util.h"
@@ -152,6 +153,18 @@ TEST(MomentMatch, RandomSetsGiveSymmetricPositiveDefiniteCovariances) {
     EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(g.covariance).info(), Eigen::Success);
     EXPECT_TRUE(std::is_sorted(g.features.begin(), g.features.end()));
   }
+}
+
+TEST(RepairCovariance, LeavesPositiveDefiniteAloneAndRepairsIndefinite) {
+  Eigen::MatrixXd good = Eigen::Vector3d(1.0, 2.0, 3.0).asDiagonal();
+  const Eigen::MatrixXd before = good;
+  EXPECT_FALSE(RepairCovariance(&good, 1e-9));
+  EXPECT_EQ(good, before);
+  Eigen::MatrixXd bad(2, 2);
+  bad << 1.0, 2.0, 2.0, 1.0;  // eigenvalues 3 and −1
+  EXPECT_TRUE(RepairCovariance(&bad, 1e-6));
+  EXPECT_EQ(Eigen::LLT<Eigen::MatrixXd>(bad).info(), Eigen::Success);
+  EXPECT_NEAR(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(bad).eigenvalues().maxCoeff(), 3.0, 1e-12);
 }
 
 }  // namespace
