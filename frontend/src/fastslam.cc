@@ -69,6 +69,8 @@ FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
   fov_center_ = 0.5 * (rb.fov_min_rad + rb.fov_max_rad);
   const double half = 0.5 * (rb.fov_max_rad - rb.fov_min_rad) + kFovMarginRad;
   fov_cos_limit_ = half >= kPi ? -2.0 : std::cos(half);  // −2: no bearing limit
+  const double half_expected = 0.5 * (rb.fov_max_rad - rb.fov_min_rad) - options_.expect_bearing_margin_rad;
+  fov_cos_expected_ = half_expected >= kPi ? -2.0 : std::cos(std::max(0.0, half_expected));
   for (const char* stage : {"predict", "associate", "update", "resample"}) times_[stage] = 0;
   Reset(start);
 }
@@ -181,17 +183,24 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   // Cheap visibility cull before the atan2 of Observe: within reach, and inside the
   // field of view widened by kFovMarginRad (cos of the bearing off the FOV's centre).
   const double c_axis = std::cos(x0.theta + fov_center_), s_axis = std::sin(x0.theta + fov_center_);
+  const models::RangeBearingConfig& rb = sensor_.config();
   for (int i = 0; i < n; ++i) {
     Prediction& pr = predictions_[i];
     const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
     pr.used = pr.gated = false;
     const Eigen::Vector2d d = l.mean - x0.translation();
     const double d2 = d.squaredNorm();
-    pr.in_reach = d2 < reach * reach &&
-                  (c_axis * d.x() + s_axis * d.y()) >= fov_cos_limit_ * std::sqrt(d2);
+    const double along = c_axis * d.x() + s_axis * d.y(), distance = std::sqrt(d2);
+    pr.in_reach = d2 < reach * reach && along >= fov_cos_limit_ * distance;
     if (!pr.in_reach) continue;
+    // Expected (for the missed-detection update): well inside range and field of view,
+    // tested on the cosine of the bearing off the field of view's centre.
+    pr.expected = distance >= rb.min_range_m + options_.expect_range_margin_m &&
+                  distance <= rb.max_range_m - options_.expect_range_margin_m &&
+                  along >= fov_cos_expected_ * distance;
     Eigen::Matrix2d H_l;
-    pr.z = sensor_.Observe(x0, l.mean, &pr.H_pose, &H_l);
+    pr.z[0] = sensor_.ObserveRange(x0, l.mean, &pr.H_pose, &H_l);
+    pr.z[1] = NAN;  // the bearing (an atan2) only for pairs that pass the range gate
     pr.Z = H_l * l.covariance * H_l.transpose() + R;
   }
   // The proposal N(x0 ⊕ δ, Σ), updated by each associated detection in turn.
@@ -227,6 +236,9 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
       // νᵀS⁻¹ν ≥ ν_r² / S_rr: most pairs are rejected on range alone.
       const double nu_r = z[j][0] - pr.z[0];
       if (nu_r * nu_r >= new_landmark_d2_ * pr.S(0, 0)) continue;
+      if (std::isnan(pr.z[1])) {
+        pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
+      }
       const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
       const double d2 = nu.dot(pr.S_inv * nu);
       min_d2_[j] = std::min(min_d2_[j], d2);
@@ -328,9 +340,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   // any detection.
   for (int i = 0; i < n; ++i) {
     const Prediction& pr = predictions_[i];
-    particle->landmarks[i].missed =
-        pr.in_reach && !pr.gated &&
-        sensor_.IsVisible(pr.z, options_.expect_range_margin_m, options_.expect_bearing_margin_rad);
+    particle->landmarks[i].missed = pr.in_reach && !pr.gated && pr.expected;
   }
   SetPose(particle, Pose2(x[0], x[1], WrapAngle(x[2])));
   particle->log_weight += log_w;

@@ -33,6 +33,11 @@ absl::Status RangeBearingConfig::Validate() const {
 Eigen::Vector2d RangeBearingModel::Observe(const Pose2& p, const Eigen::Vector2d& l,
                                            Matrix23d* J_z_pose,
                                            Eigen::Matrix2d* J_z_landmark) const {
+  return {ObserveRange(p, l, J_z_pose, J_z_landmark), Bearing(p, l)};
+}
+
+double RangeBearingModel::ObserveRange(const Pose2& p, const Eigen::Vector2d& l,
+                                       Matrix23d* J_z_pose, Eigen::Matrix2d* J_z_landmark) const {
   const double dx = l.x() - p.x, dy = l.y() - p.y;
   const double q = dx * dx + dy * dy;
   SUBSLAM_CHECK(q > 0.0) << "landmark coincides with the sensor position";
@@ -45,7 +50,11 @@ Eigen::Vector2d RangeBearingModel::Observe(const Pose2& p, const Eigen::Vector2d
     *J_z_pose << -dx / r, -dy / r, 0.0,  //
         dy / q, -dx / q, -1.0;
   }
-  return {r, WrapAngle(std::atan2(dy, dx) - p.theta)};
+  return r;
+}
+
+double RangeBearingModel::Bearing(const Pose2& p, const Eigen::Vector2d& l) {
+  return WrapAngle(std::atan2(l.y() - p.y, l.x() - p.x) - p.theta);
 }
 
 Eigen::Vector2d RangeBearingModel::InverseObserve(const Pose2& p, const Eigen::Vector2d& z,

@@ -208,6 +208,7 @@ class FastSlam final : public OnlineEstimator {
     double det = 0.0;          // det S
     double log_norm = 0.0;     // −log 2π − ½ log det S (NaN until needed)
     bool in_reach = false;
+    bool expected = false;  // well inside range and field of view (missed-detection test)
     bool gated = false;  // some detection within the new-landmark gate
     bool used = false;   // associated in this scan
   };
@@ -238,7 +239,7 @@ class FastSlam final : public OnlineEstimator {
   models::RangeBearingModel sensor_;
   FastSlamOptions options_;
   double gate_d2_ = 0.0, new_landmark_d2_ = 0.0, log_p0_ = 0.0;
-  double fov_center_ = 0.0, fov_cos_limit_ = -2.0;
+  double fov_center_ = 0.0, fov_cos_limit_ = -2.0, fov_cos_expected_ = -2.0;
   std::vector<Particle> particles_, resampled_;
   std::mt19937_64 rng_;
   int next_feature_ = 0;

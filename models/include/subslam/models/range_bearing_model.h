@@ -37,6 +37,12 @@ class RangeBearingModel {
                           Matrix23d* J_z_pose = nullptr,
                           Eigen::Matrix2d* J_z_landmark = nullptr) const;
 
+  // Observe in two parts, for callers that need the bearing (one atan2) for few
+  // landmarks only: the range with both Jacobians, and the bearing alone.
+  double ObserveRange(const Pose2& sensor_pose, const Eigen::Vector2d& landmark,
+                      Matrix23d* J_z_pose = nullptr, Eigen::Matrix2d* J_z_landmark = nullptr) const;
+  static double Bearing(const Pose2& sensor_pose, const Eigen::Vector2d& landmark);
+
   // l = g(p, z), the inverse of Observe.
   Eigen::Vector2d InverseObserve(const Pose2& sensor_pose, const Eigen::Vector2d& z,
                                  Matrix23d* J_landmark_pose = nullptr,
