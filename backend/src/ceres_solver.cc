@@ -1,0 +1,89 @@
+#include "subslam/backend/ceres_solver.h"
+
+#include <ceres/ceres.h>
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "subslam/backend/ceres_submap_cost.h"
+
+namespace subslam::backend {
+
+absl::Status CeresSolveOptions::Validate() const {
+  if (!(loss_scale > 0 && std::isfinite(loss_scale))) {
+    return absl::InvalidArgumentError("loss_scale must be finite and > 0");
+  }
+  if (max_iterations < 1 || num_threads < 1) {
+    return absl::InvalidArgumentError("max_iterations and num_threads must be >= 1");
+  }
+  if (!(function_tolerance >= 0 && gradient_tolerance >= 0 && parameter_tolerance >= 0)) {
+    return absl::InvalidArgumentError("tolerances must be >= 0");
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresSolveOptions& options) {
+  if (absl::Status s = options.Validate(); !s.ok()) return s;
+  // Parameter storage: anchors (x, y, θ) and landmarks (x, y).
+  std::vector<std::array<double, 3>> anchors(graph->num_anchors());
+  std::vector<std::array<double, 2>> landmarks(graph->num_landmarks());
+  for (int k = 0; k < graph->num_anchors(); ++k) {
+    const Pose2& p = graph->anchors()[k];
+    anchors[k] = {p.x, p.y, p.theta};
+  }
+  for (int j = 0; j < graph->num_landmarks(); ++j) {
+    landmarks[j] = {graph->landmarks()[j].x(), graph->landmarks()[j].y()};
+  }
+  ceres::Problem problem;
+  for (const SubmapFactor& f : graph->factors()) {
+    std::vector<double*> blocks = {anchors[f.start_anchor].data(), anchors[f.end_anchor].data()};
+    for (int j : f.landmark_of_feature) blocks.push_back(landmarks[j].data());
+    ceres::LossFunction* loss = nullptr;
+    if (options.loss == RobustLoss::kHuber) loss = new ceres::HuberLoss(options.loss_scale);
+    if (options.loss == RobustLoss::kCauchy) loss = new ceres::CauchyLoss(options.loss_scale);
+    problem.AddResidualBlock(new SubmapCostFunction(f.submap), loss, blocks);
+  }
+  if (problem.HasParameterBlock(anchors[0].data())) problem.SetParameterBlockConstant(anchors[0].data());
+
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  o.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  o.minimizer_type = ceres::TRUST_REGION;
+  o.trust_region_strategy_type = options.method == CeresMethod::kDogleg ? ceres::DOGLEG
+                                                                         : ceres::LEVENBERG_MARQUARDT;
+  if (options.method == CeresMethod::kGaussNewton) {
+    o.initial_trust_region_radius = 1e16;
+    o.max_trust_region_radius = 1e16;
+  }
+  o.max_num_iterations = options.max_iterations;
+  o.function_tolerance = options.function_tolerance;
+  o.gradient_tolerance = options.gradient_tolerance;
+  o.parameter_tolerance = options.parameter_tolerance;
+  o.num_threads = options.num_threads;
+  o.logging_type = ceres::SILENT;
+  std::string why;
+  if (!o.IsValid(&why)) return absl::InvalidArgumentError(absl::StrCat("Ceres options: ", why));
+  ceres::Solver::Summary summary;
+  ceres::Solve(o, &problem, &summary);
+  if (!summary.IsSolutionUsable()) {
+    return absl::InternalError(absl::StrCat("Ceres: no usable solution: ", summary.message));
+  }
+  for (int k = 1; k < graph->num_anchors(); ++k) {
+    graph->anchor(k) = Pose2(anchors[k][0], anchors[k][1], WrapAngle(anchors[k][2]));
+  }
+  for (int j = 0; j < graph->num_landmarks(); ++j) {
+    graph->landmark(j) = Eigen::Vector2d(landmarks[j][0], landmarks[j][1]);
+  }
+  CeresSolveReport r;
+  r.iterations = static_cast<int>(summary.iterations.size()) - 1;  // iteration 0 is the start
+  r.initial_cost = summary.initial_cost;
+  r.final_cost = summary.final_cost;
+  r.seconds = summary.total_time_in_seconds;
+  r.termination = ceres::TerminationTypeToString(summary.termination_type);
+  r.brief = summary.BriefReport();
+  return r;
+}
+
+}  // namespace subslam::backend
