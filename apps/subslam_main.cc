@@ -69,7 +69,11 @@ ABSL_FLAG(double, resample_ess, kFastSlamDefaults.resample_ess_ratio,
 ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
           "fastslam / rbpf: sigma of the signature cue (0: cue off)");
 ABSL_FLAG(std::string, backend, "none",
-          "rbpf / ekf: how local maps are joined: none (chained end to start) | eif");
+          "rbpf / ekf: how local maps are joined: none (chained end to start) | eif | ceres "
+          "(EIF association, then a Ceres solve of the whole graph at the end)");
+ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | dogleg | gn (Gauss-Newton)");
+ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
+ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
 ABSL_FLAG(double, join_anchor_radius, kEifDefaults.anchor_search_radius_m,
           "eif: earlier local maps with an anchor within this of the start anchor give "
           "association candidates [m] (2·TH1)");
@@ -173,16 +177,49 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   return o;
 }
 
+absl::StatusOr<subslam::backend::CeresSolveOptions> CeresOptionsFromFlags() {
+  subslam::backend::CeresSolveOptions o;
+  const std::string method = absl::GetFlag(FLAGS_ceres_method);
+  if (method == "lm") {
+    o.method = subslam::backend::CeresMethod::kLevenbergMarquardt;
+  } else if (method == "dogleg") {
+    o.method = subslam::backend::CeresMethod::kDogleg;
+  } else if (method == "gn") {
+    o.method = subslam::backend::CeresMethod::kGaussNewton;
+  } else {
+    return absl::InvalidArgumentError("--ceres_method must be lm, dogleg or gn");
+  }
+  const std::string loss = absl::GetFlag(FLAGS_ceres_loss);
+  if (loss == "none") {
+    o.loss = subslam::backend::RobustLoss::kNone;
+  } else if (loss == "huber") {
+    o.loss = subslam::backend::RobustLoss::kHuber;
+  } else if (loss == "cauchy") {
+    o.loss = subslam::backend::RobustLoss::kCauchy;
+  } else {
+    return absl::InvalidArgumentError("--ceres_loss must be none, huber or cauchy");
+  }
+  o.loss_scale = absl::GetFlag(FLAGS_ceres_loss_scale);
+  if (absl::Status s = o.Validate(); !s.ok()) return s;
+  return o;
+}
+
 int Join() {
   const std::string path = absl::GetFlag(FLAGS_submaps);
   if (path.empty()) return Fail(absl::InvalidArgumentError("join needs --submaps FILE"));
-  if (absl::GetFlag(FLAGS_backend) != "eif") {
-    return Fail(absl::InvalidArgumentError("join: only --backend eif exists so far"));
+  const std::string backend = absl::GetFlag(FLAGS_backend);
+  if (backend != "eif" && backend != "ceres") {
+    return Fail(absl::InvalidArgumentError("join needs --backend eif or ceres"));
   }
   auto submaps = subslam::io::ReadSubmapsJsonl(path);
   if (!submaps.ok()) return Fail(submaps.status());
   subslam::app::JoinOptions options;
   options.eif = EifOptionsFromFlags();
+  if (backend == "ceres") {
+    auto ceres = CeresOptionsFromFlags();
+    if (!ceres.ok()) return Fail(ceres.status());
+    options.ceres = *ceres;
+  }
   options.out_dir = absl::GetFlag(FLAGS_out);
   // The initial pose and the ground truth come from the data set or the scenario the
   // local maps were built on, when given.
@@ -233,6 +270,9 @@ int Run() {
   if (!backend.ok()) return Fail(backend.status());
   options.backend = *backend;
   options.eif = EifOptionsFromFlags();
+  auto ceres = CeresOptionsFromFlags();
+  if (!ceres.ok()) return Fail(ceres.status());
+  options.ceres = *ceres;
   options.policy.min_duration_s = absl::GetFlag(FLAGS_submap_min_duration);
   options.policy.max_duration_s = absl::GetFlag(FLAGS_submap_max_duration);
   options.policy.max_features = absl::GetFlag(FLAGS_submap_max_features);
@@ -291,7 +331,7 @@ int main(int argc, char** argv) {
       "  subslam simulate --scenario NAME [--seed S] --out DIR\n"
       "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf|ekf "
       "--out DIR\n"
-      "  subslam join --submaps FILE --backend eif [--known_association] "
+      "  subslam join --submaps FILE --backend eif|ceres [--known_association] "
       "[--dataset DIR | --scenario NAME --seed S] --out DIR\n"
       "  subslam scenarios");
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);

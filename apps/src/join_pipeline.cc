@@ -44,6 +44,14 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     ++map_index;
   }
   if (absl::Status st = eif.Finish(); !st.ok()) return st;
+  std::optional<SubmapGraph> solved;
+  if (options.ceres) {
+    SubmapGraph g = eif.graph();
+    absl::StatusOr<backend::CeresSolveReport> c = backend::SolveWithCeres(&g, *options.ceres);
+    if (!c.ok()) return c.status();
+    r.ceres = *c;
+    solved = std::move(g);
+  }
   r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
   for (const auto& [g, truths] : truths_of_global) r.wrong += static_cast<long>(truths.size()) - 1;
   for (const auto& [t, globals] : globals_of_truth) {
@@ -54,10 +62,12 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   r.anchor_times.push_back(submaps.front().t_start);
   for (const LocalSubmap& s : submaps) r.anchor_times.push_back(s.t_end);
   for (int k = 0; k < eif.num_anchors(); ++k) {
-    r.anchors.push_back({r.anchor_times[k], eif.anchor(k), eif.AnchorCovariance(k)});
+    r.anchors.push_back({r.anchor_times[k], solved ? solved->anchors()[k] : eif.anchor(k),
+                         eif.AnchorCovariance(k)});
   }
   for (int j = 0; j < eif.num_landmarks(); ++j) {
-    r.landmarks.push_back({j, eif.landmark(j), eif.LandmarkCovariance(j)});
+    r.landmarks.push_back({j, solved ? solved->landmarks()[j] : eif.landmark(j),
+                           eif.LandmarkCovariance(j)});
   }
 
   nlohmann::json metrics = nlohmann::json::object();
@@ -85,7 +95,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   for (const auto& [stage, seconds] : eif.stage_times()) stages[stage] = seconds;
   r.report = {{"format", "subslam-join-report/1"},
               {"configuration",
-               {{"backend", "eif"},
+               {{"backend", options.ceres ? "ceres" : "eif"},
                 {"known_association", options.eif.known_association},
                 {"anchor_search_radius_m", options.eif.anchor_search_radius_m},
                 {"landmark_search_radius_m", options.eif.landmark_search_radius_m},
@@ -99,6 +109,13 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"associated_features", eif.counters().associated},
                 {"relinearizations", eif.counters().relinearizations}}},
               {"time_seconds", {{"total", r.wall_seconds}, {"stages", stages}}},
+              {"ceres", r.ceres ? nlohmann::json{{"iterations", r.ceres->iterations},
+                                                 {"initial_cost", r.ceres->initial_cost},
+                                                 {"final_cost", r.ceres->final_cost},
+                                                 {"seconds", r.ceres->seconds},
+                                                 {"termination", r.ceres->termination},
+                                                 {"brief", r.ceres->brief}}
+                                : nlohmann::json(nullptr)},
               {"metrics", metrics}};
 
   if (!options.out_dir.empty()) {

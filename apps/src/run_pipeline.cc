@@ -177,8 +177,9 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
           t0, options.fastslam.moment_matching.min_existence);
     }
     if (absl::Status st = options.eif.Validate(); !st.ok()) return st;
+    if (absl::Status st = options.ceres.Validate(); !st.ok()) return st;
     auto chained = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose,
-                                                options.backend, options.eif);
+                                                options.backend, options.eif, options.ceres);
     chain = chained.get();
     estimator = std::move(chained);
   } else if (options.frontend == Frontend::kFastSlam) {

@@ -5,20 +5,30 @@
 
 namespace subslam::app {
 
-const char* ToString(Backend backend) { return backend == Backend::kEif ? "eif" : "none"; }
+const char* ToString(Backend backend) {
+  switch (backend) {
+    case Backend::kNone: return "none";
+    case Backend::kEif: return "eif";
+    case Backend::kCeres: return "ceres";
+  }
+  return "?";
+}
 
 absl::StatusOr<Backend> BackendFromString(const std::string& name) {
-  if (name == "none") return Backend::kNone;
-  if (name == "eif") return Backend::kEif;
-  return absl::InvalidArgumentError(absl::StrCat("unknown back-end \"", name, "\" (expected none or eif)"));
+  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres}) {
+    if (name == ToString(b)) return b;
+  }
+  return absl::InvalidArgumentError(
+      absl::StrCat("unknown back-end \"", name, "\" (expected none, eif or ceres)"));
 }
 
 SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
-                       Backend backend, const backend::EifJoinerOptions& eif)
-    : mapper_(std::move(mapper)), backend_(backend), anchor_(initial_pose) {
+                       Backend backend, const backend::EifJoinerOptions& eif,
+                       const backend::CeresSolveOptions& ceres)
+    : mapper_(std::move(mapper)), backend_(backend), ceres_options_(ceres), anchor_(initial_pose) {
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
-  if (backend_ == Backend::kEif) eif_ = std::make_unique<backend::EifJoiner>(initial_pose, eif);
+  if (backend_ != Backend::kNone) eif_ = std::make_unique<backend::EifJoiner>(initial_pose, eif);
 }
 
 std::string SubmapSlam::Name() const {
@@ -35,7 +45,7 @@ void SubmapSlam::JoinClosed() {
   const absl::Time start = absl::Now();
   for (frontend::ClosedLocalMap& c : mapper_->TakeClosed()) {
     const LocalSubmap& s = c.submap;
-    if (backend_ == Backend::kEif) {
+    if (eif_) {
       if (absl::Status st = eif_->Join(s); !st.ok() && status_.ok()) status_ = st;
     }
     Eigen::Matrix3d J_a, J_e;
@@ -52,12 +62,13 @@ void SubmapSlam::JoinClosed() {
 }
 
 Pose2 SubmapSlam::Anchor(int k) const {
-  if (backend_ == Backend::kEif && k < eif_->num_anchors()) return eif_->anchor(k);
+  if (ceres_graph_ && k < ceres_graph_->num_anchors()) return ceres_graph_->anchors()[k];
+  if (eif_ && k < eif_->num_anchors()) return eif_->anchor(k);
   return chain_[k];
 }
 
 Eigen::Matrix3d SubmapSlam::AnchorCovariance(int k) const {
-  if (backend_ == Backend::kEif && k < eif_->num_anchors()) return eif_->AnchorCovariance(k);
+  if (eif_ && k < eif_->num_anchors()) return eif_->AnchorCovariance(k);
   return chain_covariance_[k];
 }
 
@@ -77,7 +88,19 @@ void SubmapSlam::RecordStep(double t) {
 absl::Status SubmapSlam::Finish() {
   mapper_->Finish();
   JoinClosed();
-  if (backend_ == Backend::kEif && status_.ok()) status_ = eif_->Finish();
+  if (eif_ && status_.ok()) status_ = eif_->Finish();
+  if (backend_ == Backend::kCeres && status_.ok() && !eif_->graph().factors().empty()) {
+    const absl::Time start = absl::Now();
+    SubmapGraph g = eif_->graph();  // warm start: the EIF's estimate
+    absl::StatusOr<backend::CeresSolveReport> r = backend::SolveWithCeres(&g, ceres_options_);
+    if (!r.ok()) {
+      status_ = r.status();
+    } else {
+      ceres_report_ = *r;
+      ceres_graph_ = std::move(g);
+    }
+    ceres_seconds_ = absl::ToDoubleSeconds(absl::Now() - start);
+  }
   return status_;
 }
 
@@ -102,9 +125,10 @@ Trajectory SubmapSlam::FinalTrajectory() const {
 
 std::vector<LandmarkEstimate> SubmapSlam::Map() const {
   std::vector<LandmarkEstimate> out;
-  if (backend_ == Backend::kEif) {
+  if (eif_) {
     for (int j = 0; j < eif_->num_landmarks(); ++j) {
-      out.push_back({j, eif_->landmark(j), eif_->LandmarkCovariance(j)});
+      const Eigen::Vector2d p = ceres_graph_ ? ceres_graph_->landmarks()[j] : eif_->landmark(j);
+      out.push_back({j, p, eif_->LandmarkCovariance(j)});
     }
     return out;
   }
@@ -127,6 +151,7 @@ frontend::StageTimes SubmapSlam::stage_times() const {
   if (eif_) {
     for (const auto& [stage, seconds] : eif_->stage_times()) times["join_" + stage] = seconds;
   }
+  if (ceres_report_) times["ceres_solve"] = ceres_seconds_;
   return times;
 }
 
@@ -137,6 +162,11 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_new_landmarks"] = eif_->counters().new_landmarks;
     out["join_relinearizations"] = eif_->counters().relinearizations;
     out["global_landmarks"] = eif_->num_landmarks();
+  }
+  if (ceres_report_) {
+    out["ceres_iterations"] = ceres_report_->iterations;
+    out["ceres_initial_cost"] = ceres_report_->initial_cost;
+    out["ceres_final_cost"] = ceres_report_->final_cost;
   }
   return out;
 }

@@ -2,6 +2,7 @@
 
 #include <ceres/ceres.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <vector>
@@ -39,11 +40,18 @@ absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresS
   ceres::Problem problem;
   for (const SubmapFactor& f : graph->factors()) {
     std::vector<double*> blocks = {anchors[f.start_anchor].data(), anchors[f.end_anchor].data()};
-    for (int j : f.landmark_of_feature) blocks.push_back(landmarks[j].data());
+    // Distinct landmarks only: two features on one landmark share its block.
+    std::vector<int> distinct, block_of_feature;
+    for (int j : f.landmark_of_feature) {
+      auto it = std::find(distinct.begin(), distinct.end(), j);
+      block_of_feature.push_back(static_cast<int>(it - distinct.begin()));
+      if (it == distinct.end()) distinct.push_back(j);
+    }
+    for (int j : distinct) blocks.push_back(landmarks[j].data());
     ceres::LossFunction* loss = nullptr;
     if (options.loss == RobustLoss::kHuber) loss = new ceres::HuberLoss(options.loss_scale);
     if (options.loss == RobustLoss::kCauchy) loss = new ceres::CauchyLoss(options.loss_scale);
-    problem.AddResidualBlock(new SubmapCostFunction(f.submap), loss, blocks);
+    problem.AddResidualBlock(new SubmapCostFunction(f.submap, block_of_feature), loss, blocks);
   }
   if (problem.HasParameterBlock(anchors[0].data())) problem.SetParameterBlockConstant(anchors[0].data());
 

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include "subslam/backend/ceres_submap_cost.h"
 #include "subslam/backend/eif_joiner.h"
 #include "synthetic_run.h"
@@ -50,6 +52,37 @@ TEST(SubmapCostFunction, JacobiansMatchNumericalDifferentiation) {
   EXPECT_TRUE(testing::JacobianMatches(J, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
     return evaluate(v, nullptr);
   }, x, {}));
+}
+
+// Two features of one local map on the same landmark share one parameter block: same
+// residual as with two equal blocks, and the shared block's Jacobian is their sum.
+TEST(SubmapCostFunction, SharedLandmarkBlockSumsTheFeatureJacobians) {
+  const SyntheticRun run = MakeRun(3, 3);
+  const LocalSubmap& s = run.submaps[1];
+  const int n = s.num_landmarks(), m = 3 + 2 * n;
+  ASSERT_GE(n, 2);
+  std::vector<int> block_of_feature(n);
+  for (int i = 0; i < n; ++i) block_of_feature[i] = i == n - 1 ? 0 : i;  // last shares block 0
+  const SubmapCostFunction separate(s), shared(s, block_of_feature);
+  const double start[3] = {0.5, -1.0, 0.2}, end[3] = {9.0, 1.0, 0.1};
+  std::vector<std::array<double, 2>> l(n);
+  for (int i = 0; i < n; ++i) l[i] = {run.landmarks[*s.landmarks[i].truth_id].x(), run.landmarks[*s.landmarks[i].truth_id].y()};
+  l[n - 1] = l[0];
+  std::vector<const double*> p_sep = {start, end}, p_sh = {start, end};
+  for (int i = 0; i < n; ++i) p_sep.push_back(l[i].data());
+  for (int i = 0; i < n - 1; ++i) p_sh.push_back(l[i].data());
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  std::vector<RowMajor> J_sep(n + 2, RowMajor(m, 2)), J_sh(n + 1, RowMajor(m, 2));
+  J_sep[0].resize(m, 3); J_sep[1].resize(m, 3); J_sh[0].resize(m, 3); J_sh[1].resize(m, 3);
+  std::vector<double*> j_sep, j_sh;
+  for (auto& J : J_sep) j_sep.push_back(J.data());
+  for (auto& J : J_sh) j_sh.push_back(J.data());
+  Eigen::VectorXd r_sep(m), r_sh(m);
+  ASSERT_TRUE(separate.Evaluate(p_sep.data(), r_sep.data(), j_sep.data()));
+  ASSERT_TRUE(shared.Evaluate(p_sh.data(), r_sh.data(), j_sh.data()));
+  EXPECT_TRUE(testing::MatricesNear(r_sep, r_sh, 1e-15));
+  EXPECT_TRUE(testing::MatricesNear(J_sep[2] + J_sep[n + 1], J_sh[2], 1e-15));
+  EXPECT_TRUE(testing::MatricesNear(J_sep[3], J_sh[3], 1e-15));
 }
 
 // Every method converges to the same minimum: the EIF relinearised to convergence.

@@ -1,4 +1,5 @@
-// The `subslam join` job: run a back-end alone on recorded local maps (submaps.jsonl),
+// The `subslam join` job: run a back-end (EIF, or EIF then Ceres) alone on recorded local
+// maps (submaps.jsonl),
 // so back-ends can be compared on identical input and local maps built elsewhere joined.
 //
 // Outputs (JoinOptions::out_dir, when set):
@@ -19,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
+#include "subslam/backend/ceres_solver.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/graph/local_submap.h"
@@ -28,6 +30,10 @@ namespace subslam::app {
 
 struct JoinOptions {
   backend::EifJoinerOptions eif;
+  // When set, the graph the EIF built (its association, its estimate as the start) is
+  // solved with Ceres after the last join; anchors and landmarks come from that solution
+  // (covariances from the EIF's marginals).
+  std::optional<backend::CeresSolveOptions> ceres;
   Pose2 initial_pose;           // anchor 0
   std::string out_dir;          // empty: write nothing
   // Ground truth for the report (optional): true poses (anchors compared at their times)
@@ -51,6 +57,7 @@ struct JoinResult {
   // last two local maps (recent) or earlier (a loop), and whether they were joined to the
   // same global landmark as then.
   long recent_merged = 0, recent_missed = 0, loop_merged = 0, loop_missed = 0;
+  std::optional<backend::CeresSolveReport> ceres;
   nlohmann::json report;
 };
 

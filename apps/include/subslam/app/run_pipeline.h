@@ -55,6 +55,7 @@ struct RunOptions {
   frontend::SubmapPolicyOptions policy;  // rbpf, ekf
   Backend backend = Backend::kNone;       // rbpf, ekf: how local maps are joined
   backend::EifJoinerOptions eif;
+  backend::CeresSolveOptions ceres;       // backend ceres
   NoiseOverrides noise;
   std::string out_dir;          // empty: write nothing
   bool progress = false;        // progress line on stderr (when it is a terminal)

@@ -2,9 +2,13 @@
 // EKF-SLAM local maps) and a back-end that joins each closed local map into the global map.
 //
 // Back-ends:
-//  * kNone — no joining: each map's start anchor is the previous anchor composed with the
+//  * kNone  — no joining: each map's start anchor is the previous anchor composed with the
 //    previous map's end pose (first-order covariance); no fusion, no loop closure;
-//  * kEif  — the exactly sparse EIF joiner (backend/eif_joiner.h).
+//  * kEif   — the exactly sparse EIF joiner (backend/eif_joiner.h);
+//  * kCeres — the EIF joiner associates and gives the online estimate; at Finish() the
+//    whole graph is solved with Ceres (backend/ceres_solver.h), warm-started from the
+//    EIF's estimate, and the final trajectory and map come from that solution (their
+//    covariances from the EIF's marginals).
 //
 // pose() is the current start anchor composed with the local map's pose; its covariance
 // adds the anchor's marginal and the local pose's covariance (their correlation is
@@ -20,20 +24,22 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/backend/ceres_solver.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/frontend/local_mapper.h"
 #include "subslam/frontend/online_estimator.h"
 
 namespace subslam::app {
 
-enum class Backend { kNone, kEif };
+enum class Backend { kNone, kEif, kCeres };
 const char* ToString(Backend backend);
 absl::StatusOr<Backend> BackendFromString(const std::string& name);
 
 class SubmapSlam final : public frontend::OnlineEstimator {
  public:
   SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
-             Backend backend, const backend::EifJoinerOptions& eif = {});
+             Backend backend, const backend::EifJoinerOptions& eif = {},
+             const backend::CeresSolveOptions& ceres = {});
 
   std::string Name() const override;
   void Predict(const Eigen::Vector2d& u, double dt) override { mapper_->Predict(u, dt); }
@@ -55,6 +61,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   int last_scan_map_id() const { return last_scan_map_id_; }
   const std::vector<int>& last_scan_features() const { return mapper_->last_scan_features(); }
   const backend::EifJoiner* eif() const { return eif_.get(); }
+  // kCeres, after Finish(): Ceres's summary.
+  const std::optional<backend::CeresSolveReport>& ceres_report() const { return ceres_report_; }
   static constexpr int kFeatureIdStride = 1000000;
 
  private:
@@ -66,6 +74,10 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   std::unique_ptr<frontend::LocalMapper> mapper_;
   Backend backend_;
   std::unique_ptr<backend::EifJoiner> eif_;
+  backend::CeresSolveOptions ceres_options_;
+  std::optional<SubmapGraph> ceres_graph_;  // kCeres: the solved graph, after Finish()
+  std::optional<backend::CeresSolveReport> ceres_report_;
+  double ceres_seconds_ = 0.0;
   std::vector<frontend::ClosedLocalMap> closed_;
   // kNone: the chained anchors (index k = start of map k) and covariances.
   std::vector<Pose2> chain_;
