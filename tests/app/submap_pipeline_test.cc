@@ -45,6 +45,24 @@ TEST(SubmapPipeline, EkfLocalMapsJoinedByEifBeatChaining) {
   }
 }
 
+// --backend ceres: the EIF's association, then one Ceres solve of the whole graph; the
+// final trajectory is at least as good as the single-linearisation EIF's on the same run.
+TEST(SubmapPipeline, CeresSolveAfterTheEif) {
+  RunOptions options;
+  options.frontend = Frontend::kEkfLocal;
+  options.backend = Backend::kEif;
+  absl::StatusOr<RunResult> eif = RunPipeline(Simulate(1), options);
+  ASSERT_TRUE(eif.ok()) << eif.status();
+  options.backend = Backend::kCeres;
+  absl::StatusOr<RunResult> ceres = RunPipeline(Simulate(1), options);
+  ASSERT_TRUE(ceres.ok()) << ceres.status();
+  EXPECT_GT(ceres->report["estimator_counters"]["ceres_iterations"].get<double>(), 0);
+  EXPECT_LE(ceres->report["estimator_counters"]["ceres_final_cost"].get<double>(),
+            ceres->report["estimator_counters"]["ceres_initial_cost"].get<double>());
+  EXPECT_LE(ceres->errors->rms_position_m, eif->errors->rms_position_m);
+  EXPECT_FALSE(ceres->errors->failed);
+}
+
 // The back-end alone on the recorded local maps: known association and JCBB agree with
 // the truth ids (no two true landmarks merged), and the loop is closed.
 TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
