@@ -45,14 +45,24 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   }
   if (absl::Status st = eif.Finish(); !st.ok()) return st;
   std::optional<SubmapGraph> solved;
+  std::vector<int> all_anchors(eif.num_anchors());
+  for (int k = 0; k < eif.num_anchors(); ++k) all_anchors[k] = k;
+  std::vector<Eigen::Matrix3d> ceres_covariances;
   if (options.ceres) {
     SubmapGraph g = eif.graph();
-    absl::StatusOr<backend::CeresSolveReport> c = backend::SolveWithCeres(&g, *options.ceres);
+    absl::StatusOr<backend::CeresSolveReport> c =
+        backend::SolveWithCeres(&g, *options.ceres, all_anchors, &ceres_covariances);
     if (!c.ok()) return c.status();
     r.ceres = *c;
     solved = std::move(g);
   }
   r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  // Marginal covariances of every anchor: the EIF's sparse solves (timed, for comparison
+  // with ceres::Covariance), or Ceres's at its solution.
+  const absl::Time covariance_start = absl::Now();
+  std::vector<Eigen::Matrix3d> eif_covariances;
+  for (int k : all_anchors) eif_covariances.push_back(eif.AnchorCovariance(k));
+  const double eif_covariance_seconds = absl::ToDoubleSeconds(absl::Now() - covariance_start);
   for (const auto& [g, truths] : truths_of_global) r.wrong += static_cast<long>(truths.size()) - 1;
   for (const auto& [t, globals] : globals_of_truth) {
     r.missed += static_cast<long>(globals.size()) - 1;
@@ -63,7 +73,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   for (const LocalSubmap& s : submaps) r.anchor_times.push_back(s.t_end);
   for (int k = 0; k < eif.num_anchors(); ++k) {
     r.anchors.push_back({r.anchor_times[k], solved ? solved->anchors()[k] : eif.anchor(k),
-                         eif.AnchorCovariance(k)});
+                         solved ? ceres_covariances[k] : eif_covariances[k]});
   }
   for (int j = 0; j < eif.num_landmarks(); ++j) {
     r.landmarks.push_back({j, solved ? solved->landmarks()[j] : eif.landmark(j),
@@ -108,7 +118,11 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"landmarks", eif.num_landmarks()},
                 {"associated_features", eif.counters().associated},
                 {"relinearizations", eif.counters().relinearizations}}},
-              {"time_seconds", {{"total", r.wall_seconds}, {"stages", stages}}},
+              {"time_seconds",
+               {{"total", r.wall_seconds},
+                {"stages", stages},
+                {"eif_all_anchor_covariances", eif_covariance_seconds},
+                {"ceres_all_anchor_covariances", r.ceres ? r.ceres->covariance_seconds : 0.0}}},
               {"ceres", r.ceres ? nlohmann::json{{"iterations", r.ceres->iterations},
                                                  {"initial_cost", r.ceres->initial_cost},
                                                  {"final_cost", r.ceres->final_cost},

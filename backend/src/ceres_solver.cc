@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
 #include "subslam/backend/ceres_submap_cost.h"
 
 namespace subslam::backend {
@@ -25,7 +26,9 @@ absl::Status CeresSolveOptions::Validate() const {
   return absl::OkStatus();
 }
 
-absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresSolveOptions& options) {
+absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresSolveOptions& options,
+                                                const std::vector<int>& covariance_anchors,
+                                                std::vector<Eigen::Matrix3d>* anchor_covariances) {
   if (absl::Status s = options.Validate(); !s.ok()) return s;
   // Parameter storage: anchors (x, y, θ) and landmarks (x, y).
   std::vector<std::array<double, 3>> anchors(graph->num_anchors());
@@ -78,13 +81,35 @@ absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresS
   if (!summary.IsSolutionUsable()) {
     return absl::InternalError(absl::StrCat("Ceres: no usable solution: ", summary.message));
   }
+  CeresSolveReport r;
+  if (anchor_covariances != nullptr) {
+    const absl::Time start = absl::Now();
+    ceres::Covariance::Options co;
+    co.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+    co.algorithm_type = ceres::SPARSE_QR;
+    co.num_threads = options.num_threads;
+    ceres::Covariance covariance(co);
+    std::vector<std::pair<const double*, const double*>> blocks;
+    for (int k : covariance_anchors) {
+      if (k > 0) blocks.push_back({anchors[k].data(), anchors[k].data()});
+    }
+    if (!covariance.Compute(blocks, &problem)) {
+      return absl::InternalError("Ceres: covariance computation failed (rank deficient?)");
+    }
+    anchor_covariances->clear();
+    for (int k : covariance_anchors) {
+      Eigen::Matrix<double, 3, 3, Eigen::RowMajor> c = Eigen::Matrix3d::Zero();
+      if (k > 0) covariance.GetCovarianceBlock(anchors[k].data(), anchors[k].data(), c.data());
+      anchor_covariances->push_back(c);
+    }
+    r.covariance_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  }
   for (int k = 1; k < graph->num_anchors(); ++k) {
     graph->anchor(k) = Pose2(anchors[k][0], anchors[k][1], WrapAngle(anchors[k][2]));
   }
   for (int j = 0; j < graph->num_landmarks(); ++j) {
     graph->landmark(j) = Eigen::Vector2d(landmarks[j][0], landmarks[j][1]);
   }
-  CeresSolveReport r;
   r.iterations = static_cast<int>(summary.iterations.size()) - 1;  // iteration 0 is the start
   r.initial_cost = summary.initial_cost;
   r.final_cost = summary.final_cost;

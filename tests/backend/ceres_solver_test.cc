@@ -122,6 +122,31 @@ TEST(SolveWithCeres, AllMethodsEqualTheIteratedEif) {
   }
 }
 
+// At the solution, ceres::Covariance's anchor marginals equal the EIF's, relinearised to
+// the same point (both invert the Gauss-Newton Hessian).
+TEST(SolveWithCeres, CovariancesEqualTheEifMarginalsAtConvergence) {
+  const SyntheticRun run = MakeRun(8, 10);
+  EifJoinerOptions options;
+  options.known_association = true;
+  options.relinearize_at_end = true;
+  options.relinearize_tolerance = 1e-12;
+  options.max_relinearizations = 50;
+  EifJoiner eif(run.anchors[0], options);
+  for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
+  ASSERT_TRUE(eif.Finish().ok());
+  SubmapGraph g = eif.graph();
+  CeresSolveOptions o;
+  o.method = CeresMethod::kGaussNewton;
+  std::vector<Eigen::Matrix3d> covariances;
+  const std::vector<int> which = {0, 3, 10};
+  absl::StatusOr<CeresSolveReport> r = SolveWithCeres(&g, o, which, &covariances);
+  ASSERT_TRUE(r.ok()) << r.status();
+  ASSERT_EQ(covariances.size(), which.size());
+  for (size_t i = 0; i < which.size(); ++i) {
+    EXPECT_TRUE(testing::MatricesNear(eif.AnchorCovariance(which[i]), covariances[i], 1e-6)) << which[i];
+  }
+}
+
 // One local map with a grossly wrong end pose: a robust loss keeps the anchors nearer the
 // truth than plain least squares.
 TEST(SolveWithCeres, RobustLossLimitsABadLocalMap) {

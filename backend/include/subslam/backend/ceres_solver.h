@@ -10,7 +10,9 @@
 #ifndef SUBSLAM_BACKEND_CERES_SOLVER_H_
 #define SUBSLAM_BACKEND_CERES_SOLVER_H_
 
+#include <Eigen/Core>
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "subslam/graph/submap_graph.h"
@@ -41,10 +43,16 @@ struct CeresSolveReport {
   double seconds = 0.0;
   std::string termination;    // Ceres's termination type
   std::string brief;          // Ceres's one-line report
+  double covariance_seconds = 0.0;  // ceres::Covariance, when asked for
 };
 
 // Optimises the graph's anchors 1 … k and landmarks in place (headings wrapped after).
-absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresSolveOptions& options);
+// When `anchor_covariances` is given, it receives, through ceres::Covariance at the
+// solution, the marginal covariance of each listed anchor (anchor 0: zero).
+absl::StatusOr<CeresSolveReport> SolveWithCeres(
+    SubmapGraph* graph, const CeresSolveOptions& options,
+    const std::vector<int>& covariance_anchors = {},
+    std::vector<Eigen::Matrix3d>* anchor_covariances = nullptr);
 
 }  // namespace subslam::backend
 
