@@ -82,6 +82,9 @@ ABSL_FLAG(double, join_landmark_radius, kEifDefaults.landmark_search_radius_m,
 ABSL_FLAG(double, join_gate, kEifDefaults.gate_probability, "eif: association gate probability (chi2)");
 ABSL_FLAG(bool, join_jcbb, kEifDefaults.joint_compatibility,
           "eif: joint compatibility (JCBB) for the local map's features; false: nearest neighbour");
+ABSL_FLAG(bool, validate_joins, kEifDefaults.validate_joins,
+          "eif: test each join's normalised residual against chi2 and undo a failing one "
+          "(the map is joined again without associations)");
 ABSL_FLAG(int, relinearize_every, kEifDefaults.relinearize_every,
           "eif: relinearise to convergence every K joins (0: never during the run)");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
@@ -170,6 +173,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.landmark_search_radius_m = absl::GetFlag(FLAGS_join_landmark_radius);
   o.gate_probability = absl::GetFlag(FLAGS_join_gate);
   o.joint_compatibility = absl::GetFlag(FLAGS_join_jcbb);
+  o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
   o.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);

@@ -117,6 +117,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"anchors", eif.num_anchors()},
                 {"landmarks", eif.num_landmarks()},
                 {"associated_features", eif.counters().associated},
+                {"rejected_joins", eif.counters().rejected_joins},
                 {"relinearizations", eif.counters().relinearizations}}},
               {"time_seconds",
                {{"total", r.wall_seconds},

@@ -161,6 +161,7 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_associated_features"] = eif_->counters().associated;
     out["join_new_landmarks"] = eif_->counters().new_landmarks;
     out["join_relinearizations"] = eif_->counters().relinearizations;
+    out["join_rejected"] = eif_->counters().rejected_joins;
     out["global_landmarks"] = eif_->num_landmarks();
   }
   if (ceres_report_) {

@@ -34,6 +34,9 @@ absl::Status EifJoinerOptions::Validate() const {
     return absl::InvalidArgumentError("sigma_signature must be finite and >= 0");
   }
   if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
+  if (!(validation_probability > 0 && validation_probability < 1)) {
+    return absl::InvalidArgumentError("validation_probability must be in (0, 1)");
+  }
   if (relinearize_every < 0 || max_relinearizations < 1 || !(relinearize_tolerance > 0)) {
     return absl::InvalidArgumentError(
         "relinearize_every >= 0, max_relinearizations >= 1, relinearize_tolerance > 0");
@@ -361,9 +364,51 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
     return absl::InvalidArgumentError(absl::StrCat("local map ", s.id, " starts at ", s.t_start,
                                                    " before the previous one ended (", last_t_end_, ")"));
   }
+  if (!options_.validate_joins) return JoinWith(s, /*associate=*/true);
+  // Validated join: keep what a rejected join would have to undo.
+  Snapshot before{graph_, anchor_offset_, landmark_offset_, anchor_theta_, dim_, factors_, Lambda_,
+                  eta_, landmark_of_truth_, landmark_signature_sum_, landmark_signature_count_,
+                  counters_};
+  if (absl::Status st = JoinWith(s, /*associate=*/true); !st.ok()) return st;
+  const int matched = static_cast<int>(counters_.associated - before.counters.associated);
+  if (matched == 0) return absl::OkStatus();
+  // The new factor's normalised residual at the new estimate, against χ² with 2 dof per
+  // matched feature (the end pose and new landmarks fit exactly).
+  Factor& f = factors_.back();
+  const SubmapFactor& record = graph_.factors()[f.index];
+  std::vector<Eigen::Vector2d> lms;
+  for (int j : record.landmark_of_feature) lms.push_back(graph_.landmarks()[j]);
+  const auto pose = [this](int k) {
+    return Pose2(graph_.anchors()[k].x, graph_.anchors()[k].y, anchor_theta_[k]);
+  };
+  const SubmapFactorLinearization lin =
+      LinearizeSubmapFactor(s, pose(record.start_anchor), pose(record.end_anchor), lms);
+  const double d2 = lin.residual.dot(s.covariance.ldlt().solve(lin.residual));
+  const double bound = models::ChiSquareQuantile(options_.validation_probability, 2 * matched);
+  if (d2 <= bound) return absl::OkStatus();
+  // Rejected: undo, and join the local map again without associations (its odometry
+  // still links the chain; its features become new landmarks).
+  graph_ = std::move(before.graph);
+  anchor_offset_ = std::move(before.anchor_offset);
+  landmark_offset_ = std::move(before.landmark_offset);
+  anchor_theta_ = std::move(before.anchor_theta);
+  dim_ = before.dim;
+  factors_ = std::move(before.factors);
+  Lambda_ = std::move(before.Lambda);
+  eta_ = std::move(before.eta);
+  landmark_of_truth_ = std::move(before.landmark_of_truth);
+  landmark_signature_sum_ = std::move(before.signature_sum);
+  landmark_signature_count_ = std::move(before.signature_count);
+  counters_ = before.counters;
+  ++counters_.rejected_joins;
+  rejected_.push_back(s.id);
+  return JoinWith(s, /*associate=*/false);
+}
+
+absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   const int start = graph_.num_anchors() - 1;
-  std::vector<int> assoc;
-  {
+  std::vector<int> assoc(s.num_landmarks(), -1);
+  if (associate) {
     StageTimer timer(&times_, "association");
     assoc = Associate(s, start);
   }
@@ -386,7 +431,10 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
       dim_ += 2;
       ++counters_.new_landmarks;
       const std::optional<int>& t = s.landmarks[i].truth_id;
-      if (options_.known_association && t.has_value() && *t >= 0) landmark_of_truth_[*t] = assoc[i];
+      // A rejected map joined again (associate false) must not redefine its landmarks.
+      if (associate && options_.known_association && t.has_value() && *t >= 0) {
+        landmark_of_truth_[*t] = assoc[i];
+      }
     }
     if (std::isfinite(s.landmarks[i].signature)) {
       landmark_signature_sum_[assoc[i]] += s.landmarks[i].signature;

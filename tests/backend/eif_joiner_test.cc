@@ -197,6 +197,33 @@ TEST(SubmapGraph, WritesG2o) {
   EXPECT_FALSE(eif.graph().WriteG2o("/nonexistent_dir/graph.g2o").ok());
 }
 
+// A local map whose features are grossly wrong (a 5 m shift) but associated by their true
+// ids fails validation: the join is undone and redone without associations, so the map
+// stays closer to the truth than when the bad map is fused.
+TEST(EifJoiner, ValidationRejectsAnInconsistentJoin) {
+  SyntheticRun run = MakeRun(6, 12);
+  for (int i = 0; i < run.submaps[6].num_landmarks(); ++i) run.submaps[6].mean[3 + 2 * i] += 5.0;
+  const auto error = [&](const EifJoiner& eif) {
+    double sum = 0.0;
+    for (int k = 1; k < eif.num_anchors(); ++k) sum += (eif.anchor(k).translation() - run.anchors[k].translation()).squaredNorm();
+    return std::sqrt(sum / (eif.num_anchors() - 1));
+  };
+  EifJoinerOptions options;
+  options.known_association = true;
+  EifJoiner fused(run.anchors[0], options);
+  options.validate_joins = true;
+  EifJoiner validated(run.anchors[0], options);
+  for (const LocalSubmap& s : run.submaps) {
+    ASSERT_TRUE(fused.Join(s).ok());
+    ASSERT_TRUE(validated.Join(s).ok());
+  }
+  EXPECT_EQ(fused.counters().rejected_joins, 0);
+  EXPECT_EQ(validated.counters().rejected_joins, 1);
+  EXPECT_EQ(validated.rejected(), std::vector<int>{6});
+  EXPECT_EQ(validated.num_anchors(), fused.num_anchors());  // the chain is kept
+  EXPECT_LT(error(validated), error(fused));
+}
+
 TEST(EifJoiner, RejectsInvalidInput) {
   const SyntheticRun run = MakeRun(2, 3);
   EifJoiner eif(run.anchors[0], {});
