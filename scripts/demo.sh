@@ -1,16 +1,17 @@
 #!/usr/bin/env bash
-# Installs what is missing, builds, and runs the main jobs on the embedded default
-# scenario hybrid-120m (seed 1): the RBPF local mapper (FastSLAM 2.0 local maps, each
-# moment-matched into one Gaussian and checked against ground truth; chained end to start
-# until the back-end exists), EKF-SLAM with unknown data association, and dead reckoning
-# on the same data. Prints the summary tables and where the outputs went.
+# Installs what is missing, builds, and runs the main job on the embedded default
+# scenario hybrid-120m (seed 1): RBPF local maps (FastSLAM 2.0, 300 particles, each map
+# moment-matched into one Gaussian and checked against ground truth) joined by the sparse
+# EIF back-end; then single-map EKF-SLAM and dead reckoning on the same data for
+# comparison. Prints the summary tables and where the outputs went.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$ROOT/scripts/setup.sh" > "${TMPDIR:-/tmp}/subslam_demo_build.log" 2>&1 || {
   cat "${TMPDIR:-/tmp}/subslam_demo_build.log"; exit 1; }
 BIN="${BUILD_DIR:-$ROOT/build}/apps/subslam"
 OUT="${OUT:-$ROOT/runs/demo}"
-"$BIN" run --scenario hybrid-120m --seed 1 --frontend rbpf --out "$OUT/rbpf"
+"$BIN" run --scenario hybrid-120m --seed 1 --frontend rbpf --particles 300 --backend eif \
+  --relinearize_at_end --out "$OUT/rbpf_eif"
 echo
 "$BIN" run --scenario hybrid-120m --seed 1 --frontend ekfslam --out "$OUT/ekfslam"
 echo

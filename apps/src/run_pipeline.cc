@@ -383,6 +383,11 @@ std::string SummaryTable(const RunResult& r) {
     row("steps with NEES in 95% bounds", absl::StrFormat("%.1f %%", 100 * e.fraction_nees_in_bounds));
     row("10-sigma failure test", e.failed ? "FAILED" : "passed");
   }
+  if (r.errors_online) {
+    row("online: RMS position / NEES in bounds",
+        absl::StrFormat("%.3f m / %.1f %% (trajectory_online.csv)", r.errors_online->rms_position_m,
+                        100 * r.errors_online->fraction_nees_in_bounds));
+  }
   if (r.map_errors) {
     row("map: matched / spurious / duplicate",
         absl::StrFormat("%d / %d / %d, RMS %.3f m", r.map_errors->matched, r.map_errors->spurious,
