@@ -74,6 +74,7 @@ ABSL_FLAG(std::string, backend, "none",
 ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | dogleg | gn (Gauss-Newton)");
 ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
 ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
+ABSL_FLAG(int, ceres_every, 0, "ceres: also solve the graph every K joins during the run (0: at the end only)");
 ABSL_FLAG(double, join_anchor_radius, kEifDefaults.anchor_search_radius_m,
           "eif: earlier local maps with an anchor within this of the start anchor give "
           "association candidates [m] (2·TH1)");
@@ -277,6 +278,7 @@ int Run() {
   auto ceres = CeresOptionsFromFlags();
   if (!ceres.ok()) return Fail(ceres.status());
   options.ceres = *ceres;
+  options.ceres_every = absl::GetFlag(FLAGS_ceres_every);
   options.policy.min_duration_s = absl::GetFlag(FLAGS_submap_min_duration);
   options.policy.max_duration_s = absl::GetFlag(FLAGS_submap_max_duration);
   options.policy.max_features = absl::GetFlag(FLAGS_submap_max_features);

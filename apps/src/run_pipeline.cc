@@ -159,6 +159,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (absl::Status s = options.ekf.Validate(); !s.ok()) return s;
   if (absl::Status s = options.fastslam.Validate(); !s.ok()) return s;
   if (absl::Status s = options.policy.Validate(); !s.ok()) return s;
+  if (options.ceres_every < 0) return absl::InvalidArgumentError("--ceres_every must be >= 0");
   std::unique_ptr<frontend::OnlineEstimator> estimator;
   SubmapSlam* chain = nullptr;  // set for the local-map front-ends
   if (options.frontend == Frontend::kOdometry) {
@@ -179,7 +180,8 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     if (absl::Status st = options.eif.Validate(); !st.ok()) return st;
     if (absl::Status st = options.ceres.Validate(); !st.ok()) return st;
     auto chained = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose,
-                                                options.backend, options.eif, options.ceres);
+                                                options.backend, options.eif, options.ceres,
+                                                options.ceres_every);
     chain = chained.get();
     estimator = std::move(chained);
   } else if (options.frontend == Frontend::kFastSlam) {

@@ -3,6 +3,8 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 
+#include <algorithm>
+
 namespace subslam::app {
 
 const char* ToString(Backend backend) {
@@ -24,8 +26,12 @@ absl::StatusOr<Backend> BackendFromString(const std::string& name) {
 
 SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
                        Backend backend, const backend::EifJoinerOptions& eif,
-                       const backend::CeresSolveOptions& ceres)
-    : mapper_(std::move(mapper)), backend_(backend), ceres_options_(ceres), anchor_(initial_pose) {
+                       const backend::CeresSolveOptions& ceres, int ceres_every)
+    : mapper_(std::move(mapper)),
+      backend_(backend),
+      ceres_options_(ceres),
+      ceres_every_(ceres_every),
+      anchor_(initial_pose) {
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
   if (backend_ != Backend::kNone) eif_ = std::make_unique<backend::EifJoiner>(initial_pose, eif);
@@ -47,6 +53,10 @@ void SubmapSlam::JoinClosed() {
     const LocalSubmap& s = c.submap;
     if (eif_) {
       if (absl::Status st = eif_->Join(s); !st.ok() && status_.ok()) status_ = st;
+      ++joins_;
+      if (backend_ == Backend::kCeres && ceres_every_ > 0 && joins_ % ceres_every_ == 0 && status_.ok()) {
+        status_ = SolveAndAdopt();
+      }
     }
     Eigen::Matrix3d J_a, J_e;
     const Pose2 next = Compose(chain_.back(), s.end_pose(), &J_a, &J_e);
@@ -61,8 +71,23 @@ void SubmapSlam::JoinClosed() {
   join_seconds_ += absl::ToDoubleSeconds(absl::Now() - start);
 }
 
+absl::Status SubmapSlam::SolveAndAdopt() {
+  if (eif_->graph().factors().empty()) return absl::OkStatus();
+  const absl::Time start = absl::Now();
+  SubmapGraph g = eif_->graph();  // warm start: the current estimate
+  absl::StatusOr<backend::CeresSolveReport> r = backend::SolveWithCeres(&g, ceres_options_);
+  if (!r.ok()) return r.status();
+  ceres_report_ = *r;
+  ++ceres_solves_;
+  ceres_iterations_ += r->iterations;
+  if (absl::Status st = eif_->AdoptEstimate(g); !st.ok()) return st;
+  const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  ceres_seconds_ += seconds;
+  ceres_max_seconds_ = std::max(ceres_max_seconds_, seconds);
+  return absl::OkStatus();
+}
+
 Pose2 SubmapSlam::Anchor(int k) const {
-  if (ceres_graph_ && k < ceres_graph_->num_anchors()) return ceres_graph_->anchors()[k];
   if (eif_ && k < eif_->num_anchors()) return eif_->anchor(k);
   return chain_[k];
 }
@@ -89,17 +114,10 @@ absl::Status SubmapSlam::Finish() {
   mapper_->Finish();
   JoinClosed();
   if (eif_ && status_.ok()) status_ = eif_->Finish();
-  if (backend_ == Backend::kCeres && status_.ok() && !eif_->graph().factors().empty()) {
-    const absl::Time start = absl::Now();
-    SubmapGraph g = eif_->graph();  // warm start: the EIF's estimate
-    absl::StatusOr<backend::CeresSolveReport> r = backend::SolveWithCeres(&g, ceres_options_);
-    if (!r.ok()) {
-      status_ = r.status();
-    } else {
-      ceres_report_ = *r;
-      ceres_graph_ = std::move(g);
-    }
-    ceres_seconds_ = absl::ToDoubleSeconds(absl::Now() - start);
+  if (backend_ == Backend::kCeres && status_.ok()) status_ = SolveAndAdopt();
+  if (eif_) {  // the online pose after the run: on the final estimate
+    anchor_ = Anchor(mapper_->current_map_id());
+    anchor_covariance_ = AnchorCovariance(mapper_->current_map_id());
   }
   return status_;
 }
@@ -127,8 +145,7 @@ std::vector<LandmarkEstimate> SubmapSlam::Map() const {
   std::vector<LandmarkEstimate> out;
   if (eif_) {
     for (int j = 0; j < eif_->num_landmarks(); ++j) {
-      const Eigen::Vector2d p = ceres_graph_ ? ceres_graph_->landmarks()[j] : eif_->landmark(j);
-      out.push_back({j, p, eif_->LandmarkCovariance(j)});
+      out.push_back({j, eif_->landmark(j), eif_->LandmarkCovariance(j)});
     }
     return out;
   }
@@ -151,7 +168,7 @@ frontend::StageTimes SubmapSlam::stage_times() const {
   if (eif_) {
     for (const auto& [stage, seconds] : eif_->stage_times()) times["join_" + stage] = seconds;
   }
-  if (ceres_report_) times["ceres_solve"] = ceres_seconds_;
+  if (ceres_solves_ > 0) times["ceres_solve_and_adopt"] = ceres_seconds_;
   return times;
 }
 
@@ -165,7 +182,10 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["global_landmarks"] = eif_->num_landmarks();
   }
   if (ceres_report_) {
-    out["ceres_iterations"] = ceres_report_->iterations;
+    out["ceres_solves"] = ceres_solves_;
+    out["ceres_iterations_total"] = ceres_iterations_;
+    out["ceres_max_solve_and_adopt_seconds"] = ceres_max_seconds_;
+    out["ceres_iterations"] = ceres_report_->iterations;  // last solve
     out["ceres_initial_cost"] = ceres_report_->initial_cost;
     out["ceres_final_cost"] = ceres_report_->final_cost;
   }

@@ -469,6 +469,23 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   return absl::OkStatus();
 }
 
+absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) {
+  if (solved.num_anchors() != graph_.num_anchors() || solved.num_landmarks() != graph_.num_landmarks()) {
+    return absl::InvalidArgumentError("AdoptEstimate: not the joiner's graph");
+  }
+  for (int k = 1; k < graph_.num_anchors(); ++k) {
+    const Pose2& p = solved.anchors()[k];
+    anchor_theta_[k] += WrapAngle(p.theta - anchor_theta_[k]);  // stay continuous
+    graph_.anchor(k) = Pose2(p.x, p.y, WrapAngle(p.theta));
+  }
+  for (int j = 0; j < graph_.num_landmarks(); ++j) graph_.landmark(j) = solved.landmarks()[j];
+  {
+    StageTimer timer(&times_, "update");
+    for (Factor& f : factors_) Linearize(&f);
+  }
+  return Rebuild(/*only_last_factor=*/false);
+}
+
 absl::Status EifJoiner::Finish() {
   if (options_.relinearize_at_end && !factors_.empty()) return Relinearize();
   return absl::OkStatus();

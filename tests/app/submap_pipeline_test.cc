@@ -61,6 +61,13 @@ TEST(SubmapPipeline, CeresSolveAfterTheEif) {
             ceres->report["estimator_counters"]["ceres_initial_cost"].get<double>());
   EXPECT_LE(ceres->errors->rms_position_m, eif->errors->rms_position_m);
   EXPECT_FALSE(ceres->errors->failed);
+  // With the ISEIF-style schedule: a solve every 10 joins and at the end, same minimum.
+  options.ceres_every = 10;
+  absl::StatusOr<RunResult> every = RunPipeline(Simulate(1), options);
+  ASSERT_TRUE(every.ok()) << every.status();
+  const int maps = static_cast<int>(every->local_maps.size());
+  EXPECT_EQ(every->report["estimator_counters"]["ceres_solves"].get<double>(), maps / 10 + 1);
+  EXPECT_NEAR(every->errors->rms_position_m, ceres->errors->rms_position_m, 1e-6);
 }
 
 // The back-end alone on the recorded local maps: known association and JCBB agree with

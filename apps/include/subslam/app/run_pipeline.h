@@ -56,6 +56,7 @@ struct RunOptions {
   Backend backend = Backend::kNone;       // rbpf, ekf: how local maps are joined
   backend::EifJoinerOptions eif;
   backend::CeresSolveOptions ceres;       // backend ceres
+  int ceres_every = 0;                    // backend ceres: solve every K joins (0: at the end only)
   NoiseOverrides noise;
   std::string out_dir;          // empty: write nothing
   bool progress = false;        // progress line on stderr (when it is a terminal)

@@ -5,10 +5,12 @@
 //  * kNone  — no joining: each map's start anchor is the previous anchor composed with the
 //    previous map's end pose (first-order covariance); no fusion, no loop closure;
 //  * kEif   — the exactly sparse EIF joiner (backend/eif_joiner.h);
-//  * kCeres — the EIF joiner associates and gives the online estimate; at Finish() the
-//    whole graph is solved with Ceres (backend/ceres_solver.h), warm-started from the
-//    EIF's estimate, and the final trajectory and map come from that solution (their
-//    covariances from the EIF's marginals).
+//  * kCeres — the EIF joiner associates and gives the online estimate; every
+//    `ceres_every` joins (0: never during the run) and at Finish() the whole graph is
+//    solved with Ceres (backend/ceres_solver.h), warm-started from the current estimate
+//    (ISEIF's schedule, with Ceres doing the iterations), and the EIF adopts the solution
+//    (relinearising there), so the online anchors, the final trajectory, the map and the
+//    marginals all follow it.
 //
 // pose() is the current start anchor composed with the local map's pose; its covariance
 // adds the anchor's marginal and the local pose's covariance (their correlation is
@@ -39,7 +41,7 @@ class SubmapSlam final : public frontend::OnlineEstimator {
  public:
   SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
              Backend backend, const backend::EifJoinerOptions& eif = {},
-             const backend::CeresSolveOptions& ceres = {});
+             const backend::CeresSolveOptions& ceres = {}, int ceres_every = 0);
 
   std::string Name() const override;
   void Predict(const Eigen::Vector2d& u, double dt) override { mapper_->Predict(u, dt); }
@@ -75,9 +77,12 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   Backend backend_;
   std::unique_ptr<backend::EifJoiner> eif_;
   backend::CeresSolveOptions ceres_options_;
-  std::optional<SubmapGraph> ceres_graph_;  // kCeres: the solved graph, after Finish()
-  std::optional<backend::CeresSolveReport> ceres_report_;
-  double ceres_seconds_ = 0.0;
+  absl::Status SolveAndAdopt();
+  int ceres_every_ = 0;
+  int joins_ = 0;
+  std::optional<backend::CeresSolveReport> ceres_report_;  // of the last solve
+  int ceres_solves_ = 0, ceres_iterations_ = 0;
+  double ceres_seconds_ = 0.0, ceres_max_seconds_ = 0.0;
   std::vector<frontend::ClosedLocalMap> closed_;
   // kNone: the chained anchors (index k = start of map k) and covariances.
   std::vector<Pose2> chain_;

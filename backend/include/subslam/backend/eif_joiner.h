@@ -100,6 +100,10 @@ class EifJoiner {
   absl::Status Join(const LocalSubmap& submap);
   // Relinearises to convergence if relinearize_at_end.
   absl::Status Finish();
+  // Takes the anchors and landmarks of `solved` (the same graph, optimised elsewhere —
+  // e.g. by Ceres) as the estimate, relinearises every factor there and re-solves, so the
+  // information form and the marginals follow the better estimate.
+  absl::Status AdoptEstimate(const SubmapGraph& solved);
 
   const SubmapGraph& graph() const { return graph_; }
   int num_anchors() const { return graph_.num_anchors(); }
