@@ -57,7 +57,7 @@ ABSL_FLAG(std::string, association, subslam::frontend::ToString(kEkfDefaults.ass
 ABSL_FLAG(double, gate, kEkfDefaults.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
 ABSL_FLAG(double, new_landmark_gate, kEkfDefaults.new_landmark_probability,
           "a detection outside this gate for every landmark starts a new one");
-ABSL_FLAG(double, existence_alpha, kEkfDefaults.detection_probability, "existence model: detection probability");
+ABSL_FLAG(double, existence_alpha, kEkfDefaults.existence.detection_probability, "existence model: detection probability");
 ABSL_FLAG(int, particles, kFastSlamDefaults.num_particles, "fastslam / rbpf: number of particles");
 ABSL_FLAG(uint64_t, filter_seed, kFastSlamDefaults.seed, "fastslam / rbpf: seed of the particle filter's random draws");
 ABSL_FLAG(bool, sample_association, kFastSlamDefaults.sample_association,
@@ -113,7 +113,7 @@ ABSL_FLAG(int, submap_density_visible, kPolicyDefaults.density_min_visible,
           "rbpf: see --submap_density_features");
 ABSL_FLAG(bool, submap_delay_ambiguous, kPolicyDefaults.delay_while_ambiguous,
           "rbpf: postpone closing while the particles disagree about identities");
-ABSL_FLAG(double, existence_beta, kEkfDefaults.false_alarm_probability, "existence model: false-alarm probability");
+ABSL_FLAG(double, existence_beta, kEkfDefaults.existence.false_alarm_probability, "existence model: false-alarm probability");
 ABSL_FLAG(std::optional<double>, sigma_v, std::nullopt, "override speed noise sigma [m/s]");
 ABSL_FLAG(std::optional<double>, sigma_u1, std::nullopt,
           "override turn-rate [rad/s] or steering [rad] noise sigma");
@@ -269,8 +269,8 @@ int Run() {
   options.ekf.association = *association;
   options.ekf.gate_probability = absl::GetFlag(FLAGS_gate);
   options.ekf.new_landmark_probability = absl::GetFlag(FLAGS_new_landmark_gate);
-  options.ekf.detection_probability = absl::GetFlag(FLAGS_existence_alpha);
-  options.ekf.false_alarm_probability = absl::GetFlag(FLAGS_existence_beta);
+  options.ekf.existence.detection_probability = absl::GetFlag(FLAGS_existence_alpha);
+  options.ekf.existence.false_alarm_probability = absl::GetFlag(FLAGS_existence_beta);
   auto backend = subslam::app::BackendFromString(absl::GetFlag(FLAGS_backend));
   if (!backend.ok()) return Fail(backend.status());
   options.backend = *backend;
@@ -296,8 +296,7 @@ int Run() {
   options.fastslam.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   options.fastslam.gate_probability = options.ekf.gate_probability;
   options.fastslam.new_landmark_probability = options.ekf.new_landmark_probability;
-  options.fastslam.detection_probability = options.ekf.detection_probability;
-  options.fastslam.false_alarm_probability = options.ekf.false_alarm_probability;
+  options.fastslam.existence = options.ekf.existence;
   options.noise.sigma_v = absl::GetFlag(FLAGS_sigma_v);
   options.noise.sigma_u1 = absl::GetFlag(FLAGS_sigma_u1);
   options.noise.sigma_range = absl::GetFlag(FLAGS_sigma_range);

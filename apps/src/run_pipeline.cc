@@ -246,7 +246,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (!dataset.truth_poses.empty()) {
     r.errors = eval::ComputeTrajectoryErrors(r.final_trajectory, dataset.truth_poses);
     metrics["trajectory"] = ErrorsJson(*r.errors);
-    if (chain != nullptr) {
+    if (chain != nullptr && options.backend != Backend::kNone) {  // else final = online
       r.errors_online = eval::ComputeTrajectoryErrors(r.online, dataset.truth_poses);
       metrics["trajectory_online"] = ErrorsJson(*r.errors_online);
     }
@@ -334,8 +334,8 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"association", frontend::ToString(options.ekf.association)},
         {"gate_probability", options.ekf.gate_probability},
         {"new_landmark_probability", options.ekf.new_landmark_probability},
-        {"existence_detection_probability", options.ekf.detection_probability},
-        {"existence_false_alarm_probability", options.ekf.false_alarm_probability}}},
+        {"existence_detection_probability", options.ekf.existence.detection_probability},
+        {"existence_false_alarm_probability", options.ekf.existence.false_alarm_probability}}},
       {"counts",
        {{"steps", r.steps},
         {"scans", r.scans},

@@ -48,8 +48,9 @@ void SubmapSlam::Update(const io::Scan& scan) {
 }
 
 void SubmapSlam::JoinClosed() {
-  const absl::Time start = absl::Now();
-  for (frontend::ClosedLocalMap& c : mapper_->TakeClosed()) {
+  std::vector<frontend::ClosedLocalMap> newly_closed = mapper_->TakeClosed();
+  if (newly_closed.empty()) return;  // the anchor changes only when a map closes
+  for (frontend::ClosedLocalMap& c : newly_closed) {
     const LocalSubmap& s = c.submap;
     if (eif_) {
       if (absl::Status st = eif_->Join(s); !st.ok() && status_.ok()) status_ = st;
@@ -57,18 +58,18 @@ void SubmapSlam::JoinClosed() {
       if (backend_ == Backend::kCeres && ceres_every_ > 0 && joins_ % ceres_every_ == 0 && status_.ok()) {
         status_ = SolveAndAdopt();
       }
+    } else {
+      Eigen::Matrix3d J_a, J_e;
+      const Pose2 next = Compose(chain_.back(), s.end_pose(), &J_a, &J_e);
+      chain_covariance_.push_back(J_a * chain_covariance_.back() * J_a.transpose() +
+                                  J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose());
+      chain_.push_back(next);
     }
-    Eigen::Matrix3d J_a, J_e;
-    const Pose2 next = Compose(chain_.back(), s.end_pose(), &J_a, &J_e);
-    chain_covariance_.push_back(J_a * chain_covariance_.back() * J_a.transpose() +
-                                J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose());
-    chain_.push_back(next);
     closed_.push_back(std::move(c));
   }
   const int k = mapper_->current_map_id();
   anchor_ = Anchor(k);
   anchor_covariance_ = AnchorCovariance(k);
-  join_seconds_ += absl::ToDoubleSeconds(absl::Now() - start);
 }
 
 absl::Status SubmapSlam::SolveAndAdopt() {
@@ -87,14 +88,10 @@ absl::Status SubmapSlam::SolveAndAdopt() {
   return absl::OkStatus();
 }
 
-Pose2 SubmapSlam::Anchor(int k) const {
-  if (eif_ && k < eif_->num_anchors()) return eif_->anchor(k);
-  return chain_[k];
-}
+Pose2 SubmapSlam::Anchor(int k) const { return eif_ ? eif_->anchor(k) : chain_[k]; }
 
 Eigen::Matrix3d SubmapSlam::AnchorCovariance(int k) const {
-  if (eif_ && k < eif_->num_anchors()) return eif_->AnchorCovariance(k);
-  return chain_covariance_[k];
+  return eif_ ? eif_->AnchorCovariance(k) : chain_covariance_[k];
 }
 
 Pose2 SubmapSlam::pose() const { return Compose(anchor_, mapper_->local_pose()); }

@@ -18,10 +18,4 @@ SubmapStatus EkfLocalMapper::FilterStatus() const {
   return s;
 }
 
-std::map<std::string, double> EkfLocalMapper::Counters() const {
-  std::map<std::string, double> out = LocalMapper::Counters();
-  for (const auto& [name, value] : filter_.Counters()) out[name] = value;
-  return out;
-}
-
 }  // namespace subslam::frontend

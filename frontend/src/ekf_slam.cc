@@ -23,16 +23,7 @@ absl::Status EkfSlamOptions::Validate() const {
     return absl::InvalidArgumentError(
         "need 0 < gate_probability <= new_landmark_probability < 1");
   }
-  if (!InOpenUnit(detection_probability) || !InOpenUnit(false_alarm_probability)) {
-    return absl::InvalidArgumentError(
-        "existence model: detection and false-alarm probabilities must be in (0, 1)");
-  }
-  if (!(InOpenUnit(prior_existence) && InOpenUnit(confirm_existence) &&
-        InOpenUnit(delete_existence) && InOpenUnit(max_existence) &&
-        delete_existence < confirm_existence && confirm_existence < max_existence)) {
-    return absl::InvalidArgumentError(
-        "existence thresholds must satisfy 0 < delete < confirm < max < 1");
-  }
+  if (absl::Status s = existence.Validate(); !s.ok()) return s;
   if (jcbb_max_nodes < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0 ||
       cull_every_scans < 1) {
     return absl::InvalidArgumentError(
@@ -119,12 +110,8 @@ Eigen::Matrix2d EkfSlam::CrossCovariance(const Prediction& a, const Prediction& 
 }
 
 void EkfSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
-  const double a = options_.detection_probability, b = options_.false_alarm_probability;
-  const double p = info->existence;
-  const double q = detected ? p * a / (p * a + (1 - p) * b)
-                            : p * (1 - a) / (p * (1 - a) + (1 - p) * (1 - b));
-  info->existence = std::clamp(q, 1e-9, options_.max_existence);
-  if (info->existence > options_.confirm_existence) info->confirmed = true;
+  info->existence = options_.existence.Update(info->existence, detected);
+  if (options_.existence.Confirms(info->existence)) info->confirmed = true;
 }
 
 void EkfSlam::Update(const io::Scan& scan) {
@@ -264,7 +251,7 @@ void EkfSlam::Update(const io::Scan& scan) {
   for (int j = 0; j < m; ++j) {
     if (association.landmark_of_detection[j] >= 0) continue;
     if (min_d2[j] > new_landmark_d2_) {
-      AddLandmark(z[j], options_.prior_existence);
+      AddLandmark(z[j]);
       scan_features_[detection_index[j]] = landmarks_.back().id;
     } else {
       ++counters_.ambiguous;
@@ -273,14 +260,14 @@ void EkfSlam::Update(const io::Scan& scan) {
   if (counters_.scans % options_.cull_every_scans != 0) return;
   std::vector<int> doomed;
   for (int i = 0; i < num_landmarks(); ++i) {
-    if (!landmarks_[i].confirmed && landmarks_[i].existence < options_.delete_existence) {
+    if (options_.existence.Deletes(landmarks_[i].existence, landmarks_[i].confirmed)) {
       doomed.push_back(i);
     }
   }
   if (!doomed.empty()) RemoveLandmarks(doomed);
 }
 
-void EkfSlam::AddLandmark(const Eigen::Vector2d& z, double existence) {
+void EkfSlam::AddLandmark(const Eigen::Vector2d& z) {
   const Pose2 p = pose();
   Matrix23d G_pose;
   Eigen::Matrix2d G_z;
@@ -296,8 +283,8 @@ void EkfSlam::AddLandmark(const Eigen::Vector2d& z, double existence) {
   dim_ += 2;
   LandmarkInfo info;
   info.id = next_id_++;
-  info.existence = existence;
-  UpdateExistence(&info, true);  // the creating detection
+  info.existence = options_.existence.Initial();  // the prior and the creating detection
+  info.confirmed = options_.existence.Confirms(info.existence);
   landmarks_.push_back(info);
   ++counters_.new_landmarks;
 }

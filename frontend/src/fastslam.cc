@@ -32,16 +32,7 @@ absl::Status FastSlamOptions::Validate() const {
   if (!(resample_ess_ratio >= 0.0 && resample_ess_ratio <= 1.0)) {
     return absl::InvalidArgumentError("resample_ess_ratio must be in [0, 1]");
   }
-  if (!InOpenUnit(detection_probability) || !InOpenUnit(false_alarm_probability)) {
-    return absl::InvalidArgumentError(
-        "existence model: detection and false-alarm probabilities must be in (0, 1)");
-  }
-  if (!(InOpenUnit(prior_existence) && InOpenUnit(confirm_existence) &&
-        InOpenUnit(delete_existence) && InOpenUnit(max_existence) &&
-        delete_existence < confirm_existence && confirm_existence < max_existence)) {
-    return absl::InvalidArgumentError(
-        "existence thresholds must satisfy 0 < delete < confirm < max < 1");
-  }
+  if (absl::Status s = existence.Validate(); !s.ok()) return s;
   if (landmark_update_iterations < 1) {
     return absl::InvalidArgumentError("landmark_update_iterations must be >= 1");
   }
@@ -127,12 +118,8 @@ void FastSlam::SetPose(Particle* p, const Pose2& pose) {
 }
 
 void FastSlam::UpdateExistence(LandmarkRecord* record, bool detected) const {
-  const double a = options_.detection_probability, b = options_.false_alarm_probability;
-  const double p = record->existence;
-  const double q = detected ? p * a / (p * a + (1 - p) * b)
-                            : p * (1 - a) / (p * (1 - a) + (1 - p) * (1 - b));
-  record->existence = std::clamp(q, 1e-9, options_.max_existence);
-  if (record->existence > options_.confirm_existence) record->confirmed = true;
+  record->existence = options_.existence.Update(record->existence, detected);
+  if (options_.existence.Confirms(record->existence)) record->confirmed = true;
 }
 
 FastSlam::LandmarkGaussian* FastSlam::Mutable(LandmarkRecord* record) {
@@ -441,9 +428,9 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       }
       LandmarkRecord record;
       record.gaussian = std::move(l);
-      record.existence = options_.prior_existence;
+      record.existence = options_.existence.Initial();  // the prior and the creating detection
+      record.confirmed = options_.existence.Confirms(record.existence);
       record.feature = voted_label_[2 * j + 1];
-      UpdateExistence(&record, true);
       landmarks.push_back(std::move(record));
       ++counters_.landmarks_created;
     }
@@ -454,7 +441,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
   }
   if (counters_.scans % options_.cull_every_scans == 0) {
     const auto doomed = [this](const LandmarkRecord& r) {
-      return !r.confirmed && r.existence < options_.delete_existence;
+      return options_.existence.Deletes(r.existence, r.confirmed);
     };
     const auto first = std::remove_if(landmarks.begin(), landmarks.end(), doomed);
     counters_.landmarks_culled += landmarks.end() - first;

@@ -81,6 +81,7 @@ std::map<std::string, double> LocalMapper::Counters() const {
   std::map<std::string, double> out = {{"local_maps_closed", map_id_},
                                        {"covariance_repairs", repairs_}};
   for (const auto& [reason, count] : closes_by_reason_) out["closed_by_" + reason] = count;
+  for (const auto& [name, value] : FilterCounters()) out[name] = value;
   return out;
 }
 
@@ -100,12 +101,6 @@ SubmapStatus RbpfLocalMapper::FilterStatus() const {
   s.visible_features = counts.within_range;
   s.disagreement = filter_.last_scan_disagreement();
   return s;
-}
-
-std::map<std::string, double> RbpfLocalMapper::Counters() const {
-  std::map<std::string, double> out = LocalMapper::Counters();
-  for (const auto& [name, value] : filter_.Counters()) out[name] = value;
-  return out;
 }
 
 }  // namespace subslam::frontend

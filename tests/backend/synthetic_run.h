@@ -11,6 +11,7 @@
 
 #include "subslam/backend/submap_factor.h"
 #include "subslam/graph/local_submap.h"
+#include "subslam/graph/submap_graph.h"
 
 namespace subslam::backend {
 
@@ -80,6 +81,15 @@ inline SyntheticRun MakeRun(uint64_t seed, int legs = 12, double noise = 1.0) {
     run.submaps.push_back(m);
   }
   return run;
+}
+
+// RMS of the anchors' position errors (anchor 0, fixed, left out).
+inline double AnchorRms(const SubmapGraph& graph, const SyntheticRun& run) {
+  double sum = 0.0;
+  for (int k = 1; k < graph.num_anchors(); ++k) {
+    sum += (graph.anchors()[k].translation() - run.anchors[k].translation()).squaredNorm();
+  }
+  return std::sqrt(sum / (graph.num_anchors() - 1));
 }
 
 }  // namespace subslam::backend

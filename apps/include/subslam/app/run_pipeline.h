@@ -86,7 +86,7 @@ struct RunResult {
   std::vector<double> wall_seconds_by_tenth;  // cumulative, after each tenth of the steps
   long peak_rss_kb = 0;             // process peak resident memory after the run
   std::optional<eval::TrajectoryErrors> errors;       // final trajectory vs true poses
-  std::optional<eval::TrajectoryErrors> errors_online;  // local-map pipelines: online one
+  std::optional<eval::TrajectoryErrors> errors_online;  // joined local maps: the online one
   std::optional<eval::MapErrors> map_errors;          // vs true landmarks
   std::optional<eval::GpsComparison> gps_online;      // vs GPS, aligned
   std::optional<eval::GpsComparison> gps_final;

@@ -84,7 +84,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   int ceres_solves_ = 0, ceres_iterations_ = 0;
   double ceres_seconds_ = 0.0, ceres_max_seconds_ = 0.0;
   std::vector<frontend::ClosedLocalMap> closed_;
-  // kNone: the chained anchors (index k = start of map k) and covariances.
+  // kNone: the chained anchors (index k = start of map k) and covariances; the joiners
+  // keep their own.
   std::vector<Pose2> chain_;
   std::vector<Eigen::Matrix3d> chain_covariance_;
   // The current start anchor, cached after each join.
@@ -99,7 +100,6 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   std::vector<StepRecord> steps_;
   int last_scan_map_id_ = 0;
   absl::Status status_;
-  double join_seconds_ = 0.0;
 };
 
 }  // namespace subslam::app

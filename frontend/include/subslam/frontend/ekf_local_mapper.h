@@ -23,7 +23,6 @@ class EkfLocalMapper final : public LocalMapper {
   const std::vector<int>& last_scan_features() const override {
     return filter_.last_scan_features();
   }
-  std::map<std::string, double> Counters() const override;
   const EkfSlam& filter() const { return filter_; }
 
  private:
@@ -35,6 +34,7 @@ class EkfLocalMapper final : public LocalMapper {
   Eigen::Matrix3d FilterPoseCovariance() const override { return filter_.pose_covariance(); }
   MomentMatchedGaussian Export() const override { return filter_.Export(min_existence_); }
   StageTimes FilterStageTimes() const override { return filter_.stage_times(); }
+  std::map<std::string, double> FilterCounters() const override { return filter_.Counters(); }
 
   EkfSlam filter_;
   double min_existence_;

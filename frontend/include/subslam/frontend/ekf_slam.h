@@ -32,6 +32,7 @@
 
 #include "absl/status/status.h"
 #include "subslam/frontend/data_association.h"
+#include "subslam/frontend/existence_model.h"
 #include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
@@ -47,17 +48,12 @@ struct EkfSlamOptions {
   double new_landmark_probability = 0.9999;
   long jcbb_max_nodes = 20000;  // JCBB search budget per scan
   // Existence model (HybridSLAM Eq. 11): the filter's α and β (not the simulator's).
-  double detection_probability = 0.9;
-  double false_alarm_probability = 0.05;
-  double prior_existence = 0.5;    // before the creating detection is applied
-  double confirm_existence = 0.95; // confirmed (reported, never deleted) above this
-  double delete_existence = 0.05;  // tentative landmarks below this are removed
-  double max_existence = 0.9999;   // keeps the log-odds finite
+  ExistenceModel existence;
   // A landmark is "expected" (a miss counts) only this far inside the sensor's range
   // and field of view, to allow for its position uncertainty.
   double expect_range_margin_m = 1.0;
   double expect_bearing_margin_rad = 0.05;
-  // Tentative landmarks below delete_existence are removed every this many scans;
+  // Tentative landmarks below existence.delete_existence are removed every this many scans;
   // removal compacts the dense state in O(n²), so batching it saves time on big maps.
   int cull_every_scans = 10;
 
@@ -128,7 +124,7 @@ class EkfSlam final : public OnlineEstimator {
 
   int Offset(int landmark) const { return 3 + 2 * landmark; }
   void Reserve(int dim);
-  void AddLandmark(const Eigen::Vector2d& z, double existence);
+  void AddLandmark(const Eigen::Vector2d& z);
   void RemoveLandmarks(const std::vector<int>& sorted_indices);
   Eigen::Matrix2d CrossCovariance(const Prediction& a, const Prediction& b) const;
   // Covariance access under the storage invariant (see P_).

@@ -56,6 +56,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/frontend/existence_model.h"
 #include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
@@ -86,12 +87,7 @@ struct FastSlamOptions {
   // Resample when N_eff < resample_ess_ratio · N.
   double resample_ess_ratio = 0.5;
   // Existence model (HybridSLAM Eq. 11): the filter's α and β.
-  double detection_probability = 0.9;
-  double false_alarm_probability = 0.05;
-  double prior_existence = 0.5;
-  double confirm_existence = 0.95;
-  double delete_existence = 0.05;
-  double max_existence = 0.9999;
+  ExistenceModel existence;
   double expect_range_margin_m = 1.0;
   double expect_bearing_margin_rad = 0.05;
   int cull_every_scans = 10;

@@ -49,7 +49,8 @@ class LocalMapper {
   // The current map's feature id of each detection of the last scan (−1: none).
   virtual const std::vector<int>& last_scan_features() const = 0;
   StageTimes stage_times() const;
-  virtual std::map<std::string, double> Counters() const;
+  // The mapper's counters (local maps, closes by reason, repairs) and the filter's.
+  std::map<std::string, double> Counters() const;
 
  protected:
   LocalMapper(const SubmapPolicyOptions& policy, const models::RangeBearingConfig& sensor,
@@ -63,6 +64,7 @@ class LocalMapper {
   virtual Eigen::Matrix3d FilterPoseCovariance() const = 0;
   virtual MomentMatchedGaussian Export() const = 0;
   virtual StageTimes FilterStageTimes() const = 0;
+  virtual std::map<std::string, double> FilterCounters() const = 0;
 
  private:
   void Close(CloseReason reason);
@@ -90,7 +92,6 @@ class RbpfLocalMapper final : public LocalMapper {
   const std::vector<int>& last_scan_features() const override {
     return filter_.last_scan_features();
   }
-  std::map<std::string, double> Counters() const override;
   const FastSlam& filter() const { return filter_; }
 
  private:
@@ -102,6 +103,7 @@ class RbpfLocalMapper final : public LocalMapper {
   Eigen::Matrix3d FilterPoseCovariance() const override { return filter_.pose_covariance(); }
   MomentMatchedGaussian Export() const override { return filter_.MomentMatched(); }
   StageTimes FilterStageTimes() const override { return filter_.stage_times(); }
+  std::map<std::string, double> FilterCounters() const override { return filter_.Counters(); }
 
   FastSlam filter_;
 };
