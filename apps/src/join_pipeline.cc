@@ -1,11 +1,12 @@
 #include "subslam/app/join_pipeline.h"
 
+#include "report_json.h"
+
 #include <filesystem>
 #include <map>
 #include <set>
 
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/io/run_output_writer.h"
@@ -82,17 +83,11 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
 
   nlohmann::json metrics = nlohmann::json::object();
   if (!options.truth_poses.empty()) {
-    const eval::TrajectoryErrors e = eval::ComputeTrajectoryErrors(r.anchors, options.truth_poses);
-    metrics["anchors"] = {{"rms_position_m", e.rms_position_m},
-                          {"rms_heading_rad", e.rms_heading_rad},
-                          {"mean_pose_nees", e.mean_nees},
-                          {"fraction_nees_in_bounds", e.fraction_nees_in_bounds}};
+    metrics["anchors"] = ErrorsJson(eval::ComputeTrajectoryErrors(r.anchors, options.truth_poses));
   }
   if (!options.truth_landmarks.empty()) {
-    const eval::MapErrors m = eval::ComputeMapErrors(r.landmarks, options.truth_landmarks);
-    metrics["map"] = {{"estimated", m.estimated}, {"matched", m.matched},
-                      {"spurious", m.spurious},   {"duplicates", m.duplicates},
-                      {"rms_m", m.rms_m},         {"mean_landmark_nees", m.mean_nees}};
+    metrics["map"] = MapErrorsJson(eval::ComputeMapErrors(r.landmarks, options.truth_landmarks),
+                                   options.truth_landmarks.size());
   }
   metrics["association_vs_truth_id"] = {{"true_landmarks_seen", r.correct},
                                         {"missed_merges", r.missed},
@@ -134,19 +129,10 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
               {"metrics", metrics}};
 
   if (!options.out_dir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(options.out_dir, ec);
-    if (ec) return absl::InternalError(absl::StrCat(options.out_dir, ": ", ec.message()));
-    const std::filesystem::path out(options.out_dir);
-    std::string csv = "k,t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt\n";
-    for (size_t k = 0; k < r.anchors.size(); ++k) {
-      const PoseEstimate& a = r.anchors[k];
-      const Eigen::Matrix3d& c = a.covariance;
-      absl::StrAppendFormat(&csv, "%d,%.6f,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g\n",
-                            static_cast<int>(k), a.t, a.pose.x, a.pose.y, a.pose.theta, c(0, 0),
-                            c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2));
-    }
-    if (auto s = io::WriteTextFile((out / "anchors.csv").string(), csv); !s.ok()) return s;
+    absl::StatusOr<std::filesystem::path> dir = CreateOutputDirectory(options.out_dir);
+    if (!dir.ok()) return dir.status();
+    const std::filesystem::path& out = *dir;
+    if (auto s = io::WriteTrajectoryCsv((out / "anchors.csv").string(), r.anchors); !s.ok()) return s;
     if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
     if (auto s = eif.graph().WriteG2o((out / "graph.g2o").string()); !s.ok()) return s;
     if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;

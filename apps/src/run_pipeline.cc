@@ -1,5 +1,7 @@
 #include "subslam/app/run_pipeline.h"
 
+#include "report_json.h"
+
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -22,31 +24,6 @@ namespace subslam::app {
 namespace {
 
 using nlohmann::json;
-
-json ErrorsJson(const eval::TrajectoryErrors& e) {
-  return {{"steps", e.steps},
-          {"rms_position_m", e.rms_position_m},
-          {"rms_x_m", e.rms_x_m},
-          {"rms_y_m", e.rms_y_m},
-          {"rms_heading_rad", e.rms_heading_rad},
-          {"max_position_error_m", e.max_position_error_m},
-          {"final_position_error_m", e.final_position_error_m},
-          {"nees_steps", e.nees_steps},
-          {"mean_pose_nees", e.mean_nees},
-          {"fraction_steps_nees_in_95_bounds", e.fraction_nees_in_bounds},
-          {"mean_consistency_index", e.mean_consistency_index},
-          {"failed_10_sigma_test", e.failed},
-          {"longest_10_sigma_excursion_steps", e.longest_excursion_steps}};
-}
-
-json GpsJson(const eval::GpsComparison& g) {
-  return {{"matched_fixes", g.matched_fixes},
-          {"aligned_rms_m", g.rms_m},
-          {"aligned_rms_x_m", g.rms_x_m},
-          {"aligned_rms_y_m", g.rms_y_m},
-          {"aligned_max_m", g.max_m},
-          {"gps_T_estimate", {g.gps_T_estimate.x, g.gps_T_estimate.y, g.gps_T_estimate.theta}}};
-}
 
 long PeakRssKb() {
   struct rusage usage {};
@@ -253,13 +230,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   }
   if (!dataset.truth_landmarks.empty()) {
     r.map_errors = eval::ComputeMapErrors(r.landmarks, dataset.truth_landmarks);
-    metrics["map"] = {{"estimated", r.map_errors->estimated},
-                      {"matched", r.map_errors->matched},
-                      {"spurious", r.map_errors->spurious},
-                      {"duplicates", r.map_errors->duplicates},
-                      {"true_landmarks", dataset.truth_landmarks.size()},
-                      {"rms_m", r.map_errors->rms_m},
-                      {"mean_landmark_nees", r.map_errors->mean_nees}};
+    metrics["map"] = MapErrorsJson(*r.map_errors, dataset.truth_landmarks.size());
   }
   if (!dataset.gps.empty()) {
     auto online = eval::CompareWithGps(r.online, dataset.gps);
@@ -351,10 +322,9 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
       {"metrics", metrics}};
 
   if (!options.out_dir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(options.out_dir, ec);
-    if (ec) return absl::InternalError(absl::StrCat(options.out_dir, ": ", ec.message()));
-    const std::filesystem::path out(options.out_dir);
+    absl::StatusOr<std::filesystem::path> dir = CreateOutputDirectory(options.out_dir);
+    if (!dir.ok()) return dir.status();
+    const std::filesystem::path& out = *dir;
     if (auto s = io::WriteTrajectoryCsv((out / "trajectory_online.csv").string(), r.online); !s.ok()) return s;
     if (auto s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory); !s.ok()) return s;
     if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;

@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "json_fields.h"
 #include "subslam/io/internal/text_table.h"
 
 namespace subslam::io {
@@ -15,26 +16,10 @@ namespace {
 
 using nlohmann::json;
 
-// Typed access to manifest fields with errors naming the file and the field path.
-class Manifest {
+// Typed access to manifest fields (json_fields.h) plus the manifest's own kinds.
+class Manifest : public JsonFields {
  public:
-  explicit Manifest(std::string file) : file_(std::move(file)) {}
-
-  absl::Status Error(const std::string& field, const std::string& what) const {
-    return absl::InvalidArgumentError(absl::StrCat(file_, ": field '", field, "': ", what));
-  }
-
-  // Rejects keys of `object` that are not in `allowed`.
-  absl::Status CheckKeys(const json& object, const std::string& path,
-                         const std::set<std::string>& allowed) const {
-    for (const auto& [key, value] : object.items()) {
-      if (!allowed.contains(key)) {
-        return Error(path.empty() ? key : absl::StrCat(path, ".", key),
-                     absl::StrCat("unknown key (allowed: ", absl::StrJoin(allowed, ", "), ")"));
-      }
-    }
-    return absl::OkStatus();
-  }
+  explicit Manifest(std::string file) : JsonFields(std::move(file)) {}
 
   absl::StatusOr<const json*> Object(const json& parent, const std::string& path,
                                      const std::string& key) const {
@@ -54,22 +39,6 @@ class Manifest {
     return v.get<std::string>();
   }
 
-  // A finite number; `fallback` is used when the key is absent (nullopt: required).
-  absl::StatusOr<double> Number(const json& parent, const std::string& path,
-                                const std::string& key,
-                                std::optional<double> fallback = std::nullopt) const {
-    const std::string field = Join(path, key);
-    if (!parent.contains(key)) {
-      if (fallback.has_value()) return *fallback;
-      return Error(field, "missing");
-    }
-    const json& v = parent.at(key);
-    if (!v.is_number()) return Error(field, absl::StrCat("expected a number, got ", v.dump()));
-    const double d = v.get<double>();
-    if (!std::isfinite(d)) return Error(field, "not finite");
-    return d;
-  }
-
   absl::StatusOr<double> PositiveSigma(const json& parent, const std::string& path,
                                        const std::string& key) const {
     absl::StatusOr<double> d = Number(parent, path, key);
@@ -84,25 +53,6 @@ class Manifest {
     if (!d.ok()) return d.status();
     if (*d < 0.0) return Error(Join(path, key), absl::StrCat("must be >= 0, got ", *d));
     return *d;
-  }
-
-  // A fixed-length array of finite numbers.
-  absl::StatusOr<std::vector<double>> Numbers(const json& parent, const std::string& path,
-                                              const std::string& key, size_t n) const {
-    const std::string field = Join(path, key);
-    if (!parent.contains(key)) return Error(field, "missing");
-    const json& v = parent.at(key);
-    if (!v.is_array() || v.size() != n) {
-      return Error(field, absl::StrCat("expected an array of ", n, " numbers, got ", v.dump()));
-    }
-    std::vector<double> out;
-    for (const json& e : v) {
-      if (!e.is_number() || !std::isfinite(e.get<double>())) {
-        return Error(field, absl::StrCat("expected finite numbers, got ", v.dump()));
-      }
-      out.push_back(e.get<double>());
-    }
-    return out;
   }
 
   // An optional file name: absent or null → empty string.
@@ -124,12 +74,6 @@ class Manifest {
     }
     return v.get<int>();
   }
-
- private:
-  static std::string Join(const std::string& path, const std::string& key) {
-    return path.empty() ? key : absl::StrCat(path, ".", key);
-  }
-  std::string file_;
 };
 
 #define SUBSLAM_CONCAT_INNER(a, b) a##b

@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_join.h"
+#include "json_fields.h"
 
 namespace subslam::io {
 namespace {
@@ -33,65 +33,7 @@ json ToJson(const LocalSubmap& s) {
   return out;
 }
 
-// Field access with errors naming file, line and field.
-class LineReader {
- public:
-  LineReader(const std::string& file, int line) : file_(file), line_(line) {}
-
-  absl::Status Error(const std::string& field, const std::string& what) const {
-    return absl::InvalidArgumentError(
-        absl::StrCat(file_, ":", line_, ": field '", field, "': ", what));
-  }
-  absl::Status CheckKeys(const json& object, const std::string& path,
-                         const std::set<std::string>& allowed) const {
-    for (const auto& [key, value] : object.items()) {
-      if (!allowed.contains(key)) {
-        return Error(path.empty() ? key : absl::StrCat(path, ".", key),
-                     absl::StrCat("unknown key (allowed: ", absl::StrJoin(allowed, ", "), ")"));
-      }
-    }
-    return absl::OkStatus();
-  }
-  absl::StatusOr<double> Number(const json& object, const std::string& key,
-                                const std::string& field) const {
-    if (!object.contains(key)) return Error(field, "missing");
-    const json& v = object.at(key);
-    if (!v.is_number()) return Error(field, absl::StrCat("expected a number, got ", v.dump()));
-    const double d = v.get<double>();
-    if (!std::isfinite(d)) return Error(field, "not finite");
-    return d;
-  }
-  absl::StatusOr<int> Integer(const json& object, const std::string& key,
-                              const std::string& field) const {
-    if (!object.contains(key)) return Error(field, "missing");
-    const json& v = object.at(key);
-    if (!v.is_number_integer()) {
-      return Error(field, absl::StrCat("expected an integer, got ", v.dump()));
-    }
-    return v.get<int>();
-  }
-  absl::StatusOr<std::vector<double>> Numbers(const json& object, const std::string& key) const {
-    if (!object.contains(key)) return Error(key, "missing");
-    const json& v = object.at(key);
-    if (!v.is_array()) return Error(key, "expected an array of numbers");
-    std::vector<double> out;
-    out.reserve(v.size());
-    for (size_t i = 0; i < v.size(); ++i) {
-      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
-        return Error(absl::StrCat(key, "[", i, "]"),
-                     absl::StrCat("expected a finite number, got ", v[i].dump()));
-      }
-      out.push_back(v[i].get<double>());
-    }
-    return out;
-  }
-
- private:
-  std::string file_;
-  int line_;
-};
-
-absl::StatusOr<LocalSubmap> FromJson(const json& j, const LineReader& r) {
+absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
   if (!j.is_object()) return r.Error("(line)", "expected a JSON object");
   if (auto s = r.CheckKeys(j, "", {"id", "t_start", "t_end", "state", "cov", "landmarks",
                                    "covariance_repairs"});
@@ -99,18 +41,18 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const LineReader& r) {
     return s;
   }
   LocalSubmap s;
-  auto id = r.Integer(j, "id", "id");
+  auto id = r.Integer(j, "", "id");
   if (!id.ok()) return id.status();
   s.id = *id;
-  auto t0 = r.Number(j, "t_start", "t_start");
+  auto t0 = r.Number(j, "", "t_start");
   if (!t0.ok()) return t0.status();
-  auto t1 = r.Number(j, "t_end", "t_end");
+  auto t1 = r.Number(j, "", "t_end");
   if (!t1.ok()) return t1.status();
   s.t_start = *t0;
   s.t_end = *t1;
   if (s.t_end < s.t_start) return r.Error("t_end", "is before t_start");
   if (j.contains("covariance_repairs")) {
-    auto repairs = r.Integer(j, "covariance_repairs", "covariance_repairs");
+    auto repairs = r.Integer(j, "", "covariance_repairs");
     if (!repairs.ok()) return repairs.status();
     if (*repairs < 0) return r.Error("covariance_repairs", "must be >= 0");
     s.covariance_repairs = *repairs;
@@ -127,22 +69,22 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const LineReader& r) {
       return st;
     }
     LocalSubmapLandmark out;
-    auto local_id = r.Integer(l, "local_id", path + ".local_id");
+    auto local_id = r.Integer(l, path, "local_id");
     if (!local_id.ok()) return local_id.status();
     out.local_id = *local_id;
-    auto existence = r.Number(l, "existence", path + ".existence");
+    auto existence = r.Number(l, path, "existence");
     if (!existence.ok()) return existence.status();
     if (*existence < 0.0 || *existence > 1.0) {
       return r.Error(path + ".existence", absl::StrCat("must be in [0, 1], got ", *existence));
     }
     out.existence = *existence;
     if (l.contains("signature") && !l.at("signature").is_null()) {
-      auto sig = r.Number(l, "signature", path + ".signature");
+      auto sig = r.Number(l, path, "signature");
       if (!sig.ok()) return sig.status();
       out.signature = *sig;
     }
     if (l.contains("truth_id") && !l.at("truth_id").is_null()) {
-      auto truth = r.Integer(l, "truth_id", path + ".truth_id");
+      auto truth = r.Integer(l, path, "truth_id");
       if (!truth.ok()) return truth.status();
       if (*truth < -1) return r.Error(path + ".truth_id", "must be >= -1 (-1: false alarm)");
       out.truth_id = *truth;
@@ -150,13 +92,13 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const LineReader& r) {
     s.landmarks.push_back(out);
   }
   const size_t n = 3 + 2 * s.landmarks.size();
-  auto state = r.Numbers(j, "state");
+  auto state = r.Numbers(j, "", "state");
   if (!state.ok()) return state.status();
   if (state->size() != n) {
     return r.Error("state", absl::StrCat("has ", state->size(), " numbers, expected 3 + 2 × ",
                                          s.landmarks.size(), " landmarks = ", n));
   }
-  auto cov = r.Numbers(j, "cov");
+  auto cov = r.Numbers(j, "", "cov");
   if (!cov.ok()) return cov.status();
   if (cov->size() != n * n) {
     return r.Error("cov", absl::StrCat("has ", cov->size(), " numbers, expected ", n * n));
@@ -189,7 +131,7 @@ absl::StatusOr<std::vector<LocalSubmap>> ReadSubmapsJsonl(const std::string& pat
   while (std::getline(in, text)) {
     ++line;
     if (text.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const LineReader reader(path, line);
+    const JsonFields reader(absl::StrCat(path, ":", line));
     json j;
     try {
       j = json::parse(text);

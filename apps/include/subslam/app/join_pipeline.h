@@ -3,9 +3,9 @@
 // so back-ends can be compared on identical input and local maps built elsewhere joined.
 //
 // Outputs (JoinOptions::out_dir, when set):
-//   anchors.csv     k,t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt — anchor k is
-//                   the start of local map k (anchor 0: the initial pose, fixed) and the
-//                   end of map k − 1; t is that time;
+//   anchors.csv     t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt (the trajectory
+//                   columns), row k = anchor k: the start of local map k (anchor 0: the
+//                   initial pose, fixed) and the end of map k − 1, at that time;
 //   landmarks.csv   the global map (id,x,y,cov_xx,cov_xy,cov_yy);
 //   graph.g2o       the submap graph in g2o text (see SubmapGraph::WriteG2o: marginal blocks);
 //   report.json     configuration, counts, time per stage, and — when ground truth is given —

@@ -1,0 +1,60 @@
+// Pieces of report.json shared by the run and join pipelines, and the output directory.
+// Private to subslam::app.
+#ifndef SUBSLAM_APPS_SRC_REPORT_JSON_H_
+#define SUBSLAM_APPS_SRC_REPORT_JSON_H_
+
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
+#include "subslam/eval/gps_alignment.h"
+#include "subslam/eval/trajectory_errors.h"
+
+namespace subslam::app {
+
+inline nlohmann::json ErrorsJson(const eval::TrajectoryErrors& e) {
+  return {{"steps", e.steps},
+          {"rms_position_m", e.rms_position_m},
+          {"rms_x_m", e.rms_x_m},
+          {"rms_y_m", e.rms_y_m},
+          {"rms_heading_rad", e.rms_heading_rad},
+          {"max_position_error_m", e.max_position_error_m},
+          {"final_position_error_m", e.final_position_error_m},
+          {"nees_steps", e.nees_steps},
+          {"mean_pose_nees", e.mean_nees},
+          {"fraction_steps_nees_in_95_bounds", e.fraction_nees_in_bounds},
+          {"mean_consistency_index", e.mean_consistency_index},
+          {"failed_10_sigma_test", e.failed},
+          {"longest_10_sigma_excursion_steps", e.longest_excursion_steps}};
+}
+
+inline nlohmann::json MapErrorsJson(const eval::MapErrors& m, size_t true_landmarks) {
+  return {{"estimated", m.estimated},   {"matched", m.matched},
+          {"spurious", m.spurious},     {"duplicates", m.duplicates},
+          {"true_landmarks", true_landmarks}, {"rms_m", m.rms_m},
+          {"mean_landmark_nees", m.mean_nees}};
+}
+
+inline nlohmann::json GpsJson(const eval::GpsComparison& g) {
+  return {{"matched_fixes", g.matched_fixes},
+          {"aligned_rms_m", g.rms_m},
+          {"aligned_rms_x_m", g.rms_x_m},
+          {"aligned_rms_y_m", g.rms_y_m},
+          {"aligned_max_m", g.max_m},
+          {"gps_T_estimate", {g.gps_T_estimate.x, g.gps_T_estimate.y, g.gps_T_estimate.theta}}};
+}
+
+// Creates `dir` (and its parents) for the outputs.
+inline absl::StatusOr<std::filesystem::path> CreateOutputDirectory(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return absl::InternalError(absl::StrCat(dir, ": ", ec.message()));
+  return std::filesystem::path(dir);
+}
+
+}  // namespace subslam::app
+
+#endif  // SUBSLAM_APPS_SRC_REPORT_JSON_H_
