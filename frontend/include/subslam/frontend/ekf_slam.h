@@ -12,14 +12,12 @@
 //    χ²₂(new_landmark_probability) gate is initialised from the inverse sensor model
 //    with the exact cross-covariances. Detections between the two gates are ambiguous
 //    and dropped.
-//  * Existence (HybridSLAM §3.2, Eq. 11): each landmark carries P(exists). A detection
-//    applies p ← pα / (pα + (1 − p)β); a landmark predicted well inside the field of
-//    view that no detection even gated with applies the missed-detection update
-//    p ← p(1 − α) / (p(1 − α) + (1 − p)(1 − β)). Tentative landmarks (never confirmed)
-//    whose existence falls below `delete_existence` are removed from the state, so
-//    false alarms do not become landmarks; a landmark is confirmed — reported by Map()
-//    and kept for good — once its existence exceeds `confirm_existence`. Removal is
-//    batched every `cull_every_scans` scans.
+//  * Existence (existence_model.h, HybridSLAM §3.2, Eq. 11): each landmark carries
+//    P(exists), raised by a detection and lowered when it is predicted well inside the
+//    field of view and no detection even gated with it. Tentative landmarks below the
+//    delete threshold are removed from the state, so false alarms do not become
+//    landmarks; confirmed ones are reported by Map() and kept. Removal is batched every
+//    `cull_every_scans` scans.
 //
 // Memory: the covariance lives in a capacity-doubling buffer, so adding a landmark is
 // O(n) amortised; deleting one compacts the state in O(n²).

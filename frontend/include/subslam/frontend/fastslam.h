@@ -25,11 +25,10 @@
 //  * Landmarks are updated by 2-D EKFs (optionally iterated) at the sampled pose; new ones initialised by the
 //    inverse sensor model. An optional signature cue (e.g. trunk diameter) multiplies
 //    the association likelihood by N(s − s̄; 0, σ_s²(1 + 1/k)) over the k signatures seen.
-//  * Existence (HybridSLAM Eq. 11) per particle and landmark, with detection probability
-//    α and false-alarm probability β: detected → pα / (pα + (1 − p)β); expected inside
-//    the field of view but not even gated → p(1 − α) / (p(1 − α) + (1 − p)(1 − β)).
-//    Every `cull_every_scans` scans, tentative landmarks below `delete_existence` are
-//    removed, so false alarms do not survive.
+//  * Existence (existence_model.h, HybridSLAM Eq. 11) per particle and landmark: a
+//    detection raises it, a landmark expected inside the field of view but not even gated
+//    lowers it; every `cull_every_scans` scans tentative landmarks below the delete
+//    threshold are removed, so false alarms do not survive.
 //  * Correspondence voting (HybridSLAM §3.1): each detection's decisions (ignore, new,
 //    or an existing landmark's common feature id) are tallied with the particles'
 //    weights; the winner's common id is written into every landmark the detection
