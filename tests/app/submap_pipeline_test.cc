@@ -22,6 +22,15 @@ io::Dataset Simulate(uint64_t seed) {
   return *std::move(d);
 }
 
+// The EKF local maps of a run (no back-end).
+std::vector<LocalSubmap> EkfLocalMaps(const io::Dataset& d) {
+  RunOptions run;
+  run.frontend = Frontend::kEkfLocal;
+  absl::StatusOr<RunResult> r = RunPipeline(d, run);
+  EXPECT_TRUE(r.ok()) << r.status();
+  return r.ok() ? r->local_maps : std::vector<LocalSubmap>{};
+}
+
 // Joining closes the loop: the final trajectory passes the 10σ test and is more accurate
 // than the same local maps chained without a back-end; the joined map has no spurious
 // landmark; the online trajectory is the one a navigation stack had (also not failed).
@@ -74,10 +83,8 @@ TEST(SubmapPipeline, CeresSolveAfterTheEif) {
 // the truth ids (no two true landmarks merged), and the loop is closed.
 TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
   const io::Dataset d = Simulate(3);
-  RunOptions run;
-  run.frontend = Frontend::kEkfLocal;
-  absl::StatusOr<RunResult> r = RunPipeline(d, run);
-  ASSERT_TRUE(r.ok()) << r.status();
+  const std::vector<LocalSubmap> maps = EkfLocalMaps(d);
+  ASSERT_FALSE(maps.empty());
   JoinOptions options;
   options.initial_pose = d.initial_pose;
   options.truth_poses = d.truth_poses;
@@ -85,7 +92,7 @@ TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
   options.out_dir = ::testing::TempDir() + "/subslam_join";
   for (const bool known : {true, false}) {
     options.eif.known_association = known;
-    absl::StatusOr<JoinResult> j = RunJoin(r->local_maps, options);
+    absl::StatusOr<JoinResult> j = RunJoin(maps, options);
     ASSERT_TRUE(j.ok()) << j.status();
     EXPECT_EQ(j->wrong, 0) << "known " << known;
     EXPECT_GT(j->loop_merged, 0) << "known " << known;
@@ -97,7 +104,7 @@ TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
   }
   // And from the file a run writes.
   const std::string path = ::testing::TempDir() + "/subslam_join_input.jsonl";
-  ASSERT_TRUE(io::WriteSubmapsJsonl(path, r->local_maps).ok());
+  ASSERT_TRUE(io::WriteSubmapsJsonl(path, maps).ok());
   absl::StatusOr<std::vector<LocalSubmap>> back = io::ReadSubmapsJsonl(path);
   ASSERT_TRUE(back.ok());
   EXPECT_TRUE(RunJoin(*back, options).ok());
@@ -112,15 +119,11 @@ TEST(SubmapPipeline, JoinedAnchorsAreNotOverconfident) {
   int n = 0, inside = 0;
   for (uint64_t seed : {1, 2, 3}) {
     const io::Dataset d = Simulate(seed);
-    RunOptions run;
-    run.frontend = Frontend::kEkfLocal;
-    absl::StatusOr<RunResult> r = RunPipeline(d, run);
-    ASSERT_TRUE(r.ok()) << r.status();
     JoinOptions options;
     options.initial_pose = d.initial_pose;
     options.eif.known_association = true;
     options.eif.relinearize_at_end = true;
-    absl::StatusOr<JoinResult> j = RunJoin(r->local_maps, options);
+    absl::StatusOr<JoinResult> j = RunJoin(EkfLocalMaps(d), options);
     ASSERT_TRUE(j.ok()) << j.status();
     for (size_t k = 1; k < j->anchors.size(); ++k) {
       const PoseEstimate& a = j->anchors[k];

@@ -93,13 +93,7 @@ TEST(SolveWithCeres, AllMethodsEqualTheIteratedEif) {
   EifJoiner eif(run.anchors[0], options);
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
   const SubmapGraph linearised_once = eif.graph();
-  EifJoiner reference(run.anchors[0], [&] {
-    EifJoinerOptions o = options;
-    o.relinearize_at_end = true;
-    o.relinearize_tolerance = 1e-12;
-    o.max_relinearizations = 50;
-    return o;
-  }());
+  EifJoiner reference(run.anchors[0], ConvergingKnownAssociation());
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(reference.Join(s).ok());
   ASSERT_TRUE(reference.Finish().ok());
   for (const CeresMethod method : {CeresMethod::kGaussNewton, CeresMethod::kLevenbergMarquardt,
@@ -126,12 +120,7 @@ TEST(SolveWithCeres, AllMethodsEqualTheIteratedEif) {
 // the same point (both invert the Gauss-Newton Hessian).
 TEST(SolveWithCeres, CovariancesEqualTheEifMarginalsAtConvergence) {
   const SyntheticRun run = MakeRun(8, 10);
-  EifJoinerOptions options;
-  options.known_association = true;
-  options.relinearize_at_end = true;
-  options.relinearize_tolerance = 1e-12;
-  options.max_relinearizations = 50;
-  EifJoiner eif(run.anchors[0], options);
+  EifJoiner eif(run.anchors[0], ConvergingKnownAssociation());
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
   ASSERT_TRUE(eif.Finish().ok());
   SubmapGraph g = eif.graph();

@@ -102,12 +102,7 @@ TEST(EifJoiner, MarginalsEqualBlocksOfTheDenseInverse) {
 // Relinearised to convergence, the EIF is batch Gauss-Newton on the submap graph.
 TEST(EifJoiner, IteratedToConvergenceEqualsBatchGaussNewton) {
   const SyntheticRun run = MakeRun(7, 12, 3.0);
-  EifJoinerOptions options;
-  options.known_association = true;
-  options.relinearize_at_end = true;
-  options.relinearize_tolerance = 1e-12;
-  options.max_relinearizations = 50;
-  EifJoiner eif(run.anchors[0], options);
+  EifJoiner eif(run.anchors[0], ConvergingKnownAssociation());
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
   // Reference from the EIF's pre-relinearisation state.
   const SubmapGraph before = eif.graph();

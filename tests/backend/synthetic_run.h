@@ -9,6 +9,7 @@
 #include <random>
 #include <vector>
 
+#include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
@@ -81,6 +82,16 @@ inline SyntheticRun MakeRun(uint64_t seed, int legs = 12, double noise = 1.0) {
     run.submaps.push_back(m);
   }
   return run;
+}
+
+// Known association, relinearised to convergence at Finish(): the Gauss-Newton reference.
+inline EifJoinerOptions ConvergingKnownAssociation() {
+  EifJoinerOptions o;
+  o.known_association = true;
+  o.relinearize_at_end = true;
+  o.relinearize_tolerance = 1e-12;
+  o.max_relinearizations = 50;
+  return o;
 }
 
 // RMS of the anchors' position errors (anchor 0, fixed, left out).
