@@ -75,13 +75,13 @@ ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | do
 ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
 ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
 ABSL_FLAG(int, ceres_every, 0, "ceres: also solve the graph every K joins during the run (0: at the end only)");
-ABSL_FLAG(double, join_anchor_radius, kEifDefaults.anchor_search_radius_m,
+ABSL_FLAG(double, join_anchor_radius, kEifDefaults.association.anchor_search_radius_m,
           "eif: earlier local maps with an anchor within this of the start anchor give "
           "association candidates [m] (2·TH1)");
-ABSL_FLAG(double, join_landmark_radius, kEifDefaults.landmark_search_radius_m,
+ABSL_FLAG(double, join_landmark_radius, kEifDefaults.association.landmark_search_radius_m,
           "eif: candidate landmarks within this of a feature [m] (TH2)");
-ABSL_FLAG(double, join_gate, kEifDefaults.gate_probability, "eif: association gate probability (chi2)");
-ABSL_FLAG(bool, join_jcbb, kEifDefaults.joint_compatibility,
+ABSL_FLAG(double, join_gate, kEifDefaults.association.gate_probability, "eif: association gate probability (chi2)");
+ABSL_FLAG(bool, join_jcbb, kEifDefaults.association.joint_compatibility,
           "eif: joint compatibility (JCBB) for the local map's features; false: nearest neighbour");
 ABSL_FLAG(bool, validate_joins, kEifDefaults.validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
@@ -170,15 +170,15 @@ int Simulate() {
 
 subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   subslam::backend::EifJoinerOptions o;
-  o.anchor_search_radius_m = absl::GetFlag(FLAGS_join_anchor_radius);
-  o.landmark_search_radius_m = absl::GetFlag(FLAGS_join_landmark_radius);
-  o.gate_probability = absl::GetFlag(FLAGS_join_gate);
-  o.joint_compatibility = absl::GetFlag(FLAGS_join_jcbb);
+  o.association.anchor_search_radius_m = absl::GetFlag(FLAGS_join_anchor_radius);
+  o.association.landmark_search_radius_m = absl::GetFlag(FLAGS_join_landmark_radius);
+  o.association.gate_probability = absl::GetFlag(FLAGS_join_gate);
+  o.association.joint_compatibility = absl::GetFlag(FLAGS_join_jcbb);
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
-  o.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
-  o.known_association = absl::GetFlag(FLAGS_known_association);
+  o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
+  o.association.known_association = absl::GetFlag(FLAGS_known_association);
   return o;
 }
 

@@ -2,14 +2,12 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/CholmodSupport>
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/frontend/data_association.h"
 #include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/graph/internal/check.h"
 #include "subslam/models/gating.h"
@@ -24,16 +22,7 @@ struct EifJoiner::Solver {
 };
 
 absl::Status EifJoinerOptions::Validate() const {
-  if (!(anchor_search_radius_m >= 0 && landmark_search_radius_m >= 0)) {
-    return absl::InvalidArgumentError("search radii must be >= 0");
-  }
-  if (!(gate_probability > 0 && gate_probability < 1)) {
-    return absl::InvalidArgumentError("gate_probability must be in (0, 1)");
-  }
-  if (!(sigma_signature >= 0 && std::isfinite(sigma_signature))) {
-    return absl::InvalidArgumentError("sigma_signature must be finite and >= 0");
-  }
-  if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
+  if (absl::Status s = association.Validate(); !s.ok()) return s;
   if (!(validation_probability > 0 && validation_probability < 1)) {
     return absl::InvalidArgumentError("validation_probability must be in (0, 1)");
   }
@@ -45,7 +34,10 @@ absl::Status EifJoinerOptions::Validate() const {
 }
 
 EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
-    : options_(options), graph_(initial_pose), solver_(std::make_unique<Solver>()) {
+    : options_(options),
+      graph_(initial_pose),
+      solver_(std::make_unique<Solver>()),
+      associator_(options.association) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   anchor_offset_.push_back(-1);  // P0 is fixed
   anchor_theta_.push_back(initial_pose.theta);
@@ -55,8 +47,6 @@ EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
 }
 
 EifJoiner::~EifJoiner() = default;
-
-Pose2 EifJoiner::anchor(int k) const { return graph_.anchors()[k]; }
 
 Eigen::VectorXd EifJoiner::StateVector() const {
   Eigen::VectorXd x(dim_);
@@ -241,123 +231,6 @@ Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors,
   return 0.5 * (out + out.transpose());
 }
 
-Eigen::Matrix3d EifJoiner::AnchorCovariance(int k) const { return JointCovariance({k}, {}); }
-Eigen::Matrix2d EifJoiner::LandmarkCovariance(int j) const { return JointCovariance({}, {j}); }
-
-std::vector<int> EifJoiner::Associate(const LocalSubmap& s, int start_anchor) {
-  const int n = s.num_landmarks();
-  std::vector<int> out(n, -1);
-  if (options_.known_association) {
-    for (int i = 0; i < n; ++i) {
-      const std::optional<int>& t = s.landmarks[i].truth_id;
-      if (!t.has_value() || *t < 0) continue;  // unknown or false alarm: a new landmark
-      auto it = landmark_of_truth_.find(*t);
-      if (it != landmark_of_truth_.end()) out[i] = it->second;
-    }
-    return out;
-  }
-  const Pose2 P_s = graph_.anchors()[start_anchor];
-  // Candidate landmarks: those of earlier maps with an anchor near the start anchor, and
-  // near a feature's world position. Both radii grow by three standard deviations of the
-  // start anchor's uncertainty (position, and heading times the feature's distance), so
-  // a loop is still found after a long drift.
-  Eigen::Matrix3d Sigma_s;
-  {
-    StageTimer timer(&times_, "covariance_recovery");
-    Sigma_s = AnchorCovariance(start_anchor);
-  }
-  const double sigma_xy = std::sqrt(std::max(0.0, Sigma_s.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff()));
-  const double sigma_theta = std::sqrt(std::max(0.0, Sigma_s(2, 2)));
-  std::vector<char> is_candidate(graph_.num_landmarks(), 0);
-  const double r1 = options_.anchor_search_radius_m + 3.0 * sigma_xy;
-  for (const SubmapFactor& f : graph_.factors()) {
-    const bool near = (graph_.anchors()[f.start_anchor].translation() - P_s.translation()).norm() <= r1 ||
-                      (graph_.anchors()[f.end_anchor].translation() - P_s.translation()).norm() <= r1;
-    if (!near) continue;
-    for (int j : f.landmark_of_feature) is_candidate[j] = 1;
-  }
-  std::vector<Eigen::Vector2d> world(n);
-  std::vector<double> r2(n);
-  for (int i = 0; i < n; ++i) {
-    world[i] = TransformFrom(P_s, s.landmark(i));
-    r2[i] = options_.landmark_search_radius_m + 3.0 * (sigma_xy + sigma_theta * s.landmark(i).norm());
-  }
-  std::vector<int> candidates;
-  for (int j = 0; j < graph_.num_landmarks(); ++j) {
-    if (!is_candidate[j]) continue;
-    for (int i = 0; i < n; ++i) {
-      if ((graph_.landmarks()[j] - world[i]).norm() <= r2[i]) {
-        candidates.push_back(j);
-        break;
-      }
-    }
-  }
-  if (candidates.empty()) return out;
-  Eigen::MatrixXd Sigma;
-  {
-    StageTimer timer(&times_, "covariance_recovery");
-    Sigma = JointCovariance({start_anchor}, candidates);
-  }
-  // Individual compatibility of each (feature, candidate) pair.
-  const int c_count = static_cast<int>(candidates.size());
-  std::vector<Matrix23d> J_frame(c_count);
-  std::vector<Eigen::Matrix2d> J_point(c_count);
-  std::vector<Eigen::Vector2d> predicted(c_count);
-  for (int c = 0; c < c_count; ++c) {
-    predicted[c] = TransformTo(P_s, graph_.landmarks()[candidates[c]], &J_frame[c], &J_point[c]);
-  }
-  // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate].
-  const auto cross = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
-    const int oa = 3 + 2 * a, ob = 3 + 2 * b;
-    Eigen::Matrix2d m = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
-                        J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
-                        J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
-                        J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
-    m += s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
-    return m;
-  };
-  const double gate2 = models::ChiSquareQuantile(options_.gate_probability, 2);
-  const double gate3 = models::ChiSquareQuantile(options_.gate_probability, 3);
-  frontend::AssociationProblem problem;
-  problem.candidates.resize(n);
-  for (int c = 0; c < c_count; ++c) {
-    const int j = candidates[c];
-    for (int i = 0; i < n; ++i) {
-      if ((graph_.landmarks()[j] - world[i]).norm() > r2[i]) continue;
-      const Eigen::Vector2d nu = predicted[c] - s.landmark(i);
-      const std::optional<double> d2 = models::MahalanobisSquared2(nu, cross(i, c, i, c));
-      if (!d2.has_value()) continue;
-      double score = *d2, gate = gate2;
-      const double sig_l = landmark_signature_count_[j] > 0
-                               ? landmark_signature_sum_[j] / landmark_signature_count_[j]
-                               : NAN;
-      if (options_.sigma_signature > 0 && std::isfinite(s.landmarks[i].signature) && std::isfinite(sig_l)) {
-        const double ds = (s.landmarks[i].signature - sig_l) / options_.sigma_signature;
-        score += ds * ds;
-        gate = gate3;
-      }
-      if (score < gate) problem.candidates[i].push_back({c, score, nu});
-    }
-  }
-  for (auto& list : problem.candidates) {
-    std::sort(list.begin(), list.end(), [](const auto& a, const auto& b) {
-      return a.d2 < b.d2 || (a.d2 == b.d2 && a.landmark < b.landmark);
-    });
-  }
-  frontend::AssociationResult result;
-  if (options_.joint_compatibility) {
-    problem.covariance_block = cross;
-    result = frontend::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
-    if (result.truncated) ++counters_.jcbb_truncated;
-  } else {
-    result = frontend::NearestNeighbour(problem);
-  }
-  for (int i = 0; i < n; ++i) {
-    if (result.landmark_of_detection[i] >= 0) out[i] = candidates[result.landmark_of_detection[i]];
-  }
-  return out;
-}
-
 absl::Status EifJoiner::Join(const LocalSubmap& s) {
   if (absl::Status v = s.Validate(); !v.ok()) return v;
   if (s.t_start < last_t_end_ - 1e-9) {
@@ -367,8 +240,7 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   if (!options_.validate_joins) return JoinWith(s, /*associate=*/true);
   // Validated join: keep what a rejected join would have to undo.
   Snapshot before{graph_, anchor_offset_, landmark_offset_, anchor_theta_, dim_, factors_, Lambda_,
-                  eta_, landmark_of_truth_, landmark_signature_sum_, landmark_signature_count_,
-                  counters_};
+                  eta_, associator_, counters_};
   if (absl::Status st = JoinWith(s, /*associate=*/true); !st.ok()) return st;
   const int matched = static_cast<int>(counters_.associated - before.counters.associated);
   if (matched == 0) return absl::OkStatus();
@@ -396,9 +268,7 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   factors_ = std::move(before.factors);
   Lambda_ = std::move(before.Lambda);
   eta_ = std::move(before.eta);
-  landmark_of_truth_ = std::move(before.landmark_of_truth);
-  landmark_signature_sum_ = std::move(before.signature_sum);
-  landmark_signature_count_ = std::move(before.signature_count);
+  associator_ = std::move(before.associator);
   counters_ = before.counters;
   ++counters_.rejected_joins;
   rejected_.push_back(s.id);
@@ -410,8 +280,15 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   std::vector<int> assoc(s.num_landmarks(), -1);
   if (associate) {
     StageTimer timer(&times_, "association");
-    assoc = Associate(s, start);
+    SubmapAssociation a = associator_.Associate(
+        s, start, graph_, [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+          return JointCovariance(anchors, landmarks);
+        });
+    assoc = std::move(a.landmark_of_feature);
+    times_["covariance_recovery"] += a.covariance_seconds;
+    if (a.jcbb_truncated) ++counters_.jcbb_truncated;
   }
+  const int first_new_landmark = graph_.num_landmarks();
   // Initialise the end anchor and the new landmarks through the start anchor.
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
   const Pose2 end_local = s.end_pose();
@@ -426,21 +303,12 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     } else {
       assoc[i] = graph_.AddLandmark(TransformFrom(P_s, s.landmark(i)));
       landmark_offset_.push_back(dim_);
-      landmark_signature_sum_.push_back(0.0);
-      landmark_signature_count_.push_back(0);
       dim_ += 2;
       ++counters_.new_landmarks;
-      const std::optional<int>& t = s.landmarks[i].truth_id;
-      // A rejected map joined again (associate false) must not redefine its landmarks.
-      if (associate && options_.known_association && t.has_value() && *t >= 0) {
-        landmark_of_truth_[*t] = assoc[i];
-      }
-    }
-    if (std::isfinite(s.landmarks[i].signature)) {
-      landmark_signature_sum_[assoc[i]] += s.landmarks[i].signature;
-      ++landmark_signature_count_[assoc[i]];
     }
   }
+  // A rejected map joined again (associate false) must not redefine its landmarks.
+  associator_.Record(s, assoc, first_new_landmark, /*define_truth=*/associate);
   graph_.AddFactor({s, start, end_anchor, assoc});
   Factor f;
   f.index = static_cast<int>(graph_.factors().size()) - 1;

@@ -91,7 +91,7 @@ TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
   options.truth_landmarks = d.truth_landmarks;
   options.out_dir = ::testing::TempDir() + "/subslam_join";
   for (const bool known : {true, false}) {
-    options.eif.known_association = known;
+    options.eif.association.known_association = known;
     absl::StatusOr<JoinResult> j = RunJoin(maps, options);
     ASSERT_TRUE(j.ok()) << j.status();
     EXPECT_EQ(j->wrong, 0) << "known " << known;
@@ -121,7 +121,7 @@ TEST(SubmapPipeline, JoinedAnchorsAreNotOverconfident) {
     const io::Dataset d = Simulate(seed);
     JoinOptions options;
     options.initial_pose = d.initial_pose;
-    options.eif.known_association = true;
+    options.eif.association.known_association = true;
     options.eif.relinearize_at_end = true;
     absl::StatusOr<JoinResult> j = RunJoin(EkfLocalMaps(d), options);
     ASSERT_TRUE(j.ok()) << j.status();

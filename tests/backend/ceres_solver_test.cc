@@ -89,7 +89,7 @@ TEST(SubmapCostFunction, SharedLandmarkBlockSumsTheFeatureJacobians) {
 TEST(SolveWithCeres, AllMethodsEqualTheIteratedEif) {
   const SyntheticRun run = MakeRun(7, 12, 3.0);
   EifJoinerOptions options;
-  options.known_association = true;
+  options.association.known_association = true;
   EifJoiner eif(run.anchors[0], options);
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
   const SubmapGraph linearised_once = eif.graph();
@@ -143,7 +143,7 @@ TEST(SolveWithCeres, RobustLossLimitsABadLocalMap) {
   // A loop closure that makes the bad map matter: known association through truth ids.
   run.submaps[5].mean[0] += 6.0;  // 60σ off
   EifJoinerOptions options;
-  options.known_association = true;
+  options.association.known_association = true;
   EifJoiner eif(run.anchors[0], options);
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
   SubmapGraph plain = eif.graph(), robust = eif.graph();

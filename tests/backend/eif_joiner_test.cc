@@ -81,7 +81,7 @@ TEST(SubmapFactor, JacobiansMatchNumericalDifferentiation) {
 TEST(EifJoiner, MarginalsEqualBlocksOfTheDenseInverse) {
   const SyntheticRun run = MakeRun(5);
   EifJoinerOptions options;
-  options.known_association = true;
+  options.association.known_association = true;
   EifJoiner eif(run.anchors[0], options);
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
   const Eigen::MatrixXd inverse = Eigen::MatrixXd(eif.information()).inverse();
@@ -157,7 +157,7 @@ TEST(EifJoiner, NearestNeighbourAssociationMatchesTruth) {
 TEST(SubmapGraph, WritesG2o) {
   const SyntheticRun run = MakeRun(4, 4);
   EifJoinerOptions options;
-  options.known_association = true;
+  options.association.known_association = true;
   EifJoiner eif(run.anchors[0], options);
   int features = 0;
   for (const LocalSubmap& s : run.submaps) {
@@ -199,7 +199,7 @@ TEST(EifJoiner, ValidationRejectsAnInconsistentJoin) {
   SyntheticRun run = MakeRun(6, 12);
   for (int i = 0; i < run.submaps[6].num_landmarks(); ++i) run.submaps[6].mean[3 + 2 * i] += 5.0;
   EifJoinerOptions options;
-  options.known_association = true;
+  options.association.known_association = true;
   EifJoiner fused(run.anchors[0], options);
   options.validate_joins = true;
   EifJoiner validated(run.anchors[0], options);
@@ -223,7 +223,7 @@ TEST(EifJoiner, RejectsInvalidInput) {
   ASSERT_TRUE(eif.Join(run.submaps[1]).ok());
   EXPECT_FALSE(eif.Join(run.submaps[0]).ok());  // starts before the previous one ended
   EifJoinerOptions o;
-  o.gate_probability = 1.0;
+  o.association.gate_probability = 1.0;
   EXPECT_FALSE(o.Validate().ok());
 }
 

@@ -87,7 +87,7 @@ inline SyntheticRun MakeRun(uint64_t seed, int legs = 12, double noise = 1.0) {
 // Known association, relinearised to convergence at Finish(): the Gauss-Newton reference.
 inline EifJoinerOptions ConvergingKnownAssociation() {
   EifJoinerOptions o;
-  o.known_association = true;
+  o.association.known_association = true;
   o.relinearize_at_end = true;
   o.relinearize_tolerance = 1e-12;
   o.max_relinearizations = 50;

@@ -12,19 +12,9 @@
 // every stored linear model stays valid; they are wrapped in the outputs.
 //
 // Per local map, in order (Combined SLAM, Algorithm 1):
-//  1. data association: earlier local maps whose anchors lie within
-//     `anchor_search_radius_m` (2·TH1) of the start anchor give candidate landmarks; those
-//     within `landmark_search_radius_m` (TH2) of a feature's world position are tested.
-//     Both radii grow by 3σ of the start anchor's recovered uncertainty (position, and
-//     heading × the feature's distance; ours), so a loop is found after a long drift.
-//     The joint marginal covariance of the start anchor and the candidates is recovered
-//     by sparse solves with the factor (never the dense inverse); each pair's innovation
-//     ν = P_s⁻¹ · L_j − l_i with S = J Σ Jᵀ + Q_ii is gated at χ²₂(gate_probability)
-//     (plus the signature cue when both have one, option); the hypothesis is then chosen
-//     by joint compatibility (JCBB, default: the pairings' joint innovation, with the
-//     local map's correlations Q_ik between features, must pass χ²_{2k}) or by nearest
-//     neighbour, one-to-one. Or known association: features with the same truth_id are
-//     the same landmark (evaluation studies);
+//  1. data association (backend/submap_association.h), with the joint marginal
+//     covariance of the start anchor and the candidates recovered by sparse solves with
+//     the factor (never the dense inverse);
 //  2. the end anchor and the new landmarks are initialised through the start anchor;
 //  3. the information update above;
 //  4. state recovery by one solve.
@@ -45,24 +35,15 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/backend/map_joiner.h"
+#include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 
 namespace subslam::backend {
 
 struct EifJoinerOptions {
-  // Association (Algorithm 1). 2·TH1 with TH1 ≈ the sensor range, and TH2.
-  double anchor_search_radius_m = 60.0;
-  double landmark_search_radius_m = 10.0;
-  double gate_probability = 0.99;  // χ²₂ individual gate (and JCBB's joint gate)
-  // true: joint compatibility (JCBB over the map's features, with the local map's own
-  // feature correlations); false: nearest neighbour, one-to-one.
-  bool joint_compatibility = true;
-  long jcbb_max_nodes = 20000;
-  // Signature cue: σ of the difference of two signatures (0: off). When both the feature
-  // and the landmark have one, (Δs/σ)² is added to d² and the gate uses 3 dof.
-  double sigma_signature = 0.0;
-  bool known_association = false;  // associate by truth_id instead
+  SubmapAssociationOptions association;
   // Join validation (beyond the papers): after the update, the new factor's normalised
   // residual rᵀQ⁻¹r at the new estimate is tested against χ²_{2m}(validation_probability),
   // m the features matched to existing landmarks; a join that fails is undone and the
@@ -81,45 +62,27 @@ struct EifJoinerOptions {
   absl::Status Validate() const;
 };
 
-struct EifJoinerCounters {
-  long joins = 0;
-  long associated = 0;      // features matched to an existing landmark
-  long new_landmarks = 0;
-  long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
-  long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
-  long rejected_joins = 0;    // failed validation: joined again without associations
-};
-
-class EifJoiner {
+class EifJoiner final : public MapJoiner {
  public:
   EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options);
   ~EifJoiner();
 
   // Joins the next local map (its start anchor is the last anchor). Errors: an invalid
   // local map, a start time before the previous end, or a numerically failed factorisation.
-  absl::Status Join(const LocalSubmap& submap);
+  absl::Status Join(const LocalSubmap& submap) override;
   // Relinearises to convergence if relinearize_at_end.
-  absl::Status Finish();
+  absl::Status Finish() override;
+  std::string Name() const override { return "eif"; }
   // Takes the anchors and landmarks of `solved` (the same graph, optimised elsewhere —
   // e.g. by Ceres) as the estimate, relinearises every factor there and re-solves, so the
   // information form and the marginals follow the better estimate.
   absl::Status AdoptEstimate(const SubmapGraph& solved);
 
-  const SubmapGraph& graph() const { return graph_; }
-  int num_anchors() const { return graph_.num_anchors(); }
-  int num_landmarks() const { return graph_.num_landmarks(); }
-  // Current estimates (headings wrapped).
-  Pose2 anchor(int k) const;
-  Eigen::Vector2d landmark(int j) const { return graph_.landmarks()[j]; }
-  // Marginal covariances by sparse solves (anchor 0 is fixed: zero).
-  Eigen::Matrix3d AnchorCovariance(int k) const;
-  Eigen::Matrix2d LandmarkCovariance(int j) const;
-  // Joint marginal covariance of the listed anchors then landmarks (anchor 0 contributes
-  // zero rows and columns).
+  const SubmapGraph& graph() const override { return graph_; }
+  // Marginal covariances by sparse solves with the factor.
   Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
-                                  const std::vector<int>& landmarks) const;
-  // For the last joined map: the global landmark of each feature.
-  const std::vector<int>& last_association() const { return last_association_; }
+                                  const std::vector<int>& landmarks) const override;
+  const std::vector<int>& last_association() const override { return last_association_; }
   // Ids of the local maps whose association failed validation.
   const std::vector<int>& rejected() const { return rejected_; }
   // The information matrix and vector (for tests and tools).
@@ -128,8 +91,8 @@ class EifJoiner {
   // Where a variable sits in Λ and η (−1 for the fixed P0).
   int anchor_offset(int k) const { return anchor_offset_[k]; }
   int landmark_offset(int j) const { return landmark_offset_[j]; }
-  std::map<std::string, double> stage_times() const { return times_; }
-  const EifJoinerCounters& counters() const { return counters_; }
+  std::map<std::string, double> stage_times() const override { return times_; }
+  const JoinerCounters& counters() const override { return counters_; }
 
  private:
   struct Factor {
@@ -149,7 +112,6 @@ class EifJoiner {
   absl::Status Rebuild(bool only_last_factor);
   absl::Status Relinearize();
   absl::Status JoinWith(const LocalSubmap& submap, bool associate);
-  std::vector<int> Associate(const LocalSubmap& s, int start_anchor);
   Eigen::VectorXd StateVector() const;
   void SetState(const Eigen::VectorXd& x);
 
@@ -164,9 +126,7 @@ class EifJoiner {
   Eigen::VectorXd eta_;
   struct Solver;
   std::unique_ptr<Solver> solver_;
-  std::map<int, int> landmark_of_truth_;  // known association
-  std::vector<double> landmark_signature_sum_;  // of the features associated with it
-  std::vector<int> landmark_signature_count_;
+  SubmapAssociator associator_;
   std::vector<int> last_association_;
   std::vector<int> rejected_;
   struct Snapshot {  // what a rejected join undoes
@@ -177,13 +137,11 @@ class EifJoiner {
     std::vector<Factor> factors;
     Eigen::SparseMatrix<double> Lambda;
     Eigen::VectorXd eta;
-    std::map<int, int> landmark_of_truth;
-    std::vector<double> signature_sum;
-    std::vector<int> signature_count;
-    EifJoinerCounters counters;
+    SubmapAssociator associator;
+    JoinerCounters counters;
   };
   std::map<std::string, double> times_;
-  EifJoinerCounters counters_;
+  JoinerCounters counters_;
   double last_t_end_ = -1e300;
 };
 

@@ -1,0 +1,92 @@
+// Data association of a new local map's features to the global landmarks (Combined SLAM,
+// Algorithm 1), shared by every joiner so they can be compared on identical input:
+//  1. candidate landmarks: those of earlier local maps whose start or end anchor lies
+//     within `anchor_search_radius_m` (2·TH1) of the new map's start anchor, and within
+//     `landmark_search_radius_m` (TH2) of a feature's world position. Both radii grow by
+//     three standard deviations of the start anchor's marginal uncertainty (position, and
+//     heading × the feature's distance; ours), so a loop is still found after a long drift;
+//  2. the joint marginal covariance Σ of the start anchor and the candidates only is asked
+//     of the joiner (sparse solves in the EIF, a sub-block in the EKF);
+//  3. each pair's innovation ν = P_s⁻¹ · L_j − l_i (start frame, metres) with
+//     S = J Σ Jᵀ + Q_ii is gated at χ²₂(gate_probability) (plus the signature cue when
+//     both have one: (Δs/σ)² added to d² and 3 dof);
+//  4. the hypothesis is chosen by joint compatibility (JCBB, default: the pairings' joint
+//     innovation, with the local map's own feature correlations Q_ik, must pass χ²_{2k})
+//     or by nearest neighbour; one-to-one either way.
+// Or known association: features with the same truth_id are the same landmark
+// (evaluation studies; unknown or negative truth ids make new landmarks).
+//
+// The associator keeps what association needs beyond the graph: the mean signature of
+// the features joined to each landmark, and the landmark of each truth id. It is a value
+// type, so a joiner that may undo a join copies it.
+#ifndef SUBSLAM_BACKEND_SUBMAP_ASSOCIATION_H_
+#define SUBSLAM_BACKEND_SUBMAP_ASSOCIATION_H_
+
+#include <Eigen/Core>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/graph/local_submap.h"
+#include "subslam/graph/submap_graph.h"
+
+namespace subslam::backend {
+
+struct SubmapAssociationOptions {
+  // 2·TH1 with TH1 ≈ the sensor range, and TH2 (metres).
+  double anchor_search_radius_m = 60.0;
+  double landmark_search_radius_m = 10.0;
+  double gate_probability = 0.99;  // χ²₂ individual gate (and JCBB's joint gate)
+  // true: joint compatibility (JCBB over the map's features); false: nearest neighbour.
+  bool joint_compatibility = true;
+  long jcbb_max_nodes = 20000;
+  // Signature cue: σ of the difference of two signatures (0: off).
+  double sigma_signature = 0.0;
+  bool known_association = false;  // associate by truth_id instead
+
+  absl::Status Validate() const;
+};
+
+// What the joiner reports about one association.
+struct SubmapAssociation {
+  std::vector<int> landmark_of_feature;  // −1: a new landmark
+  bool jcbb_truncated = false;           // JCBB hit its node budget
+  double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
+};
+
+class SubmapAssociator {
+ public:
+  // Joint marginal covariance of the listed anchors then landmarks (3 rows per anchor,
+  // 2 per landmark; a fixed anchor has zero rows and columns).
+  using JointCovarianceFn = std::function<Eigen::MatrixXd(const std::vector<int>& anchors,
+                                                          const std::vector<int>& landmarks)>;
+
+  explicit SubmapAssociator(const SubmapAssociationOptions& options);
+
+  const SubmapAssociationOptions& options() const { return options_; }
+
+  // Associates the features of `submap`, which starts at anchor `start_anchor` of `graph`
+  // (the current estimate), with the landmarks of `graph`.
+  SubmapAssociation Associate(const LocalSubmap& submap, int start_anchor, const SubmapGraph& graph,
+                              const JointCovarianceFn& joint_covariance) const;
+
+  // After the join: `landmark_of_feature` is the final landmark of each feature; landmarks
+  // numbered `first_new_landmark` and up were created by this join. Records signatures and,
+  // if `define_truth`, the truth ids of the new landmarks.
+  void Record(const LocalSubmap& submap, const std::vector<int>& landmark_of_feature,
+              int first_new_landmark, bool define_truth);
+
+ private:
+  double MeanSignature(int landmark) const;
+
+  SubmapAssociationOptions options_;
+  std::vector<double> signature_sum_;  // per landmark
+  std::vector<int> signature_count_;
+  std::map<int, int> landmark_of_truth_;
+};
+
+}  // namespace subslam::backend
+
+#endif  // SUBSLAM_BACKEND_SUBMAP_ASSOCIATION_H_

@@ -1,0 +1,163 @@
+#include "subslam/backend/submap_association.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/time/clock.h"
+#include "subslam/frontend/data_association.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::backend {
+
+absl::Status SubmapAssociationOptions::Validate() const {
+  if (!(anchor_search_radius_m >= 0 && landmark_search_radius_m >= 0)) {
+    return absl::InvalidArgumentError("search radii must be >= 0");
+  }
+  if (!(gate_probability > 0 && gate_probability < 1)) {
+    return absl::InvalidArgumentError("gate_probability must be in (0, 1)");
+  }
+  if (!(sigma_signature >= 0 && std::isfinite(sigma_signature))) {
+    return absl::InvalidArgumentError("sigma_signature must be finite and >= 0");
+  }
+  if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
+  return absl::OkStatus();
+}
+
+SubmapAssociator::SubmapAssociator(const SubmapAssociationOptions& options) : options_(options) {}
+
+double SubmapAssociator::MeanSignature(int landmark) const {
+  if (landmark >= static_cast<int>(signature_count_.size()) || signature_count_[landmark] == 0) return NAN;
+  return signature_sum_[landmark] / signature_count_[landmark];
+}
+
+void SubmapAssociator::Record(const LocalSubmap& s, const std::vector<int>& landmark_of_feature,
+                              int first_new_landmark, bool define_truth) {
+  int needed = 0;
+  for (int j : landmark_of_feature) needed = std::max(needed, j + 1);
+  if (needed > static_cast<int>(signature_sum_.size())) {
+    signature_sum_.resize(needed, 0.0);
+    signature_count_.resize(needed, 0);
+  }
+  for (int i = 0; i < s.num_landmarks(); ++i) {
+    const int j = landmark_of_feature[i];
+    if (std::isfinite(s.landmarks[i].signature)) {
+      signature_sum_[j] += s.landmarks[i].signature;
+      ++signature_count_[j];
+    }
+    const std::optional<int>& t = s.landmarks[i].truth_id;
+    if (define_truth && j >= first_new_landmark && t.has_value() && *t >= 0) landmark_of_truth_[*t] = j;
+  }
+}
+
+SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_anchor,
+                                              const SubmapGraph& graph,
+                                              const JointCovarianceFn& joint_covariance) const {
+  const int n = s.num_landmarks();
+  SubmapAssociation out;
+  out.landmark_of_feature.assign(n, -1);
+  if (options_.known_association) {
+    for (int i = 0; i < n; ++i) {
+      const std::optional<int>& t = s.landmarks[i].truth_id;
+      if (!t.has_value() || *t < 0) continue;  // unknown or false alarm: a new landmark
+      auto it = landmark_of_truth_.find(*t);
+      if (it != landmark_of_truth_.end()) out.landmark_of_feature[i] = it->second;
+    }
+    return out;
+  }
+  const auto timed_covariance = [&](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+    const absl::Time t0 = absl::Now();
+    Eigen::MatrixXd m = joint_covariance(anchors, landmarks);
+    out.covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
+    return m;
+  };
+  const Pose2 P_s = graph.anchors()[start_anchor];
+  const Eigen::Matrix3d Sigma_s = timed_covariance({start_anchor}, {});
+  const double sigma_xy =
+      std::sqrt(std::max(0.0, Sigma_s.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff()));
+  const double sigma_theta = std::sqrt(std::max(0.0, Sigma_s(2, 2)));
+  std::vector<char> is_candidate(graph.num_landmarks(), 0);
+  const double r1 = options_.anchor_search_radius_m + 3.0 * sigma_xy;
+  for (const SubmapFactor& f : graph.factors()) {
+    const bool near = (graph.anchors()[f.start_anchor].translation() - P_s.translation()).norm() <= r1 ||
+                      (graph.anchors()[f.end_anchor].translation() - P_s.translation()).norm() <= r1;
+    if (!near) continue;
+    for (int j : f.landmark_of_feature) is_candidate[j] = 1;
+  }
+  std::vector<Eigen::Vector2d> world(n);
+  std::vector<double> r2(n);
+  for (int i = 0; i < n; ++i) {
+    world[i] = TransformFrom(P_s, s.landmark(i));
+    r2[i] = options_.landmark_search_radius_m + 3.0 * (sigma_xy + sigma_theta * s.landmark(i).norm());
+  }
+  std::vector<int> candidates;
+  for (int j = 0; j < graph.num_landmarks(); ++j) {
+    if (!is_candidate[j]) continue;
+    for (int i = 0; i < n; ++i) {
+      if ((graph.landmarks()[j] - world[i]).norm() <= r2[i]) {
+        candidates.push_back(j);
+        break;
+      }
+    }
+  }
+  if (candidates.empty()) return out;
+  const Eigen::MatrixXd Sigma = timed_covariance({start_anchor}, candidates);
+  // Individual compatibility of each (feature, candidate) pair.
+  const int c_count = static_cast<int>(candidates.size());
+  std::vector<Matrix23d> J_frame(c_count);
+  std::vector<Eigen::Matrix2d> J_point(c_count);
+  std::vector<Eigen::Vector2d> predicted(c_count);
+  for (int c = 0; c < c_count; ++c) {
+    predicted[c] = TransformTo(P_s, graph.landmarks()[candidates[c]], &J_frame[c], &J_point[c]);
+  }
+  // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate].
+  const auto cross = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
+    const int oa = 3 + 2 * a, ob = 3 + 2 * b;
+    Eigen::Matrix2d m = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
+                        J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
+                        J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
+                        J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
+    m += s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
+    return m;
+  };
+  const double gate2 = models::ChiSquareQuantile(options_.gate_probability, 2);
+  const double gate3 = models::ChiSquareQuantile(options_.gate_probability, 3);
+  frontend::AssociationProblem problem;
+  problem.candidates.resize(n);
+  for (int c = 0; c < c_count; ++c) {
+    const int j = candidates[c];
+    const double sig_l = MeanSignature(j);
+    for (int i = 0; i < n; ++i) {
+      if ((graph.landmarks()[j] - world[i]).norm() > r2[i]) continue;
+      const Eigen::Vector2d nu = predicted[c] - s.landmark(i);
+      const std::optional<double> d2 = models::MahalanobisSquared2(nu, cross(i, c, i, c));
+      if (!d2.has_value()) continue;
+      double score = *d2, gate = gate2;
+      if (options_.sigma_signature > 0 && std::isfinite(s.landmarks[i].signature) && std::isfinite(sig_l)) {
+        const double ds = (s.landmarks[i].signature - sig_l) / options_.sigma_signature;
+        score += ds * ds;
+        gate = gate3;
+      }
+      if (score < gate) problem.candidates[i].push_back({c, score, nu});
+    }
+  }
+  for (auto& list : problem.candidates) {
+    std::sort(list.begin(), list.end(), [](const auto& a, const auto& b) {
+      return a.d2 < b.d2 || (a.d2 == b.d2 && a.landmark < b.landmark);
+    });
+  }
+  frontend::AssociationResult result;
+  if (options_.joint_compatibility) {
+    problem.covariance_block = cross;
+    result = frontend::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
+    out.jcbb_truncated = result.truncated;
+  } else {
+    result = frontend::NearestNeighbour(problem);
+  }
+  for (int i = 0; i < n; ++i) {
+    if (result.landmark_of_detection[i] >= 0) out.landmark_of_feature[i] = candidates[result.landmark_of_detection[i]];
+  }
+  return out;
+}
+
+}  // namespace subslam::backend
