@@ -1,0 +1,304 @@
+#include "subslam/backend/ekf_joiner.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "subslam/backend/submap_factor.h"
+#include "subslam/frontend/internal/stage_timer.h"
+#include "subslam/graph/internal/check.h"
+
+namespace subslam::backend {
+using frontend::StageTimer;
+
+absl::Status EkfJoinerOptions::Validate() const { return association.Validate(); }
+
+EkfJoiner::EkfJoiner(const Pose2& initial_pose, const EkfJoinerOptions& options)
+    : options_(options), graph_(initial_pose), associator_(options.association) {
+  SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
+  anchor_offset_.push_back(-1);  // P0 is fixed
+  for (const char* stage : {"association", "covariance_recovery", "augmentation", "update", "marginalization"}) {
+    times_[stage] = 0.0;
+  }
+}
+
+Pose2 EkfJoiner::StatePose(int k) const {
+  const int o = anchor_offset_[k];
+  if (o < 0) return graph_.anchors()[k];  // P0, or frozen (its heading is only needed wrapped)
+  return Pose2(x_[o], x_[o + 1], x_[o + 2]);
+}
+
+void EkfJoiner::WriteBack() {
+  for (int k = 1; k < graph_.num_anchors(); ++k) {
+    const int o = anchor_offset_[k];
+    if (o >= 0) graph_.anchor(k) = Pose2(x_[o], x_[o + 1], WrapAngle(x_[o + 2]));
+  }
+  for (int j = 0; j < graph_.num_landmarks(); ++j) graph_.landmark(j) = x_.segment<2>(landmark_offset_[j]);
+}
+
+Eigen::MatrixXd EkfJoiner::JointCovariance(const std::vector<int>& anchors,
+                                           const std::vector<int>& landmarks) const {
+  std::vector<int> offsets, sizes;
+  for (int k : anchors) {
+    offsets.push_back(anchor_offset_[k]);
+    sizes.push_back(3);
+  }
+  for (int j : landmarks) {
+    offsets.push_back(landmark_offset_[j]);
+    sizes.push_back(2);
+  }
+  int total = 0;
+  for (int s : sizes) total += s;
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(total, total);
+  int r = 0;
+  for (size_t a = 0; a < offsets.size(); ++a) {
+    if (offsets[a] < 0) {  // P0 (zero) or an anchor marginalised out (frozen, uncorrelated)
+      if (a < anchors.size() && anchors[a] > 0) out.block<3, 3>(r, r) = frozen_covariance_[anchors[a]];
+      r += sizes[a];
+      continue;
+    }
+    int c = 0;
+    for (size_t b = 0; b < offsets.size(); ++b) {
+      if (offsets[b] >= 0) out.block(r, c, sizes[a], sizes[b]) = P_.block(offsets[a], offsets[b], sizes[a], sizes[b]);
+      c += sizes[b];
+    }
+    r += sizes[a];
+  }
+  return out;
+}
+
+std::vector<int> EkfJoiner::Augment(const LocalSubmap& s, int start, const std::vector<int>& blocks) {
+  const Pose2 P_s = StatePose(start);
+  const int N = static_cast<int>(x_.size());
+  std::vector<int> z_rows, offsets;
+  int a = 0;
+  for (int b : blocks) {
+    offsets.push_back(N + a);
+    const int first = b == 0 ? 0 : 3 + 2 * (b - 1), size = b == 0 ? 3 : 2;
+    for (int i = 0; i < size; ++i) z_rows.push_back(first + i);
+    a += size;
+  }
+  Eigen::MatrixXd G_s(a, 3), G_z = Eigen::MatrixXd::Zero(a, a);
+  Eigen::VectorXd x_new(a);
+  int row = 0;
+  for (int b : blocks) {
+    if (b == 0) {
+      Eigen::Matrix3d J_a, J_b;
+      const Pose2 end_local = s.end_pose();
+      const Pose2 e = Compose(P_s, end_local, &J_a, &J_b);
+      x_new.segment<3>(row) << e.x, e.y, P_s.theta + end_local.theta;  // continuous heading
+      G_s.middleRows<3>(row) = J_a;
+      G_z.block<3, 3>(row, row) = J_b;
+      row += 3;
+    } else {
+      Matrix23d J_frame;
+      Eigen::Matrix2d J_point;
+      x_new.segment<2>(row) = TransformFrom(P_s, s.landmark(b - 1), &J_frame, &J_point);
+      G_s.middleRows<2>(row) = J_frame;
+      G_z.block<2, 2>(row, row) = J_point;
+      row += 2;
+    }
+  }
+  const Eigen::MatrixXd Q_sel = s.covariance(z_rows, z_rows);
+  Eigen::MatrixXd P_new = G_z * Q_sel * G_z.transpose();
+  Eigen::MatrixXd cross;  // N × a
+  const int os = anchor_offset_[start];
+  if (os >= 0) {
+    cross = P_.middleCols<3>(os) * G_s.transpose();
+    P_new += G_s * P_.block<3, 3>(os, os) * G_s.transpose();
+  }
+  P_.conservativeResize(N + a, N + a);
+  x_.conservativeResize(N + a);
+  x_.tail(a) = x_new;
+  if (os >= 0) {
+    P_.topRightCorner(N, a) = cross;
+    P_.bottomLeftCorner(a, N) = cross.transpose();
+  } else {
+    P_.topRightCorner(N, a).setZero();
+    P_.bottomLeftCorner(a, N).setZero();
+  }
+  P_.bottomRightCorner(a, a) = 0.5 * (P_new + P_new.transpose());
+  return offsets;
+}
+
+void EkfJoiner::SubtractOuter(const Eigen::MatrixXd& W) {
+  // Lower triangle by a rank update (half the flops), then mirrored.
+  P_.selfadjointView<Eigen::Lower>().rankUpdate(W, -1.0);
+  P_.triangularView<Eigen::StrictlyUpper>() = P_.transpose();
+}
+
+void EkfJoiner::FuseZeroNoise(const std::vector<std::pair<int, int>>& pairs) {
+  const int N = static_cast<int>(x_.size()), m = static_cast<int>(pairs.size());
+  Eigen::MatrixXd PH(N, 2 * m);  // P Hᵀ for H = [… I (copy) … −I (landmark) …]
+  Eigen::VectorXd nu(2 * m);     // 0 − (ĉ − L̂)
+  for (int p = 0; p < m; ++p) {
+    const auto [oc, oj] = pairs[p];
+    PH.middleCols<2>(2 * p) = P_.middleCols<2>(oc) - P_.middleCols<2>(oj);
+    nu.segment<2>(2 * p) = x_.segment<2>(oj) - x_.segment<2>(oc);
+  }
+  Eigen::MatrixXd S(2 * m, 2 * m);
+  for (int p = 0; p < m; ++p) {
+    const auto [oc, oj] = pairs[p];
+    S.middleRows<2>(2 * p) = PH.middleRows<2>(oc) - PH.middleRows<2>(oj);
+  }
+  S = 0.5 * (S + S.transpose());
+  const Eigen::LLT<Eigen::MatrixXd> llt(S);
+  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "EKF join: fusion innovation covariance not positive definite";
+  // K = PH S⁻¹; with S = L Lᵀ and W = PH L⁻ᵀ: x += W L⁻¹ ν, P −= W Wᵀ.
+  const Eigen::MatrixXd W = llt.matrixL().solve(PH.transpose()).transpose();
+  x_ += W * llt.matrixL().solve(nu);
+  SubtractOuter(W);
+}
+
+absl::Status EkfJoiner::FuseConditional(const LocalSubmap& s, int start, int end,
+                                        const std::vector<int>& landmark_of_feature,
+                                        const std::vector<char>& matched) {
+  const int n = s.num_landmarks();
+  std::vector<Eigen::Vector2d> landmarks;
+  for (int j : landmark_of_feature) landmarks.push_back(x_.segment<2>(landmark_offset_[j]));
+  const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, StatePose(start), StatePose(end), landmarks);
+  // Columns: the variables' state indices and the Jacobian over them.
+  std::vector<int> state_index;
+  const bool start_free = anchor_offset_[start] >= 0;
+  const int cols = (start_free ? 3 : 0) + 3 + 2 * n;
+  Eigen::MatrixXd J(lin.residual.size(), cols);
+  int c = 0;
+  if (start_free) {
+    J.middleCols<3>(c) = lin.J_start;
+    for (int i = 0; i < 3; ++i) state_index.push_back(anchor_offset_[start] + i);
+    c += 3;
+  }
+  J.middleCols<3>(c) = lin.J_end;
+  for (int i = 0; i < 3; ++i) state_index.push_back(anchor_offset_[end] + i);
+  c += 3;
+  J.rightCols(2 * n) = lin.J_landmarks;
+  for (int i = 0; i < n; ++i) {
+    for (int d = 0; d < 2; ++d) state_index.push_back(landmark_offset_[landmark_of_feature[i]] + d);
+  }
+  std::vector<int> rows_n = {0, 1, 2}, rows_m;
+  for (int i = 0; i < n; ++i) {
+    std::vector<int>& rows = matched[i] ? rows_m : rows_n;
+    rows.push_back(3 + 2 * i);
+    rows.push_back(4 + 2 * i);
+  }
+  // Condition the matched rows on the augmented ones: C = Q_MN Q_NN⁻¹.
+  const Eigen::MatrixXd Q_NN = s.covariance(rows_n, rows_n), Q_MN = s.covariance(rows_m, rows_n);
+  const Eigen::LLT<Eigen::MatrixXd> llt_n(Q_NN);
+  if (llt_n.info() != Eigen::Success) return absl::InternalError("EKF join: Q_NN not positive definite");
+  const Eigen::MatrixXd C = llt_n.solve(Q_MN.transpose()).transpose();
+  const Eigen::MatrixXd H = J(rows_m, Eigen::placeholders::all) - C * J(rows_n, Eigen::placeholders::all);
+  const Eigen::MatrixXd R = s.covariance(rows_m, rows_m) - C * Q_MN.transpose();
+  const Eigen::VectorXd nu = -(lin.residual(rows_m) - C * lin.residual(rows_n));
+  const Eigen::MatrixXd PH = P_(Eigen::placeholders::all, state_index) * H.transpose();  // N × 2m
+  Eigen::MatrixXd S = H * PH(state_index, Eigen::placeholders::all) + R;
+  S = 0.5 * (S + S.transpose());
+  const Eigen::LLT<Eigen::MatrixXd> llt(S);
+  if (llt.info() != Eigen::Success) return absl::InternalError("EKF join: innovation covariance not positive definite");
+  const Eigen::MatrixXd W = llt.matrixL().solve(PH.transpose()).transpose();
+  x_ += W * llt.matrixL().solve(nu);
+  SubtractOuter(W);
+  return absl::OkStatus();
+}
+
+void EkfJoiner::DropVariable(int offset, int size) {
+  const int N = static_cast<int>(x_.size()), tail = N - offset - size;
+  if (tail > 0) {
+    P_.block(offset, 0, tail, offset) = P_.block(offset + size, 0, tail, offset).eval();
+    P_.block(0, offset, offset, tail) = P_.block(0, offset + size, offset, tail).eval();
+    P_.block(offset, offset, tail, tail) = P_.block(offset + size, offset + size, tail, tail).eval();
+    x_.segment(offset, tail) = x_.segment(offset + size, tail).eval();
+  }
+  P_.conservativeResize(N - size, N - size);
+  x_.conservativeResize(N - size);
+  for (int& o : anchor_offset_) {
+    if (o > offset) o -= size;
+  }
+  for (int& o : landmark_offset_) {
+    if (o > offset) o -= size;
+  }
+}
+
+absl::Status EkfJoiner::Join(const LocalSubmap& s) {
+  if (absl::Status v = s.Validate(); !v.ok()) return v;
+  if (s.t_start < last_t_end_ - 1e-9) {
+    return absl::InvalidArgumentError(absl::StrCat("local map ", s.id, " starts at ", s.t_start,
+                                                   " before the previous one ended (", last_t_end_, ")"));
+  }
+  const int start = graph_.num_anchors() - 1;
+  const int n = s.num_landmarks();
+  std::vector<int> assoc;
+  {
+    StageTimer timer(&times_, "association");
+    SubmapAssociation a = associator_.Associate(
+        s, start, graph_, [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+          return JointCovariance(anchors, landmarks);
+        });
+    assoc = std::move(a.landmark_of_feature);
+    times_["covariance_recovery"] += a.covariance_seconds;
+    if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  }
+  std::vector<char> matched(n, 0);
+  std::vector<int> blocks = {0};
+  for (int i = 0; i < n; ++i) {
+    matched[i] = assoc[i] >= 0;
+    if (!matched[i]) blocks.push_back(1 + i);
+  }
+  const bool zero_noise = options_.fusion == EkfFusion::kZeroNoiseConstraint;
+  if (zero_noise) {  // the matched features' copies go last, to be dropped after fusion
+    for (int i = 0; i < n; ++i) {
+      if (matched[i]) blocks.push_back(1 + i);
+    }
+  }
+  const int first_new_landmark = graph_.num_landmarks();
+  std::vector<int> offsets;
+  {
+    StageTimer timer(&times_, "augmentation");
+    offsets = Augment(s, start, blocks);
+  }
+  const int end = graph_.AddAnchor(Pose2());
+  anchor_offset_.push_back(offsets[0]);
+  frozen_covariance_.resize(graph_.num_anchors(), Eigen::Matrix3d::Zero());
+  std::vector<std::pair<int, int>> copies;
+  for (size_t b = 1; b < blocks.size(); ++b) {
+    const int i = blocks[b] - 1;
+    if (matched[i]) {
+      copies.emplace_back(offsets[b], landmark_offset_[assoc[i]]);
+    } else {
+      assoc[i] = graph_.AddLandmark(Eigen::Vector2d::Zero());
+      landmark_offset_.push_back(offsets[b]);
+      ++counters_.new_landmarks;
+    }
+  }
+  const long num_matched = static_cast<long>(std::count(matched.begin(), matched.end(), 1));
+  counters_.associated += num_matched;
+  {
+    StageTimer timer(&times_, "update");
+    if (zero_noise && !copies.empty()) {
+      FuseZeroNoise(copies);
+      const int keep = static_cast<int>(x_.size()) - 2 * static_cast<int>(copies.size());
+      P_.conservativeResize(keep, keep);
+      x_.conservativeResize(keep);
+    } else if (!zero_noise && num_matched > 0) {
+      if (absl::Status st = FuseConditional(s, start, end, assoc, matched); !st.ok()) return st;
+    }
+  }
+  if (!options_.keep_anchors && start > 0) {
+    StageTimer timer(&times_, "marginalization");
+    frozen_covariance_[start] = P_.block<3, 3>(anchor_offset_[start], anchor_offset_[start]);
+    graph_.anchor(start) = Pose2(x_[anchor_offset_[start]], x_[anchor_offset_[start] + 1],
+                                 WrapAngle(x_[anchor_offset_[start] + 2]));
+    DropVariable(anchor_offset_[start], 3);
+    anchor_offset_[start] = -1;
+  }
+  if (!x_.allFinite() || !P_.allFinite()) return absl::InternalError("EKF join produced a non-finite value");
+  WriteBack();
+  associator_.Record(s, assoc, first_new_landmark, /*define_truth=*/true);
+  graph_.AddFactor({s, start, end, assoc});
+  last_association_ = assoc;
+  last_t_end_ = s.t_end;
+  ++counters_.joins;
+  return absl::OkStatus();
+}
+
+}  // namespace subslam::backend
