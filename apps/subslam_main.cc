@@ -70,7 +70,15 @@ ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
           "fastslam / rbpf: sigma of the signature cue (0: cue off)");
 ABSL_FLAG(std::string, backend, "none",
           "rbpf / ekf: how local maps are joined: none (chained end to start) | eif | ceres "
-          "(EIF association, then a Ceres solve of the whole graph at the end)");
+          "(EIF association, then a Ceres solve of the whole graph at the end) | ekf (dense "
+          "EKF map joining, the baseline)");
+ABSL_FLAG(std::string, ekf_fusion, "zero-noise",
+          "ekf back-end: how matched features are fused: zero-noise (HybridSLAM: augment, "
+          "constrain copy = landmark, drop the copy) | conditional (the EIF's update in "
+          "covariance form)");
+ABSL_FLAG(bool, ekf_keep_anchors, true,
+          "ekf back-end: keep every anchor in the state (false: marginalise each start "
+          "anchor once joined, as the papers' baseline)");
 ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | dogleg | gn (Gauss-Newton)");
 ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
 ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
@@ -182,6 +190,23 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   return o;
 }
 
+// Association options are the EIF's, so both joiners associate alike.
+absl::StatusOr<subslam::backend::EkfJoinerOptions> EkfJoinOptionsFromFlags() {
+  subslam::backend::EkfJoinerOptions o;
+  o.association = EifOptionsFromFlags().association;
+  const std::string fusion = absl::GetFlag(FLAGS_ekf_fusion);
+  if (fusion == "zero-noise") {
+    o.fusion = subslam::backend::EkfFusion::kZeroNoiseConstraint;
+  } else if (fusion == "conditional") {
+    o.fusion = subslam::backend::EkfFusion::kConditionalUpdate;
+  } else {
+    return absl::InvalidArgumentError("--ekf_fusion must be zero-noise or conditional");
+  }
+  o.keep_anchors = absl::GetFlag(FLAGS_ekf_keep_anchors);
+  if (absl::Status s = o.Validate(); !s.ok()) return s;
+  return o;
+}
+
 absl::StatusOr<subslam::backend::CeresSolveOptions> CeresOptionsFromFlags() {
   subslam::backend::CeresSolveOptions o;
   const std::string method = absl::GetFlag(FLAGS_ceres_method);
@@ -213,13 +238,18 @@ int Join() {
   const std::string path = absl::GetFlag(FLAGS_submaps);
   if (path.empty()) return Fail(absl::InvalidArgumentError("join needs --submaps FILE"));
   const std::string backend = absl::GetFlag(FLAGS_backend);
-  if (backend != "eif" && backend != "ceres") {
-    return Fail(absl::InvalidArgumentError("join needs --backend eif or ceres"));
+  if (backend != "eif" && backend != "ceres" && backend != "ekf") {
+    return Fail(absl::InvalidArgumentError("join needs --backend eif, ceres or ekf"));
   }
   auto submaps = subslam::io::ReadSubmapsJsonl(path);
   if (!submaps.ok()) return Fail(submaps.status());
   subslam::app::JoinOptions options;
   options.eif = EifOptionsFromFlags();
+  if (backend == "ekf") {
+    auto ekf = EkfJoinOptionsFromFlags();
+    if (!ekf.ok()) return Fail(ekf.status());
+    options.ekf = *ekf;
+  }
   if (backend == "ceres") {
     auto ceres = CeresOptionsFromFlags();
     if (!ceres.ok()) return Fail(ceres.status());
@@ -275,6 +305,9 @@ int Run() {
   if (!backend.ok()) return Fail(backend.status());
   options.backend = *backend;
   options.eif = EifOptionsFromFlags();
+  auto ekf_join = EkfJoinOptionsFromFlags();
+  if (!ekf_join.ok()) return Fail(ekf_join.status());
+  options.ekf_join = *ekf_join;
   auto ceres = CeresOptionsFromFlags();
   if (!ceres.ok()) return Fail(ceres.status());
   options.ceres = *ceres;
@@ -336,7 +369,7 @@ int main(int argc, char** argv) {
       "  subslam simulate --scenario NAME [--seed S] --out DIR\n"
       "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf|ekf "
       "--out DIR\n"
-      "  subslam join --submaps FILE --backend eif|ceres [--known_association] "
+      "  subslam join --submaps FILE --backend eif|ceres|ekf [--known_association] "
       "[--dataset DIR | --scenario NAME --seed S] --out DIR\n"
       "  subslam scenarios");
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);

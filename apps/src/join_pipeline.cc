@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <set>
 
 #include "absl/strings/str_cat.h"
@@ -15,9 +16,17 @@ namespace subslam::app {
 
 absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options) {
   if (absl::Status s = options.eif.Validate(); !s.ok()) return s;
+  if (options.ekf) {
+    if (absl::Status s = options.ekf->Validate(); !s.ok()) return s;
+  }
   if (submaps.empty()) return absl::InvalidArgumentError("no local maps to join");
-  backend::EifJoiner eif(options.initial_pose, options.eif);
-  JoinResult r;
+  std::unique_ptr<backend::MapJoiner> joiner;
+  if (options.ekf) {
+    joiner = std::make_unique<backend::EkfJoiner>(options.initial_pose, *options.ekf);
+  } else {
+    joiner = std::make_unique<backend::EifJoiner>(options.initial_pose, options.eif);
+  }
+    JoinResult r;
   const absl::Time start = absl::Now();
   // Association bookkeeping against truth ids: global landmark → true ids joined to it.
   std::map<int, std::set<int>> truths_of_global;
@@ -25,13 +34,13 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   std::map<int, std::pair<int, int>> last_seen;  // truth id → (local map index, global id)
   int map_index = 0;
   for (const LocalSubmap& s : submaps) {
-    if (absl::Status st = eif.Join(s); !st.ok()) {
+    if (absl::Status st = joiner->Join(s); !st.ok()) {
       return absl::Status(st.code(), absl::StrCat("joining local map ", s.id, ": ", st.message()));
     }
     for (int i = 0; i < s.num_landmarks(); ++i) {
       const std::optional<int>& t = s.landmarks[i].truth_id;
       if (!t.has_value() || *t < 0) continue;
-      const int g = eif.last_association()[i];
+      const int g = joiner->last_association()[i];
       truths_of_global[g].insert(*t);
       globals_of_truth[*t].insert(g);
       auto seen = last_seen.find(*t);
@@ -44,13 +53,13 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     }
     ++map_index;
   }
-  if (absl::Status st = eif.Finish(); !st.ok()) return st;
+  if (absl::Status st = joiner->Finish(); !st.ok()) return st;
   std::optional<SubmapGraph> solved;
-  std::vector<int> all_anchors(eif.num_anchors());
-  for (int k = 0; k < eif.num_anchors(); ++k) all_anchors[k] = k;
+  std::vector<int> all_anchors(joiner->num_anchors());
+  for (int k = 0; k < joiner->num_anchors(); ++k) all_anchors[k] = k;
   std::vector<Eigen::Matrix3d> ceres_covariances;
   if (options.ceres) {
-    SubmapGraph g = eif.graph();
+    SubmapGraph g = joiner->graph();
     absl::StatusOr<backend::CeresSolveReport> c =
         backend::SolveWithCeres(&g, *options.ceres, all_anchors, &ceres_covariances);
     if (!c.ok()) return c.status();
@@ -58,12 +67,12 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     solved = std::move(g);
   }
   r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
-  // Marginal covariances of every anchor: the EIF's sparse solves (timed, for comparison
-  // with ceres::Covariance), or Ceres's at its solution.
+  // Marginal covariances of every anchor: the joiner's (timed, for comparison with
+  // ceres::Covariance), or Ceres's at its solution.
   const absl::Time covariance_start = absl::Now();
-  std::vector<Eigen::Matrix3d> eif_covariances;
-  for (int k : all_anchors) eif_covariances.push_back(eif.AnchorCovariance(k));
-  const double eif_covariance_seconds = absl::ToDoubleSeconds(absl::Now() - covariance_start);
+  std::vector<Eigen::Matrix3d> joiner_covariances;
+  for (int k : all_anchors) joiner_covariances.push_back(joiner->AnchorCovariance(k));
+  const double joiner_covariance_seconds = absl::ToDoubleSeconds(absl::Now() - covariance_start);
   for (const auto& [g, truths] : truths_of_global) r.wrong += static_cast<long>(truths.size()) - 1;
   for (const auto& [t, globals] : globals_of_truth) {
     r.missed += static_cast<long>(globals.size()) - 1;
@@ -72,13 +81,13 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   r.local_maps = static_cast<int>(submaps.size());
   r.anchor_times.push_back(submaps.front().t_start);
   for (const LocalSubmap& s : submaps) r.anchor_times.push_back(s.t_end);
-  for (int k = 0; k < eif.num_anchors(); ++k) {
-    r.anchors.push_back({r.anchor_times[k], solved ? solved->anchors()[k] : eif.anchor(k),
-                         solved ? ceres_covariances[k] : eif_covariances[k]});
+  for (int k = 0; k < joiner->num_anchors(); ++k) {
+    r.anchors.push_back({r.anchor_times[k], solved ? solved->anchors()[k] : joiner->anchor(k),
+                         solved ? ceres_covariances[k] : joiner_covariances[k]});
   }
-  for (int j = 0; j < eif.num_landmarks(); ++j) {
-    r.landmarks.push_back({j, solved ? solved->landmarks()[j] : eif.landmark(j),
-                           eif.LandmarkCovariance(j)});
+  for (int j = 0; j < joiner->num_landmarks(); ++j) {
+    r.landmarks.push_back({j, solved ? solved->landmarks()[j] : joiner->landmark(j),
+                           joiner->LandmarkCovariance(j)});
   }
 
   nlohmann::json metrics = nlohmann::json::object();
@@ -97,10 +106,10 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                                         {"reobserved_loop_merged", r.loop_merged},
                                         {"reobserved_loop_missed", r.loop_missed}};
   nlohmann::json stages = nlohmann::json::object();
-  for (const auto& [stage, seconds] : eif.stage_times()) stages[stage] = seconds;
+  for (const auto& [stage, seconds] : joiner->stage_times()) stages[stage] = seconds;
   r.report = {{"format", "subslam-join-report/1"},
               {"configuration",
-               {{"backend", options.ceres ? "ceres" : "eif"},
+               {{"backend", options.ceres ? std::string("ceres") : joiner->Name()},
                 {"known_association", options.eif.association.known_association},
                 {"anchor_search_radius_m", options.eif.association.anchor_search_radius_m},
                 {"landmark_search_radius_m", options.eif.association.landmark_search_radius_m},
@@ -109,15 +118,15 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"relinearize_at_end", options.eif.relinearize_at_end}}},
               {"counts",
                {{"local_maps", r.local_maps},
-                {"anchors", eif.num_anchors()},
-                {"landmarks", eif.num_landmarks()},
-                {"associated_features", eif.counters().associated},
-                {"rejected_joins", eif.counters().rejected_joins},
-                {"relinearizations", eif.counters().relinearizations}}},
+                {"anchors", joiner->num_anchors()},
+                {"landmarks", joiner->num_landmarks()},
+                {"associated_features", joiner->counters().associated},
+                {"rejected_joins", joiner->counters().rejected_joins},
+                {"relinearizations", joiner->counters().relinearizations}}},
               {"time_seconds",
                {{"total", r.wall_seconds},
                 {"stages", stages},
-                {"eif_all_anchor_covariances", eif_covariance_seconds},
+                {"joiner_all_anchor_covariances", joiner_covariance_seconds},
                 {"ceres_all_anchor_covariances", r.ceres ? r.ceres->covariance_seconds : 0.0}}},
               {"ceres", r.ceres ? nlohmann::json{{"iterations", r.ceres->iterations},
                                                  {"initial_cost", r.ceres->initial_cost},
@@ -134,7 +143,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     const std::filesystem::path& out = *dir;
     if (auto s = io::WriteTrajectoryCsv((out / "anchors.csv").string(), r.anchors); !s.ok()) return s;
     if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
-    if (auto s = eif.graph().WriteG2o((out / "graph.g2o").string()); !s.ok()) return s;
+    if (auto s = joiner->graph().WriteG2o((out / "graph.g2o").string()); !s.ok()) return s;
     if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;
   }
   return r;

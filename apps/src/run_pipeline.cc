@@ -156,9 +156,10 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     }
     if (absl::Status st = options.eif.Validate(); !st.ok()) return st;
     if (absl::Status st = options.ceres.Validate(); !st.ok()) return st;
+    if (absl::Status st = options.ekf_join.Validate(); !st.ok()) return st;
     auto chained = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose,
                                                 options.backend, options.eif, options.ceres,
-                                                options.ceres_every);
+                                                options.ceres_every, options.ekf_join);
     chain = chained.get();
     estimator = std::move(chained);
   } else if (options.frontend == Frontend::kFastSlam) {

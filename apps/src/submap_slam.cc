@@ -12,21 +12,23 @@ const char* ToString(Backend backend) {
     case Backend::kNone: return "none";
     case Backend::kEif: return "eif";
     case Backend::kCeres: return "ceres";
+    case Backend::kEkf: return "ekf";
   }
   return "?";
 }
 
 absl::StatusOr<Backend> BackendFromString(const std::string& name) {
-  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres}) {
+  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf}) {
     if (name == ToString(b)) return b;
   }
   return absl::InvalidArgumentError(
-      absl::StrCat("unknown back-end \"", name, "\" (expected none, eif or ceres)"));
+      absl::StrCat("unknown back-end \"", name, "\" (expected none, eif, ceres or ekf)"));
 }
 
 SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
                        Backend backend, const backend::EifJoinerOptions& eif,
-                       const backend::CeresSolveOptions& ceres, int ceres_every)
+                       const backend::CeresSolveOptions& ceres, int ceres_every,
+                       const backend::EkfJoinerOptions& ekf_join)
     : mapper_(std::move(mapper)),
       backend_(backend),
       ceres_options_(ceres),
@@ -34,7 +36,13 @@ SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose
       anchor_(initial_pose) {
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
-  if (backend_ != Backend::kNone) eif_ = std::make_unique<backend::EifJoiner>(initial_pose, eif);
+  if (backend_ == Backend::kEif || backend_ == Backend::kCeres) {
+    auto joiner = std::make_unique<backend::EifJoiner>(initial_pose, eif);
+    eif_ = joiner.get();
+    joiner_ = std::move(joiner);
+  } else if (backend_ == Backend::kEkf) {
+    joiner_ = std::make_unique<backend::EkfJoiner>(initial_pose, ekf_join);
+  }
 }
 
 std::string SubmapSlam::Name() const {
@@ -52,8 +60,8 @@ void SubmapSlam::JoinClosed() {
   if (newly_closed.empty()) return;  // the anchor changes only when a map closes
   for (frontend::ClosedLocalMap& c : newly_closed) {
     const LocalSubmap& s = c.submap;
-    if (eif_) {
-      if (absl::Status st = eif_->Join(s); !st.ok() && status_.ok()) status_ = st;
+    if (joiner_) {
+      if (absl::Status st = joiner_->Join(s); !st.ok() && status_.ok()) status_ = st;
       ++joins_;
       if (backend_ == Backend::kCeres && ceres_every_ > 0 && joins_ % ceres_every_ == 0 && status_.ok()) {
         status_ = SolveAndAdopt();
@@ -88,10 +96,10 @@ absl::Status SubmapSlam::SolveAndAdopt() {
   return absl::OkStatus();
 }
 
-Pose2 SubmapSlam::Anchor(int k) const { return eif_ ? eif_->anchor(k) : chain_[k]; }
+Pose2 SubmapSlam::Anchor(int k) const { return joiner_ ? joiner_->anchor(k) : chain_[k]; }
 
 Eigen::Matrix3d SubmapSlam::AnchorCovariance(int k) const {
-  return eif_ ? eif_->AnchorCovariance(k) : chain_covariance_[k];
+  return joiner_ ? joiner_->AnchorCovariance(k) : chain_covariance_[k];
 }
 
 Pose2 SubmapSlam::pose() const { return Compose(anchor_, mapper_->local_pose()); }
@@ -110,9 +118,9 @@ void SubmapSlam::RecordStep(double t) {
 absl::Status SubmapSlam::Finish() {
   mapper_->Finish();
   JoinClosed();
-  if (eif_ && status_.ok()) status_ = eif_->Finish();
+  if (joiner_ && status_.ok()) status_ = joiner_->Finish();
   if (backend_ == Backend::kCeres && status_.ok()) status_ = SolveAndAdopt();
-  if (eif_) {  // the online pose after the run: on the final estimate
+  if (joiner_) {  // the online pose after the run: on the final estimate
     anchor_ = Anchor(mapper_->current_map_id());
     anchor_covariance_ = AnchorCovariance(mapper_->current_map_id());
   }
@@ -140,9 +148,9 @@ Trajectory SubmapSlam::FinalTrajectory() const {
 
 std::vector<LandmarkEstimate> SubmapSlam::Map() const {
   std::vector<LandmarkEstimate> out;
-  if (eif_) {
-    for (int j = 0; j < eif_->num_landmarks(); ++j) {
-      out.push_back({j, eif_->landmark(j), eif_->LandmarkCovariance(j)});
+  if (joiner_) {
+    for (int j = 0; j < joiner_->num_landmarks(); ++j) {
+      out.push_back({j, joiner_->landmark(j), joiner_->LandmarkCovariance(j)});
     }
     return out;
   }
@@ -162,8 +170,8 @@ std::vector<LandmarkEstimate> SubmapSlam::Map() const {
 
 frontend::StageTimes SubmapSlam::stage_times() const {
   frontend::StageTimes times = mapper_->stage_times();
-  if (eif_) {
-    for (const auto& [stage, seconds] : eif_->stage_times()) times["join_" + stage] = seconds;
+  if (joiner_) {
+    for (const auto& [stage, seconds] : joiner_->stage_times()) times["join_" + stage] = seconds;
   }
   if (ceres_solves_ > 0) times["ceres_solve_and_adopt"] = ceres_seconds_;
   return times;
@@ -171,12 +179,12 @@ frontend::StageTimes SubmapSlam::stage_times() const {
 
 std::map<std::string, double> SubmapSlam::Counters() const {
   std::map<std::string, double> out = mapper_->Counters();
-  if (eif_) {
-    out["join_associated_features"] = eif_->counters().associated;
-    out["join_new_landmarks"] = eif_->counters().new_landmarks;
-    out["join_relinearizations"] = eif_->counters().relinearizations;
-    out["join_rejected"] = eif_->counters().rejected_joins;
-    out["global_landmarks"] = eif_->num_landmarks();
+  if (joiner_) {
+    out["join_associated_features"] = joiner_->counters().associated;
+    out["join_new_landmarks"] = joiner_->counters().new_landmarks;
+    out["join_relinearizations"] = joiner_->counters().relinearizations;
+    out["join_rejected"] = joiner_->counters().rejected_joins;
+    out["global_landmarks"] = joiner_->num_landmarks();
   }
   if (ceres_report_) {
     out["ceres_solves"] = ceres_solves_;

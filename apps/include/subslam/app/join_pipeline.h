@@ -22,6 +22,7 @@
 #include "absl/status/statusor.h"
 #include "subslam/backend/ceres_solver.h"
 #include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/ekf_joiner.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/io/dataset.h"
@@ -29,10 +30,12 @@
 namespace subslam::app {
 
 struct JoinOptions {
+  // The joiner: the EIF (default) or, when `ekf` is set, dense EKF joining.
   backend::EifJoinerOptions eif;
-  // When set, the graph the EIF built (its association, its estimate as the start) is
+  std::optional<backend::EkfJoinerOptions> ekf;
+  // When set, the graph the joiner built (its association, its estimate as the start) is
   // solved with Ceres after the last join; anchors and landmarks come from that solution
-  // (covariances from the EIF's marginals).
+  // (anchor covariances from ceres::Covariance, landmark covariances from the joiner).
   std::optional<backend::CeresSolveOptions> ceres;
   Pose2 initial_pose;           // anchor 0
   std::string out_dir;          // empty: write nothing

@@ -54,7 +54,8 @@ struct RunOptions {
   frontend::FastSlamOptions fastslam;
   frontend::SubmapPolicyOptions policy;  // rbpf, ekf
   Backend backend = Backend::kNone;       // rbpf, ekf: how local maps are joined
-  backend::EifJoinerOptions eif;
+  backend::EifJoinerOptions eif;          // backend eif, ceres
+  backend::EkfJoinerOptions ekf_join;     // backend ekf (association set like eif's)
   backend::CeresSolveOptions ceres;       // backend ceres
   int ceres_every = 0;                    // backend ceres: solve every K joins (0: at the end only)
   NoiseOverrides noise;

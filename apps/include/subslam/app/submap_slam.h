@@ -5,6 +5,8 @@
 //  * kNone  — no joining: each map's start anchor is the previous anchor composed with the
 //    previous map's end pose (first-order covariance); no fusion, no loop closure;
 //  * kEif   — the exactly sparse EIF joiner (backend/eif_joiner.h);
+//  * kEkf   — dense EKF map joining in covariance form (backend/ekf_joiner.h), the
+//    baseline; it associates with the same module and options as the EIF;
 //  * kCeres — the EIF joiner associates and gives the online estimate; every
 //    `ceres_every` joins (0: never during the run) and at Finish() the whole graph is
 //    solved with Ceres (backend/ceres_solver.h), warm-started from the current estimate
@@ -28,12 +30,14 @@
 #include "absl/status/status.h"
 #include "subslam/backend/ceres_solver.h"
 #include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/ekf_joiner.h"
+#include "subslam/backend/map_joiner.h"
 #include "subslam/frontend/local_mapper.h"
 #include "subslam/frontend/online_estimator.h"
 
 namespace subslam::app {
 
-enum class Backend { kNone, kEif, kCeres };
+enum class Backend { kNone, kEif, kCeres, kEkf };
 const char* ToString(Backend backend);
 absl::StatusOr<Backend> BackendFromString(const std::string& name);
 
@@ -41,7 +45,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
  public:
   SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
              Backend backend, const backend::EifJoinerOptions& eif = {},
-             const backend::CeresSolveOptions& ceres = {}, int ceres_every = 0);
+             const backend::CeresSolveOptions& ceres = {}, int ceres_every = 0,
+             const backend::EkfJoinerOptions& ekf_join = {});
 
   std::string Name() const override;
   void Predict(const Eigen::Vector2d& u, double dt) override { mapper_->Predict(u, dt); }
@@ -62,7 +67,9 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   const std::vector<frontend::ClosedLocalMap>& local_maps() const { return closed_; }
   int last_scan_map_id() const { return last_scan_map_id_; }
   const std::vector<int>& last_scan_features() const { return mapper_->last_scan_features(); }
-  const backend::EifJoiner* eif() const { return eif_.get(); }
+  // The back-end's joiner (nullptr for kNone); eif() is set for kEif and kCeres.
+  const backend::MapJoiner* joiner() const { return joiner_.get(); }
+  const backend::EifJoiner* eif() const { return eif_; }
   // kCeres, after Finish(): Ceres's summary.
   const std::optional<backend::CeresSolveReport>& ceres_report() const { return ceres_report_; }
   static constexpr int kFeatureIdStride = 1000000;
@@ -75,7 +82,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
 
   std::unique_ptr<frontend::LocalMapper> mapper_;
   Backend backend_;
-  std::unique_ptr<backend::EifJoiner> eif_;
+  std::unique_ptr<backend::MapJoiner> joiner_;
+  backend::EifJoiner* eif_ = nullptr;  // joiner_, when it is the EIF
   backend::CeresSolveOptions ceres_options_;
   absl::Status SolveAndAdopt();
   int ceres_every_ = 0;
