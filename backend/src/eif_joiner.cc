@@ -71,6 +71,23 @@ void EifJoiner::SetState(const Eigen::VectorXd& x) {
   }
 }
 
+EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
+  const SubmapFactor& record = graph_.factors()[index];
+  Factor f;
+  f.index = index;
+  if (record.start_anchor != 0) {
+    f.offsets.push_back(anchor_offset_[record.start_anchor]);
+    f.sizes.push_back(3);
+  }
+  f.offsets.push_back(anchor_offset_[record.end_anchor]);
+  f.sizes.push_back(3);
+  for (int j : record.landmark_of_feature) {
+    f.offsets.push_back(landmark_offset_[j]);
+    f.sizes.push_back(2);
+  }
+  return f;
+}
+
 void EifJoiner::Linearize(Factor* f) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   const LocalSubmap& s = record.submap;
@@ -310,18 +327,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   // A rejected map joined again (associate false) must not redefine its landmarks.
   associator_.Record(s, assoc, first_new_landmark, /*define_truth=*/associate);
   graph_.AddFactor({s, start, end_anchor, assoc});
-  Factor f;
-  f.index = static_cast<int>(graph_.factors().size()) - 1;
-  if (start != 0) {
-    f.offsets.push_back(anchor_offset_[start]);
-    f.sizes.push_back(3);
-  }
-  f.offsets.push_back(anchor_offset_[end_anchor]);
-  f.sizes.push_back(3);
-  for (int j : assoc) {
-    f.offsets.push_back(landmark_offset_[j]);
-    f.sizes.push_back(2);
-  }
+  Factor f = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
   {
     StageTimer timer(&times_, "update");
     Linearize(&f);
@@ -356,6 +362,112 @@ absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) {
 
 absl::Status EifJoiner::Finish() {
   if (options_.relinearize_at_end && !factors_.empty()) return Relinearize();
+  return absl::OkStatus();
+}
+
+EifJoiner::EifJoiner(const EifJoiner& other)
+    : options_(other.options_),
+      graph_(other.graph_),
+      anchor_offset_(other.anchor_offset_),
+      landmark_offset_(other.landmark_offset_),
+      anchor_theta_(other.anchor_theta_),
+      dim_(other.dim_),
+      factors_(other.factors_),
+      Lambda_(other.Lambda_),
+      eta_(other.eta_),
+      solver_(std::make_unique<Solver>()),
+      associator_(other.associator_),
+      last_association_(other.last_association_),
+      rejected_(other.rejected_),
+      times_(other.times_),
+      counters_(other.counters_),
+      last_t_end_(other.last_t_end_) {
+  if (other.solver_->ready) {
+    solver_->llt.analyzePattern(Lambda_);
+    solver_->analyzed_rows = Lambda_.rows();
+    solver_->analyzed_nonzeros = Lambda_.nonZeros();
+    solver_->llt.factorize(Lambda_);
+    solver_->ready = solver_->llt.info() == Eigen::Success;
+  }
+}
+
+std::unique_ptr<MapJoiner> EifJoiner::NewEmpty(const Pose2& initial_pose) const {
+  return std::make_unique<EifJoiner>(initial_pose, options_);
+}
+
+std::unique_ptr<MapJoiner> EifJoiner::Clone() const { return std::unique_ptr<MapJoiner>(new EifJoiner(*this)); }
+
+absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
+  const auto* right_ptr = dynamic_cast<const EifJoiner*>(&right_base);
+  if (right_ptr == nullptr) return absl::InvalidArgumentError("EIF JoinMap: the right map is not an EIF map");
+  const EifJoiner& right = *right_ptr;
+  if (right.graph_.factors().empty()) return absl::OkStatus();
+  const LocalSubmap summary = SummarizeAsLocalSubmap(right);
+  if (summary.t_start < last_t_end_ - 1e-9) {
+    return absl::InvalidArgumentError(absl::StrCat("map from ", summary.t_start, " s starts before this one ends (",
+                                                   last_t_end_, " s)"));
+  }
+  const int start = graph_.num_anchors() - 1;
+  const int n = right.graph_.num_landmarks();
+  std::vector<int> assoc(n, -1);
+  if (!graph_.factors().empty()) {
+    StageTimer timer(&times_, "association");
+    SubmapAssociation a = associator_.Associate(
+        summary, start, graph_,
+        [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+          return JointCovariance(anchors, landmarks);
+        },
+        /*anchor_prefilter=*/false);
+    assoc = std::move(a.landmark_of_feature);
+    times_["covariance_recovery"] += a.covariance_seconds;
+    if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  }
+  // Right's anchors and unmatched landmarks, through the last anchor (headings continuous).
+  const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
+  std::vector<int> anchor_map = {start};
+  for (int k = 1; k < right.graph_.num_anchors(); ++k) {
+    const Pose2& a = right.graph_.anchors()[k];
+    const Pose2 local(a.x, a.y, right.anchor_theta_[k]);
+    const Pose2 p = Compose(P_s, local);
+    anchor_map.push_back(graph_.AddAnchor(p));
+    anchor_theta_.push_back(P_s.theta + local.theta);
+    anchor_offset_.push_back(dim_);
+    dim_ += 3;
+  }
+  const int first_new_landmark = graph_.num_landmarks();
+  long matched = 0;
+  for (int l = 0; l < n; ++l) {
+    if (assoc[l] >= 0) {
+      ++matched;
+      continue;
+    }
+    assoc[l] = graph_.AddLandmark(TransformFrom(P_s, right.graph_.landmarks()[l]));
+    landmark_offset_.push_back(dim_);
+    dim_ += 2;
+  }
+  {
+    StageTimer timer(&times_, "update");
+    for (const SubmapFactor& f : right.graph_.factors()) {
+      std::vector<int> landmarks;
+      for (int l : f.landmark_of_feature) landmarks.push_back(assoc[l]);
+      graph_.AddFactor({f.submap, anchor_map[f.start_anchor], anchor_map[f.end_anchor], landmarks});
+      Factor factor = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
+      Linearize(&factor);
+      factors_.push_back(std::move(factor));
+    }
+  }
+  associator_.Record(summary, assoc, first_new_landmark, /*define_truth=*/true);
+  last_association_.clear();
+  for (int l : right.last_association_) last_association_.push_back(assoc[l]);
+  counters_.joins += right.counters_.joins;
+  counters_.associated += right.counters_.associated + matched;
+  counters_.new_landmarks += right.counters_.new_landmarks - matched;
+  counters_.jcbb_truncated += right.counters_.jcbb_truncated;
+  counters_.relinearizations += right.counters_.relinearizations;
+  for (const auto& [stage, seconds] : right.times_) times_[stage] += seconds;
+  last_t_end_ = right.last_t_end_;
+  if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;
+  if (options_.relinearize_every > 0) return Relinearize();
   return absl::OkStatus();
 }
 

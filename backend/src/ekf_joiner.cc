@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include "absl/strings/str_cat.h"
 #include "subslam/backend/submap_factor.h"
@@ -68,39 +69,38 @@ Eigen::MatrixXd EkfJoiner::JointCovariance(const std::vector<int>& anchors,
   return out;
 }
 
-std::vector<int> EkfJoiner::Augment(const LocalSubmap& s, int start, const std::vector<int>& blocks) {
+std::vector<int> EkfJoiner::Augment(int start, const Eigen::VectorXd& z, const Eigen::MatrixXd& Q,
+                                    const std::vector<Block>& blocks) {
   const Pose2 P_s = StatePose(start);
   const int N = static_cast<int>(x_.size());
   std::vector<int> z_rows, offsets;
   int a = 0;
-  for (int b : blocks) {
+  for (const Block& b : blocks) {
     offsets.push_back(N + a);
-    const int first = b == 0 ? 0 : 3 + 2 * (b - 1), size = b == 0 ? 3 : 2;
-    for (int i = 0; i < size; ++i) z_rows.push_back(first + i);
-    a += size;
+    for (int i = 0; i < b.size; ++i) z_rows.push_back(b.offset + i);
+    a += b.size;
   }
   Eigen::MatrixXd G_s(a, 3), G_z = Eigen::MatrixXd::Zero(a, a);
   Eigen::VectorXd x_new(a);
   int row = 0;
-  for (int b : blocks) {
-    if (b == 0) {
+  for (const Block& b : blocks) {
+    if (b.size == 3) {
       Eigen::Matrix3d J_a, J_b;
-      const Pose2 end_local = s.end_pose();
-      const Pose2 e = Compose(P_s, end_local, &J_a, &J_b);
-      x_new.segment<3>(row) << e.x, e.y, P_s.theta + end_local.theta;  // continuous heading
+      const Pose2 local(z[b.offset], z[b.offset + 1], z[b.offset + 2]);
+      const Pose2 e = Compose(P_s, local, &J_a, &J_b);
+      x_new.segment<3>(row) << e.x, e.y, P_s.theta + local.theta;  // continuous heading
       G_s.middleRows<3>(row) = J_a;
       G_z.block<3, 3>(row, row) = J_b;
-      row += 3;
     } else {
       Matrix23d J_frame;
       Eigen::Matrix2d J_point;
-      x_new.segment<2>(row) = TransformFrom(P_s, s.landmark(b - 1), &J_frame, &J_point);
+      x_new.segment<2>(row) = TransformFrom(P_s, z.segment<2>(b.offset), &J_frame, &J_point);
       G_s.middleRows<2>(row) = J_frame;
       G_z.block<2, 2>(row, row) = J_point;
-      row += 2;
     }
+    row += b.size;
   }
-  const Eigen::MatrixXd Q_sel = s.covariance(z_rows, z_rows);
+  const Eigen::MatrixXd Q_sel = Q(z_rows, z_rows);
   Eigen::MatrixXd P_new = G_z * Q_sel * G_z.transpose();
   Eigen::MatrixXd cross;  // N × a
   const int os = anchor_offset_[start];
@@ -239,29 +239,31 @@ absl::Status EkfJoiner::Join(const LocalSubmap& s) {
     if (a.jcbb_truncated) ++counters_.jcbb_truncated;
   }
   std::vector<char> matched(n, 0);
-  std::vector<int> blocks = {0};
+  std::vector<int> features;  // in the order they are augmented
   for (int i = 0; i < n; ++i) {
     matched[i] = assoc[i] >= 0;
-    if (!matched[i]) blocks.push_back(1 + i);
+    if (!matched[i]) features.push_back(i);
   }
   const bool zero_noise = options_.fusion == EkfFusion::kZeroNoiseConstraint;
   if (zero_noise) {  // the matched features' copies go last, to be dropped after fusion
     for (int i = 0; i < n; ++i) {
-      if (matched[i]) blocks.push_back(1 + i);
+      if (matched[i]) features.push_back(i);
     }
   }
+  std::vector<Block> blocks = {{0, 3}};
+  for (int i : features) blocks.push_back({3 + 2 * i, 2});
   const int first_new_landmark = graph_.num_landmarks();
   std::vector<int> offsets;
   {
     StageTimer timer(&times_, "augmentation");
-    offsets = Augment(s, start, blocks);
+    offsets = Augment(start, s.mean, s.covariance, blocks);
   }
   const int end = graph_.AddAnchor(Pose2());
   anchor_offset_.push_back(offsets[0]);
   frozen_covariance_.resize(graph_.num_anchors(), Eigen::Matrix3d::Zero());
   std::vector<std::pair<int, int>> copies;
   for (size_t b = 1; b < blocks.size(); ++b) {
-    const int i = blocks[b] - 1;
+    const int i = features[b - 1];
     if (matched[i]) {
       copies.emplace_back(offsets[b], landmark_offset_[assoc[i]]);
     } else {
@@ -298,6 +300,102 @@ absl::Status EkfJoiner::Join(const LocalSubmap& s) {
   last_association_ = assoc;
   last_t_end_ = s.t_end;
   ++counters_.joins;
+  return absl::OkStatus();
+}
+
+std::unique_ptr<MapJoiner> EkfJoiner::NewEmpty(const Pose2& initial_pose) const {
+  return std::make_unique<EkfJoiner>(initial_pose, options_);
+}
+
+std::unique_ptr<MapJoiner> EkfJoiner::Clone() const { return std::make_unique<EkfJoiner>(*this); }
+
+absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
+  const auto* right_ptr = dynamic_cast<const EkfJoiner*>(&right_base);
+  if (right_ptr == nullptr) return absl::InvalidArgumentError("EKF JoinMap: the right map is not an EKF map");
+  const EkfJoiner& right = *right_ptr;
+  if (!options_.keep_anchors || !right.options_.keep_anchors) {
+    return absl::FailedPreconditionError("EKF JoinMap needs keep_anchors on both maps");
+  }
+  if (right.graph_.factors().empty()) return absl::OkStatus();
+  const LocalSubmap summary = SummarizeAsLocalSubmap(right);
+  if (summary.t_start < last_t_end_ - 1e-9) {
+    return absl::InvalidArgumentError(absl::StrCat("map from ", summary.t_start, " s starts before this one ends (",
+                                                   last_t_end_, " s)"));
+  }
+  const int start = graph_.num_anchors() - 1;
+  const int n = right.graph_.num_landmarks();
+  std::vector<int> assoc(n, -1);
+  if (!graph_.factors().empty()) {
+    StageTimer timer(&times_, "association");
+    SubmapAssociation a = associator_.Associate(
+        summary, start, graph_,
+        [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+          return JointCovariance(anchors, landmarks);
+        },
+        /*anchor_prefilter=*/false);
+    assoc = std::move(a.landmark_of_feature);
+    times_["covariance_recovery"] += a.covariance_seconds;
+    if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  }
+  // Augment right's anchors, its new landmarks, then the copies of its matched ones.
+  std::vector<Block> blocks;
+  for (int k = 1; k < right.graph_.num_anchors(); ++k) blocks.push_back({right.anchor_offset_[k], 3});
+  std::vector<int> order;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (int l = 0; l < n; ++l) {
+      if ((assoc[l] >= 0) == (pass == 1)) {
+        order.push_back(l);
+        blocks.push_back({right.landmark_offset_[l], 2});
+      }
+    }
+  }
+  const int first_new_landmark = graph_.num_landmarks();
+  std::vector<int> offsets;
+  {
+    StageTimer timer(&times_, "augmentation");
+    offsets = Augment(start, right.x_, right.P_, blocks);
+  }
+  std::vector<int> anchor_map = {start};
+  const int right_anchors = right.graph_.num_anchors() - 1;
+  for (int k = 1; k <= right_anchors; ++k) {
+    anchor_map.push_back(graph_.AddAnchor(Pose2()));
+    anchor_offset_.push_back(offsets[k - 1]);
+  }
+  frozen_covariance_.resize(graph_.num_anchors(), Eigen::Matrix3d::Zero());
+  std::vector<std::pair<int, int>> copies;
+  for (size_t b = 0; b < order.size(); ++b) {
+    const int l = order[b];
+    if (assoc[l] >= 0) {
+      copies.emplace_back(offsets[right_anchors + b], landmark_offset_[assoc[l]]);
+    } else {
+      assoc[l] = graph_.AddLandmark(Eigen::Vector2d::Zero());
+      landmark_offset_.push_back(offsets[right_anchors + b]);
+    }
+  }
+  if (!copies.empty()) {
+    StageTimer timer(&times_, "update");
+    FuseZeroNoise(copies);
+    const int keep = static_cast<int>(x_.size()) - 2 * static_cast<int>(copies.size());
+    P_.conservativeResize(keep, keep);
+    x_.conservativeResize(keep);
+  }
+  if (!x_.allFinite() || !P_.allFinite()) return absl::InternalError("EKF map join produced a non-finite value");
+  WriteBack();
+  associator_.Record(summary, assoc, first_new_landmark, /*define_truth=*/true);
+  for (const SubmapFactor& f : right.graph_.factors()) {
+    std::vector<int> landmarks;
+    for (int l : f.landmark_of_feature) landmarks.push_back(assoc[l]);
+    graph_.AddFactor({f.submap, anchor_map[f.start_anchor], anchor_map[f.end_anchor], landmarks});
+  }
+  last_association_.clear();
+  for (int l : right.last_association_) last_association_.push_back(assoc[l]);
+  const long matched = static_cast<long>(copies.size());
+  counters_.joins += right.counters_.joins;
+  counters_.associated += right.counters_.associated + matched;
+  counters_.new_landmarks += right.counters_.new_landmarks - matched;
+  counters_.jcbb_truncated += right.counters_.jcbb_truncated;
+  for (const auto& [stage, seconds] : right.times_) times_[stage] += seconds;
+  last_t_end_ = right.last_t_end_;
   return absl::OkStatus();
 }
 

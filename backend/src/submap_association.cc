@@ -31,6 +31,14 @@ double SubmapAssociator::MeanSignature(int landmark) const {
   return signature_sum_[landmark] / signature_count_[landmark];
 }
 
+std::vector<int> SubmapAssociator::TruthIds(int num_landmarks) const {
+  std::vector<int> out(num_landmarks, -1);
+  for (const auto& [truth, landmark] : landmark_of_truth_) {
+    if (landmark < num_landmarks) out[landmark] = truth;
+  }
+  return out;
+}
+
 void SubmapAssociator::Record(const LocalSubmap& s, const std::vector<int>& landmark_of_feature,
                               int first_new_landmark, bool define_truth) {
   int needed = 0;
@@ -52,7 +60,8 @@ void SubmapAssociator::Record(const LocalSubmap& s, const std::vector<int>& land
 
 SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_anchor,
                                               const SubmapGraph& graph,
-                                              const JointCovarianceFn& joint_covariance) const {
+                                              const JointCovarianceFn& joint_covariance,
+                                              bool anchor_prefilter) const {
   const int n = s.num_landmarks();
   SubmapAssociation out;
   out.landmark_of_feature.assign(n, -1);
@@ -76,9 +85,10 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   const double sigma_xy =
       std::sqrt(std::max(0.0, Sigma_s.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff()));
   const double sigma_theta = std::sqrt(std::max(0.0, Sigma_s(2, 2)));
-  std::vector<char> is_candidate(graph.num_landmarks(), 0);
+  std::vector<char> is_candidate(graph.num_landmarks(), anchor_prefilter ? 0 : 1);
   const double r1 = options_.anchor_search_radius_m + 3.0 * sigma_xy;
   for (const SubmapFactor& f : graph.factors()) {
+    if (!anchor_prefilter) break;
     const bool near = (graph.anchors()[f.start_anchor].translation() - P_s.translation()).norm() <= r1 ||
                       (graph.anchors()[f.end_anchor].translation() - P_s.translation()).norm() <= r1;
     if (!near) continue;

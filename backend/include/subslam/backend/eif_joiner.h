@@ -93,6 +93,14 @@ class EifJoiner final : public MapJoiner {
   int landmark_offset(int j) const { return landmark_offset_[j]; }
   std::map<std::string, double> stage_times() const override { return times_; }
   const JoinerCounters& counters() const override { return counters_; }
+  const SubmapAssociator& associator() const override { return associator_; }
+  // Tree joining: `right` (an EifJoiner) is associated with this map, its anchors and new
+  // landmarks are brought into this frame through the last anchor, its factors are
+  // relinearised there and added, and the estimate is re-solved (one Gauss-Newton step
+  // from the merged estimate; to convergence when relinearize_every > 0).
+  std::unique_ptr<MapJoiner> NewEmpty(const Pose2& initial_pose) const override;
+  std::unique_ptr<MapJoiner> Clone() const override;
+  absl::Status JoinMap(const MapJoiner& right) override;
 
  private:
   struct Factor {
@@ -103,6 +111,9 @@ class EifJoiner final : public MapJoiner {
     Eigen::VectorXd b;              // Jᵀ Q⁻¹ (J x̂ − r)
   };
 
+  EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
+  // The factor record of graph factor `index`: its variables' offsets and sizes.
+  Factor MakeFactor(int index) const;
   void Linearize(Factor* f) const;
   // Adds a factor's blocks to triplets and η.
   void Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,

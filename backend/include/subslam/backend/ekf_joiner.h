@@ -72,6 +72,13 @@ class EkfJoiner final : public MapJoiner {
   const std::vector<int>& last_association() const override { return last_association_; }
   std::map<std::string, double> stage_times() const override { return times_; }
   const JoinerCounters& counters() const override { return counters_; }
+  const SubmapAssociator& associator() const override { return associator_; }
+  // Tree joining: `right` (an EkfJoiner) is augmented whole through this map's last
+  // anchor and its matched landmarks are fused by zero-noise constraints (whatever
+  // `fusion` says); both must keep their anchors.
+  std::unique_ptr<MapJoiner> NewEmpty(const Pose2& initial_pose) const override;
+  std::unique_ptr<MapJoiner> Clone() const override;
+  absl::Status JoinMap(const MapJoiner& right) override;
 
   int state_dimension() const { return static_cast<int>(x_.size()); }
   // Where a variable sits in the state (−1: P0 or an anchor marginalised out).
@@ -80,9 +87,16 @@ class EkfJoiner final : public MapJoiner {
   const Eigen::MatrixXd& covariance() const { return P_; }
 
  private:
-  // Appends variables g(P_s, z_rows) for the listed row blocks of the local map (block 0:
-  // the end pose; block 1 + i: feature i); returns their state offsets.
-  std::vector<int> Augment(const LocalSubmap& s, int start, const std::vector<int>& blocks);
+  // A pose (3) or point (2) block of a Gaussian given in the frame of an anchor.
+  struct Block {
+    int offset;
+    int size;
+  };
+  // Appends variables P_s ⊕ z_b for the listed blocks of z ~ N(z, Q), given in the frame
+  // of anchor `start` (poses composed, headings kept continuous; points transformed);
+  // returns their state offsets.
+  std::vector<int> Augment(int start, const Eigen::VectorXd& z, const Eigen::MatrixXd& Q,
+                           const std::vector<Block>& blocks);
   void FuseZeroNoise(const std::vector<std::pair<int, int>>& copy_and_landmark_offsets);
   absl::Status FuseConditional(const LocalSubmap& s, int start, int end,
                                const std::vector<int>& landmark_of_feature,

@@ -9,10 +9,12 @@
 
 #include <Eigen/Core>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 
@@ -51,12 +53,36 @@ class MapJoiner {
   Eigen::Matrix3d AnchorCovariance(int k) const { return JointCovariance({k}, {}); }
   Eigen::Matrix2d LandmarkCovariance(int j) const { return JointCovariance({}, {j}); }
 
+  // The last anchor and its marginal covariance: the reference of the online pose. A
+  // joiner may answer without forming the whole map (the tree joiner does).
+  virtual Pose2 LastAnchor() const { return anchor(num_anchors() - 1); }
+  virtual Eigen::Matrix3d LastAnchorCovariance() const { return AnchorCovariance(num_anchors() - 1); }
+
   // For the last joined map: the global landmark of each feature.
   virtual const std::vector<int>& last_association() const = 0;
   // Accumulated wall time per stage (seconds).
   virtual std::map<std::string, double> stage_times() const = 0;
   virtual const JoinerCounters& counters() const = 0;
+  // What association keeps per landmark (signatures, truth ids).
+  virtual const SubmapAssociator& associator() const = 0;
+
+  // Tree joining (backend/tree_joiner.h). A joiner that supports it returns an empty
+  // joiner of its kind and options whose anchor 0 is `initial_pose`, a deep copy, and
+  // joins a whole map `right` of its kind whose anchor 0 (the identity: right's frame)
+  // is this joiner's last anchor: right's landmarks are associated with this map's,
+  // its anchors and landmarks are brought into this frame, and its factors are added.
+  virtual std::unique_ptr<MapJoiner> NewEmpty(const Pose2& initial_pose) const { return nullptr; }
+  virtual std::unique_ptr<MapJoiner> Clone() const { return nullptr; }
+  virtual absl::Status JoinMap(const MapJoiner& right) {
+    return absl::UnimplementedError(Name() + " cannot join whole maps");
+  }
 };
+
+// The map `j` seen as one local map from its anchor 0 (which must be the identity):
+// mean [last anchor, every landmark], their joint marginal covariance, each landmark's
+// mean signature and truth id; id, start and end times from j's first and last local
+// maps. What a tree join associates with the map on its left.
+LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j);
 
 }  // namespace subslam::backend
 

@@ -68,9 +68,12 @@ class SubmapAssociator {
   const SubmapAssociationOptions& options() const { return options_; }
 
   // Associates the features of `submap`, which starts at anchor `start_anchor` of `graph`
-  // (the current estimate), with the landmarks of `graph`.
+  // (the current estimate), with the landmarks of `graph`. `anchor_prefilter` false skips
+  // step 1's anchor test (every landmark near a feature is a candidate): for joining a
+  // whole map, whose features lie far from its start anchor (tree joining).
   SubmapAssociation Associate(const LocalSubmap& submap, int start_anchor, const SubmapGraph& graph,
-                              const JointCovarianceFn& joint_covariance) const;
+                              const JointCovarianceFn& joint_covariance,
+                              bool anchor_prefilter = true) const;
 
   // After the join: `landmark_of_feature` is the final landmark of each feature; landmarks
   // numbered `first_new_landmark` and up were created by this join. Records signatures and,
@@ -78,9 +81,12 @@ class SubmapAssociator {
   void Record(const LocalSubmap& submap, const std::vector<int>& landmark_of_feature,
               int first_new_landmark, bool define_truth);
 
- private:
+  // Mean signature of the features joined to `landmark` (NaN: none had one).
   double MeanSignature(int landmark) const;
+  // The truth id each of the first `num_landmarks` landmarks was defined by (−1: none).
+  std::vector<int> TruthIds(int num_landmarks) const;
 
+ private:
   SubmapAssociationOptions options_;
   std::vector<double> signature_sum_;  // per landmark
   std::vector<int> signature_count_;

@@ -1,0 +1,92 @@
+// Binary-tree map joining (Combined SLAM §6.2, paper 000; FMJ, paper 003; Paz et al.'s
+// divide-and-conquer SLAM): local maps are joined pairwise, level by level, until one map
+// remains, instead of each into one ever-growing global map.
+//
+// Every node of the tree is a map of the node kind — dense EKF (backend/ekf_joiner.h) or
+// sparse EIF (backend/eif_joiner.h) — in the frame of its first anchor; a leaf is one
+// local map. Two neighbouring nodes share a boundary anchor (the left's last anchor is
+// the right's anchor 0), and joining them (MapJoiner::JoinMap) associates the right's
+// landmarks with the left's (the shared association module, every left landmark near a
+// right feature a candidate), brings the right into the left's frame and fuses.
+//
+// Modes:
+//  * running (default): a binary counter — each new leaf is pushed on a stack and the
+//    two top nodes are joined while they have the same level, so the partial tree is
+//    always up to date with O(log n) nodes; the whole map is available at any time by
+//    folding the stack right to left (on demand, cached until the next local map), and
+//    the online anchor is the stack's nodes chained end to start (exact until a loop
+//    between two nodes is closed by their join);
+//  * batch: leaves are kept, and Finish() joins them level by level (pairs (0,1), (2,3),
+//    …; an odd node is carried up).
+// For n = 2^k local maps both build the same tree.
+//
+// The result equals sequential joining within the linearisation error (both are first-
+// order), and exactly at convergence for the EIF relinearised at the end (tested).
+// Not thread-safe.
+#ifndef SUBSLAM_BACKEND_TREE_JOINER_H_
+#define SUBSLAM_BACKEND_TREE_JOINER_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "subslam/backend/map_joiner.h"
+
+namespace subslam::backend {
+
+struct TreeJoinerOptions {
+  bool running = true;  // false: batch (the tree is built at Finish())
+};
+
+class TreeJoiner final : public MapJoiner {
+ public:
+  // `prototype`: an empty joiner of the node kind with its options, whose anchor 0 is the
+  // initial pose (e.g. an EkfJoiner with keep_anchors, or an EifJoiner).
+  TreeJoiner(std::unique_ptr<MapJoiner> prototype, const TreeJoinerOptions& options);
+
+  std::string Name() const override { return "tree-" + prototype_->Name(); }
+  absl::Status Join(const LocalSubmap& submap) override;
+  // Joins what remains into one map (and lets the root finish, e.g. relinearise).
+  absl::Status Finish() override;
+
+  // The whole map: after Finish() the root; before, the stack folded on demand.
+  const SubmapGraph& graph() const override { return Whole().graph(); }
+  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
+                                  const std::vector<int>& landmarks) const override {
+    return Whole().JointCovariance(anchors, landmarks);
+  }
+  const std::vector<int>& last_association() const override { return Whole().last_association(); }
+  const SubmapAssociator& associator() const override { return Whole().associator(); }
+  // Chained over the nodes (no fold).
+  Pose2 LastAnchor() const override;
+  Eigen::Matrix3d LastAnchorCovariance() const override;
+  // Summed over the nodes (each holds its subtree's), plus "fold" for on-demand folds.
+  std::map<std::string, double> stage_times() const override;
+  const JoinerCounters& counters() const override;
+
+  int num_nodes() const { return static_cast<int>(nodes_.size()); }
+  int tree_joins() const { return tree_joins_; }  // JoinMap calls that built the tree
+
+ private:
+  struct Node {
+    std::unique_ptr<MapJoiner> map;
+    int level = 0;
+  };
+  const MapJoiner& Whole() const;
+  void Chain(Pose2* pose, Eigen::Matrix3d* covariance) const;
+
+  std::unique_ptr<MapJoiner> prototype_;
+  TreeJoinerOptions options_;
+  Pose2 initial_pose_;
+  std::vector<Node> nodes_;  // left to right (running: levels strictly decreasing)
+  bool finished_ = false;
+  int tree_joins_ = 0;
+  absl::Status status_;
+  mutable std::unique_ptr<MapJoiner> folded_;  // cache of the folded stack
+  mutable double fold_seconds_ = 0.0;
+  mutable JoinerCounters counters_;
+};
+
+}  // namespace subslam::backend
+
+#endif  // SUBSLAM_BACKEND_TREE_JOINER_H_

@@ -1,0 +1,37 @@
+#include "subslam/backend/map_joiner.h"
+
+#include <numeric>
+
+#include "subslam/graph/internal/check.h"
+
+namespace subslam::backend {
+
+LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j) {
+  const SubmapGraph& g = j.graph();
+  SUBSLAM_CHECK(!g.factors().empty()) << "an empty map has no summary";
+  const Pose2& origin = g.anchors()[0];
+  SUBSLAM_CHECK(origin.x == 0 && origin.y == 0 && origin.theta == 0) << "anchor 0 must be the identity";
+  const int last = g.num_anchors() - 1, n = g.num_landmarks();
+  LocalSubmap s;
+  s.id = g.factors().front().submap.id;
+  s.t_start = g.factors().front().submap.t_start;
+  s.t_end = g.factors().back().submap.t_end;
+  s.mean.resize(3 + 2 * n);
+  s.mean.head<3>() = g.anchors()[last].vector();
+  std::vector<int> landmarks(n);
+  std::iota(landmarks.begin(), landmarks.end(), 0);
+  for (int l = 0; l < n; ++l) s.mean.segment<2>(3 + 2 * l) = g.landmarks()[l];
+  s.covariance = j.JointCovariance({last}, landmarks);
+  const std::vector<int> truth = j.associator().TruthIds(n);
+  for (int l = 0; l < n; ++l) {
+    LocalSubmapLandmark lm;
+    lm.local_id = l;
+    lm.signature = j.associator().MeanSignature(l);
+    lm.existence = 1.0;
+    if (truth[l] >= 0) lm.truth_id = truth[l];
+    s.landmarks.push_back(lm);
+  }
+  return s;
+}
+
+}  // namespace subslam::backend

@@ -1,0 +1,141 @@
+#include "subslam/backend/tree_joiner.h"
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "subslam/graph/internal/check.h"
+
+namespace subslam::backend {
+
+TreeJoiner::TreeJoiner(std::unique_ptr<MapJoiner> prototype, const TreeJoinerOptions& options)
+    : prototype_(std::move(prototype)), options_(options) {
+  SUBSLAM_CHECK(prototype_ != nullptr && prototype_->num_anchors() == 1 && prototype_->num_landmarks() == 0)
+      << "the prototype must be an empty joiner";
+  initial_pose_ = prototype_->anchor(0);
+  SUBSLAM_CHECK(prototype_->NewEmpty(Pose2()) != nullptr) << prototype_->Name() << " cannot be a tree node";
+}
+
+absl::Status TreeJoiner::Join(const LocalSubmap& submap) {
+  if (finished_) return absl::FailedPreconditionError("the tree is finished");
+  if (!status_.ok()) return status_;
+  // A leaf lives in the frame of its start anchor; the leftmost in the world frame.
+  std::unique_ptr<MapJoiner> leaf = prototype_->NewEmpty(nodes_.empty() ? initial_pose_ : Pose2());
+  if (absl::Status st = leaf->Join(submap); !st.ok()) return st;
+  folded_.reset();
+  nodes_.push_back({std::move(leaf), 0});
+  if (!options_.running) return absl::OkStatus();
+  while (nodes_.size() >= 2 && nodes_[nodes_.size() - 2].level == nodes_.back().level) {
+    Node right = std::move(nodes_.back());
+    nodes_.pop_back();
+    Node& left = nodes_.back();
+    if (absl::Status st = left.map->JoinMap(*right.map); !st.ok()) {
+      status_ = st;
+      return st;
+    }
+    ++left.level;
+    ++tree_joins_;
+  }
+  return absl::OkStatus();
+}
+
+absl::Status TreeJoiner::Finish() {
+  if (finished_) return status_;
+  finished_ = true;
+  folded_.reset();
+  if (!status_.ok()) return status_;
+  if (nodes_.empty()) return absl::OkStatus();
+  if (options_.running) {  // fold right to left: the small nodes first
+    while (nodes_.size() > 1) {
+      Node right = std::move(nodes_.back());
+      nodes_.pop_back();
+      if (absl::Status st = nodes_.back().map->JoinMap(*right.map); !st.ok()) return status_ = st;
+      ++tree_joins_;
+    }
+  } else {
+    while (nodes_.size() > 1) {  // level by level
+      std::vector<Node> next;
+      for (size_t i = 0; i + 1 < nodes_.size(); i += 2) {
+        if (absl::Status st = nodes_[i].map->JoinMap(*nodes_[i + 1].map); !st.ok()) return status_ = st;
+        ++tree_joins_;
+        ++nodes_[i].level;
+        next.push_back(std::move(nodes_[i]));
+      }
+      if (nodes_.size() % 2 == 1) next.push_back(std::move(nodes_.back()));
+      nodes_ = std::move(next);
+    }
+  }
+  return status_ = nodes_.front().map->Finish();
+}
+
+const MapJoiner& TreeJoiner::Whole() const {
+  if (nodes_.empty()) return *prototype_;
+  if (nodes_.size() == 1) return *nodes_.front().map;
+  if (folded_ == nullptr) {
+    const absl::Time start = absl::Now();
+    std::unique_ptr<MapJoiner> acc = nodes_.back().map->Clone();
+    for (int i = static_cast<int>(nodes_.size()) - 2; i >= 0; --i) {
+      std::unique_ptr<MapJoiner> left = nodes_[i].map->Clone();
+      const absl::Status st = left->JoinMap(*acc);
+      SUBSLAM_CHECK(st.ok()) << "folding the tree: " << st.message();
+      acc = std::move(left);
+    }
+    folded_ = std::move(acc);
+    fold_seconds_ += absl::ToDoubleSeconds(absl::Now() - start);
+  }
+  return *folded_;
+}
+
+void TreeJoiner::Chain(Pose2* pose, Eigen::Matrix3d* covariance) const {
+  *pose = initial_pose_;
+  covariance->setZero();
+  for (size_t i = 0; i < nodes_.size(); ++i) {
+    const MapJoiner& node = *nodes_[i].map;
+    if (i == 0) {  // in the world frame already
+      *pose = node.LastAnchor();
+      *covariance = node.LastAnchorCovariance();
+      continue;
+    }
+    Eigen::Matrix3d J_a, J_b;
+    const Pose2 next = Compose(*pose, node.LastAnchor(), &J_a, &J_b);
+    *covariance = J_a * *covariance * J_a.transpose() + J_b * node.LastAnchorCovariance() * J_b.transpose();
+    *pose = next;
+  }
+}
+
+Pose2 TreeJoiner::LastAnchor() const {
+  Pose2 p;
+  Eigen::Matrix3d c;
+  Chain(&p, &c);
+  return p;
+}
+
+Eigen::Matrix3d TreeJoiner::LastAnchorCovariance() const {
+  Pose2 p;
+  Eigen::Matrix3d c;
+  Chain(&p, &c);
+  return c;
+}
+
+std::map<std::string, double> TreeJoiner::stage_times() const {
+  std::map<std::string, double> out;
+  for (const Node& node : nodes_) {
+    for (const auto& [stage, seconds] : node.map->stage_times()) out[stage] += seconds;
+  }
+  out["fold"] = fold_seconds_;
+  return out;
+}
+
+const JoinerCounters& TreeJoiner::counters() const {
+  counters_ = JoinerCounters();
+  for (const Node& node : nodes_) {
+    const JoinerCounters& c = node.map->counters();
+    counters_.joins += c.joins;
+    counters_.associated += c.associated;
+    counters_.new_landmarks += c.new_landmarks;
+    counters_.relinearizations += c.relinearizations;
+    counters_.jcbb_truncated += c.jcbb_truncated;
+    counters_.rejected_joins += c.rejected_joins;
+  }
+  return counters_;
+}
+
+}  // namespace subslam::backend
