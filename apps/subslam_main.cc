@@ -71,11 +71,14 @@ ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
 ABSL_FLAG(std::string, backend, "none",
           "rbpf / ekf: how local maps are joined: none (chained end to start) | eif | ceres "
           "(EIF association, then a Ceres solve of the whole graph at the end) | ekf (dense "
-          "EKF map joining, the baseline)");
+          "EKF map joining, the baseline) | tree-ekf | tree-eif (binary-tree joining)");
 ABSL_FLAG(std::string, ekf_fusion, "zero-noise",
           "ekf back-end: how matched features are fused: zero-noise (HybridSLAM: augment, "
           "constrain copy = landmark, drop the copy) | conditional (the EIF's update in "
           "covariance form)");
+ABSL_FLAG(bool, tree_batch, false,
+          "tree-ekf / tree-eif: keep the leaves and build the tree level by level at the end "
+          "(default: running, a binary counter that joins pairs as they complete)");
 ABSL_FLAG(bool, ekf_keep_anchors, true,
           "ekf back-end: keep every anchor in the state (false: marginalise each start "
           "anchor once joined, as the papers' baseline)");
@@ -234,27 +237,36 @@ absl::StatusOr<subslam::backend::CeresSolveOptions> CeresOptionsFromFlags() {
   return o;
 }
 
+absl::StatusOr<subslam::app::BackendOptions> BackendOptionsFromFlags() {
+  subslam::app::BackendOptions o;
+  auto kind = subslam::app::BackendFromString(absl::GetFlag(FLAGS_backend));
+  if (!kind.ok()) return kind.status();
+  o.kind = *kind;
+  o.eif = EifOptionsFromFlags();
+  auto ekf = EkfJoinOptionsFromFlags();
+  if (!ekf.ok()) return ekf.status();
+  o.ekf = *ekf;
+  o.tree.running = !absl::GetFlag(FLAGS_tree_batch);
+  auto ceres = CeresOptionsFromFlags();
+  if (!ceres.ok()) return ceres.status();
+  o.ceres = *ceres;
+  o.ceres_every = absl::GetFlag(FLAGS_ceres_every);
+  if (absl::Status st = o.Validate(); !st.ok()) return st;
+  return o;
+}
+
 int Join() {
   const std::string path = absl::GetFlag(FLAGS_submaps);
   if (path.empty()) return Fail(absl::InvalidArgumentError("join needs --submaps FILE"));
-  const std::string backend = absl::GetFlag(FLAGS_backend);
-  if (backend != "eif" && backend != "ceres" && backend != "ekf") {
-    return Fail(absl::InvalidArgumentError("join needs --backend eif, ceres or ekf"));
+  auto backend = BackendOptionsFromFlags();
+  if (!backend.ok()) return Fail(backend.status());
+  if (backend->kind == subslam::app::Backend::kNone) {
+    return Fail(absl::InvalidArgumentError("join needs --backend eif, ceres, ekf, tree-ekf or tree-eif"));
   }
   auto submaps = subslam::io::ReadSubmapsJsonl(path);
   if (!submaps.ok()) return Fail(submaps.status());
   subslam::app::JoinOptions options;
-  options.eif = EifOptionsFromFlags();
-  if (backend == "ekf") {
-    auto ekf = EkfJoinOptionsFromFlags();
-    if (!ekf.ok()) return Fail(ekf.status());
-    options.ekf = *ekf;
-  }
-  if (backend == "ceres") {
-    auto ceres = CeresOptionsFromFlags();
-    if (!ceres.ok()) return Fail(ceres.status());
-    options.ceres = *ceres;
-  }
+  options.backend = *backend;
   options.out_dir = absl::GetFlag(FLAGS_out);
   // The initial pose and the ground truth come from the data set or the scenario the
   // local maps were built on, when given.
@@ -301,17 +313,9 @@ int Run() {
   options.ekf.new_landmark_probability = absl::GetFlag(FLAGS_new_landmark_gate);
   options.ekf.existence.detection_probability = absl::GetFlag(FLAGS_existence_alpha);
   options.ekf.existence.false_alarm_probability = absl::GetFlag(FLAGS_existence_beta);
-  auto backend = subslam::app::BackendFromString(absl::GetFlag(FLAGS_backend));
+  auto backend = BackendOptionsFromFlags();
   if (!backend.ok()) return Fail(backend.status());
   options.backend = *backend;
-  options.eif = EifOptionsFromFlags();
-  auto ekf_join = EkfJoinOptionsFromFlags();
-  if (!ekf_join.ok()) return Fail(ekf_join.status());
-  options.ekf_join = *ekf_join;
-  auto ceres = CeresOptionsFromFlags();
-  if (!ceres.ok()) return Fail(ceres.status());
-  options.ceres = *ceres;
-  options.ceres_every = absl::GetFlag(FLAGS_ceres_every);
   options.policy.min_duration_s = absl::GetFlag(FLAGS_submap_min_duration);
   options.policy.max_duration_s = absl::GetFlag(FLAGS_submap_max_duration);
   options.policy.max_features = absl::GetFlag(FLAGS_submap_max_features);
@@ -369,7 +373,7 @@ int main(int argc, char** argv) {
       "  subslam simulate --scenario NAME [--seed S] --out DIR\n"
       "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf|ekf "
       "--out DIR\n"
-      "  subslam join --submaps FILE --backend eif|ceres|ekf [--known_association] "
+      "  subslam join --submaps FILE --backend eif|ceres|ekf|tree-ekf|tree-eif [--known_association] "
       "[--dataset DIR | --scenario NAME --seed S] --out DIR\n"
       "  subslam scenarios");
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);

@@ -15,32 +15,48 @@
 namespace subslam::app {
 
 absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options) {
-  if (absl::Status s = options.eif.Validate(); !s.ok()) return s;
-  if (options.ekf) {
-    if (absl::Status s = options.ekf->Validate(); !s.ok()) return s;
-  }
+  if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
+  if (options.backend.kind == Backend::kNone) return absl::InvalidArgumentError("join needs a back-end");
   if (submaps.empty()) return absl::InvalidArgumentError("no local maps to join");
-  std::unique_ptr<backend::MapJoiner> joiner;
-  if (options.ekf) {
-    joiner = std::make_unique<backend::EkfJoiner>(options.initial_pose, *options.ekf);
-  } else {
-    joiner = std::make_unique<backend::EifJoiner>(options.initial_pose, options.eif);
-  }
-    JoinResult r;
+  std::unique_ptr<backend::MapJoiner> joiner = MakeJoiner(options.backend, options.initial_pose);
+  JoinResult r;
   const absl::Time start = absl::Now();
-  // Association bookkeeping against truth ids: global landmark → true ids joined to it.
-  std::map<int, std::set<int>> truths_of_global;
-  std::map<int, std::set<int>> globals_of_truth;
-  std::map<int, std::pair<int, int>> last_seen;  // truth id → (local map index, global id)
-  int map_index = 0;
   for (const LocalSubmap& s : submaps) {
     if (absl::Status st = joiner->Join(s); !st.ok()) {
       return absl::Status(st.code(), absl::StrCat("joining local map ", s.id, ": ", st.message()));
     }
-    for (int i = 0; i < s.num_landmarks(); ++i) {
-      const std::optional<int>& t = s.landmarks[i].truth_id;
+  }
+  if (absl::Status st = joiner->Finish(); !st.ok()) return st;
+  std::optional<SubmapGraph> solved;
+  std::vector<int> all_anchors(joiner->num_anchors());
+  for (int k = 0; k < joiner->num_anchors(); ++k) all_anchors[k] = k;
+  std::vector<Eigen::Matrix3d> ceres_covariances;
+  if (options.backend.kind == Backend::kCeres) {
+    SubmapGraph g = joiner->graph();
+    absl::StatusOr<backend::CeresSolveReport> c =
+        backend::SolveWithCeres(&g, options.backend.ceres, all_anchors, &ceres_covariances);
+    if (!c.ok()) return c.status();
+    r.ceres = *c;
+    solved = std::move(g);
+  }
+  r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  // Marginal covariances of every anchor: the joiner's (timed, for comparison with
+  // ceres::Covariance), or Ceres's at its solution.
+  const absl::Time covariance_start = absl::Now();
+  std::vector<Eigen::Matrix3d> joiner_covariances;
+  for (int k : all_anchors) joiner_covariances.push_back(joiner->AnchorCovariance(k));
+  const double joiner_covariance_seconds = absl::ToDoubleSeconds(absl::Now() - covariance_start);
+  // Association against truth ids, from the final association table (factors in time
+  // order): global landmark → true ids joined to it, and the reverse.
+  std::map<int, std::set<int>> truths_of_global;
+  std::map<int, std::set<int>> globals_of_truth;
+  std::map<int, std::pair<int, int>> last_seen;  // truth id → (local map index, global id)
+  int map_index = 0;
+  for (const SubmapFactor& f : joiner->graph().factors()) {
+    for (int i = 0; i < f.submap.num_landmarks(); ++i) {
+      const std::optional<int>& t = f.submap.landmarks[i].truth_id;
       if (!t.has_value() || *t < 0) continue;
-      const int g = joiner->last_association()[i];
+      const int g = f.landmark_of_feature[i];
       truths_of_global[g].insert(*t);
       globals_of_truth[*t].insert(g);
       auto seen = last_seen.find(*t);
@@ -53,26 +69,6 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     }
     ++map_index;
   }
-  if (absl::Status st = joiner->Finish(); !st.ok()) return st;
-  std::optional<SubmapGraph> solved;
-  std::vector<int> all_anchors(joiner->num_anchors());
-  for (int k = 0; k < joiner->num_anchors(); ++k) all_anchors[k] = k;
-  std::vector<Eigen::Matrix3d> ceres_covariances;
-  if (options.ceres) {
-    SubmapGraph g = joiner->graph();
-    absl::StatusOr<backend::CeresSolveReport> c =
-        backend::SolveWithCeres(&g, *options.ceres, all_anchors, &ceres_covariances);
-    if (!c.ok()) return c.status();
-    r.ceres = *c;
-    solved = std::move(g);
-  }
-  r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
-  // Marginal covariances of every anchor: the joiner's (timed, for comparison with
-  // ceres::Covariance), or Ceres's at its solution.
-  const absl::Time covariance_start = absl::Now();
-  std::vector<Eigen::Matrix3d> joiner_covariances;
-  for (int k : all_anchors) joiner_covariances.push_back(joiner->AnchorCovariance(k));
-  const double joiner_covariance_seconds = absl::ToDoubleSeconds(absl::Now() - covariance_start);
   for (const auto& [g, truths] : truths_of_global) r.wrong += static_cast<long>(truths.size()) - 1;
   for (const auto& [t, globals] : globals_of_truth) {
     r.missed += static_cast<long>(globals.size()) - 1;
@@ -109,13 +105,13 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   for (const auto& [stage, seconds] : joiner->stage_times()) stages[stage] = seconds;
   r.report = {{"format", "subslam-join-report/1"},
               {"configuration",
-               {{"backend", options.ceres ? std::string("ceres") : joiner->Name()},
-                {"known_association", options.eif.association.known_association},
-                {"anchor_search_radius_m", options.eif.association.anchor_search_radius_m},
-                {"landmark_search_radius_m", options.eif.association.landmark_search_radius_m},
-                {"gate_probability", options.eif.association.gate_probability},
-                {"relinearize_every", options.eif.relinearize_every},
-                {"relinearize_at_end", options.eif.relinearize_at_end}}},
+               {{"backend", ToString(options.backend.kind)},
+                {"known_association", options.backend.eif.association.known_association},
+                {"anchor_search_radius_m", options.backend.eif.association.anchor_search_radius_m},
+                {"landmark_search_radius_m", options.backend.eif.association.landmark_search_radius_m},
+                {"gate_probability", options.backend.eif.association.gate_probability},
+                {"relinearize_every", options.backend.eif.relinearize_every},
+                {"relinearize_at_end", options.backend.eif.relinearize_at_end}}},
               {"counts",
                {{"local_maps", r.local_maps},
                 {"anchors", joiner->num_anchors()},

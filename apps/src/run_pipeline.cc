@@ -136,7 +136,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (absl::Status s = options.ekf.Validate(); !s.ok()) return s;
   if (absl::Status s = options.fastslam.Validate(); !s.ok()) return s;
   if (absl::Status s = options.policy.Validate(); !s.ok()) return s;
-  if (options.ceres_every < 0) return absl::InvalidArgumentError("--ceres_every must be >= 0");
+  if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
   std::unique_ptr<frontend::OnlineEstimator> estimator;
   SubmapSlam* chain = nullptr;  // set for the local-map front-ends
   if (options.frontend == Frontend::kOdometry) {
@@ -154,12 +154,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
           dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.ekf, options.policy,
           t0, options.fastslam.moment_matching.min_existence);
     }
-    if (absl::Status st = options.eif.Validate(); !st.ok()) return st;
-    if (absl::Status st = options.ceres.Validate(); !st.ok()) return st;
-    if (absl::Status st = options.ekf_join.Validate(); !st.ok()) return st;
-    auto chained = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose,
-                                                options.backend, options.eif, options.ceres,
-                                                options.ceres_every, options.ekf_join);
+    auto chained = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose, options.backend);
     chain = chained.get();
     estimator = std::move(chained);
   } else if (options.frontend == Frontend::kFastSlam) {
@@ -224,7 +219,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (!dataset.truth_poses.empty()) {
     r.errors = eval::ComputeTrajectoryErrors(r.final_trajectory, dataset.truth_poses);
     metrics["trajectory"] = ErrorsJson(*r.errors);
-    if (chain != nullptr && options.backend != Backend::kNone) {  // else final = online
+    if (chain != nullptr && options.backend.kind != Backend::kNone) {  // else final = online
       r.errors_online = eval::ComputeTrajectoryErrors(r.online, dataset.truth_poses);
       metrics["trajectory_online"] = ErrorsJson(*r.errors_online);
     }

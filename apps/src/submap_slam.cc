@@ -2,6 +2,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "subslam/graph/internal/check.h"
 
 #include <algorithm>
 
@@ -13,36 +14,60 @@ const char* ToString(Backend backend) {
     case Backend::kEif: return "eif";
     case Backend::kCeres: return "ceres";
     case Backend::kEkf: return "ekf";
+    case Backend::kTreeEkf: return "tree-ekf";
+    case Backend::kTreeEif: return "tree-eif";
   }
   return "?";
 }
 
 absl::StatusOr<Backend> BackendFromString(const std::string& name) {
-  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf}) {
+  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf,
+                    Backend::kTreeEif}) {
     if (name == ToString(b)) return b;
   }
   return absl::InvalidArgumentError(
-      absl::StrCat("unknown back-end \"", name, "\" (expected none, eif, ceres or ekf)"));
+      absl::StrCat("unknown back-end \"", name, "\" (expected none, eif, ceres, ekf, tree-ekf or tree-eif)"));
+}
+
+absl::Status BackendOptions::Validate() const {
+  if (absl::Status st = eif.Validate(); !st.ok()) return st;
+  if (absl::Status st = ekf.Validate(); !st.ok()) return st;
+  if (absl::Status st = ceres.Validate(); !st.ok()) return st;
+  if (ceres_every < 0) return absl::InvalidArgumentError("ceres_every must be >= 0");
+  return absl::OkStatus();
+}
+
+std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose) {
+  switch (options.kind) {
+    case Backend::kNone: return nullptr;
+    case Backend::kEif:
+    case Backend::kCeres: return std::make_unique<backend::EifJoiner>(initial_pose, options.eif);
+    case Backend::kEkf: return std::make_unique<backend::EkfJoiner>(initial_pose, options.ekf);
+    case Backend::kTreeEkf: {
+      backend::EkfJoinerOptions ekf = options.ekf;
+      ekf.keep_anchors = true;  // tree joins need every node's anchors
+      return std::make_unique<backend::TreeJoiner>(std::make_unique<backend::EkfJoiner>(initial_pose, ekf),
+                                                   options.tree);
+    }
+    case Backend::kTreeEif:
+      return std::make_unique<backend::TreeJoiner>(std::make_unique<backend::EifJoiner>(initial_pose, options.eif),
+                                                   options.tree);
+  }
+  return nullptr;
 }
 
 SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
-                       Backend backend, const backend::EifJoinerOptions& eif,
-                       const backend::CeresSolveOptions& ceres, int ceres_every,
-                       const backend::EkfJoinerOptions& ekf_join)
+                       const BackendOptions& backend)
     : mapper_(std::move(mapper)),
-      backend_(backend),
-      ceres_options_(ceres),
-      ceres_every_(ceres_every),
+      backend_(backend.kind),
+      joiner_(MakeJoiner(backend, initial_pose)),
+      ceres_options_(backend.ceres),
+      ceres_every_(backend.ceres_every),
       anchor_(initial_pose) {
+  SUBSLAM_CHECK(backend.Validate().ok()) << backend.Validate().message();
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
-  if (backend_ == Backend::kEif || backend_ == Backend::kCeres) {
-    auto joiner = std::make_unique<backend::EifJoiner>(initial_pose, eif);
-    eif_ = joiner.get();
-    joiner_ = std::move(joiner);
-  } else if (backend_ == Backend::kEkf) {
-    joiner_ = std::make_unique<backend::EkfJoiner>(initial_pose, ekf_join);
-  }
+  if (backend_ == Backend::kEif || backend_ == Backend::kCeres) eif_ = static_cast<backend::EifJoiner*>(joiner_.get());
 }
 
 std::string SubmapSlam::Name() const {
@@ -75,9 +100,13 @@ void SubmapSlam::JoinClosed() {
     }
     closed_.push_back(std::move(c));
   }
-  const int k = mapper_->current_map_id();
-  anchor_ = Anchor(k);
-  anchor_covariance_ = AnchorCovariance(k);
+  if (joiner_) {  // the tree joiner answers without folding its nodes
+    anchor_ = joiner_->LastAnchor();
+    anchor_covariance_ = joiner_->LastAnchorCovariance();
+  } else {
+    anchor_ = chain_.back();
+    anchor_covariance_ = chain_covariance_.back();
+  }
 }
 
 absl::Status SubmapSlam::SolveAndAdopt() {

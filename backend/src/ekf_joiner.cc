@@ -187,11 +187,11 @@ absl::Status EkfJoiner::FuseConditional(const LocalSubmap& s, int start, int end
   const Eigen::LLT<Eigen::MatrixXd> llt_n(Q_NN);
   if (llt_n.info() != Eigen::Success) return absl::InternalError("EKF join: Q_NN not positive definite");
   const Eigen::MatrixXd C = llt_n.solve(Q_MN.transpose()).transpose();
-  const Eigen::MatrixXd H = J(rows_m, Eigen::placeholders::all) - C * J(rows_n, Eigen::placeholders::all);
+  const Eigen::MatrixXd H = J(rows_m, Eigen::all) - C * J(rows_n, Eigen::all);
   const Eigen::MatrixXd R = s.covariance(rows_m, rows_m) - C * Q_MN.transpose();
   const Eigen::VectorXd nu = -(lin.residual(rows_m) - C * lin.residual(rows_n));
-  const Eigen::MatrixXd PH = P_(Eigen::placeholders::all, state_index) * H.transpose();  // N × 2m
-  Eigen::MatrixXd S = H * PH(state_index, Eigen::placeholders::all) + R;
+  const Eigen::MatrixXd PH = P_(Eigen::all, state_index) * H.transpose();  // N × 2m
+  Eigen::MatrixXd S = H * PH(state_index, Eigen::all) + R;
   S = 0.5 * (S + S.transpose());
   const Eigen::LLT<Eigen::MatrixXd> llt(S);
   if (llt.info() != Eigen::Success) return absl::InternalError("EKF join: innovation covariance not positive definite");

@@ -38,11 +38,11 @@ TEST(SubmapPipeline, EkfLocalMapsJoinedByEifBeatChaining) {
   for (uint64_t seed : {1, 2}) {
     RunOptions options;
     options.frontend = Frontend::kEkfLocal;
-    options.backend = Backend::kNone;
+    options.backend.kind = Backend::kNone;
     absl::StatusOr<RunResult> chained = RunPipeline(Simulate(seed), options);
     ASSERT_TRUE(chained.ok()) << chained.status();
-    options.backend = Backend::kEif;
-    options.eif.relinearize_at_end = true;
+    options.backend.kind = Backend::kEif;
+    options.backend.eif.relinearize_at_end = true;
     absl::StatusOr<RunResult> joined = RunPipeline(Simulate(seed), options);
     ASSERT_TRUE(joined.ok()) << joined.status();
     EXPECT_FALSE(joined->errors->failed) << seed;
@@ -59,10 +59,10 @@ TEST(SubmapPipeline, EkfLocalMapsJoinedByEifBeatChaining) {
 TEST(SubmapPipeline, CeresSolveAfterTheEif) {
   RunOptions options;
   options.frontend = Frontend::kEkfLocal;
-  options.backend = Backend::kEif;
+  options.backend.kind = Backend::kEif;
   absl::StatusOr<RunResult> eif = RunPipeline(Simulate(1), options);
   ASSERT_TRUE(eif.ok()) << eif.status();
-  options.backend = Backend::kCeres;
+  options.backend.kind = Backend::kCeres;
   absl::StatusOr<RunResult> ceres = RunPipeline(Simulate(1), options);
   ASSERT_TRUE(ceres.ok()) << ceres.status();
   EXPECT_GT(ceres->report["estimator_counters"]["ceres_iterations"].get<double>(), 0);
@@ -71,7 +71,7 @@ TEST(SubmapPipeline, CeresSolveAfterTheEif) {
   EXPECT_LE(ceres->errors->rms_position_m, eif->errors->rms_position_m);
   EXPECT_FALSE(ceres->errors->failed);
   // With the ISEIF-style schedule: a solve every 10 joins and at the end, same minimum.
-  options.ceres_every = 10;
+  options.backend.ceres_every = 10;
   absl::StatusOr<RunResult> every = RunPipeline(Simulate(1), options);
   ASSERT_TRUE(every.ok()) << every.status();
   const int maps = static_cast<int>(every->local_maps.size());
@@ -91,7 +91,7 @@ TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
   options.truth_landmarks = d.truth_landmarks;
   options.out_dir = ::testing::TempDir() + "/subslam_join";
   for (const bool known : {true, false}) {
-    options.eif.association.known_association = known;
+    options.backend.eif.association.known_association = known;
     absl::StatusOr<JoinResult> j = RunJoin(maps, options);
     ASSERT_TRUE(j.ok()) << j.status();
     EXPECT_EQ(j->wrong, 0) << "known " << known;
@@ -121,8 +121,8 @@ TEST(SubmapPipeline, JoinedAnchorsAreNotOverconfident) {
     const io::Dataset d = Simulate(seed);
     JoinOptions options;
     options.initial_pose = d.initial_pose;
-    options.eif.association.known_association = true;
-    options.eif.relinearize_at_end = true;
+    options.backend.eif.association.known_association = true;
+    options.backend.eif.relinearize_at_end = true;
     absl::StatusOr<JoinResult> j = RunJoin(EkfLocalMaps(d), options);
     ASSERT_TRUE(j.ok()) << j.status();
     for (size_t k = 1; k < j->anchors.size(); ++k) {

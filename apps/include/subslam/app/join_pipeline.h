@@ -20,9 +20,8 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
+#include "subslam/app/submap_slam.h"
 #include "subslam/backend/ceres_solver.h"
-#include "subslam/backend/eif_joiner.h"
-#include "subslam/backend/ekf_joiner.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/io/dataset.h"
@@ -30,13 +29,15 @@
 namespace subslam::app {
 
 struct JoinOptions {
-  // The joiner: the EIF (default) or, when `ekf` is set, dense EKF joining.
-  backend::EifJoinerOptions eif;
-  std::optional<backend::EkfJoinerOptions> ekf;
-  // When set, the graph the joiner built (its association, its estimate as the start) is
-  // solved with Ceres after the last join; anchors and landmarks come from that solution
-  // (anchor covariances from ceres::Covariance, landmark covariances from the joiner).
-  std::optional<backend::CeresSolveOptions> ceres;
+  // The back-end (not kNone). kCeres: the graph the EIF built (its association, its
+  // estimate as the start) is solved with Ceres after the last join; anchors and
+  // landmarks come from that solution (anchor covariances from ceres::Covariance,
+  // landmark covariances from the EIF).
+  BackendOptions backend = [] {
+    BackendOptions o;
+    o.kind = Backend::kEif;
+    return o;
+  }();
   Pose2 initial_pose;           // anchor 0
   std::string out_dir;          // empty: write nothing
   // Ground truth for the report (optional): true poses (anchors compared at their times)

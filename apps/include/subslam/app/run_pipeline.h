@@ -53,11 +53,7 @@ struct RunOptions {
   frontend::EkfSlamOptions ekf;
   frontend::FastSlamOptions fastslam;
   frontend::SubmapPolicyOptions policy;  // rbpf, ekf
-  Backend backend = Backend::kNone;       // rbpf, ekf: how local maps are joined
-  backend::EifJoinerOptions eif;          // backend eif, ceres
-  backend::EkfJoinerOptions ekf_join;     // backend ekf (association set like eif's)
-  backend::CeresSolveOptions ceres;       // backend ceres
-  int ceres_every = 0;                    // backend ceres: solve every K joins (0: at the end only)
+  BackendOptions backend;                 // rbpf, ekf: how local maps are joined
   NoiseOverrides noise;
   std::string out_dir;          // empty: write nothing
   bool progress = false;        // progress line on stderr (when it is a terminal)

@@ -7,6 +7,8 @@
 //  * kEif   — the exactly sparse EIF joiner (backend/eif_joiner.h);
 //  * kEkf   — dense EKF map joining in covariance form (backend/ekf_joiner.h), the
 //    baseline; it associates with the same module and options as the EIF;
+//  * kTreeEkf, kTreeEif — binary-tree joining (backend/tree_joiner.h) over dense EKF or
+//    sparse EIF nodes; the online anchor is chained over the tree's pending nodes;
 //  * kCeres — the EIF joiner associates and gives the online estimate; every
 //    `ceres_every` joins (0: never during the run) and at Finish() the whole graph is
 //    solved with Ceres (backend/ceres_solver.h), warm-started from the current estimate
@@ -32,21 +34,35 @@
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/ekf_joiner.h"
 #include "subslam/backend/map_joiner.h"
+#include "subslam/backend/tree_joiner.h"
 #include "subslam/frontend/local_mapper.h"
 #include "subslam/frontend/online_estimator.h"
 
 namespace subslam::app {
 
-enum class Backend { kNone, kEif, kCeres, kEkf };
-const char* ToString(Backend backend);
+enum class Backend { kNone, kEif, kCeres, kEkf, kTreeEkf, kTreeEif };
+const char* ToString(Backend backend);  // none, eif, ceres, ekf, tree-ekf, tree-eif
 absl::StatusOr<Backend> BackendFromString(const std::string& name);
+
+struct BackendOptions {
+  Backend kind = Backend::kNone;
+  backend::EifJoinerOptions eif;    // eif, ceres, tree-eif
+  backend::EkfJoinerOptions ekf;    // ekf, tree-ekf (tree-ekf keeps every anchor)
+  backend::TreeJoinerOptions tree;  // tree-ekf, tree-eif
+  backend::CeresSolveOptions ceres; // ceres
+  int ceres_every = 0;              // ceres: also solve every K joins (0: at the end only)
+
+  absl::Status Validate() const;
+};
+
+// The joiner of a back-end (nullptr for kNone; the EIF for kCeres).
+std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose);
 
 class SubmapSlam final : public frontend::OnlineEstimator {
  public:
+  // `backend` must be valid (BackendOptions::Validate).
   SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
-             Backend backend, const backend::EifJoinerOptions& eif = {},
-             const backend::CeresSolveOptions& ceres = {}, int ceres_every = 0,
-             const backend::EkfJoinerOptions& ekf_join = {});
+             const BackendOptions& backend);
 
   std::string Name() const override;
   void Predict(const Eigen::Vector2d& u, double dt) override { mapper_->Predict(u, dt); }
@@ -67,9 +83,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   const std::vector<frontend::ClosedLocalMap>& local_maps() const { return closed_; }
   int last_scan_map_id() const { return last_scan_map_id_; }
   const std::vector<int>& last_scan_features() const { return mapper_->last_scan_features(); }
-  // The back-end's joiner (nullptr for kNone); eif() is set for kEif and kCeres.
+  // The back-end's joiner (nullptr for kNone).
   const backend::MapJoiner* joiner() const { return joiner_.get(); }
-  const backend::EifJoiner* eif() const { return eif_; }
   // kCeres, after Finish(): Ceres's summary.
   const std::optional<backend::CeresSolveReport>& ceres_report() const { return ceres_report_; }
   static constexpr int kFeatureIdStride = 1000000;

@@ -71,9 +71,9 @@ class MapJoiner {
   // joins a whole map `right` of its kind whose anchor 0 (the identity: right's frame)
   // is this joiner's last anchor: right's landmarks are associated with this map's,
   // its anchors and landmarks are brought into this frame, and its factors are added.
-  virtual std::unique_ptr<MapJoiner> NewEmpty(const Pose2& initial_pose) const { return nullptr; }
+  virtual std::unique_ptr<MapJoiner> NewEmpty(const Pose2& /*initial_pose*/) const { return nullptr; }
   virtual std::unique_ptr<MapJoiner> Clone() const { return nullptr; }
-  virtual absl::Status JoinMap(const MapJoiner& right) {
+  virtual absl::Status JoinMap(const MapJoiner& /*right*/) {
     return absl::UnimplementedError(Name() + " cannot join whole maps");
   }
 };
