@@ -110,6 +110,39 @@ TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
   EXPECT_TRUE(RunJoin(*back, options).ok());
 }
 
+// Every back-end on the same recorded local maps, with the same (JCBB) association
+// options: none merges two true landmarks, each closes the loop, and the anchors pass the
+// 10σ test; run online, the EKF and tree back-ends' trajectories do too.
+TEST(SubmapPipeline, EveryBackendJoinsTheSameLocalMaps) {
+  const io::Dataset d = Simulate(3);
+  const std::vector<LocalSubmap> maps = EkfLocalMaps(d);
+  ASSERT_FALSE(maps.empty());
+  for (const Backend kind : {Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf, Backend::kTreeEif}) {
+    JoinOptions options;
+    options.initial_pose = d.initial_pose;
+    options.truth_poses = d.truth_poses;
+    options.backend.kind = kind;
+    absl::StatusOr<JoinResult> j = RunJoin(maps, options);
+    ASSERT_TRUE(j.ok()) << ToString(kind) << ": " << j.status();
+    EXPECT_EQ(j->wrong, 0) << ToString(kind);
+    EXPECT_GT(j->loop_merged, 0) << ToString(kind);
+    EXPECT_EQ(static_cast<int>(j->anchors.size()), j->local_maps + 1) << ToString(kind);
+    const eval::TrajectoryErrors e = eval::ComputeTrajectoryErrors(j->anchors, d.truth_poses);
+    EXPECT_FALSE(e.failed) << ToString(kind);
+    EXPECT_EQ(j->report["configuration"]["backend"], ToString(kind));
+  }
+  for (const Backend kind : {Backend::kEkf, Backend::kTreeEkf, Backend::kTreeEif}) {
+    RunOptions options;
+    options.frontend = Frontend::kEkfLocal;
+    options.backend.kind = kind;
+    absl::StatusOr<RunResult> r = RunPipeline(d, options);
+    ASSERT_TRUE(r.ok()) << ToString(kind) << ": " << r.status();
+    EXPECT_FALSE(r->errors->failed) << ToString(kind);
+    EXPECT_FALSE(r->errors_online->failed) << ToString(kind);
+    EXPECT_EQ(r->map_errors->spurious, 0) << ToString(kind);
+  }
+}
+
 // The joined anchors are not over-confident: with known association and relinearisation,
 // each anchor's NEES against the true pose at its time is below χ²₃(0.95) as often as a
 // consistent estimate's would be — the count over runs is compared with
