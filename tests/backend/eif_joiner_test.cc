@@ -7,6 +7,7 @@
 #include <fstream>
 #include <map>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include "subslam/backend/submap_factor.h"
@@ -212,6 +213,47 @@ TEST(EifJoiner, ValidationRejectsAnInconsistentJoin) {
   EXPECT_EQ(validated.rejected(), std::vector<int>{6});
   EXPECT_EQ(validated.num_anchors(), fused.num_anchors());  // the chain is kept
   EXPECT_LT(AnchorRms(validated.graph(), run), AnchorRms(fused.graph(), run));
+}
+
+// One wrong association injected (a feature's truth id swapped for that of another,
+// already mapped landmark at least 4 m away; known association then fuses them) is
+// caught by validation: that join alone is rejected and redone without associations.
+TEST(EifJoiner, ValidationCatchesAnInjectedWrongAssociation) {
+  SyntheticRun run = MakeRun(6, 12);
+  LocalSubmap& bad = run.submaps[9];
+  // A feature of map 9 whose landmark was seen before, and another mapped landmark.
+  std::set<int> seen_before;
+  for (int k = 0; k < 9; ++k) {
+    for (const LocalSubmapLandmark& l : run.submaps[k].landmarks) seen_before.insert(*l.truth_id);
+  }
+  int feature = -1, wrong_truth = -1;
+  for (int i = 0; i < bad.num_landmarks() && feature < 0; ++i) {
+    const int t = *bad.landmarks[i].truth_id;
+    if (!seen_before.count(t)) continue;
+    for (int other : seen_before) {
+      bool in_map = false;
+      for (const LocalSubmapLandmark& l : bad.landmarks) in_map = in_map || *l.truth_id == other;
+      if (!in_map && (run.landmarks[other] - run.landmarks[t]).norm() > 4.0) {
+        feature = i;
+        wrong_truth = other;
+        break;
+      }
+    }
+  }
+  ASSERT_GE(feature, 0);
+  bad.landmarks[feature].truth_id = wrong_truth;
+  EifJoinerOptions options;
+  options.association.known_association = true;
+  options.validate_joins = true;
+  EifJoiner eif(run.anchors[0], options);
+  for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
+  EXPECT_EQ(eif.rejected(), std::vector<int>{9});
+  EXPECT_EQ(eif.counters().rejected_joins, 1);
+  // Without the injection, the same maps pass validation.
+  EifJoiner clean(run.anchors[0], options);
+  bad.landmarks[feature].truth_id = *MakeRun(6, 12).submaps[9].landmarks[feature].truth_id;
+  for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(clean.Join(s).ok());
+  EXPECT_TRUE(clean.rejected().empty());
 }
 
 TEST(EifJoiner, RejectsInvalidInput) {
