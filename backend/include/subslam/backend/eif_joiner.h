@@ -96,8 +96,9 @@ class EifJoiner final : public MapJoiner {
   const SubmapAssociator& associator() const override { return associator_; }
   // Tree joining: `right` (an EifJoiner) is associated with this map, its anchors and new
   // landmarks are brought into this frame through the last anchor, its factors are
-  // relinearised there and added, and the estimate is re-solved (one Gauss-Newton step
-  // from the merged estimate; to convergence when relinearize_every > 0).
+  // relinearised there and added, and Gauss-Newton is iterated from the merged estimate
+  // to convergence (relinearize_tolerance, max_relinearizations): a whole map's factors
+  // were linearised without this map's information, so one step is not enough.
   std::unique_ptr<MapJoiner> NewEmpty(const Pose2& initial_pose) const override;
   std::unique_ptr<MapJoiner> Clone() const override;
   absl::Status JoinMap(const MapJoiner& right) override;
