@@ -99,6 +99,9 @@ ABSL_FLAG(bool, validate_joins, kEifDefaults.validate_joins,
           "(the map is joined again without associations)");
 ABSL_FLAG(int, relinearize_every, kEifDefaults.relinearize_every,
           "eif: relinearise to convergence every K joins (0: never during the run)");
+ABSL_FLAG(bool, eif_incremental, kEifDefaults.incremental_factorization,
+          "eif: update the factor of the information matrix by each join's rank update "
+          "(false: refactorise it at every join)");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
@@ -188,6 +191,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
+  o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);
   o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   o.association.known_association = absl::GetFlag(FLAGS_known_association);
   return o;

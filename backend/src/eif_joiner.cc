@@ -1,12 +1,12 @@
 #include "subslam/backend/eif_joiner.h"
 
 #include <Eigen/Cholesky>
-#include <Eigen/CholmodSupport>
 #include <algorithm>
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/graph/internal/check.h"
@@ -16,9 +16,9 @@ namespace subslam::backend {
 using frontend::StageTimer;
 
 struct EifJoiner::Solver {
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower> llt;
-  Eigen::Index analyzed_rows = -1, analyzed_nonzeros = -1;
-  bool ready = false;
+  SparseCholesky factor;
+  Eigen::MatrixXd last_whitened_jacobian;  // of the newest factor, for the incremental update
+  bool stale = false;  // the factor no longer matches Λ (a rejected join was undone)
 };
 
 absl::Status EifJoinerOptions::Validate() const {
@@ -88,7 +88,7 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   return f;
 }
 
-void EifJoiner::Linearize(Factor* f) const {
+void EifJoiner::Linearize(Factor* f, bool keep_whitened_jacobian) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   const LocalSubmap& s = record.submap;
   const auto pose = [this](int k) {
@@ -127,6 +127,7 @@ void EifJoiner::Linearize(Factor* f) const {
   llt.matrixL().solveInPlace(e);
   f->H = A.transpose() * A;
   f->b = A.transpose() * e;
+  if (keep_whitened_jacobian) solver_->last_whitened_jacobian = std::move(A);
 }
 
 void EifJoiner::Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,
@@ -171,22 +172,54 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
       Lambda_.setFromTriplets(triplets.begin(), triplets.end());
     }
   }
+  bool incremental = false;
   {
     StageTimer timer(&times_, "factorization");
-    if (Lambda_.rows() != solver_->analyzed_rows || Lambda_.nonZeros() != solver_->analyzed_nonzeros) {
-      StageTimer analysis(&times_, "symbolic_analysis");
-      solver_->llt.analyzePattern(Lambda_);  // CHOLMOD's fill-reducing ordering
-      solver_->analyzed_rows = Lambda_.rows();
-      solver_->analyzed_nonzeros = Lambda_.nonZeros();
+    SparseCholesky& L = solver_->factor;
+    // The newest factor as a rank update of the existing factor, while there are spare
+    // slots and the fill has not doubled since the last ordering.
+    if (only_last_factor && options_.incremental_factorization && L.ready() && !solver_->stale &&
+        dim_ <= L.capacity() &&
+        L.nonzeros() <= options_.refactorize_fill_ratio * static_cast<double>(L.nonzeros_after_factorize())) {
+      const Factor& f = factors_.back();
+      std::vector<int> rows;
+      for (size_t v = 0; v < f.offsets.size(); ++v) {
+        for (int i = 0; i < f.sizes[v]; ++i) rows.push_back(f.offsets[v] + i);
+      }
+      incremental = L.Update(dim_, rows, solver_->last_whitened_jacobian.transpose()).ok();
+      ++(incremental ? counters_.incremental_updates : counters_.failed_updates);
     }
-    solver_->llt.factorize(Lambda_);
-    solver_->ready = solver_->llt.info() == Eigen::Success;
-    if (!solver_->ready) {
-      return absl::InternalError("EIF: the information matrix is not positive definite");
+    solver_->last_whitened_jacobian.resize(0, 0);
+    solver_->stale = false;
+    if (!incremental) {
+      StageTimer full(&times_, "full_factorization");
+      // Spare slots for the next joins' new variables (about 15 % of the state).
+      if (absl::Status st = L.Factorize(Lambda_, 64 + dim_ / 6); !st.ok()) {
+        return absl::InternalError(absl::StrCat("EIF: ", st.message()));
+      }
+      ++counters_.full_factorizations;
     }
   }
-  StageTimer timer(&times_, "recovery");
-  const Eigen::VectorXd x = solver_->llt.solve(eta_);
+  Eigen::VectorXd x;
+  {
+    StageTimer timer(&times_, "recovery");
+    x = solver_->factor.Solve(eta_);
+  }
+  if (incremental) {
+    // Guard on the updated factor: Λx must give back η, or refactorise.
+    StageTimer timer(&times_, "recovery_check");
+    const double residual = (Lambda_ * x - eta_).norm();
+    if (!(residual <= 1e-8 * std::max(1.0, eta_.norm()))) {
+      ++counters_.failed_updates;
+      --counters_.incremental_updates;
+      StageTimer full(&times_, "full_factorization");
+      if (absl::Status st = solver_->factor.Factorize(Lambda_, 64 + dim_ / 6); !st.ok()) {
+        return absl::InternalError(absl::StrCat("EIF: ", st.message()));
+      }
+      ++counters_.full_factorizations;
+      x = solver_->factor.Solve(eta_);
+    }
+  }
   if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
   SetState(x);
   return absl::OkStatus();
@@ -221,7 +254,7 @@ Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors,
   for (int s : sizes) c += s;
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(c, c);
   if (dim_ == 0) return out;
-  SUBSLAM_CHECK(solver_->ready) << "no factorisation to recover covariances from";
+  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
   // Columns of Λ⁻¹ for the selected variables: Λ X = E, by sparse solves.
   Eigen::MatrixXd E = Eigen::MatrixXd::Zero(dim_, c);
   int col = 0;
@@ -231,7 +264,7 @@ Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors,
     }
     col += sizes[v];
   }
-  const Eigen::MatrixXd X = solver_->llt.solve(E);
+  const Eigen::MatrixXd X = solver_->factor.Solve(E);
   int row = 0;
   for (size_t v = 0; v < offsets.size(); ++v) {
     if (offsets[v] >= 0) out.middleRows(row, sizes[v]) = X.middleRows(offsets[v], sizes[v]);
@@ -287,6 +320,7 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   Lambda_ = std::move(before.Lambda);
   eta_ = std::move(before.eta);
   associator_ = std::move(before.associator);
+  solver_->stale = true;  // it absorbed the rejected factor
   counters_ = before.counters;
   ++counters_.rejected_joins;
   rejected_.push_back(s.id);
@@ -331,7 +365,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   Factor f = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
   {
     StageTimer timer(&times_, "update");
-    Linearize(&f);
+    Linearize(&f, /*keep_whitened_jacobian=*/true);
   }
   factors_.push_back(std::move(f));
   last_association_ = assoc;
@@ -383,12 +417,8 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       times_(other.times_),
       counters_(other.counters_),
       last_t_end_(other.last_t_end_) {
-  if (other.solver_->ready) {
-    solver_->llt.analyzePattern(Lambda_);
-    solver_->analyzed_rows = Lambda_.rows();
-    solver_->analyzed_nonzeros = Lambda_.nonZeros();
-    solver_->llt.factorize(Lambda_);
-    solver_->ready = solver_->llt.info() == Eigen::Success;
+  if (other.solver_->factor.ready()) {
+    SUBSLAM_CHECK(solver_->factor.Factorize(Lambda_, 64 + dim_ / 6).ok()) << "refactorising a copy failed";
   }
 }
 

@@ -100,6 +100,53 @@ TEST(EifJoiner, MarginalsEqualBlocksOfTheDenseInverse) {
   EXPECT_TRUE(MatricesNear(Eigen::Matrix3d::Zero(), eif.AnchorCovariance(0), 0.0));  // P0 fixed
 }
 
+// The incremental factor (rank updates of the LDLᵀ factor, new variables in spare slots)
+// gives the estimate and the marginals of a full factorisation per join, through loop
+// closures, with unknown association — and with known association where one local map
+// has two features of one true landmark (the factor then lists that landmark twice).
+TEST(EifJoiner, IncrementalFactorEqualsRefactorizingEveryJoin) {
+  for (uint64_t seed : {5, 11, 0}) {
+    SyntheticRun run = MakeRun(seed == 0 ? 5 : seed, 24, 1.0);
+    EifJoinerOptions options;
+    if (seed == 0) {
+      options.association.known_association = true;
+      LocalSubmap& s = run.submaps[13];
+      ASSERT_GE(s.num_landmarks(), 2);
+      std::set<int> seen;
+      for (int k = 0; k < 13; ++k) {
+        for (const LocalSubmapLandmark& l : run.submaps[k].landmarks) seen.insert(*l.truth_id);
+      }
+      ASSERT_TRUE(seen.count(*s.landmarks[0].truth_id) > 0);
+      s.landmarks[1].truth_id = s.landmarks[0].truth_id;  // both joined to one landmark
+    }
+    options.incremental_factorization = false;
+    EifJoiner full(run.anchors[0], options);
+    options.incremental_factorization = true;
+    EifJoiner incremental(run.anchors[0], options);
+    for (const LocalSubmap& s : run.submaps) {
+      ASSERT_TRUE(full.Join(s).ok());
+      ASSERT_TRUE(incremental.Join(s).ok());
+      ASSERT_EQ(incremental.last_association(), full.last_association()) << "map " << s.id;
+    }
+    EXPECT_EQ(full.counters().incremental_updates, 0);
+    EXPECT_EQ(full.counters().full_factorizations, 24);
+    EXPECT_GT(incremental.counters().incremental_updates, 12) << seed;
+    EXPECT_EQ(incremental.counters().failed_updates, 0) << seed;
+    EXPECT_GT(incremental.counters().associated, 50) << seed;  // loops closed on the way
+    if (seed == 0) {
+      const std::vector<int>& a = incremental.graph().factors()[13].landmark_of_feature;
+      EXPECT_EQ(a[0], a[1]);
+    }
+    for (int k = 1; k < full.num_anchors(); ++k) {
+      EXPECT_TRUE(MatricesNear(full.anchor(k).vector(), incremental.anchor(k).vector(), 1e-9)) << "anchor " << k;
+    }
+    std::vector<int> landmarks(full.num_landmarks());
+    for (int j = 0; j < full.num_landmarks(); ++j) landmarks[j] = j;
+    EXPECT_TRUE(MatricesNear(full.JointCovariance({full.num_anchors() - 1, 7}, landmarks),
+                             incremental.JointCovariance({full.num_anchors() - 1, 7}, landmarks), 1e-9));
+  }
+}
+
 // Relinearised to convergence, the EIF is batch Gauss-Newton on the submap graph.
 TEST(EifJoiner, IteratedToConvergenceEqualsBatchGaussNewton) {
   const SyntheticRun run = MakeRun(7, 12, 3.0);

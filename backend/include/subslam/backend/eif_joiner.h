@@ -28,6 +28,7 @@
 #ifndef SUBSLAM_BACKEND_EIF_JOINER_H_
 #define SUBSLAM_BACKEND_EIF_JOINER_H_
 
+#include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <map>
 #include <memory>
@@ -58,6 +59,13 @@ struct EifJoinerOptions {
   bool relinearize_at_end = false; // at Finish()
   double relinearize_tolerance = 1e-6;  // stop when max |Δx| (m, rad) falls below
   int max_relinearizations = 20;
+  // Factorisation: each join updates the sparse LDLᵀ factor of Λ by the new factor's
+  // rank-(3+2n) update (CHOLMOD update/downdate; new variables last in the ordering)
+  // instead of refactorising Λ; a full factorisation with a fresh AMD ordering is done
+  // when the spare slots run out, when L's fill has grown by `refactorize_fill_ratio`
+  // since the last one, at every relinearisation, or if an update fails.
+  bool incremental_factorization = true;
+  double refactorize_fill_ratio = 1.5;
 
   absl::Status Validate() const;
 };
@@ -115,7 +123,9 @@ class EifJoiner final : public MapJoiner {
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
   // The factor record of graph factor `index`: its variables' offsets and sizes.
   Factor MakeFactor(int index) const;
-  void Linearize(Factor* f) const;
+  // H and b of the factor at the current estimate; the newest factor also keeps its
+  // whitened Jacobian for the incremental factor update.
+  void Linearize(Factor* f, bool keep_whitened_jacobian = false) const;
   // Adds a factor's blocks to triplets and η.
   void Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,
                Eigen::VectorXd* eta) const;

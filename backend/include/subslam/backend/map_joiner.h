@@ -27,6 +27,11 @@ struct JoinerCounters {
   long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
   long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
   long rejected_joins = 0;    // failed validation: joined again without associations
+  // EIF factor maintenance: joins absorbed by an incremental update of the factor, full
+  // factorisations (with a fresh ordering), and updates that failed and fell back to one.
+  long incremental_updates = 0;
+  long full_factorizations = 0;
+  long failed_updates = 0;
 };
 
 class MapJoiner {

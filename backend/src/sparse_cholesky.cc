@@ -1,0 +1,173 @@
+#include "sparse_cholesky.h"
+
+#include <cholmod.h>
+
+#include <algorithm>
+#include <numeric>
+
+namespace subslam::backend {
+namespace {
+
+// A CHOLMOD view of an Eigen compressed column matrix (no copy).
+cholmod_sparse View(const Eigen::SparseMatrix<double>& m, int rows, int cols, int stype) {
+  cholmod_sparse s{};
+  s.nrow = rows;
+  s.ncol = cols;
+  s.p = const_cast<int*>(m.outerIndexPtr());
+  s.i = const_cast<int*>(m.innerIndexPtr());
+  s.x = const_cast<double*>(m.valuePtr());
+  s.nzmax = m.outerIndexPtr()[cols];
+  s.stype = stype;
+  s.itype = CHOLMOD_INT;
+  s.xtype = CHOLMOD_REAL;
+  s.dtype = CHOLMOD_DOUBLE;
+  s.sorted = 1;
+  s.packed = 1;
+  return s;
+}
+
+}  // namespace
+
+SparseCholesky::SparseCholesky() : common_(new cholmod_common) {
+  cholmod_start(common_);
+  common_->supernodal = CHOLMOD_SIMPLICIAL;  // update/downdate need a simplicial LDLᵀ
+  common_->final_ll = 0;
+  common_->final_pack = 0;  // slack in each column for the fill of later updates
+  common_->nmethods = 1;
+  common_->method[0].ordering = CHOLMOD_GIVEN;
+  common_->postorder = 0;  // keep the spare slots last
+  common_->print = 0;
+}
+
+SparseCholesky::~SparseCholesky() {
+  if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
+  cholmod_finish(common_);
+  delete common_;
+}
+
+absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int spare) {
+  if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
+  const int n = static_cast<int>(A.rows());
+  const int capacity = n + std::max(0, spare);
+  // The lower triangle of A, then the spare slots' identity (their columns come after A's,
+  // so the first n columns alone are A).
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<size_t>(A.nonZeros()) / 2 + static_cast<size_t>(capacity));
+  for (int c = 0; c < A.outerSize(); ++c) {
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, c); it; ++it) {
+      if (it.row() >= it.col()) triplets.emplace_back(static_cast<int>(it.row()), static_cast<int>(it.col()), it.value());
+    }
+  }
+  for (int s = n; s < capacity; ++s) triplets.emplace_back(s, s, 1.0);
+  Eigen::SparseMatrix<double> lower(capacity, capacity);
+  lower.setFromTriplets(triplets.begin(), triplets.end());
+  lower.makeCompressed();
+  // AMD on A alone; the spare slots go last.
+  std::vector<int> perm(capacity);
+  if (n > 0) {
+    cholmod_sparse a = View(lower, n, n, -1);
+    if (!cholmod_amd(&a, nullptr, 0, perm.data(), common_)) return absl::InternalError("CHOLMOD: AMD ordering failed");
+  }
+  std::iota(perm.begin() + n, perm.end(), n);
+  cholmod_sparse all = View(lower, capacity, capacity, -1);
+  factor_ = cholmod_analyze_p(&all, perm.data(), nullptr, 0, common_);
+  if (factor_ == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
+  cholmod_factorize(&all, factor_, common_);
+  if (common_->status != CHOLMOD_OK || factor_->minor < factor_->n) {
+    cholmod_free_factor(&factor_, common_);
+    return absl::InternalError("CHOLMOD: the matrix is not positive definite");
+  }
+  position_.assign(capacity, 0);
+  const int* P = static_cast<const int*>(factor_->Perm);
+  for (int k = 0; k < capacity; ++k) position_[P[k]] = k;
+  dim_ = n;
+  capacity_ = capacity;
+  nonzeros_after_factorize_ = nonzeros();
+  return absl::OkStatus();
+}
+
+absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, const Eigen::MatrixXd& W) {
+  if (factor_ == nullptr) return absl::FailedPreconditionError("no factor to update");
+  if (new_dim < dim_ || new_dim > capacity_) return absl::OutOfRangeError("no spare slot for the new variables");
+  const int k = static_cast<int>(W.cols());
+  // C = P W: rows in the factor's order, sorted and unique within each column (a variable
+  // listed twice, e.g. two features joined to one landmark, sums its rows).
+  std::vector<int> order(rows.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return position_[rows[a]] < position_[rows[b]]; });
+  std::vector<int> unique_position;
+  Eigen::MatrixXd merged(static_cast<Eigen::Index>(rows.size()), k);
+  for (int r : order) {
+    if (!unique_position.empty() && unique_position.back() == position_[rows[r]]) {
+      merged.row(static_cast<Eigen::Index>(unique_position.size()) - 1) += W.row(r);
+    } else {
+      merged.row(static_cast<Eigen::Index>(unique_position.size())) = W.row(r);
+      unique_position.push_back(position_[rows[r]]);
+    }
+  }
+  const int m = static_cast<int>(unique_position.size());
+  cholmod_sparse* C = cholmod_allocate_sparse(capacity_, k, static_cast<size_t>(m) * k, 1, 1, 0, CHOLMOD_REAL, common_);
+  if (C == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
+  int* Cp = static_cast<int*>(C->p);
+  int* Ci = static_cast<int*>(C->i);
+  double* Cx = static_cast<double*>(C->x);
+  int nz = 0;
+  for (int j = 0; j < k; ++j) {
+    Cp[j] = nz;
+    for (int r = 0; r < m; ++r) {
+      Ci[nz] = unique_position[r];
+      Cx[nz++] = merged(r, j);
+    }
+  }
+  Cp[k] = nz;
+  const int ok = cholmod_updown(1, C, factor_, common_);
+  cholmod_free_sparse(&C, common_);
+  if (!ok || common_->status != CHOLMOD_OK) return absl::InternalError("CHOLMOD: update failed");
+  // The new variables' slots lose their identity: a downdate by their unit vectors.
+  const int added = new_dim - dim_;
+  if (added > 0) {
+    cholmod_sparse* E = cholmod_allocate_sparse(capacity_, added, added, 1, 1, 0, CHOLMOD_REAL, common_);
+    if (E == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
+    int* Ep = static_cast<int*>(E->p);
+    int* Ei = static_cast<int*>(E->i);
+    double* Ex = static_cast<double*>(E->x);
+    for (int j = 0; j < added; ++j) {
+      Ep[j] = j;
+      Ei[j] = position_[dim_ + j];
+      Ex[j] = 1.0;
+    }
+    Ep[added] = added;
+    const int down = cholmod_updown(0, E, factor_, common_);
+    cholmod_free_sparse(&E, common_);
+    if (!down || common_->status != CHOLMOD_OK) return absl::InternalError("CHOLMOD: downdate failed");
+  }
+  // A downdate that lost positive definiteness leaves a non-positive pivot in D.
+  const double* Lx = static_cast<const double*>(factor_->x);
+  const int* Lp = static_cast<const int*>(factor_->p);
+  for (int j = 0; j < capacity_; ++j) {
+    if (!(Lx[Lp[j]] > 0.0)) return absl::InternalError("CHOLMOD: the updated matrix is not positive definite");
+  }
+  dim_ = new_dim;
+  return absl::OkStatus();
+}
+
+Eigen::MatrixXd SparseCholesky::Solve(const Eigen::MatrixXd& B) const {
+  const int k = static_cast<int>(B.cols());
+  cholmod_dense* b = cholmod_zeros(capacity_, k, CHOLMOD_REAL, common_);
+  Eigen::Map<Eigen::MatrixXd>(static_cast<double*>(b->x), capacity_, k).topRows(dim_) = B;
+  cholmod_dense* x = cholmod_solve(CHOLMOD_A, factor_, b, common_);
+  Eigen::MatrixXd out = Eigen::Map<Eigen::MatrixXd>(static_cast<double*>(x->x), capacity_, k).topRows(dim_);
+  cholmod_free_dense(&b, common_);
+  cholmod_free_dense(&x, common_);
+  return out;
+}
+
+long SparseCholesky::nonzeros() const {
+  if (factor_ == nullptr) return 0;
+  const int* nz = static_cast<const int*>(factor_->nz);
+  long total = 0;
+  for (size_t j = 0; j < factor_->n; ++j) total += nz[j];
+  return total;
+}
+
+}  // namespace subslam::backend

@@ -1,0 +1,60 @@
+// A sparse LDLᵀ factor of a symmetric positive definite matrix A (CHOLMOD, simplicial)
+// that can grow: besides a full factorisation with a fresh fill-reducing ordering (AMD),
+// it takes rank-k updates A += W Wᵀ (cholmod_updown) and new variables, which occupy
+// spare slots kept as identity rows at the end of the ordering until claimed. This is the
+// incremental factor of the EIF joiner (private to the back-end).
+//
+// With the spare slots last in the ordering, a join's update touches only the columns on
+// the elimination-tree paths from its variables, so a join that extends the map (its
+// start anchor and new variables near the end of the ordering) costs little; a loop
+// closure touching old landmarks costs more, and the fill grows until the caller asks for
+// a full factorisation with a new ordering.
+#ifndef SUBSLAM_BACKEND_SRC_SPARSE_CHOLESKY_H_
+#define SUBSLAM_BACKEND_SRC_SPARSE_CHOLESKY_H_
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <vector>
+
+#include "absl/status/status.h"
+
+struct cholmod_common_struct;
+struct cholmod_factor_struct;
+
+namespace subslam::backend {
+
+class SparseCholesky {
+ public:
+  SparseCholesky();
+  ~SparseCholesky();
+  SparseCholesky(const SparseCholesky&) = delete;
+  SparseCholesky& operator=(const SparseCholesky&) = delete;
+
+  // Factorises A (n × n, symmetric; both triangles stored or the lower one) with a fresh
+  // AMD ordering and `spare` identity slots after it.
+  absl::Status Factorize(const Eigen::SparseMatrix<double>& A, int spare);
+  // A += W Wᵀ, where row r of W belongs to variable rows[r]; variables numbered from dim()
+  // up to new_dim − 1 are new and claim spare slots (their identity is removed).
+  // Requires new_dim ≤ capacity().
+  absl::Status Update(int new_dim, const std::vector<int>& rows, const Eigen::MatrixXd& W);
+  // A⁻¹ B for B with dim() rows.
+  Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
+
+  bool ready() const { return factor_ != nullptr; }
+  int dim() const { return dim_; }
+  int capacity() const { return capacity_; }
+  // Entries of L (a measure of fill) now and right after the last full factorisation.
+  long nonzeros() const;
+  long nonzeros_after_factorize() const { return nonzeros_after_factorize_; }
+
+ private:
+  cholmod_common_struct* common_;
+  cholmod_factor_struct* factor_ = nullptr;
+  std::vector<int> position_;  // variable → row of the permuted factor
+  int dim_ = 0, capacity_ = 0;
+  long nonzeros_after_factorize_ = 0;
+};
+
+}  // namespace subslam::backend
+
+#endif  // SUBSLAM_BACKEND_SRC_SPARSE_CHOLESKY_H_
