@@ -255,31 +255,34 @@ Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors,
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(c, c);
   if (dim_ == 0) return out;
   SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
-  // Columns of Λ⁻¹ for the selected variables: Λ X = E, by sparse solves.
-  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(dim_, c);
-  int col = 0;
-  for (size_t v = 0; v < offsets.size(); ++v) {
-    if (offsets[v] >= 0) {
-      for (int i = 0; i < sizes[v]; ++i) E(offsets[v] + i, col + i) = 1.0;
-    }
-    col += sizes[v];
-  }
-  const Eigen::MatrixXd X = solver_->factor.Solve(E);
+  // The block of Λ⁻¹ on the free variables' rows (fixed P0: zero rows and columns), by
+  // forward solves limited to each unit right-hand side's reach in the factor.
+  std::vector<int> state_rows, out_rows;
   int row = 0;
   for (size_t v = 0; v < offsets.size(); ++v) {
-    if (offsets[v] >= 0) out.middleRows(row, sizes[v]) = X.middleRows(offsets[v], sizes[v]);
-    row += sizes[v];
-  }
-  // Fixed P0: its rows and columns are zero.
-  row = 0;
-  for (size_t v = 0; v < offsets.size(); ++v) {
-    if (offsets[v] < 0) {
-      out.middleRows(row, sizes[v]).setZero();
-      out.middleCols(row, sizes[v]).setZero();
+    for (int i = 0; i < sizes[v] && offsets[v] >= 0; ++i) {
+      state_rows.push_back(offsets[v] + i);
+      out_rows.push_back(row + i);
     }
     row += sizes[v];
   }
+  const Eigen::MatrixXd block = solver_->factor.InverseBlock(state_rows);
+  out(out_rows, out_rows) = block;
   return 0.5 * (out + out.transpose());
+}
+
+std::vector<Matrix5d> EifJoiner::AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const {
+  std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());
+  if (dim_ == 0) return out;
+  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+  std::vector<int> hub;
+  for (int i = 0; i < 3 && anchor_offset_[anchor] >= 0; ++i) hub.push_back(anchor_offset_[anchor] + i);
+  std::vector<std::vector<int>> groups;
+  for (int j : landmarks) groups.push_back({landmark_offset_[j], landmark_offset_[j] + 1});
+  const std::vector<Eigen::MatrixXd> blocks = solver_->factor.InverseStarBlocks(hub, groups);
+  const int h = static_cast<int>(hub.size());  // 0 for the fixed P0: zero rows and columns
+  for (size_t c = 0; c < landmarks.size(); ++c) out[c].bottomRightCorner(2 + h, 2 + h) = blocks[c];
+  return out;
 }
 
 absl::Status EifJoiner::Join(const LocalSubmap& s) {
@@ -333,9 +336,12 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   if (associate) {
     StageTimer timer(&times_, "association");
     SubmapAssociation a = associator_.Associate(
-        s, start, graph_, [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+        s, start, graph_,
+        [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
           return JointCovariance(anchors, landmarks);
-        });
+        },
+        /*anchor_prefilter=*/true,
+        [this](int anchor, const std::vector<int>& landmarks) { return AnchorLandmarkCovariances(anchor, landmarks); });
     assoc = std::move(a.landmark_of_feature);
     times_["covariance_recovery"] += a.covariance_seconds;
     if (a.jcbb_truncated) ++counters_.jcbb_truncated;
@@ -448,7 +454,8 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
         [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
           return JointCovariance(anchors, landmarks);
         },
-        /*anchor_prefilter=*/false);
+        /*anchor_prefilter=*/false,
+        [this](int anchor, const std::vector<int>& landmarks) { return AnchorLandmarkCovariances(anchor, landmarks); });
     assoc = std::move(a.landmark_of_feature);
     times_["covariance_recovery"] += a.covariance_seconds;
     if (a.jcbb_truncated) ++counters_.jcbb_truncated;

@@ -3,6 +3,7 @@
 #include <cholmod.h>
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 
 namespace subslam::backend {
@@ -40,6 +41,12 @@ SparseCholesky::SparseCholesky() : common_(new cholmod_common) {
 }
 
 SparseCholesky::~SparseCholesky() {
+  if (solve_b_) cholmod_free_dense(&solve_b_, common_);
+  if (solve_bset_) cholmod_free_sparse(&solve_bset_, common_);
+  if (solve_x_) cholmod_free_dense(&solve_x_, common_);
+  if (solve_y_) cholmod_free_dense(&solve_y_, common_);
+  if (solve_e_) cholmod_free_dense(&solve_e_, common_);
+  if (solve_xset_) cholmod_free_sparse(&solve_xset_, common_);
   if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
   cholmod_finish(common_);
   delete common_;
@@ -159,6 +166,84 @@ Eigen::MatrixXd SparseCholesky::Solve(const Eigen::MatrixXd& B) const {
   Eigen::MatrixXd out = Eigen::Map<Eigen::MatrixXd>(static_cast<double*>(x->x), capacity_, k).topRows(dim_);
   cholmod_free_dense(&b, common_);
   cholmod_free_dense(&x, common_);
+  return out;
+}
+
+SparseCholesky::SparseColumn SparseCholesky::ForwardColumn(int variable) const {
+  // L y = P e_variable on the reach of the right-hand side only.
+  const double* Lx = static_cast<const double*>(factor_->x);
+  const int* Lp = static_cast<const int*>(factor_->p);
+  if (solve_b_ == nullptr || static_cast<int>(solve_b_->nrow) != capacity_) {
+    if (solve_b_) cholmod_free_dense(&solve_b_, common_);
+    if (solve_bset_) cholmod_free_sparse(&solve_bset_, common_);
+    solve_b_ = cholmod_zeros(capacity_, 1, CHOLMOD_REAL, common_);
+    solve_bset_ = cholmod_allocate_sparse(capacity_, 1, 1, 1, 1, 0, CHOLMOD_PATTERN, common_);
+  }
+  const int pos = position_[variable];
+  static_cast<double*>(solve_b_->x)[pos] = 1.0;
+  static_cast<int*>(solve_bset_->p)[0] = 0;
+  static_cast<int*>(solve_bset_->p)[1] = 1;
+  static_cast<int*>(solve_bset_->i)[0] = pos;
+  cholmod_solve2(CHOLMOD_L, factor_, solve_b_, solve_bset_, &solve_x_, &solve_xset_, &solve_y_, &solve_e_, common_);
+  static_cast<double*>(solve_b_->x)[pos] = 0.0;
+  SparseColumn column;
+  const int* xi = static_cast<const int*>(solve_xset_->i);
+  const int count = static_cast<const int*>(solve_xset_->p)[1];
+  const double* xv = static_cast<const double*>(solve_x_->x);
+  for (int t = 0; t < count; ++t) {
+    column.rows.push_back(xi[t]);
+    column.values.push_back(xv[xi[t]] / std::sqrt(Lx[Lp[xi[t]]]));
+  }
+  if (static_cast<int>(workspace_.size()) != capacity_) workspace_.assign(capacity_, 0.0);
+  return column;
+}
+
+double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {
+  std::vector<double>& scatter = workspace_;  // all zero between calls
+  for (size_t t = 0; t < a.rows.size(); ++t) scatter[a.rows[t]] = a.values[t];
+  double dot = 0.0;
+  for (size_t t = 0; t < b.rows.size(); ++t) dot += scatter[b.rows[t]] * b.values[t];
+  for (int r : a.rows) scatter[r] = 0.0;
+  return dot;
+}
+
+Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) const {
+  const int k = static_cast<int>(variables.size());
+  Eigen::MatrixXd out(k, k);
+  std::vector<SparseColumn> Y;
+  Y.reserve(k);
+  for (int v : variables) Y.push_back(ForwardColumn(v));
+  for (int a = 0; a < k; ++a) {
+    for (int c = a; c < k; ++c) out(a, c) = out(c, a) = Dot(Y[a], Y[c]);
+  }
+  return out;
+}
+
+std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector<int>& hub,
+                                                               const std::vector<std::vector<int>>& groups) const {
+  std::vector<SparseColumn> H;
+  for (int v : hub) H.push_back(ForwardColumn(v));
+  const int h = static_cast<int>(hub.size());
+  Eigen::MatrixXd hub_block(h, h);
+  for (int a = 0; a < h; ++a) {
+    for (int c = a; c < h; ++c) hub_block(a, c) = hub_block(c, a) = Dot(H[a], H[c]);
+  }
+  std::vector<Eigen::MatrixXd> out;
+  out.reserve(groups.size());
+  for (const std::vector<int>& group : groups) {
+    const int g = static_cast<int>(group.size());
+    std::vector<SparseColumn> G;
+    for (int v : group) G.push_back(ForwardColumn(v));
+    Eigen::MatrixXd m(h + g, h + g);
+    m.topLeftCorner(h, h) = hub_block;
+    for (int a = 0; a < h; ++a) {
+      for (int c = 0; c < g; ++c) m(a, h + c) = m(h + c, a) = Dot(H[a], G[c]);
+    }
+    for (int a = 0; a < g; ++a) {
+      for (int c = a; c < g; ++c) m(h + a, h + c) = m(h + c, h + a) = Dot(G[a], G[c]);
+    }
+    out.push_back(std::move(m));
+  }
   return out;
 }
 

@@ -20,6 +20,8 @@
 
 struct cholmod_common_struct;
 struct cholmod_factor_struct;
+struct cholmod_dense_struct;
+struct cholmod_sparse_struct;
 
 namespace subslam::backend {
 
@@ -39,6 +41,17 @@ class SparseCholesky {
   absl::Status Update(int new_dim, const std::vector<int>& rows, const Eigen::MatrixXd& W);
   // A⁻¹ B for B with dim() rows.
   Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
+  // The block of A⁻¹ on the listed variables (rows and columns in the listed order):
+  // with P A Pᵀ = L D Lᵀ, (A⁻¹)_SS = Yᵀ D⁻¹ Y for Y = L⁻¹ P E_S, each column of Y by a
+  // forward solve limited to the reach of its unit right-hand side (cholmod_solve2 with
+  // a Bset) — the elimination-tree path from the variable to the root, short for the
+  // recent variables association asks about.
+  Eigen::MatrixXd InverseBlock(const std::vector<int>& variables) const;
+  // For each group, the block of A⁻¹ on [hub, group] — the hub's and the group's own
+  // entries and their cross terms, never two groups' cross terms: each column solved
+  // once, dot products only where needed.
+  std::vector<Eigen::MatrixXd> InverseStarBlocks(const std::vector<int>& hub,
+                                                 const std::vector<std::vector<int>>& groups) const;
 
   bool ready() const { return factor_ != nullptr; }
   int dim() const { return dim_; }
@@ -50,7 +63,18 @@ class SparseCholesky {
  private:
   cholmod_common_struct* common_;
   cholmod_factor_struct* factor_ = nullptr;
+  struct SparseColumn {
+    std::vector<int> rows;       // the reach, in the factor's order
+    std::vector<double> values;  // y_r / √D_r, so that (A⁻¹)_ab is a plain dot product
+  };
+  SparseColumn ForwardColumn(int variable) const;
+  double Dot(const SparseColumn& a, const SparseColumn& b) const;
+
   std::vector<int> position_;  // variable → row of the permuted factor
+  mutable std::vector<double> workspace_;
+  // cholmod_solve2's right-hand side, its pattern and reusable workspace.
+  mutable cholmod_dense_struct *solve_b_ = nullptr, *solve_x_ = nullptr, *solve_y_ = nullptr, *solve_e_ = nullptr;
+  mutable cholmod_sparse_struct *solve_bset_ = nullptr, *solve_xset_ = nullptr;
   int dim_ = 0, capacity_ = 0;
   long nonzeros_after_factorize_ = 0;
 };

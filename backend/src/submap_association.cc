@@ -61,7 +61,8 @@ void SubmapAssociator::Record(const LocalSubmap& s, const std::vector<int>& land
 SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_anchor,
                                               const SubmapGraph& graph,
                                               const JointCovarianceFn& joint_covariance,
-                                              bool anchor_prefilter) const {
+                                              bool anchor_prefilter,
+                                              const PairCovarianceFn& pair_covariance) const {
   const int n = s.num_landmarks();
   SubmapAssociation out;
   out.landmark_of_feature.assign(n, -1);
@@ -111,24 +112,36 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
     }
   }
   if (candidates.empty()) return out;
-  const Eigen::MatrixXd Sigma = timed_covariance({start_anchor}, candidates);
-  // Individual compatibility of each (feature, candidate) pair.
   const int c_count = static_cast<int>(candidates.size());
+  // The marginal of [P_s, L_c] for each candidate: from the joiner's pairwise blocks when
+  // it has them (no cross-covariances between candidates are formed), else from the
+  // joint covariance of all candidates.
+  std::vector<Matrix5d> pair(c_count);
+  Eigen::MatrixXd full_joint;
+  if (pair_covariance) {
+    const absl::Time t0 = absl::Now();
+    pair = pair_covariance(start_anchor, candidates);
+    out.covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
+  } else {
+    full_joint = timed_covariance({start_anchor}, candidates);
+    for (int c = 0; c < c_count; ++c) {
+      pair[c].topLeftCorner<3, 3>() = full_joint.topLeftCorner<3, 3>();
+      pair[c].topRightCorner<3, 2>() = full_joint.block<3, 2>(0, 3 + 2 * c);
+      pair[c].bottomLeftCorner<2, 3>() = full_joint.block<2, 3>(3 + 2 * c, 0);
+      pair[c].bottomRightCorner<2, 2>() = full_joint.block<2, 2>(3 + 2 * c, 3 + 2 * c);
+    }
+  }
+  // Individual compatibility of each (feature, candidate) pair.
   std::vector<Matrix23d> J_frame(c_count);
   std::vector<Eigen::Matrix2d> J_point(c_count);
   std::vector<Eigen::Vector2d> predicted(c_count);
   for (int c = 0; c < c_count; ++c) {
     predicted[c] = TransformTo(P_s, graph.landmarks()[candidates[c]], &J_frame[c], &J_point[c]);
   }
-  // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate].
-  const auto cross = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
-    const int oa = 3 + 2 * a, ob = 3 + 2 * b;
-    Eigen::Matrix2d m = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
-                        J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
-                        J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
-                        J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
-    m += s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
-    return m;
+  const auto individual = [&](int i, int c) -> Eigen::Matrix2d {
+    Eigen::Matrix<double, 2, 5> J;
+    J << J_frame[c], J_point[c];
+    return J * pair[c] * J.transpose() + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
   };
   const double gate2 = models::ChiSquareQuantile(options_.gate_probability, 2);
   const double gate3 = models::ChiSquareQuantile(options_.gate_probability, 3);
@@ -140,7 +153,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
     for (int i = 0; i < n; ++i) {
       if ((graph.landmarks()[j] - world[i]).norm() > r2[i]) continue;
       const Eigen::Vector2d nu = predicted[c] - s.landmark(i);
-      const std::optional<double> d2 = models::MahalanobisSquared2(nu, cross(i, c, i, c));
+      const std::optional<double> d2 = models::MahalanobisSquared2(nu, individual(i, c));
       if (!d2.has_value()) continue;
       double score = *d2, gate = gate2;
       if (options_.sigma_signature > 0 && std::isfinite(s.landmarks[i].signature) && std::isfinite(sig_l)) {
@@ -158,7 +171,39 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   }
   frontend::AssociationResult result;
   if (options_.joint_compatibility) {
-    problem.covariance_block = cross;
+    // The joint covariance of P_s and the individually compatible candidates only.
+    std::vector<int> slot(c_count, -1), compatible;
+    for (const auto& list : problem.candidates) {
+      for (const frontend::AssociationCandidate& cand : list) {
+        if (slot[cand.landmark] < 0) {
+          slot[cand.landmark] = static_cast<int>(compatible.size());
+          compatible.push_back(candidates[cand.landmark]);
+        }
+      }
+    }
+    Eigen::MatrixXd Sigma;
+    if (full_joint.size() > 0) {
+      std::vector<int> rows(3 + 2 * compatible.size());  // of full_joint, per slot
+      rows[0] = 0, rows[1] = 1, rows[2] = 2;
+      for (int c = 0; c < c_count; ++c) {
+        if (slot[c] < 0) continue;
+        rows[3 + 2 * slot[c]] = 3 + 2 * c;
+        rows[4 + 2 * slot[c]] = 4 + 2 * c;
+      }
+      Sigma = full_joint(rows, rows);
+    } else if (!compatible.empty()) {
+      Sigma = timed_covariance({start_anchor}, compatible);
+    }
+    // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate].
+    problem.covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
+      const int oa = 3 + 2 * slot[a], ob = 3 + 2 * slot[b];
+      Eigen::Matrix2d m = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
+                          J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
+                          J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
+                          J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
+      m += s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
+      return m;
+    };
     result = frontend::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
     out.jcbb_truncated = result.truncated;
   } else {

@@ -90,6 +90,9 @@ class EifJoiner final : public MapJoiner {
   // Marginal covariances by sparse solves with the factor.
   Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
                                   const std::vector<int>& landmarks) const override;
+  // For each landmark, the 5 × 5 marginal of [anchor, landmark] (what individual
+  // compatibility needs), without the landmarks' cross-covariances.
+  std::vector<Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;
   const std::vector<int>& last_association() const override { return last_association_; }
   // Ids of the local maps whose association failed validation.
   const std::vector<int>& rejected() const { return rejected_; }

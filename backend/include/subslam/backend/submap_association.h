@@ -34,6 +34,8 @@
 
 namespace subslam::backend {
 
+using Matrix5d = Eigen::Matrix<double, 5, 5>;
+
 struct SubmapAssociationOptions {
   // 2·TH1 with TH1 ≈ the sensor range, and TH2 (metres).
   double anchor_search_radius_m = 60.0;
@@ -62,6 +64,11 @@ class SubmapAssociator {
   // 2 per landmark; a fixed anchor has zero rows and columns).
   using JointCovarianceFn = std::function<Eigen::MatrixXd(const std::vector<int>& anchors,
                                                           const std::vector<int>& landmarks)>;
+  // For each landmark, the joint marginal covariance of [anchor, landmark] (5 × 5), without
+  // the landmarks' cross-covariances: what individual compatibility needs. Optional; when
+  // given, the joint covariance is asked only for the individually compatible landmarks.
+  using PairCovarianceFn =
+      std::function<std::vector<Matrix5d>(int anchor, const std::vector<int>& landmarks)>;
 
   explicit SubmapAssociator(const SubmapAssociationOptions& options);
 
@@ -73,7 +80,8 @@ class SubmapAssociator {
   // whole map, whose features lie far from its start anchor (tree joining).
   SubmapAssociation Associate(const LocalSubmap& submap, int start_anchor, const SubmapGraph& graph,
                               const JointCovarianceFn& joint_covariance,
-                              bool anchor_prefilter = true) const;
+                              bool anchor_prefilter = true,
+                              const PairCovarianceFn& pair_covariance = nullptr) const;
 
   // After the join: `landmark_of_feature` is the final landmark of each feature; landmarks
   // numbered `first_new_landmark` and up were created by this join. Records signatures and,
