@@ -6,15 +6,20 @@
 // linearised at the current estimate x̂_f:
 //   Λ += Jᵀ Q⁻¹ J,   η += Jᵀ Q⁻¹ (J x̂_f − r(x̂_f)),     r = h(x̂_f) ⊖ z,
 // so Λ stays exactly sparse (a factor touches its two anchors and its landmarks; nothing
-// is marginalised). Λ is factorised by CHOLMOD (supernodal Cholesky with its
-// fill-reducing ordering, through Eigen's CholmodSupport) and the estimate is Λ⁻¹η.
+// is marginalised). Λ's sparse LDLᵀ factor (CHOLMOD, simplicial) is kept up to date
+// incrementally: each join is a rank-(3+2n) update of the factor (cholmod_updown), its
+// new variables taking spare slots kept last in the fill-reducing (AMD) ordering; a full
+// factorisation with a fresh ordering happens when the slots run out or the fill has
+// grown, and at every relinearisation. The estimate is Λ⁻¹η by one solve, checked by its
+// residual (an update that fails the check is replaced by a full factorisation).
 // Headings are kept continuous in the state (never wrapped between linearisations) so
 // every stored linear model stays valid; they are wrapped in the outputs.
 //
 // Per local map, in order (Combined SLAM, Algorithm 1):
-//  1. data association (backend/submap_association.h), with the joint marginal
-//     covariance of the start anchor and the candidates recovered by sparse solves with
-//     the factor (never the dense inverse);
+//  1. data association (backend/submap_association.h), with the marginal covariances it
+//     needs — [start anchor, candidate] blocks for individual compatibility, the joint of
+//     the start anchor and the compatible candidates for JCBB — recovered from the factor
+//     by forward solves limited to each column's reach (never the dense inverse);
 //  2. the end anchor and the new landmarks are initialised through the start anchor;
 //  3. the information update above;
 //  4. state recovery by one solve.
@@ -22,8 +27,8 @@
 // at the current estimate and re-solve while the largest state change exceeds
 // `relinearize_tolerance`, every `relinearize_every` joins and/or at Finish(); iterated to
 // convergence this is Gauss-Newton over the submap graph.
-// Time per stage (association, covariance recovery, update, factorisation, recovery) is
-// accumulated as in Table 1 of paper 000.
+// Time per stage (association, covariance recovery, update, factorisation — of which
+// full_factorization —, recovery, recovery_check) is accumulated as in Table 1 of paper 000.
 // Not thread-safe.
 #ifndef SUBSLAM_BACKEND_EIF_JOINER_H_
 #define SUBSLAM_BACKEND_EIF_JOINER_H_
