@@ -223,26 +223,27 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
   return rows;
 }
 
+// A comma-separated list of back-ends (none excluded); false, with a message, on a bad name.
+bool ParseBackends(const std::string& list, std::vector<Backend>* out) {
+  for (const std::string& name : SplitList(list)) {
+    auto b = subslam::app::BackendFromString(name);
+    if (!b.ok() || *b == Backend::kNone) {
+      std::fprintf(stderr, "unknown back-end %s\n", name.c_str());
+      return false;
+    }
+    out->push_back(*b);
+  }
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
   std::vector<Backend> kinds, growth_kinds;
-  for (const std::string& name : SplitList(absl::GetFlag(FLAGS_backends))) {
-    auto b = subslam::app::BackendFromString(name);
-    if (!b.ok() || *b == Backend::kNone) {
-      std::fprintf(stderr, "unknown back-end %s\n", name.c_str());
-      return 2;
-    }
-    kinds.push_back(*b);
-  }
-  for (const std::string& name : SplitList(absl::GetFlag(FLAGS_growth_backends))) {
-    auto b = subslam::app::BackendFromString(name);
-    if (!b.ok() || *b == Backend::kNone) {
-      std::fprintf(stderr, "unknown back-end %s\n", name.c_str());
-      return 2;
-    }
-    growth_kinds.push_back(*b);
+  if (!ParseBackends(absl::GetFlag(FLAGS_backends), &kinds) ||
+      !ParseBackends(absl::GetFlag(FLAGS_growth_backends), &growth_kinds)) {
+    return 2;
   }
   absl::StatusOr<subslam::app::Frontend> frontend = subslam::app::FrontendFromString(absl::GetFlag(FLAGS_frontend));
   if (!frontend.ok()) {

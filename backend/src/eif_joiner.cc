@@ -7,6 +7,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "sparse_cholesky.h"
+#include "state_blocks.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/graph/internal/check.h"
@@ -241,18 +242,10 @@ absl::Status EifJoiner::Relinearize() {
 
 Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors,
                                            const std::vector<int>& landmarks) const {
-  std::vector<int> offsets, sizes;
-  for (int k : anchors) {
-    offsets.push_back(anchor_offset_[k]);
-    sizes.push_back(3);
-  }
-  for (int j : landmarks) {
-    offsets.push_back(landmark_offset_[j]);
-    sizes.push_back(2);
-  }
-  int c = 0;
-  for (int s : sizes) c += s;
-  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(c, c);
+  const StateBlocks blocks = SelectBlocks(anchors, landmarks, anchor_offset_, landmark_offset_);
+  const std::vector<int>& offsets = blocks.offsets;
+  const std::vector<int>& sizes = blocks.sizes;
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(blocks.total, blocks.total);
   if (dim_ == 0) return out;
   SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
   // The block of Λ⁻¹ on the free variables' rows (fixed P0: zero rows and columns), by
@@ -330,21 +323,25 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   return JoinWith(s, /*associate=*/false);
 }
 
+std::vector<int> EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
+  StageTimer timer(&times_, "association");
+  SubmapAssociation a = associator_.Associate(
+      s, start, graph_,
+      [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+        return JointCovariance(anchors, landmarks);
+      },
+      anchor_prefilter,
+      [this](int anchor, const std::vector<int>& landmarks) { return AnchorLandmarkCovariances(anchor, landmarks); });
+  times_["covariance_recovery"] += a.covariance_seconds;
+  if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  return std::move(a.landmark_of_feature);
+}
+
 absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   const int start = graph_.num_anchors() - 1;
   std::vector<int> assoc(s.num_landmarks(), -1);
   if (associate) {
-    StageTimer timer(&times_, "association");
-    SubmapAssociation a = associator_.Associate(
-        s, start, graph_,
-        [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
-          return JointCovariance(anchors, landmarks);
-        },
-        /*anchor_prefilter=*/true,
-        [this](int anchor, const std::vector<int>& landmarks) { return AnchorLandmarkCovariances(anchor, landmarks); });
-    assoc = std::move(a.landmark_of_feature);
-    times_["covariance_recovery"] += a.covariance_seconds;
-    if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+    assoc = AssociateAt(s, start, /*anchor_prefilter=*/true);
   }
   const int first_new_landmark = graph_.num_landmarks();
   // Initialise the end anchor and the new landmarks through the start anchor.
@@ -439,27 +436,12 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   if (right_ptr == nullptr) return absl::InvalidArgumentError("EIF JoinMap: the right map is not an EIF map");
   const EifJoiner& right = *right_ptr;
   if (right.graph_.factors().empty()) return absl::OkStatus();
-  const LocalSubmap summary = SummarizeAsLocalSubmap(right);
-  if (summary.t_start < last_t_end_ - 1e-9) {
-    return absl::InvalidArgumentError(absl::StrCat("map from ", summary.t_start, " s starts before this one ends (",
-                                                   last_t_end_, " s)"));
-  }
+  absl::StatusOr<LocalSubmap> summary = SummarizeForJoin(right, last_t_end_);
+  if (!summary.ok()) return summary.status();
   const int start = graph_.num_anchors() - 1;
   const int n = right.graph_.num_landmarks();
   std::vector<int> assoc(n, -1);
-  if (!graph_.factors().empty()) {
-    StageTimer timer(&times_, "association");
-    SubmapAssociation a = associator_.Associate(
-        summary, start, graph_,
-        [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
-          return JointCovariance(anchors, landmarks);
-        },
-        /*anchor_prefilter=*/false,
-        [this](int anchor, const std::vector<int>& landmarks) { return AnchorLandmarkCovariances(anchor, landmarks); });
-    assoc = std::move(a.landmark_of_feature);
-    times_["covariance_recovery"] += a.covariance_seconds;
-    if (a.jcbb_truncated) ++counters_.jcbb_truncated;
-  }
+  if (!graph_.factors().empty()) assoc = AssociateAt(*summary, start, /*anchor_prefilter=*/false);
   // Right's anchors and unmatched landmarks, through the last anchor (headings continuous).
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
   std::vector<int> anchor_map = {start};
@@ -494,7 +476,7 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
       factors_.push_back(std::move(factor));
     }
   }
-  associator_.Record(summary, assoc, first_new_landmark, /*define_truth=*/true);
+  associator_.Record(*summary, assoc, first_new_landmark, /*define_truth=*/true);
   last_association_.clear();
   for (int l : right.last_association_) last_association_.push_back(assoc[l]);
   counters_.joins += right.counters_.joins;

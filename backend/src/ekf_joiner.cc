@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "absl/strings/str_cat.h"
+#include "state_blocks.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/graph/internal/check.h"
@@ -40,18 +41,10 @@ void EkfJoiner::WriteBack() {
 
 Eigen::MatrixXd EkfJoiner::JointCovariance(const std::vector<int>& anchors,
                                            const std::vector<int>& landmarks) const {
-  std::vector<int> offsets, sizes;
-  for (int k : anchors) {
-    offsets.push_back(anchor_offset_[k]);
-    sizes.push_back(3);
-  }
-  for (int j : landmarks) {
-    offsets.push_back(landmark_offset_[j]);
-    sizes.push_back(2);
-  }
-  int total = 0;
-  for (int s : sizes) total += s;
-  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(total, total);
+  const StateBlocks blocks = SelectBlocks(anchors, landmarks, anchor_offset_, landmark_offset_);
+  const std::vector<int>& offsets = blocks.offsets;
+  const std::vector<int>& sizes = blocks.sizes;
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(blocks.total, blocks.total);
   int r = 0;
   for (size_t a = 0; a < offsets.size(); ++a) {
     if (offsets[a] < 0) {  // P0 (zero) or an anchor marginalised out (frozen, uncorrelated)
@@ -219,6 +212,19 @@ void EkfJoiner::DropVariable(int offset, int size) {
   }
 }
 
+std::vector<int> EkfJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
+  StageTimer timer(&times_, "association");
+  SubmapAssociation a = associator_.Associate(
+      s, start, graph_,
+      [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+        return JointCovariance(anchors, landmarks);
+      },
+      anchor_prefilter);
+  times_["covariance_recovery"] += a.covariance_seconds;
+  if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  return std::move(a.landmark_of_feature);
+}
+
 absl::Status EkfJoiner::Join(const LocalSubmap& s) {
   if (absl::Status v = s.Validate(); !v.ok()) return v;
   if (s.t_start < last_t_end_ - 1e-9) {
@@ -227,17 +233,7 @@ absl::Status EkfJoiner::Join(const LocalSubmap& s) {
   }
   const int start = graph_.num_anchors() - 1;
   const int n = s.num_landmarks();
-  std::vector<int> assoc;
-  {
-    StageTimer timer(&times_, "association");
-    SubmapAssociation a = associator_.Associate(
-        s, start, graph_, [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
-          return JointCovariance(anchors, landmarks);
-        });
-    assoc = std::move(a.landmark_of_feature);
-    times_["covariance_recovery"] += a.covariance_seconds;
-    if (a.jcbb_truncated) ++counters_.jcbb_truncated;
-  }
+  std::vector<int> assoc = AssociateAt(s, start, /*anchor_prefilter=*/true);
   std::vector<char> matched(n, 0);
   std::vector<int> features;  // in the order they are augmented
   for (int i = 0; i < n; ++i) {
@@ -317,26 +313,12 @@ absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
     return absl::FailedPreconditionError("EKF JoinMap needs keep_anchors on both maps");
   }
   if (right.graph_.factors().empty()) return absl::OkStatus();
-  const LocalSubmap summary = SummarizeAsLocalSubmap(right);
-  if (summary.t_start < last_t_end_ - 1e-9) {
-    return absl::InvalidArgumentError(absl::StrCat("map from ", summary.t_start, " s starts before this one ends (",
-                                                   last_t_end_, " s)"));
-  }
+  absl::StatusOr<LocalSubmap> summary = SummarizeForJoin(right, last_t_end_);
+  if (!summary.ok()) return summary.status();
   const int start = graph_.num_anchors() - 1;
   const int n = right.graph_.num_landmarks();
   std::vector<int> assoc(n, -1);
-  if (!graph_.factors().empty()) {
-    StageTimer timer(&times_, "association");
-    SubmapAssociation a = associator_.Associate(
-        summary, start, graph_,
-        [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
-          return JointCovariance(anchors, landmarks);
-        },
-        /*anchor_prefilter=*/false);
-    assoc = std::move(a.landmark_of_feature);
-    times_["covariance_recovery"] += a.covariance_seconds;
-    if (a.jcbb_truncated) ++counters_.jcbb_truncated;
-  }
+  if (!graph_.factors().empty()) assoc = AssociateAt(*summary, start, /*anchor_prefilter=*/false);
   // Augment right's anchors, its new landmarks, then the copies of its matched ones.
   std::vector<Block> blocks;
   for (int k = 1; k < right.graph_.num_anchors(); ++k) blocks.push_back({right.anchor_offset_[k], 3});
@@ -381,7 +363,7 @@ absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
   }
   if (!x_.allFinite() || !P_.allFinite()) return absl::InternalError("EKF map join produced a non-finite value");
   WriteBack();
-  associator_.Record(summary, assoc, first_new_landmark, /*define_truth=*/true);
+  associator_.Record(*summary, assoc, first_new_landmark, /*define_truth=*/true);
   for (const SubmapFactor& f : right.graph_.factors()) {
     std::vector<int> landmarks;
     for (int l : f.landmark_of_feature) landmarks.push_back(assoc[l]);

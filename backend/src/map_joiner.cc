@@ -2,6 +2,7 @@
 
 #include <numeric>
 
+#include "absl/strings/str_cat.h"
 #include "subslam/graph/internal/check.h"
 
 namespace subslam::backend {
@@ -32,6 +33,15 @@ LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j) {
     s.landmarks.push_back(lm);
   }
   return s;
+}
+
+absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end) {
+  LocalSubmap summary = SummarizeAsLocalSubmap(right);
+  if (summary.t_start < left_t_end - 1e-9) {
+    return absl::InvalidArgumentError(absl::StrCat("map from ", summary.t_start, " s starts before this one ends (",
+                                                   left_t_end, " s)"));
+  }
+  return summary;
 }
 
 }  // namespace subslam::backend

@@ -11,14 +11,6 @@
 namespace subslam::backend {
 namespace {
 
-// Every anchor (1 …) and landmark, stacked as [anchors, landmarks], headings wrapped.
-Eigen::VectorXd Estimate(const MapJoiner& j) {
-  Eigen::VectorXd x(3 * (j.num_anchors() - 1) + 2 * j.num_landmarks());
-  for (int k = 1; k < j.num_anchors(); ++k) x.segment<3>(3 * (k - 1)) = j.anchor(k).vector();
-  for (int l = 0; l < j.num_landmarks(); ++l) x.segment<2>(3 * (j.num_anchors() - 1) + 2 * l) = j.landmark(l);
-  return x;
-}
-
 Eigen::MatrixXd FullCovariance(const MapJoiner& j) {
   std::vector<int> anchors(j.num_anchors() - 1), landmarks(j.num_landmarks());
   std::iota(anchors.begin(), anchors.end(), 1);
@@ -59,7 +51,7 @@ TEST(EkfJoiner, ConditionalUpdateEqualsTheEifOnOneLinearization) {
     ASSERT_TRUE(eif.Join(s).ok());
     ASSERT_TRUE(ekf.Join(s).ok());
     ASSERT_EQ(ekf.num_landmarks(), eif.num_landmarks());
-    EXPECT_TRUE(RelativelyNear(Estimate(eif), Estimate(ekf), 1e-8)) << "after map " << s.id;
+    EXPECT_TRUE(RelativelyNear(StackedEstimate(eif), StackedEstimate(ekf), 1e-8)) << "after map " << s.id;
     EXPECT_TRUE(RelativelyNear(FullCovariance(eif), FullCovariance(ekf), 1e-8)) << "after map " << s.id;
   }
   EXPECT_GT(ekf.counters().associated, 20);  // the loop is closed: many fusions
@@ -92,7 +84,7 @@ TEST(EkfJoiner, ZeroNoiseConstraintEqualsTheEifWhenMatchedFeaturesAgree) {
     }
     ASSERT_TRUE(eif.Join(s).ok());
     ASSERT_TRUE(ekf.Join(s).ok());
-    EXPECT_TRUE(RelativelyNear(Estimate(eif), Estimate(ekf), 1e-8)) << "after map " << k;
+    EXPECT_TRUE(RelativelyNear(StackedEstimate(eif), StackedEstimate(ekf), 1e-8)) << "after map " << k;
     EXPECT_TRUE(RelativelyNear(FullCovariance(eif), FullCovariance(ekf), 1e-8)) << "after map " << k;
   }
   EXPECT_GT(ekf.counters().associated, 5);
@@ -108,7 +100,7 @@ TEST(EkfJoiner, ZeroNoiseConstraintIsCloseToTheConditionalUpdate) {
     ASSERT_TRUE(zero.Join(s).ok());
     ASSERT_TRUE(conditional.Join(s).ok());
   }
-  const Eigen::VectorXd d = Estimate(zero) - Estimate(conditional);
+  const Eigen::VectorXd d = StackedEstimate(zero) - StackedEstimate(conditional);
   const Eigen::VectorXd sigma = FullCovariance(conditional).diagonal().cwiseSqrt();
   EXPECT_LT(d.cwiseQuotient(sigma).cwiseAbs().maxCoeff(), 0.1);
   EXPECT_GT(d.cwiseAbs().maxCoeff(), 0.0);  // but they are different algorithms

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/map_joiner.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
@@ -92,6 +93,14 @@ inline EifJoinerOptions ConvergingKnownAssociation() {
   o.relinearize_tolerance = 1e-12;
   o.max_relinearizations = 50;
   return o;
+}
+
+// Every anchor (1 …) then every landmark of a joiner, stacked, headings wrapped.
+inline Eigen::VectorXd StackedEstimate(const MapJoiner& j) {
+  Eigen::VectorXd x(3 * (j.num_anchors() - 1) + 2 * j.num_landmarks());
+  for (int k = 1; k < j.num_anchors(); ++k) x.segment<3>(3 * (k - 1)) = j.anchor(k).vector();
+  for (int l = 0; l < j.num_landmarks(); ++l) x.segment<2>(3 * (j.num_anchors() - 1) + 2 * l) = j.landmark(l);
+  return x;
 }
 
 // RMS of the anchors' position errors (anchor 0, fixed, left out).

@@ -15,13 +15,6 @@
 namespace subslam::backend {
 namespace {
 
-Eigen::VectorXd Estimate(const MapJoiner& j) {
-  Eigen::VectorXd x(3 * (j.num_anchors() - 1) + 2 * j.num_landmarks());
-  for (int k = 1; k < j.num_anchors(); ++k) x.segment<3>(3 * (k - 1)) = j.anchor(k).vector();
-  for (int l = 0; l < j.num_landmarks(); ++l) x.segment<2>(3 * (j.num_anchors() - 1) + 2 * l) = j.landmark(l);
-  return x;
-}
-
 Eigen::VectorXd MarginalSigmas(const MapJoiner& j) {
   Eigen::VectorXd s(3 * (j.num_anchors() - 1) + 2 * j.num_landmarks());
   for (int k = 1; k < j.num_anchors(); ++k) s.segment<3>(3 * (k - 1)) = j.AnchorCovariance(k).diagonal().cwiseSqrt();
@@ -124,7 +117,7 @@ TEST(TreeJoiner, RunningAndBatchBuildTheSameTree) {
   EXPECT_EQ(batch->num_nodes(), 8);    // batch: leaves until Finish()
   ASSERT_TRUE(running->Finish().ok());
   ASSERT_TRUE(batch->Finish().ok());
-  EXPECT_TRUE(testing::MatricesNear(Estimate(*batch), Estimate(*running), 1e-12));
+  EXPECT_TRUE(testing::MatricesNear(StackedEstimate(*batch), StackedEstimate(*running), 1e-12));
 }
 
 // The running tree's whole map is available at any time (folded on demand), and the

@@ -142,6 +142,8 @@ class EifJoiner final : public MapJoiner {
   absl::Status Rebuild(bool only_last_factor);
   absl::Status Relinearize();
   absl::Status JoinWith(const LocalSubmap& submap, bool associate);
+  // Association of `s` (starting at anchor `start`) with the map, timed and counted.
+  std::vector<int> AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
   Eigen::VectorXd StateVector() const;
   void SetState(const Eigen::VectorXd& x);
 

@@ -101,6 +101,8 @@ class EkfJoiner final : public MapJoiner {
   absl::Status FuseConditional(const LocalSubmap& s, int start, int end,
                                const std::vector<int>& landmark_of_feature,
                                const std::vector<char>& matched);
+  // Association of `s` (starting at anchor `start`) with the map, timed and counted.
+  std::vector<int> AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
   // P −= W Wᵀ, kept symmetric.
   void SubtractOuter(const Eigen::MatrixXd& W);
   void DropVariable(int offset, int size);

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
@@ -88,6 +89,9 @@ class MapJoiner {
 // mean signature and truth id; id, start and end times from j's first and last local
 // maps. What a tree join associates with the map on its left.
 LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j);
+// The summary of `right` for a whole-map join onto a map that ends at `left_t_end` (s);
+// an error if right starts before.
+absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end);
 
 }  // namespace subslam::backend
 
