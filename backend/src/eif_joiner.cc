@@ -479,11 +479,9 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   associator_.Record(*summary, assoc, first_new_landmark, /*define_truth=*/true);
   last_association_.clear();
   for (int l : right.last_association_) last_association_.push_back(assoc[l]);
-  counters_.joins += right.counters_.joins;
-  counters_.associated += right.counters_.associated + matched;
-  counters_.new_landmarks += right.counters_.new_landmarks - matched;
-  counters_.jcbb_truncated += right.counters_.jcbb_truncated;
-  counters_.relinearizations += right.counters_.relinearizations;
+  counters_ += right.counters_;  // its joins, then this join's merges
+  counters_.associated += matched;
+  counters_.new_landmarks -= matched;
   for (const auto& [stage, seconds] : right.times_) times_[stage] += seconds;
   last_t_end_ = right.last_t_end_;
   if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;

@@ -372,10 +372,9 @@ absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
   last_association_.clear();
   for (int l : right.last_association_) last_association_.push_back(assoc[l]);
   const long matched = static_cast<long>(copies.size());
-  counters_.joins += right.counters_.joins;
-  counters_.associated += right.counters_.associated + matched;
-  counters_.new_landmarks += right.counters_.new_landmarks - matched;
-  counters_.jcbb_truncated += right.counters_.jcbb_truncated;
+  counters_ += right.counters_;  // its joins, then this join's merges
+  counters_.associated += matched;
+  counters_.new_landmarks -= matched;
   for (const auto& [stage, seconds] : right.times_) times_[stage] += seconds;
   last_t_end_ = right.last_t_end_;
   return absl::OkStatus();

@@ -127,13 +127,7 @@ std::map<std::string, double> TreeJoiner::stage_times() const {
 const JoinerCounters& TreeJoiner::counters() const {
   counters_ = JoinerCounters();
   for (const Node& node : nodes_) {
-    const JoinerCounters& c = node.map->counters();
-    counters_.joins += c.joins;
-    counters_.associated += c.associated;
-    counters_.new_landmarks += c.new_landmarks;
-    counters_.relinearizations += c.relinearizations;
-    counters_.jcbb_truncated += c.jcbb_truncated;
-    counters_.rejected_joins += c.rejected_joins;
+    counters_ += node.map->counters();
   }
   return counters_;
 }

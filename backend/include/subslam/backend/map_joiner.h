@@ -33,6 +33,19 @@ struct JoinerCounters {
   long incremental_updates = 0;
   long full_factorizations = 0;
   long failed_updates = 0;
+
+  JoinerCounters& operator+=(const JoinerCounters& o) {
+    joins += o.joins;
+    associated += o.associated;
+    new_landmarks += o.new_landmarks;
+    relinearizations += o.relinearizations;
+    jcbb_truncated += o.jcbb_truncated;
+    rejected_joins += o.rejected_joins;
+    incremental_updates += o.incremental_updates;
+    full_factorizations += o.full_factorizations;
+    failed_updates += o.failed_updates;
+    return *this;
+  }
 };
 
 class MapJoiner {
