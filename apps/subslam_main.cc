@@ -94,6 +94,12 @@ ABSL_FLAG(double, join_landmark_radius, kEifDefaults.association.landmark_search
 ABSL_FLAG(double, join_gate, kEifDefaults.association.gate_probability, "eif: association gate probability (chi2)");
 ABSL_FLAG(bool, join_jcbb, kEifDefaults.association.joint_compatibility,
           "eif: joint compatibility (JCBB) for the local map's features; false: nearest neighbour");
+ABSL_FLAG(int, join_min_loop_pairings, kEifDefaults.association.min_loop_pairings,
+          "accept a loop closure (pairings with landmarks the last local maps did not see) only "
+          "with at least this many pairings (<= 1: always)");
+ABSL_FLAG(double, join_loop_test_sigma, kEifDefaults.association.loop_test_min_sigma_radius_m,
+          "apply --join_min_loop_pairings only when 3 sigma of the start anchor's position is at "
+          "least this [m]");
 ABSL_FLAG(bool, validate_joins, kEifDefaults.validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
           "(the map is joined again without associations)");
@@ -188,6 +194,8 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.landmark_search_radius_m = absl::GetFlag(FLAGS_join_landmark_radius);
   o.association.gate_probability = absl::GetFlag(FLAGS_join_gate);
   o.association.joint_compatibility = absl::GetFlag(FLAGS_join_jcbb);
+  o.association.min_loop_pairings = absl::GetFlag(FLAGS_join_min_loop_pairings);
+  o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);

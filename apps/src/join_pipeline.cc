@@ -50,6 +50,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   // order): global landmark → true ids joined to it, and the reverse.
   std::map<int, std::set<int>> truths_of_global;
   std::map<int, std::set<int>> globals_of_truth;
+  std::set<int> globals_with_mixed_feature;
   std::map<int, std::pair<int, int>> last_seen;  // truth id → (local map index, global id)
   int map_index = 0;
   for (const SubmapFactor& f : joiner->graph().factors()) {
@@ -58,6 +59,8 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
       if (!t.has_value() || *t < 0) continue;
       const int g = f.landmark_of_feature[i];
       truths_of_global[g].insert(*t);
+      const std::optional<int>& mixed = f.submap.landmarks[i].truth_landmarks;
+      if (mixed.has_value() && *mixed >= 2) globals_with_mixed_feature.insert(g);
       globals_of_truth[*t].insert(g);
       auto seen = last_seen.find(*t);
       if (seen != last_seen.end()) {
@@ -69,7 +72,10 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     }
     ++map_index;
   }
-  for (const auto& [g, truths] : truths_of_global) r.wrong += static_cast<long>(truths.size()) - 1;
+  for (const auto& [g, truths] : truths_of_global) {
+    r.wrong += static_cast<long>(truths.size()) - 1;
+    if (globals_with_mixed_feature.count(g)) r.wrong_with_mixed_feature += static_cast<long>(truths.size()) - 1;
+  }
   for (const auto& [t, globals] : globals_of_truth) {
     r.missed += static_cast<long>(globals.size()) - 1;
     r.correct += 1;
@@ -97,6 +103,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   metrics["association_vs_truth_id"] = {{"true_landmarks_seen", r.correct},
                                         {"missed_merges", r.missed},
                                         {"wrong_merges", r.wrong},
+                                        {"wrong_merges_with_mixed_feature", r.wrong_with_mixed_feature},
                                         {"reobserved_recent_merged", r.recent_merged},
                                         {"reobserved_recent_missed", r.recent_missed},
                                         {"reobserved_loop_merged", r.loop_merged},

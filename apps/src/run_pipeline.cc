@@ -80,6 +80,7 @@ class TruthVotes {
       l.truth_id = best->first;
       int true_landmarks = 0;
       for (const auto& [truth, count] : it->second) true_landmarks += truth >= 0 ? 1 : 0;
+      l.truth_landmarks = true_landmarks;
       impure += true_landmarks > 1 ? 1 : 0;
     }
     return impure;

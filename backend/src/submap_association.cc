@@ -21,6 +21,9 @@ absl::Status SubmapAssociationOptions::Validate() const {
     return absl::InvalidArgumentError("sigma_signature must be finite and >= 0");
   }
   if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
+  if (recent_maps < 0 || !(loop_test_min_sigma_radius_m >= 0)) {
+    return absl::InvalidArgumentError("recent_maps and loop_test_min_sigma_radius_m must be >= 0");
+  }
   return absl::OkStatus();
 }
 
@@ -211,6 +214,25 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   }
   for (int i = 0; i < n; ++i) {
     if (result.landmark_of_detection[i] >= 0) out.landmark_of_feature[i] = candidates[result.landmark_of_detection[i]];
+  }
+  // A loop closure — pairings with landmarks no recent local map saw — is accepted only
+  // with at least min_loop_pairings of them, when the start anchor is uncertain (3σ at
+  // least loop_test_min_sigma_radius_m): after a long drift the gates are wide and a
+  // hypothesis with one or two old landmarks is easily compatible by chance.
+  if (options_.min_loop_pairings > 1 && 3.0 * sigma_xy >= options_.loop_test_min_sigma_radius_m) {
+    std::vector<char> recent(graph.num_landmarks(), 0);
+    const int first_recent = static_cast<int>(graph.factors().size()) - options_.recent_maps;
+    for (int f = std::max(0, first_recent); f < static_cast<int>(graph.factors().size()); ++f) {
+      for (int j : graph.factors()[f].landmark_of_feature) recent[j] = 1;
+    }
+    int loop_pairings = 0;
+    for (int j : out.landmark_of_feature) loop_pairings += (j >= 0 && !recent[j]) ? 1 : 0;
+    if (loop_pairings > 0 && loop_pairings < options_.min_loop_pairings) {
+      for (int& j : out.landmark_of_feature) {
+        if (j >= 0 && !recent[j]) j = -1;
+      }
+      out.loop_pairings_dropped = loop_pairings;
+    }
   }
   return out;
 }

@@ -22,10 +22,12 @@ json ToJson(const LocalSubmap& s) {
     for (Eigen::Index c = 0; c < s.covariance.cols(); ++c) cov.push_back(s.covariance(r, c));
   }
   for (const LocalSubmapLandmark& l : s.landmarks) {
-    landmarks.push_back({{"local_id", l.local_id},
-                         {"signature", NumberOrNull(l.signature)},
-                         {"existence", l.existence},
-                         {"truth_id", l.truth_id ? json(*l.truth_id) : json(nullptr)}});
+    json entry = {{"local_id", l.local_id},
+                  {"signature", NumberOrNull(l.signature)},
+                  {"existence", l.existence},
+                  {"truth_id", l.truth_id ? json(*l.truth_id) : json(nullptr)}};
+    if (l.truth_landmarks) entry["truth_landmarks"] = *l.truth_landmarks;
+    landmarks.push_back(std::move(entry));
   }
   json out = {{"id", s.id},       {"t_start", s.t_start}, {"t_end", s.t_end},
               {"state", state},   {"cov", cov},           {"landmarks", landmarks}};
@@ -64,7 +66,7 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
     const json& l = landmarks[i];
     const std::string path = absl::StrCat("landmarks[", i, "]");
     if (!l.is_object()) return r.Error(path, "expected an object");
-    if (auto st = r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id"});
+    if (auto st = r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id", "truth_landmarks"});
         !st.ok()) {
       return st;
     }
@@ -88,6 +90,12 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
       if (!truth.ok()) return truth.status();
       if (*truth < -1) return r.Error(path + ".truth_id", "must be >= -1 (-1: false alarm)");
       out.truth_id = *truth;
+    }
+    if (l.contains("truth_landmarks") && !l.at("truth_landmarks").is_null()) {
+      auto count = r.Integer(l, path, "truth_landmarks");
+      if (!count.ok()) return count.status();
+      if (*count < 0) return r.Error(path + ".truth_landmarks", "must be >= 0");
+      out.truth_landmarks = *count;
     }
     s.landmarks.push_back(out);
   }

@@ -57,6 +57,10 @@ struct JoinResult {
   // different ones (missed), and pairs joined to the same global landmark whose true
   // landmarks differ (wrong).
   long correct = 0, missed = 0, wrong = 0;
+  // Of the wrong ones: those where a feature joined to the global landmark was already
+  // mixed by the front-end (its detections came from ≥ 2 true landmarks; known when the
+  // local maps carry truth_landmarks) — the back-end's own wrong merges are the rest.
+  long wrong_with_mixed_feature = 0;
   // Re-observations of a true landmark, by how long ago it was last seen: within the
   // last two local maps (recent) or earlier (a loop), and whether they were joined to the
   // same global landmark as then.

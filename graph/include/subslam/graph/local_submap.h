@@ -25,6 +25,9 @@ struct LocalSubmapLandmark {
   double signature = std::numeric_limits<double>::quiet_NaN();  // NaN when absent
   double existence = 1.0;      // P(exists) at export, in [0, 1]
   std::optional<int> truth_id; // evaluation / known-association studies only
+  // Evaluation only: how many distinct true landmarks the feature's detections came from
+  // (≥ 2: the front-end mixed them; truth_id is the majority).
+  std::optional<int> truth_landmarks;
 };
 
 struct LocalSubmap {

@@ -1,0 +1,106 @@
+#include "subslam/backend/submap_association.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+namespace subslam::backend {
+namespace {
+
+// A map driven along x: old landmarks seen by the first local map only, recent ones by
+// the last; the new local map starts at the last anchor and sees `old_seen` old landmarks
+// and two recent ones exactly where the map has them.
+struct LoopFixture {
+  SubmapGraph graph{Pose2(0, 0, 0)};
+  std::vector<Eigen::Vector2d> old_landmarks, recent_landmarks;
+
+  LoopFixture() {
+    for (int k = 1; k <= 4; ++k) graph.AddAnchor(Pose2(10.0 * k, 0, 0));
+    LocalSubmap any;  // the factors' local maps do not matter to association
+    std::vector<int> first, last;
+    for (int i = 0; i < 5; ++i) {
+      old_landmarks.emplace_back(40.0 + 12.0 * i, 8.0);
+      first.push_back(graph.AddLandmark(old_landmarks.back()));
+    }
+    for (int i = 0; i < 2; ++i) {
+      recent_landmarks.emplace_back(38.0 + 6.0 * i, -8.0);
+      last.push_back(graph.AddLandmark(recent_landmarks.back()));
+    }
+    graph.AddFactor({any, 0, 1, first});
+    graph.AddFactor({any, 1, 2, {}});
+    graph.AddFactor({any, 2, 3, {}});
+    graph.AddFactor({any, 3, 4, last});
+  }
+
+  LocalSubmap NewMap(int old_seen) const {
+    const Pose2& start = graph.anchors()[4];
+    std::vector<Eigen::Vector2d> seen(recent_landmarks);
+    for (int i = 0; i < old_seen; ++i) seen.push_back(old_landmarks[i]);
+    LocalSubmap s;
+    s.id = 4;
+    s.mean = Eigen::VectorXd::Zero(3 + 2 * seen.size());
+    s.mean.head<3>() << 10.0, 0.0, 0.0;
+    for (size_t i = 0; i < seen.size(); ++i) {
+      s.mean.segment<2>(3 + 2 * i) = TransformTo(start, seen[i]);
+      s.landmarks.push_back({static_cast<int>(i)});
+    }
+    s.covariance = 0.01 * Eigen::MatrixXd::Identity(s.mean.size(), s.mean.size());
+    return s;
+  }
+};
+
+// Marginal covariances: the start anchor's position σ as given, landmarks 0.1 m.
+SubmapAssociator::JointCovarianceFn Covariance(double anchor_sigma_m) {
+  return [anchor_sigma_m](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+    const int n = 3 * static_cast<int>(anchors.size()) + 2 * static_cast<int>(landmarks.size());
+    Eigen::MatrixXd m = 0.01 * Eigen::MatrixXd::Identity(n, n);
+    for (size_t a = 0; a < anchors.size(); ++a) {
+      m.block<3, 3>(3 * a, 3 * a) = Eigen::Vector3d(anchor_sigma_m * anchor_sigma_m,
+                                                    anchor_sigma_m * anchor_sigma_m, 1e-6).asDiagonal();
+    }
+    return m;
+  };
+}
+
+int OldPairings(const SubmapAssociation& a) {
+  int count = 0;
+  for (size_t i = 2; i < a.landmark_of_feature.size(); ++i) count += a.landmark_of_feature[i] >= 0 ? 1 : 0;
+  return count;
+}
+
+// A loop closure with fewer than min_loop_pairings old landmarks, made while the start
+// anchor is uncertain, is dropped; the recent pairings stay. With enough pairings, or a
+// certain anchor, or the test off, it is kept.
+TEST(SubmapAssociator, DropsThinLoopClosuresUnderLargeUncertainty) {
+  const LoopFixture f;
+  const SubmapAssociator associator{SubmapAssociationOptions{}};  // 4 pairings, 3σ ≥ 5 m
+  ASSERT_EQ(associator.options().min_loop_pairings, 4);
+  const SubmapAssociation thin = associator.Associate(f.NewMap(2), 4, f.graph, Covariance(3.0));
+  EXPECT_EQ(thin.loop_pairings_dropped, 2);
+  EXPECT_EQ(OldPairings(thin), 0);
+  EXPECT_EQ(thin.landmark_of_feature[0], 5);  // the recent ones are kept
+  EXPECT_EQ(thin.landmark_of_feature[1], 6);
+
+  const SubmapAssociation thick = associator.Associate(f.NewMap(4), 4, f.graph, Covariance(3.0));
+  EXPECT_EQ(thick.loop_pairings_dropped, 0);
+  EXPECT_EQ(OldPairings(thick), 4);
+
+  const SubmapAssociation certain = associator.Associate(f.NewMap(2), 4, f.graph, Covariance(1.0));
+  EXPECT_EQ(certain.loop_pairings_dropped, 0);  // 3σ = 3 m < 5 m: no test
+  EXPECT_EQ(OldPairings(certain), 2);
+
+  SubmapAssociationOptions off;
+  off.min_loop_pairings = 1;
+  const SubmapAssociation kept = SubmapAssociator(off).Associate(f.NewMap(2), 4, f.graph, Covariance(3.0));
+  EXPECT_EQ(OldPairings(kept), 2);
+}
+
+TEST(SubmapAssociationOptions, ValidationRejectsNonsense) {
+  SubmapAssociationOptions o;
+  EXPECT_TRUE(o.Validate().ok());
+  o.loop_test_min_sigma_radius_m = -1.0;
+  EXPECT_FALSE(o.Validate().ok());
+}
+
+}  // namespace
+}  // namespace subslam::backend
