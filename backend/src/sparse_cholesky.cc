@@ -90,6 +90,7 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   dim_ = n;
   capacity_ = capacity;
   nonzeros_after_factorize_ = nonzeros();
+  column_cache_.clear();
   return absl::OkStatus();
 }
 
@@ -155,6 +156,7 @@ absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, c
     if (!(Lx[Lp[j]] > 0.0)) return absl::InternalError("CHOLMOD: the updated matrix is not positive definite");
   }
   dim_ = new_dim;
+  column_cache_.clear();
   return absl::OkStatus();
 }
 
@@ -169,7 +171,11 @@ Eigen::MatrixXd SparseCholesky::Solve(const Eigen::MatrixXd& B) const {
   return out;
 }
 
-SparseCholesky::SparseColumn SparseCholesky::ForwardColumn(int variable) const {
+const SparseCholesky::SparseColumn& SparseCholesky::ForwardColumn(int variable) const {
+  // Asked again within one join (the start anchor, then the compatible candidates): cached
+  // until the factor changes.
+  auto cached = column_cache_.find(variable);
+  if (cached != column_cache_.end()) return cached->second;
   // L y = P e_variable on the reach of the right-hand side only.
   const double* Lx = static_cast<const double*>(factor_->x);
   const int* Lp = static_cast<const int*>(factor_->p);
@@ -195,7 +201,7 @@ SparseCholesky::SparseColumn SparseCholesky::ForwardColumn(int variable) const {
     column.values.push_back(xv[xi[t]] / std::sqrt(Lx[Lp[xi[t]]]));
   }
   if (static_cast<int>(workspace_.size()) != capacity_) workspace_.assign(capacity_, 0.0);
-  return column;
+  return column_cache_.emplace(variable, std::move(column)).first->second;
 }
 
 double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {
@@ -210,37 +216,37 @@ double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {
 Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) const {
   const int k = static_cast<int>(variables.size());
   Eigen::MatrixXd out(k, k);
-  std::vector<SparseColumn> Y;
+  std::vector<const SparseColumn*> Y;
   Y.reserve(k);
-  for (int v : variables) Y.push_back(ForwardColumn(v));
+  for (int v : variables) Y.push_back(&ForwardColumn(v));
   for (int a = 0; a < k; ++a) {
-    for (int c = a; c < k; ++c) out(a, c) = out(c, a) = Dot(Y[a], Y[c]);
+    for (int c = a; c < k; ++c) out(a, c) = out(c, a) = Dot(*Y[a], *Y[c]);
   }
   return out;
 }
 
 std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector<int>& hub,
                                                                const std::vector<std::vector<int>>& groups) const {
-  std::vector<SparseColumn> H;
-  for (int v : hub) H.push_back(ForwardColumn(v));
+  std::vector<const SparseColumn*> H;
+  for (int v : hub) H.push_back(&ForwardColumn(v));
   const int h = static_cast<int>(hub.size());
   Eigen::MatrixXd hub_block(h, h);
   for (int a = 0; a < h; ++a) {
-    for (int c = a; c < h; ++c) hub_block(a, c) = hub_block(c, a) = Dot(H[a], H[c]);
+    for (int c = a; c < h; ++c) hub_block(a, c) = hub_block(c, a) = Dot(*H[a], *H[c]);
   }
   std::vector<Eigen::MatrixXd> out;
   out.reserve(groups.size());
   for (const std::vector<int>& group : groups) {
     const int g = static_cast<int>(group.size());
-    std::vector<SparseColumn> G;
-    for (int v : group) G.push_back(ForwardColumn(v));
+    std::vector<const SparseColumn*> G;
+    for (int v : group) G.push_back(&ForwardColumn(v));
     Eigen::MatrixXd m(h + g, h + g);
     m.topLeftCorner(h, h) = hub_block;
     for (int a = 0; a < h; ++a) {
-      for (int c = 0; c < g; ++c) m(a, h + c) = m(h + c, a) = Dot(H[a], G[c]);
+      for (int c = 0; c < g; ++c) m(a, h + c) = m(h + c, a) = Dot(*H[a], *G[c]);
     }
     for (int a = 0; a < g; ++a) {
-      for (int c = a; c < g; ++c) m(h + a, h + c) = m(h + c, h + a) = Dot(G[a], G[c]);
+      for (int c = a; c < g; ++c) m(h + a, h + c) = m(h + c, h + a) = Dot(*G[a], *G[c]);
     }
     out.push_back(std::move(m));
   }

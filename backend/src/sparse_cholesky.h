@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <map>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -67,11 +68,13 @@ class SparseCholesky {
     std::vector<int> rows;       // the reach, in the factor's order
     std::vector<double> values;  // y_r / √D_r, so that (A⁻¹)_ab is a plain dot product
   };
-  SparseColumn ForwardColumn(int variable) const;
+  const SparseColumn& ForwardColumn(int variable) const;
   double Dot(const SparseColumn& a, const SparseColumn& b) const;
 
   std::vector<int> position_;  // variable → row of the permuted factor
   mutable std::vector<double> workspace_;
+  // Columns of Y solved since the factor last changed (std::map: references stay valid).
+  mutable std::map<int, SparseColumn> column_cache_;
   // cholmod_solve2's right-hand side, its pattern and reusable workspace.
   mutable cholmod_dense_struct *solve_b_ = nullptr, *solve_x_ = nullptr, *solve_y_ = nullptr, *solve_e_ = nullptr;
   mutable cholmod_sparse_struct *solve_bset_ = nullptr, *solve_xset_ = nullptr;
