@@ -6,7 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "sparse_cholesky.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "state_blocks.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/internal/stage_timer.h"

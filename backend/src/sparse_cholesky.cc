@@ -1,4 +1,4 @@
-#include "sparse_cholesky.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 
 #include <cholmod.h>
 
@@ -80,7 +80,8 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   factor_ = cholmod_analyze_p(&all, perm.data(), nullptr, 0, common_);
   if (factor_ == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
   cholmod_factorize(&all, factor_, common_);
-  if (common_->status != CHOLMOD_OK || factor_->minor < factor_->n) {
+  // A simplicial LDLᵀ factorises some indefinite matrices too: D must be positive.
+  if (common_->status != CHOLMOD_OK || factor_->minor < factor_->n || !PositiveDiagonal()) {
     cholmod_free_factor(&factor_, common_);
     return absl::InternalError("CHOLMOD: the matrix is not positive definite");
   }
@@ -150,11 +151,7 @@ absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, c
     if (!down || common_->status != CHOLMOD_OK) return absl::InternalError("CHOLMOD: downdate failed");
   }
   // A downdate that lost positive definiteness leaves a non-positive pivot in D.
-  const double* Lx = static_cast<const double*>(factor_->x);
-  const int* Lp = static_cast<const int*>(factor_->p);
-  for (int j = 0; j < capacity_; ++j) {
-    if (!(Lx[Lp[j]] > 0.0)) return absl::InternalError("CHOLMOD: the updated matrix is not positive definite");
-  }
+  if (!PositiveDiagonal()) return absl::InternalError("CHOLMOD: the updated matrix is not positive definite");
   dim_ = new_dim;
   column_cache_.clear();
   return absl::OkStatus();
@@ -251,6 +248,15 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
     out.push_back(std::move(m));
   }
   return out;
+}
+
+bool SparseCholesky::PositiveDiagonal() const {
+  const double* Lx = static_cast<const double*>(factor_->x);
+  const int* Lp = static_cast<const int*>(factor_->p);
+  for (size_t j = 0; j < factor_->n; ++j) {
+    if (!(Lx[Lp[j]] > 0.0)) return false;  // D_jj sits first in column j of an LDLᵀ factor
+  }
+  return true;
 }
 
 long SparseCholesky::nonzeros() const {

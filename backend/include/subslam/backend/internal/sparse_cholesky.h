@@ -2,15 +2,15 @@
 // that can grow: besides a full factorisation with a fresh fill-reducing ordering (AMD),
 // it takes rank-k updates A += W Wᵀ (cholmod_updown) and new variables, which occupy
 // spare slots kept as identity rows at the end of the ordering until claimed. This is the
-// incremental factor of the EIF joiner (private to the back-end).
+// incremental factor of the EIF joiner (internal: not part of the API).
 //
 // With the spare slots last in the ordering, a join's update touches only the columns on
 // the elimination-tree paths from its variables, so a join that extends the map (its
 // start anchor and new variables near the end of the ordering) costs little; a loop
 // closure touching old landmarks costs more, and the fill grows until the caller asks for
 // a full factorisation with a new ordering.
-#ifndef SUBSLAM_BACKEND_SRC_SPARSE_CHOLESKY_H_
-#define SUBSLAM_BACKEND_SRC_SPARSE_CHOLESKY_H_
+#ifndef SUBSLAM_BACKEND_INTERNAL_SPARSE_CHOLESKY_H_
+#define SUBSLAM_BACKEND_INTERNAL_SPARSE_CHOLESKY_H_
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
@@ -69,6 +69,7 @@ class SparseCholesky {
     std::vector<double> values;  // y_r / √D_r, so that (A⁻¹)_ab is a plain dot product
   };
   const SparseColumn& ForwardColumn(int variable) const;
+  bool PositiveDiagonal() const;
   double Dot(const SparseColumn& a, const SparseColumn& b) const;
 
   std::vector<int> position_;  // variable → row of the permuted factor
@@ -84,4 +85,4 @@ class SparseCholesky {
 
 }  // namespace subslam::backend
 
-#endif  // SUBSLAM_BACKEND_SRC_SPARSE_CHOLESKY_H_
+#endif  // SUBSLAM_BACKEND_INTERNAL_SPARSE_CHOLESKY_H_

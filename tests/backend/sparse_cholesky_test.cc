@@ -1,0 +1,92 @@
+#include "subslam/backend/internal/sparse_cholesky.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <random>
+
+#include "test_util.h"
+
+namespace subslam::backend {
+namespace {
+
+using testing::MatricesNear;
+
+// A random sparse symmetric positive definite matrix: a chain with a few long links.
+Eigen::MatrixXd RandomSpd(int n, std::mt19937_64* rng) {
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+  for (int k = 0; k < 3 * n; ++k) {
+    std::uniform_int_distribution<int> pick(0, n - 1);
+    const int i = pick(*rng), j = (k < n) ? std::min(n - 1, i + 1) : pick(*rng);
+    Eigen::Vector2d w(normal(*rng), normal(*rng));
+    A(i, i) += w[0] * w[0];
+    A(j, j) += w[1] * w[1];
+    A(i, j) += w[0] * w[1];
+    A(j, i) += w[0] * w[1];
+  }
+  A += 0.5 * Eigen::MatrixXd::Identity(n, n);
+  return A;
+}
+
+Eigen::SparseMatrix<double> Sparse(const Eigen::MatrixXd& A) { return A.sparseView(); }
+
+TEST(SparseCholesky, FactorizeSolvesAndRecoversInverseBlocks) {
+  std::mt19937_64 rng(1);
+  const Eigen::MatrixXd A = RandomSpd(30, &rng);
+  SparseCholesky L;
+  ASSERT_TRUE(L.Factorize(Sparse(A), 10).ok());
+  EXPECT_EQ(L.dim(), 30);
+  EXPECT_EQ(L.capacity(), 40);
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(30, 3);
+  EXPECT_TRUE(MatricesNear(A.ldlt().solve(B), L.Solve(B), 1e-10));
+  const Eigen::MatrixXd inverse = A.inverse();
+  const std::vector<int> vars = {29, 3, 17, 0};
+  EXPECT_TRUE(MatricesNear(inverse(vars, vars), L.InverseBlock(vars), 1e-10));
+  // Star blocks: [hub, group] for each group, and nothing between groups.
+  const std::vector<Eigen::MatrixXd> star = L.InverseStarBlocks({5, 6}, {{7, 8}, {20}, {}});
+  ASSERT_EQ(star.size(), 3u);
+  EXPECT_TRUE(MatricesNear(inverse({5, 6, 7, 8}, {5, 6, 7, 8}), star[0], 1e-10));
+  EXPECT_TRUE(MatricesNear(inverse({5, 6, 20}, {5, 6, 20}), star[1], 1e-10));
+  EXPECT_TRUE(MatricesNear(inverse({5, 6}, {5, 6}), star[2], 1e-10));
+}
+
+// A += W Wᵀ with new variables claiming spare slots equals factorising the grown matrix,
+// including when a variable is listed twice (its rows add up).
+TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {
+  std::mt19937_64 rng(2);
+  const int n = 25, added = 4;
+  const Eigen::MatrixXd A = RandomSpd(n, &rng);
+  SparseCholesky L;
+  ASSERT_TRUE(L.Factorize(Sparse(A), 8).ok());
+  // W over old variables 3, 24, 24 (twice) and the new ones 25 … 28 (full rank on them).
+  const std::vector<int> rows = {3, 24, 24, 25, 26, 27, 28};
+  Eigen::MatrixXd W = Eigen::MatrixXd::Random(static_cast<int>(rows.size()), 6);
+  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + added, n + added);
+  grown.topLeftCorner(n, n) = A;
+  Eigen::MatrixXd Wfull = Eigen::MatrixXd::Zero(n + added, W.cols());
+  for (size_t r = 0; r < rows.size(); ++r) Wfull.row(rows[r]) += W.row(static_cast<int>(r));
+  grown += Wfull * Wfull.transpose();
+  ASSERT_TRUE(L.Update(n + added, rows, W).ok());
+  EXPECT_EQ(L.dim(), n + added);
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(n + added, 2);
+  EXPECT_TRUE(MatricesNear(grown.ldlt().solve(B), L.Solve(B), 1e-9));
+  const std::vector<int> vars = {24, 25, 28, 3};
+  EXPECT_TRUE(MatricesNear(grown.inverse()(vars, vars), L.InverseBlock(vars), 1e-9));
+}
+
+TEST(SparseCholesky, RejectsWhatItCannotDo) {
+  std::mt19937_64 rng(3);
+  const Eigen::MatrixXd A = RandomSpd(10, &rng);
+  SparseCholesky L;
+  EXPECT_FALSE(L.Update(10, {0}, Eigen::MatrixXd::Ones(1, 1)).ok());  // nothing factorised
+  ASSERT_TRUE(L.Factorize(Sparse(A), 2).ok());
+  EXPECT_FALSE(L.Update(13, {12}, Eigen::MatrixXd::Ones(1, 1)).ok());  // beyond the spare slots
+  Eigen::MatrixXd indefinite = -Eigen::MatrixXd::Identity(4, 4);
+  EXPECT_FALSE(L.Factorize(Sparse(indefinite), 0).ok());
+  EXPECT_FALSE(L.ready());
+}
+
+}  // namespace
+}  // namespace subslam::backend
