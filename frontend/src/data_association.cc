@@ -61,6 +61,11 @@ class Jcbb {
     current_.assign(m, -1);
     best_.landmark_of_detection.assign(m, -1);
     for (int k = 1; k <= m; ++k) gates_.push_back(models::ChiSquareQuantile(gate_probability_, 2 * k));
+    // Only detections with a candidate branch; the others are unpaired in every
+    // hypothesis and would only spend the node budget (hundreds of them in a whole-map join).
+    for (int j = 0; j < m; ++j) {
+      if (!problem.candidates[j].empty()) branching_.push_back(j);
+    }
   }
 
   AssociationResult Solve() {
@@ -71,10 +76,11 @@ class Jcbb {
   }
 
  private:
-  void Recurse(int j, int k, double d2) {
-    const int m = static_cast<int>(p_.candidates.size());
+  // Branches on the t-th detection that has candidates.
+  void Recurse(int t, int k, double d2) {
+    const int m = static_cast<int>(branching_.size());
     if (nodes_++ >= max_nodes_) return;
-    if (j == m) {
+    if (t == m) {
       if (k > best_.pairings || (k == best_.pairings && d2 < best_.joint_d2)) {
         best_.pairings = k;
         best_.joint_d2 = d2;
@@ -82,21 +88,22 @@ class Jcbb {
       }
       return;
     }
+    const int j = branching_[t];
     for (const AssociationCandidate& c : p_.candidates[j]) {
-      if (std::find(current_.begin(), current_.begin() + j, c.landmark) != current_.begin() + j) {
-        continue;
-      }
+      bool taken = false;  // one-to-one: by an earlier detection of this hypothesis
+      for (int a : paired_detection_) taken = taken || current_[a] == c.landmark;
+      if (taken) continue;
       double new_d2;
       if (!Extend(j, k, c, &new_d2)) continue;
       if (new_d2 > gates_[k]) continue;
       current_[j] = c.landmark;
       paired_detection_.push_back(j);
-      Recurse(j + 1, k + 1, new_d2);
+      Recurse(t + 1, k + 1, new_d2);
       paired_detection_.pop_back();
       current_[j] = -1;
     }
     // The star branch: leave detection j unpaired if that can still beat the best.
-    if (k + (m - j - 1) >= best_.pairings) Recurse(j + 1, k, d2);
+    if (k + (m - t - 1) >= best_.pairings) Recurse(t + 1, k, d2);
   }
 
   // Appends pairing (j, c) as block row k of L and y; returns the joint d².
@@ -133,6 +140,7 @@ class Jcbb {
   Eigen::VectorXd y_;
   std::vector<int> current_;           // landmark per detection in the hypothesis
   std::vector<int> paired_detection_;  // detection of block row a
+  std::vector<int> branching_;         // detections with at least one candidate, in order
   AssociationResult best_;
 };
 
