@@ -56,5 +56,26 @@ TEST(JointCompatibility, PrefersConsistentShiftedHypothesis) {
   EXPECT_EQ(r.landmark_of_detection, (std::vector<int>{0, 1}));
 }
 
+// Detections without candidates do not spend the search budget: among 500 detections of
+// which 3 have candidates, a 20-node budget still finds the full hypothesis (every node
+// of the old search visited each detection, 500 nodes per hypothesis).
+TEST(JointCompatibility, DetectionsWithoutCandidatesCostNothing) {
+  AssociationProblem p;
+  p.candidates.resize(500);
+  p.candidates[10] = {C(0, 0.3, 0)};
+  p.candidates[250] = {C(1, 0, 0.2), C(2, 0.5, 0.5)};
+  p.candidates[499] = {C(3, 0.1, 0.1)};
+  p.covariance_block = [](int, int a, int, int b) -> Eigen::Matrix2d {
+    return Eigen::Matrix2d::Identity() * (a == b ? 1.0 : 0.0);
+  };
+  const AssociationResult r = JointCompatibility(p, 0.99, 20);
+  EXPECT_FALSE(r.truncated);
+  EXPECT_EQ(r.pairings, 3);
+  EXPECT_EQ(r.landmark_of_detection[10], 0);
+  EXPECT_EQ(r.landmark_of_detection[250], 1);
+  EXPECT_EQ(r.landmark_of_detection[499], 3);
+  EXPECT_EQ(r.landmark_of_detection[0], -1);
+}
+
 }  // namespace
 }  // namespace subslam::frontend
