@@ -89,7 +89,7 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   return f;
 }
 
-void EifJoiner::Linearize(Factor* f, bool keep_whitened_jacobian) const {
+void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   const LocalSubmap& s = record.submap;
   const auto pose = [this](int k) {
@@ -128,7 +128,7 @@ void EifJoiner::Linearize(Factor* f, bool keep_whitened_jacobian) const {
   llt.matrixL().solveInPlace(e);
   f->H = A.transpose() * A;
   f->b = A.transpose() * e;
-  if (keep_whitened_jacobian) solver_->last_whitened_jacobian = std::move(A);
+  if (whitened_jacobian != nullptr) *whitened_jacobian = std::move(A);
 }
 
 void EifJoiner::Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,
@@ -368,7 +368,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   Factor f = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
   {
     StageTimer timer(&times_, "update");
-    Linearize(&f, /*keep_whitened_jacobian=*/true);
+    Linearize(&f, &solver_->last_whitened_jacobian);
   }
   factors_.push_back(std::move(f));
   last_association_ = assoc;

@@ -197,12 +197,12 @@ const SparseCholesky::SparseColumn& SparseCholesky::ForwardColumn(int variable) 
     column.rows.push_back(xi[t]);
     column.values.push_back(xv[xi[t]] / std::sqrt(Lx[Lp[xi[t]]]));
   }
-  if (static_cast<int>(workspace_.size()) != capacity_) workspace_.assign(capacity_, 0.0);
   return column_cache_.emplace(variable, std::move(column)).first->second;
 }
 
 double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {
-  std::vector<double>& scatter = workspace_;  // all zero between calls
+  std::vector<double>& scatter = scatter_;
+  if (static_cast<int>(scatter.size()) != capacity_) scatter.assign(capacity_, 0.0);
   for (size_t t = 0; t < a.rows.size(); ++t) scatter[a.rows[t]] = a.values[t];
   double dot = 0.0;
   for (size_t t = 0; t < b.rows.size(); ++t) dot += scatter[b.rows[t]] * b.values[t];

@@ -172,5 +172,32 @@ TEST(SubmapPipeline, JoinedAnchorsAreNotOverconfident) {
   EXPECT_GE(inside, bound) << inside << " / " << n;
 }
 
+// Back-end names round-trip; a bad name, a bad option or a join without a back-end or
+// without local maps is an error, not a crash.
+TEST(BackendOptions, RejectsBadInput) {
+  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf,
+                    Backend::kTreeEif}) {
+    absl::StatusOr<Backend> parsed = BackendFromString(ToString(b));
+    ASSERT_TRUE(parsed.ok());
+    EXPECT_EQ(*parsed, b);
+  }
+  const absl::StatusOr<Backend> bogus = BackendFromString("bogus");
+  ASSERT_FALSE(bogus.ok());
+  EXPECT_NE(bogus.status().message().find("tree-eif"), std::string::npos);
+  BackendOptions o;
+  o.ceres_every = -1;
+  EXPECT_FALSE(o.Validate().ok());
+  o.ceres_every = 0;
+  o.ekf.association.recent_maps = -1;
+  EXPECT_FALSE(o.Validate().ok());
+
+  const io::Dataset d = Simulate(1);
+  JoinOptions join;
+  join.initial_pose = d.initial_pose;
+  EXPECT_FALSE(RunJoin({}, join).ok());  // no local maps
+  join.backend.kind = Backend::kNone;
+  EXPECT_FALSE(RunJoin(EkfLocalMaps(d), join).ok());
+}
+
 }  // namespace
 }  // namespace subslam::app

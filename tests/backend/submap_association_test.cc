@@ -42,7 +42,9 @@ struct LoopFixture {
     s.mean.head<3>() << 10.0, 0.0, 0.0;
     for (size_t i = 0; i < seen.size(); ++i) {
       s.mean.segment<2>(3 + 2 * i) = TransformTo(start, seen[i]);
-      s.landmarks.push_back({static_cast<int>(i)});
+      LocalSubmapLandmark l;
+      l.local_id = static_cast<int>(i);
+      s.landmarks.push_back(l);
     }
     s.covariance = 0.01 * Eigen::MatrixXd::Identity(s.mean.size(), s.mean.size());
     return s;

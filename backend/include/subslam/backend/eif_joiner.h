@@ -131,9 +131,9 @@ class EifJoiner final : public MapJoiner {
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
   // The factor record of graph factor `index`: its variables' offsets and sizes.
   Factor MakeFactor(int index) const;
-  // H and b of the factor at the current estimate; the newest factor also keeps its
-  // whitened Jacobian for the incremental factor update.
-  void Linearize(Factor* f, bool keep_whitened_jacobian = false) const;
+  // H and b of the factor at the current estimate, and (if asked) its whitened Jacobian
+  // L_Q⁻¹ J, the newest factor's rank update of the incremental factor.
+  void Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian = nullptr) const;
   // Adds a factor's blocks to triplets and η.
   void Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,
                Eigen::VectorXd* eta) const;

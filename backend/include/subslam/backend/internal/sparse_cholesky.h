@@ -73,7 +73,7 @@ class SparseCholesky {
   double Dot(const SparseColumn& a, const SparseColumn& b) const;
 
   std::vector<int> position_;  // variable → row of the permuted factor
-  mutable std::vector<double> workspace_;
+  mutable std::vector<double> scatter_;  // Dot()'s dense scatter of one column, all zero between calls
   // Columns of Y solved since the factor last changed (std::map: references stay valid).
   mutable std::map<int, SparseColumn> column_cache_;
   // cholmod_solve2's right-hand side, its pattern and reusable workspace.
