@@ -34,7 +34,7 @@ absl::Status EkfSlamOptions::Validate() const {
 
 EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion,
                  const models::RangeBearingConfig& sensor, const Pose2& initial_pose,
-                 const EkfSlamOptions& options)
+                 const EkfSlamOptions& options, const Eigen::Matrix3d& initial_pose_covariance)
     : motion_(std::move(motion)), sensor_(sensor), options_(options) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   gate_d2_ = models::ChiSquareQuantile(options_.gate_probability, 2);
@@ -42,7 +42,7 @@ EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion,
   x_.setZero(3 + 2 * 64);
   P_.setZero(3 + 2 * 64, 3 + 2 * 64);
   x_.head<3>() = initial_pose.vector();
-  P_.topLeftCorner<3, 3>().setZero();
+  P_.topLeftCorner<3, 3>() = 0.5 * (initial_pose_covariance + initial_pose_covariance.transpose());
   for (const char* stage : {"predict", "associate", "update", "map_management"}) times_[stage] = 0;
 }
 

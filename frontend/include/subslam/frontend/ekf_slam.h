@@ -70,8 +70,11 @@ struct EkfSlamCounters {
 
 class EkfSlam final : public OnlineEstimator {
  public:
+  // The start pose is known exactly unless a prior covariance is given (SeifSlam needs
+  // one; giving the EKF the same makes the two comparable).
   EkfSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
-          const Pose2& initial_pose, const EkfSlamOptions& options);
+          const Pose2& initial_pose, const EkfSlamOptions& options,
+          const Eigen::Matrix3d& initial_pose_covariance = Eigen::Matrix3d::Zero());
 
   std::string Name() const override { return "ekfslam"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;

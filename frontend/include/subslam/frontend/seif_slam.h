@@ -1,0 +1,228 @@
+// The sparse extended information filter (SEIF; Thrun et al., IJRR 2004, and
+// Probabilistic Robotics ch. 12) and its iterated variant ISEIF (paper 004, §2.3), as
+// whole single-map SLAM filters: the fourth system of our papers and a baseline.
+//
+// State y = [pose (3), landmark 1 (2), …] in the world frame (conventions.h), kept in
+// information form: Ω = Σ⁻¹ and ξ = Ω μ, block-sparse, plus a running estimate μ of
+// the mean. A landmark is *active* while Ω links it with the pose.
+//
+//  * Motion (per control step): x' = f(x, u) linearised at μ_x, x' ≈ A x + c + w,
+//    w ~ N(0, Q). With Φ = T⁻ᵀ Ω T⁻¹ (T = diag(A, I)) and M = Q (I + Φ_xx Q)⁻¹,
+//        Ω' = Φ − Φ_{:,x} M Φ_{x,:},    ξ' = ξ_Φ − Φ_{:,x} M ξ_Φ,x,   ξ_Φ = T⁻ᵀ ξ + Φ_{:,x} c.
+//    This is Thrun's Table 12.2 written without Q⁻¹ (Q = G M(u) Gᵀ has rank 2 for
+//    two-channel controls). Φ_{:,x} is non-zero on the pose and the active landmarks
+//    only, so the cost is O(a²) for a active landmarks, whatever the map size.
+//  * Measurement (per scan): Ω += Hᵀ R⁻¹ H, ξ += Hᵀ R⁻¹ (ν + H μ), linearised at μ;
+//    touches the pose and the observed landmarks, which become active. A new landmark
+//    gets μ_l = g(μ_x, z) and the information of its first detection only, which equals
+//    the EKF's augmentation by the inverse sensor model.
+//  * Sparsification (Thrun Table 12.7): when more than max_active_landmarks are
+//    active, those seen longest ago are made passive by the approximation
+//    p(x | m⁺, m⁰, m⁻) ≈ p(x | m⁺, m⁻ = μ⁻); only the pose/active block changes.
+//    This is the approximation that makes SEIF over-confident (004 §2.2).
+//  * Mean recovery: exact (sparse Cholesky of Ω with CHOLMOD; O(n) and more per scan),
+//    or amortised block Gauss-Seidel relaxation (Thrun §12.6) over the pose, the active
+//    and the observed landmarks, and a round-robin slice of the rest.
+//  * Marginal covariances (for gating, and the reported pose covariance): exact, or
+//    Thrun's Markov-blanket approximation — the inverse of Ω restricted to the pose,
+//    the active landmarks, the candidates and their neighbours, i.e. conditioned on all
+//    other landmarks at their means (over-confident; documented, not hidden).
+//  * Association: nearest neighbour or JCBB with χ² gating on the recovered mean and
+//    the (approximate) covariance, as EkfSlam; or, as an explicit study option only,
+//    the detections' true ids. Existence (HybridSLAM Eq. 11) and the cull of tentative
+//    landmarks are EkfSlam's; a culled landmark is marginalised out of Ω (exact).
+//  * ISEIF (004 §2.3, Eqs. 14-19): on every `period_scans`-th scan the measurement
+//    update is relinearised at the latest estimate — Gauss-Newton on the step's MAP
+//    problem (Eq. 9) — until the largest change of the pose or an observed landmark
+//    falls below stop_change, or max_iterations. The first iteration is the SEIF update.
+//
+// Without sparsification and with exact recovery and covariances, SeifSlam equals
+// EkfSlam started with the same prior (tests/frontend/seif_slam_test.cc).
+// Not thread-safe.
+#ifndef SUBSLAM_FRONTEND_SEIF_SLAM_H_
+#define SUBSLAM_FRONTEND_SEIF_SLAM_H_
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/container/flat_hash_map.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "subslam/frontend/data_association.h"
+#include "subslam/frontend/existence_model.h"
+#include "subslam/frontend/online_estimator.h"
+#include "subslam/models/motion_model.h"
+#include "subslam/models/range_bearing_model.h"
+
+namespace subslam::frontend {
+
+enum class MeanRecovery { kExact, kRelaxation };
+enum class CovarianceRecovery { kExact, kMarkovBlanket };
+const char* ToString(MeanRecovery recovery);
+const char* ToString(CovarianceRecovery recovery);
+absl::StatusOr<MeanRecovery> MeanRecoveryFromString(const std::string& name);
+absl::StatusOr<CovarianceRecovery> CovarianceRecoveryFromString(const std::string& name);
+
+// ISEIF's iterated measurement update (004 §2.3).
+struct IteratedUpdateOptions {
+  bool enabled = false;         // false: SEIF
+  int period_scans = 1;         // iterate on every this-many-th scan (the paper: 100 or 500)
+  int max_iterations = 10;      // linearisations per iterated update (1 = the SEIF update)
+  double stop_change = 1e-3;    // adaptive stop: max |Δμ| over the pose and observed landmarks [m, rad]
+  bool exact_recovery = true;   // recover the whole mean exactly between iterations (else relaxation)
+};
+
+struct SeifOptions {
+  AssociationMethod association = AssociationMethod::kNearestNeighbour;
+  // Study option: associate by the detections' true ids (simulations only); false
+  // alarms (no true landmark) are dropped. Never the default.
+  bool known_association = false;
+  double gate_probability = 0.99;            // individual gate, P(χ²₂ ≤ gate)
+  double new_landmark_probability = 0.9999;  // outside this gate for all: new landmark
+  long jcbb_max_nodes = 20000;
+  // A landmark whose mean lies farther than this from a detection's point (the
+  // detection projected from the pose mean) is not gated with it: a cheap pre-filter
+  // that bounds the covariance recovery to the neighbourhood of the detections.
+  double candidate_radius_m = 10.0;
+  ExistenceModel existence;
+  double expect_range_margin_m = 1.0;
+  double expect_bearing_margin_rad = 0.05;
+  int cull_every_scans = 10;
+  // Sparsification bound on the active landmarks (Thrun's experiments use a few to a
+  // few tens); 0 never sparsifies (the exact EIF, whose motion update is then O(n²)).
+  int max_active_landmarks = 10;
+  MeanRecovery recovery = MeanRecovery::kRelaxation;
+  int relaxation_sweeps = 2;            // Gauss-Seidel sweeps per scan over the local set
+  int relaxation_extra_landmarks = 20;  // round-robin landmarks added to each scan's sweeps
+  CovarianceRecovery covariance = CovarianceRecovery::kMarkovBlanket;
+  int blanket_max_landmarks = 60;       // cap on the Markov-blanket landmarks per scan
+  // SEIF needs a positive-definite prior on the start pose (the information of a
+  // perfectly known pose is infinite): σ of x, y [m] and heading [rad].
+  Eigen::Vector3d initial_pose_sigma{0.01, 0.01, 0.001};
+  IteratedUpdateOptions iterated;
+
+  absl::Status Validate() const;
+};
+
+struct SeifCounters {
+  long scans = 0;
+  long detections = 0;
+  long associated = 0;
+  long new_landmarks = 0;
+  long ambiguous = 0;
+  long deleted_landmarks = 0;
+  long jcbb_truncated = 0;
+  long sparsifications = 0;          // scans on which landmarks were made passive
+  long deactivated_landmarks = 0;
+  long iterated_updates = 0;         // ISEIF: updates that iterated
+  long iterations = 0;               // ISEIF: linearisations over those updates
+  long exact_recoveries = 0;
+  long max_active = 0;               // largest active set seen after an update
+};
+
+class SeifSlam final : public OnlineEstimator {
+ public:
+  SeifSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+           const Pose2& initial_pose, const SeifOptions& options);
+  ~SeifSlam() override;
+
+  std::string Name() const override { return options_.iterated.enabled ? "iseif" : "seif"; }
+  void Predict(const Eigen::Vector2d& u, double dt) override;
+  // Known association reads detections' truth_id; without it truth ids are never read.
+  void Update(const io::Scan& scan) override;
+  Pose2 pose() const override;
+  // Exact or Markov-blanket marginal (options.covariance), cached until the state changes.
+  Eigen::Matrix3d pose_covariance() const override;
+  // Confirmed landmarks, with exact marginal covariances (one factorisation).
+  std::vector<LandmarkEstimate> Map() const override;
+  StageTimes stage_times() const override { return times_; }
+  std::map<std::string, double> Counters() const override;
+
+  // Recovers the whole mean exactly (Ω μ = ξ) now, whatever options.recovery says.
+  void RecoverMeanExactly();
+  const SeifCounters& counters() const { return counters_; }
+  int num_landmarks() const;             // live landmarks (tentative included)
+  int num_active_landmarks() const { return static_cast<int>(pose_links_.size()); }
+  // Landmark-landmark links (off-diagonal 2×2 blocks, each counted once).
+  long num_landmark_links() const;
+  // The dense information matrix, vector and mean over [pose, live landmarks in id
+  // order], and those ids (for tests and small problems).
+  Eigen::MatrixXd DenseInformation() const;
+  Eigen::VectorXd DenseInformationVector() const;
+  Eigen::VectorXd DenseMean() const;
+  std::vector<int> LiveLandmarkIds() const;
+  // The landmark id each detection of the last scan was associated with or created
+  // (−1: out of range, ambiguous, or a false alarm under known association).
+  const std::vector<int>& last_scan_features() const { return scan_features_; }
+
+ private:
+  class ExactSolver;
+  struct Linearization;
+  struct LandmarkInfo {
+    bool alive = true;
+    double existence = 0.5;
+    bool confirmed = false;
+    long last_seen_scan = 0;
+    int truth_id = -1;  // known association only
+  };
+  // Covariance over a few variables: pose (if asked) and landmarks, as one dense matrix.
+  struct LocalCovariance {
+    Eigen::MatrixXd sigma;                        // over [pose, landmarks in `index` order]
+    absl::flat_hash_map<int, int> offset;         // landmark → row offset in sigma
+  };
+
+  int Offset(int landmark) const { return 3 + 2 * landmark; }
+  void Reserve(int landmarks);
+  int AddLandmarkSlot(const Eigen::Vector2d& mean);
+  std::vector<int> ActiveLandmarks() const;  // sorted ids
+  // Ω over [pose, landmarks] (dense, 3 + 2k), and ScatterAdd of a dense increment over
+  // the same variables (exactly zero blocks create no link).
+  Eigen::MatrixXd Gather(const std::vector<int>& landmarks) const;
+  Eigen::VectorXd GatherXi(const std::vector<int>& landmarks) const;
+  Eigen::VectorXd GatherMean(const std::vector<int>& landmarks) const;
+  void ScatterAdd(const std::vector<int>& landmarks, const Eigen::MatrixXd& D);
+  void AddXi(const std::vector<int>& landmarks, const Eigen::VectorXd& d);
+  void RemovePoseLink(int landmark);
+  void WrapHeading();
+  // Linearises the pairings at μ, adds Hᵀ R⁻¹ H and Hᵀ R⁻¹ (ν + Hμ); returns what it
+  // added so that an iterated update can take it back.
+  Linearization ApplyMeasurements(const std::vector<std::pair<int, Eigen::Vector2d>>& pairs);
+  void Retract(const Linearization& lin);
+  void Sparsify();
+  void Marginalize(int landmark);
+  void Relax(const std::vector<int>& landmarks, int sweeps);
+  void RelaxPose();
+  void RelaxLandmark(int landmark);
+  void Recover(const std::vector<int>& touched);
+  LocalCovariance Covariance(const std::vector<int>& landmarks, bool exact) const;
+  void UpdateExistence(LandmarkInfo* info, bool detected) const;
+  void Invalidate() { ++version_; }
+
+  std::unique_ptr<models::MotionModel> motion_;
+  models::RangeBearingModel sensor_;
+  SeifOptions options_;
+  double gate_d2_ = 0.0, new_landmark_d2_ = 0.0;
+  // Block-sparse Ω: pose block, pose-landmark links (the active set), landmark
+  // diagonal blocks and landmark-landmark links (stored in both directions; the block
+  // at links_[i][j] is Ω_{l_i, l_j}).
+  Eigen::Matrix3d omega_xx_;
+  absl::flat_hash_map<int, Matrix32d> pose_links_;
+  std::vector<Eigen::Matrix2d> omega_ll_;
+  std::vector<absl::flat_hash_map<int, Eigen::Matrix2d>> links_;
+  Eigen::VectorXd xi_, mu_;  // capacity-doubling; 3 + 2 × (landmark slots) live
+  std::vector<LandmarkInfo> landmarks_;
+  absl::flat_hash_map<int, int> landmark_of_truth_;  // known association only
+  int live_landmarks_ = 0;
+  size_t round_robin_ = 0;
+  SeifCounters counters_;
+  StageTimes times_;
+  std::vector<int> scan_features_;
+  long version_ = 0;
+  mutable long pose_cov_version_ = -1;
+  mutable Eigen::Matrix3d pose_cov_;
+};
+
+}  // namespace subslam::frontend
+
+#endif  // SUBSLAM_FRONTEND_SEIF_SLAM_H_
