@@ -1,7 +1,7 @@
 // subslam — command-line tool.
 //
 //   subslam simulate --scenario NAME [--seed S] --out DIR [scenario flags]
-//   subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf|ekf
+//   subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf
 //               --out DIR [estimator and noise flags]
 //   subslam scenarios
 //
@@ -29,6 +29,7 @@ namespace {
 const subslam::sim::ScenarioOptions kScenarioDefaults;
 const subslam::frontend::EkfSlamOptions kEkfDefaults;
 const subslam::frontend::FastSlamOptions kFastSlamDefaults;
+const subslam::frontend::SeifOptions kSeifDefaults;
 const subslam::frontend::SubmapPolicyOptions kPolicyDefaults;
 const subslam::backend::EifJoinerOptions kEifDefaults;
 }  // namespace
@@ -51,9 +52,9 @@ ABSL_FLAG(double, noise_scale, kScenarioDefaults.random_noise_scale, "random sce
 ABSL_FLAG(bool, signature, kScenarioDefaults.with_signature, "simulated detections carry a noisy signature");
 ABSL_FLAG(std::string, out, "", "output directory");
 ABSL_FLAG(std::string, frontend, subslam::app::ToString(subslam::app::RunOptions{}.frontend),
-          "odometry | ekfslam | fastslam | rbpf | ekf");
+          "odometry | ekfslam | fastslam | seif | iseif | rbpf | ekf");
 ABSL_FLAG(std::string, association, subslam::frontend::ToString(kEkfDefaults.association),
-          "ekfslam data association: nn | jcbb");
+          "ekfslam / seif / iseif data association: nn | jcbb");
 ABSL_FLAG(double, gate, kEkfDefaults.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
 ABSL_FLAG(double, new_landmark_gate, kEkfDefaults.new_landmark_probability,
           "a detection outside this gate for every landmark starts a new one");
@@ -112,7 +113,29 @@ ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
 ABSL_FLAG(bool, known_association, false,
-          "join: associate features by their truth_id instead of by nearest neighbour");
+          "join: associate features by their truth_id instead of by nearest neighbour; "
+          "seif / iseif: associate detections by their true ids (simulations; a study option)");
+ABSL_FLAG(int, seif_max_active, kSeifDefaults.max_active_landmarks,
+          "seif / iseif: sparsification bound on the active landmarks (0: never sparsify)");
+ABSL_FLAG(std::string, seif_recovery, subslam::frontend::ToString(kSeifDefaults.recovery),
+          "seif / iseif: mean recovery, relaxation (amortised Gauss-Seidel) | exact (CHOLMOD)");
+ABSL_FLAG(int, seif_sweeps, kSeifDefaults.relaxation_sweeps, "seif / iseif: relaxation sweeps per scan");
+ABSL_FLAG(int, seif_extra_landmarks, kSeifDefaults.relaxation_extra_landmarks,
+          "seif / iseif: round-robin landmarks relaxed per scan besides the local ones");
+ABSL_FLAG(std::string, seif_covariance, subslam::frontend::ToString(kSeifDefaults.covariance),
+          "seif / iseif: marginal covariances for gating and the pose, markov-blanket | exact");
+ABSL_FLAG(std::string, seif_pose_covariance, subslam::frontend::ToString(kSeifDefaults.pose_covariance),
+          "seif / iseif: the reported pose covariance, markov-blanket (cheap, over-confident) | exact "
+          "(the filter's own marginal; one factorisation per scan)");
+ABSL_FLAG(double, seif_candidate_radius, kSeifDefaults.candidate_radius_m,
+          "seif / iseif: landmarks farther than this from a detection's point are not gated with it [m]");
+ABSL_FLAG(int, iseif_period, kSeifDefaults.iterated.period_scans,
+          "iseif: iterate the measurement update on every N-th scan (the paper: 100 or 500)");
+ABSL_FLAG(int, iseif_max_iterations, kSeifDefaults.iterated.max_iterations, "iseif: linearisations per iterated update");
+ABSL_FLAG(double, iseif_stop, kSeifDefaults.iterated.stop_change,
+          "iseif: adaptive stop, largest change of the pose or an observed landmark [m, rad]");
+ABSL_FLAG(bool, iseif_exact_recovery, kSeifDefaults.iterated.exact_recovery,
+          "iseif: recover the whole mean exactly between iterations (else relaxation)");
 ABSL_FLAG(double, submap_min_duration, kPolicyDefaults.min_duration_s,
           "rbpf: a local map is never closed younger than this [s]");
 ABSL_FLAG(double, submap_max_duration, kPolicyDefaults.max_duration_s,
@@ -346,6 +369,28 @@ int Run() {
   options.fastslam.gate_probability = options.ekf.gate_probability;
   options.fastslam.new_landmark_probability = options.ekf.new_landmark_probability;
   options.fastslam.existence = options.ekf.existence;
+  options.seif.association = options.ekf.association;
+  options.seif.gate_probability = options.ekf.gate_probability;
+  options.seif.new_landmark_probability = options.ekf.new_landmark_probability;
+  options.seif.existence = options.ekf.existence;
+  options.seif.known_association = absl::GetFlag(FLAGS_known_association);
+  options.seif.max_active_landmarks = absl::GetFlag(FLAGS_seif_max_active);
+  auto recovery = subslam::frontend::MeanRecoveryFromString(absl::GetFlag(FLAGS_seif_recovery));
+  if (!recovery.ok()) return Fail(recovery.status());
+  options.seif.recovery = *recovery;
+  auto covariance = subslam::frontend::CovarianceRecoveryFromString(absl::GetFlag(FLAGS_seif_covariance));
+  if (!covariance.ok()) return Fail(covariance.status());
+  options.seif.covariance = *covariance;
+  auto pose_covariance = subslam::frontend::CovarianceRecoveryFromString(absl::GetFlag(FLAGS_seif_pose_covariance));
+  if (!pose_covariance.ok()) return Fail(pose_covariance.status());
+  options.seif.pose_covariance = *pose_covariance;
+  options.seif.relaxation_sweeps = absl::GetFlag(FLAGS_seif_sweeps);
+  options.seif.relaxation_extra_landmarks = absl::GetFlag(FLAGS_seif_extra_landmarks);
+  options.seif.candidate_radius_m = absl::GetFlag(FLAGS_seif_candidate_radius);
+  options.seif.iterated.period_scans = absl::GetFlag(FLAGS_iseif_period);
+  options.seif.iterated.max_iterations = absl::GetFlag(FLAGS_iseif_max_iterations);
+  options.seif.iterated.stop_change = absl::GetFlag(FLAGS_iseif_stop);
+  options.seif.iterated.exact_recovery = absl::GetFlag(FLAGS_iseif_exact_recovery);
   options.noise.sigma_v = absl::GetFlag(FLAGS_sigma_v);
   options.noise.sigma_u1 = absl::GetFlag(FLAGS_sigma_u1);
   options.noise.sigma_range = absl::GetFlag(FLAGS_sigma_range);
@@ -383,7 +428,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "submap-based landmark SLAM\n"
       "  subslam simulate --scenario NAME [--seed S] --out DIR\n"
-      "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|rbpf|ekf "
+      "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf "
       "--out DIR\n"
       "  subslam join --submaps FILE --backend eif|ceres|ekf|tree-ekf|tree-eif [--known_association] "
       "[--dataset DIR | --scenario NAME --seed S] --out DIR\n"

@@ -99,17 +99,19 @@ const char* ToString(Frontend frontend) {
     case Frontend::kFastSlam: return "fastslam";
     case Frontend::kRbpf: return "rbpf";
     case Frontend::kEkfLocal: return "ekf";
+    case Frontend::kSeif: return "seif";
+    case Frontend::kIseif: return "iseif";
   }
   return "?";
 }
 
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name) {
   for (Frontend f : {Frontend::kOdometry, Frontend::kEkfSlam, Frontend::kFastSlam, Frontend::kRbpf,
-                     Frontend::kEkfLocal}) {
+                     Frontend::kEkfLocal, Frontend::kSeif, Frontend::kIseif}) {
     if (name == ToString(f)) return f;
   }
   return absl::InvalidArgumentError(absl::StrCat(
-      "unknown front-end \"", name, "\" (expected odometry, ekfslam, fastslam, rbpf or ekf)"));
+      "unknown front-end \"", name, "\" (expected odometry, ekfslam, fastslam, seif, iseif, rbpf or ekf)"));
 }
 
 absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
@@ -138,6 +140,14 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (absl::Status s = options.fastslam.Validate(); !s.ok()) return s;
   if (absl::Status s = options.policy.Validate(); !s.ok()) return s;
   if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
+  frontend::SeifOptions seif = options.seif;
+  seif.iterated.enabled = options.frontend == Frontend::kIseif;
+  if (absl::Status s = seif.Validate(); !s.ok()) return s;
+  if (seif.known_association && !dataset.sensor.has_truth_id &&
+      (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "known association needs detections with true ids; data set \"", dataset.name, "\" has none"));
+  }
   std::unique_ptr<frontend::OnlineEstimator> estimator;
   SubmapSlam* chain = nullptr;  // set for the local-map front-ends
   if (options.frontend == Frontend::kOdometry) {
@@ -158,6 +168,10 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     auto chained = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose, options.backend);
     chain = chained.get();
     estimator = std::move(chained);
+  } else if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
+    estimator = std::make_unique<frontend::SeifSlam>(dataset.motion.MakeModel(),
+                                                     dataset.sensor.range_bearing,
+                                                     dataset.initial_pose, seif);
   } else if (options.frontend == Frontend::kFastSlam) {
     estimator = std::make_unique<frontend::FastSlam>(dataset.motion.MakeModel(),
                                                      dataset.sensor.range_bearing,
@@ -317,6 +331,24 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"cumulative_by_tenth_of_steps", r.wall_seconds_by_tenth}}},
       {"peak_rss_kb", r.peak_rss_kb},
       {"metrics", metrics}};
+
+  if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
+    r.report["configuration"]["seif"] = {
+        {"known_association", seif.known_association},
+        {"association", frontend::ToString(seif.association)},
+        {"max_active_landmarks", seif.max_active_landmarks},
+        {"mean_recovery", frontend::ToString(seif.recovery)},
+        {"relaxation_sweeps", seif.relaxation_sweeps},
+        {"relaxation_extra_landmarks", seif.relaxation_extra_landmarks},
+        {"covariance_recovery", frontend::ToString(seif.covariance)},
+        {"pose_covariance", frontend::ToString(seif.pose_covariance)},
+        {"candidate_radius_m", seif.candidate_radius_m},
+        {"iterated", seif.iterated.enabled},
+        {"iterated_period_scans", seif.iterated.period_scans},
+        {"iterated_max_iterations", seif.iterated.max_iterations},
+        {"iterated_stop_change", seif.iterated.stop_change},
+        {"iterated_exact_recovery", seif.iterated.exact_recovery}};
+  }
 
   if (!options.out_dir.empty()) {
     absl::StatusOr<std::filesystem::path> dir = CreateOutputDirectory(options.out_dir);

@@ -86,13 +86,16 @@ MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
   std::sort(candidates.begin(), candidates.end(),
             [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
   std::vector<bool> used_e(estimate.size(), false), used_t(truth.size(), false);
-  double sq = 0, nees = 0;
+  double sq = 0, sq_x = 0, sq_y = 0, nees = 0;
   int nees_count = 0;
   for (const Candidate& c : candidates) {
     if (used_e[c.e] || used_t[c.t]) continue;
     used_e[c.e] = used_t[c.t] = true;
     ++m.matched;
     sq += c.distance * c.distance;
+    const Eigen::Vector2d error = estimate[c.e].position - truth[c.t].p;
+    sq_x += error.x() * error.x();
+    sq_y += error.y() * error.y();
     if (auto v = PointNees(truth[c.t].p, estimate[c.e].position, estimate[c.e].covariance)) {
       nees += *v;
       ++nees_count;
@@ -103,6 +106,8 @@ MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
   for (size_t i = 0; i < estimate.size(); ++i) m.spurious += near_truth[i] ? 0 : 1;
   m.duplicates = m.estimated - m.matched - m.spurious;
   m.rms_m = m.matched > 0 ? std::sqrt(sq / m.matched) : 0.0;
+  m.rms_x_m = m.matched > 0 ? std::sqrt(sq_x / m.matched) : 0.0;
+  m.rms_y_m = m.matched > 0 ? std::sqrt(sq_y / m.matched) : 0.0;
   m.mean_nees = nees_count > 0 ? nees / nees_count : 0.0;
   return m;
 }

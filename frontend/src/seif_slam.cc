@@ -133,6 +133,7 @@ SeifSlam::SeifSlam(std::unique_ptr<models::MotionModel> motion,
   omega_xx_ = options_.initial_pose_sigma.array().square().inverse().matrix().asDiagonal();
   mu_.head<3>() = initial_pose.vector();
   xi_.head<3>() = omega_xx_ * mu_.head<3>();
+  exact_pose_cov_ = omega_xx_.inverse();
   for (const char* stage : {"motion", "associate", "measurement", "iteration", "sparsification",
                             "recovery", "map_management"}) {
     times_[stage] = 0;
@@ -298,6 +299,8 @@ void SeifSlam::Predict(const Eigen::Vector2d& u, double dt) {
   AddXi(active, xi - GatherXi(active));
   mu_.head<3>() = fx;
   WrapHeading();
+  // The motion update touches the pose only: its marginal propagates as in the EKF.
+  exact_pose_cov_ = A * exact_pose_cov_ * A.transpose() + Q;
 }
 
 SeifSlam::Linearization SeifSlam::ApplyMeasurements(
@@ -418,7 +421,6 @@ void SeifSlam::Relax(const std::vector<int>& landmarks, int sweeps) {
     RelaxPose();
     for (int l : landmarks) RelaxLandmark(l);
   }
-  WrapHeading();
 }
 
 void SeifSlam::RecoverMeanExactly() {
@@ -434,7 +436,6 @@ void SeifSlam::RecoverMeanExactly() {
     if (landmarks_[i].alive) mu_.segment<2>(Offset(static_cast<int>(i))) = x.segment<2>(solver.Column(static_cast<int>(i)));
   }
   ++counters_.exact_recoveries;
-  WrapHeading();
   Invalidate();
 }
 
@@ -500,8 +501,9 @@ SeifSlam::LocalCovariance SeifSlam::Covariance(const std::vector<int>& landmarks
 }
 
 Eigen::Matrix3d SeifSlam::pose_covariance() const {
+  if (options_.pose_covariance == CovarianceRecovery::kExact) return exact_pose_cov_;
   if (pose_cov_version_ != version_) {
-    pose_cov_ = Covariance({}, options_.covariance == CovarianceRecovery::kExact).sigma;
+    pose_cov_ = Covariance({}, false).sigma;
     pose_cov_ = 0.5 * (pose_cov_ + pose_cov_.transpose()).eval();
     pose_cov_version_ = version_;
   }
@@ -742,6 +744,14 @@ void SeifSlam::Update(const io::Scan& scan) {
   if (options_.recovery == MeanRecovery::kRelaxation) {
     touched.insert(touched.end(), created.begin(), created.end());
     Recover(touched);
+  }
+  // Only here and after the motion update: an iterated update must not see its
+  // coordinates shift between applying a linearisation and taking it back.
+  WrapHeading();
+  if (options_.pose_covariance == CovarianceRecovery::kExact) {
+    StageTimer timer(&times_, "pose_covariance");
+    const Eigen::Matrix3d sigma = Covariance({}, true).sigma;
+    exact_pose_cov_ = 0.5 * (sigma + sigma.transpose());
   }
 }
 

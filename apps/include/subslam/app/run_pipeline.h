@@ -23,6 +23,7 @@
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
+#include "subslam/frontend/seif_slam.h"
 #include "subslam/app/submap_slam.h"
 #include "subslam/frontend/submap_policy.h"
 #include "subslam/graph/local_submap.h"
@@ -33,7 +34,9 @@ namespace subslam::app {
 
 // odometry: dead reckoning; ekfslam, fastslam: single-map filters; rbpf, ekf: local
 // mappers (FastSLAM 2.0 / EKF-SLAM per local map), joined by RunOptions::backend.
-enum class Frontend { kOdometry, kEkfSlam, kFastSlam, kRbpf, kEkfLocal };
+// Single-map filters: odometry, ekfslam, fastslam, seif, iseif; local-map front-ends
+// (joined by a back-end): rbpf, ekf.
+enum class Frontend { kOdometry, kEkfSlam, kFastSlam, kRbpf, kEkfLocal, kSeif, kIseif };
 const char* ToString(Frontend frontend);
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name);
 
@@ -52,6 +55,8 @@ struct RunOptions {
   Frontend frontend = Frontend::kEkfSlam;
   frontend::EkfSlamOptions ekf;
   frontend::FastSlamOptions fastslam;
+  // seif, iseif (--frontend iseif turns seif.iterated.enabled on).
+  frontend::SeifOptions seif;
   frontend::SubmapPolicyOptions policy;  // rbpf, ekf
   BackendOptions backend;                 // rbpf, ekf: how local maps are joined
   NoiseOverrides noise;

@@ -57,6 +57,8 @@ struct MapErrors {
   int spurious = 0;        // estimates with no true landmark within the radius at all
   int duplicates = 0;      // unmatched estimates near a true landmark already matched
   double rms_m = 0.0;      // over matched pairs
+  double rms_x_m = 0.0;    // per axis, over matched pairs
+  double rms_y_m = 0.0;
   double mean_nees = 0.0;  // over matched pairs
 };
 

@@ -91,12 +91,18 @@ struct SeifOptions {
   int cull_every_scans = 10;
   // Sparsification bound on the active landmarks (Thrun's experiments use a few to a
   // few tens); 0 never sparsifies (the exact EIF, whose motion update is then O(n²)).
-  int max_active_landmarks = 10;
+  int max_active_landmarks = 20;
   MeanRecovery recovery = MeanRecovery::kRelaxation;
   int relaxation_sweeps = 2;            // Gauss-Seidel sweeps per scan over the local set
   int relaxation_extra_landmarks = 20;  // round-robin landmarks added to each scan's sweeps
+  // Covariances for gating.
   CovarianceRecovery covariance = CovarianceRecovery::kMarkovBlanket;
   int blanket_max_landmarks = 60;       // cap on the Markov-blanket landmarks per scan
+  // The reported pose covariance. The Markov blanket conditions the pose on every
+  // passive landmark and is far over-confident even without sparsification; kExact is
+  // the marginal of the filter's own Ω, factorised once per scan and propagated
+  // exactly (A Σ Aᵀ + Q) between scans — use it to judge the filter's consistency.
+  CovarianceRecovery pose_covariance = CovarianceRecovery::kMarkovBlanket;
   // SEIF needs a positive-definite prior on the start pose (the information of a
   // perfectly known pose is infinite): σ of x, y [m] and heading [rad].
   Eigen::Vector3d initial_pose_sigma{0.01, 0.01, 0.001};
@@ -132,7 +138,7 @@ class SeifSlam final : public OnlineEstimator {
   // Known association reads detections' truth_id; without it truth ids are never read.
   void Update(const io::Scan& scan) override;
   Pose2 pose() const override;
-  // Exact or Markov-blanket marginal (options.covariance), cached until the state changes.
+  // Exact or Markov-blanket marginal (options.pose_covariance).
   Eigen::Matrix3d pose_covariance() const override;
   // Confirmed landmarks, with exact marginal covariances (one factorisation).
   std::vector<LandmarkEstimate> Map() const override;
@@ -184,6 +190,7 @@ class SeifSlam final : public OnlineEstimator {
   void ScatterAdd(const std::vector<int>& landmarks, const Eigen::MatrixXd& D);
   void AddXi(const std::vector<int>& landmarks, const Eigen::VectorXd& d);
   void RemovePoseLink(int landmark);
+  // Shifts μ_θ into (−π, π] and ξ with it (the same Gaussian in shifted coordinates).
   void WrapHeading();
   // Linearises the pairings at μ, adds Hᵀ R⁻¹ H and Hᵀ R⁻¹ (ν + Hμ); returns what it
   // added so that an iterated update can take it back.
@@ -221,6 +228,7 @@ class SeifSlam final : public OnlineEstimator {
   long version_ = 0;
   mutable long pose_cov_version_ = -1;
   mutable Eigen::Matrix3d pose_cov_;
+  Eigen::Matrix3d exact_pose_cov_;  // options.pose_covariance == kExact
 };
 
 }  // namespace subslam::frontend
