@@ -134,8 +134,9 @@ ABSL_FLAG(int, iseif_period, kSeifDefaults.iterated.period_scans,
 ABSL_FLAG(int, iseif_max_iterations, kSeifDefaults.iterated.max_iterations, "iseif: linearisations per iterated update");
 ABSL_FLAG(double, iseif_stop, kSeifDefaults.iterated.stop_change,
           "iseif: adaptive stop, largest change of the pose or an observed landmark [m, rad]");
-ABSL_FLAG(bool, iseif_exact_recovery, kSeifDefaults.iterated.exact_recovery,
-          "iseif: recover the whole mean exactly between iterations (else relaxation)");
+ABSL_FLAG(int, iseif_exact_recoveries, kSeifDefaults.iterated.exact_recoveries,
+          "iseif: the first N linearisations of an iterated update are followed by an exact recovery of "
+          "the whole mean, later ones by local relaxation");
 ABSL_FLAG(double, submap_min_duration, kPolicyDefaults.min_duration_s,
           "rbpf: a local map is never closed younger than this [s]");
 ABSL_FLAG(double, submap_max_duration, kPolicyDefaults.max_duration_s,
@@ -390,7 +391,7 @@ int Run() {
   options.seif.iterated.period_scans = absl::GetFlag(FLAGS_iseif_period);
   options.seif.iterated.max_iterations = absl::GetFlag(FLAGS_iseif_max_iterations);
   options.seif.iterated.stop_change = absl::GetFlag(FLAGS_iseif_stop);
-  options.seif.iterated.exact_recovery = absl::GetFlag(FLAGS_iseif_exact_recovery);
+  options.seif.iterated.exact_recoveries = absl::GetFlag(FLAGS_iseif_exact_recoveries);
   options.noise.sigma_v = absl::GetFlag(FLAGS_sigma_v);
   options.noise.sigma_u1 = absl::GetFlag(FLAGS_sigma_u1);
   options.noise.sigma_range = absl::GetFlag(FLAGS_sigma_range);

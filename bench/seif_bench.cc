@@ -41,8 +41,8 @@ ABSL_FLAG(std::string, seif_pose_covariance, "exact",
 ABSL_FLAG(int, iseif_period, subslam::frontend::SeifOptions{}.iterated.period_scans, "iseif: period [scans]");
 ABSL_FLAG(int, iseif_max_iterations, subslam::frontend::SeifOptions{}.iterated.max_iterations, "iseif: iterations");
 ABSL_FLAG(double, iseif_stop, subslam::frontend::SeifOptions{}.iterated.stop_change, "iseif: adaptive stop");
-ABSL_FLAG(bool, iseif_exact_recovery, subslam::frontend::SeifOptions{}.iterated.exact_recovery,
-          "iseif: exact mean recovery between iterations");
+ABSL_FLAG(int, iseif_exact_recoveries, subslam::frontend::SeifOptions{}.iterated.exact_recoveries,
+          "iseif: linearisations followed by an exact mean recovery");
 ABSL_FLAG(std::string, growth_landmarks, "300,1200,4800,19200",
           "random-world sizes (landmarks) for the growth table (empty: skip)");
 ABSL_FLAG(std::string, growth_filters, "seif,iseif", "filters of the growth table");
@@ -71,7 +71,7 @@ subslam::app::RunOptions OptionsFor(Frontend frontend) {
   o.seif.iterated.period_scans = absl::GetFlag(FLAGS_iseif_period);
   o.seif.iterated.max_iterations = absl::GetFlag(FLAGS_iseif_max_iterations);
   o.seif.iterated.stop_change = absl::GetFlag(FLAGS_iseif_stop);
-  o.seif.iterated.exact_recovery = absl::GetFlag(FLAGS_iseif_exact_recovery);
+  o.seif.iterated.exact_recoveries = absl::GetFlag(FLAGS_iseif_exact_recoveries);
   return o;
 }
 

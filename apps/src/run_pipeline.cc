@@ -347,7 +347,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"iterated_period_scans", seif.iterated.period_scans},
         {"iterated_max_iterations", seif.iterated.max_iterations},
         {"iterated_stop_change", seif.iterated.stop_change},
-        {"iterated_exact_recovery", seif.iterated.exact_recovery}};
+        {"iterated_exact_recoveries", seif.iterated.exact_recoveries}};
   }
 
   if (!options.out_dir.empty()) {

@@ -68,9 +68,11 @@ absl::Status SeifOptions::Validate() const {
   if (!(initial_pose_sigma.array() > 0).all() || !initial_pose_sigma.allFinite()) {
     return absl::InvalidArgumentError("initial_pose_sigma must be finite and > 0 (SEIF needs a prior)");
   }
-  if (iterated.period_scans < 1 || iterated.max_iterations < 1 || !(iterated.stop_change >= 0)) {
+  if (iterated.period_scans < 1 || iterated.max_iterations < 1 || !(iterated.stop_change >= 0) ||
+      iterated.exact_recoveries < 0) {
     return absl::InvalidArgumentError(
-        "iterated: period_scans >= 1, max_iterations >= 1 and stop_change >= 0 required");
+        "iterated: period_scans >= 1, max_iterations >= 1, stop_change >= 0 and exact_recoveries >= 0 "
+        "required");
   }
   return absl::OkStatus();
 }
@@ -129,6 +131,7 @@ SeifSlam::SeifSlam(std::unique_ptr<models::MotionModel> motion,
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   gate_d2_ = models::ChiSquareQuantile(options_.gate_probability, 2);
   new_landmark_d2_ = models::ChiSquareQuantile(options_.new_landmark_probability, 2);
+  cell_size_m_ = sensor.max_range_m + 10.0;  // the reach of a scan: a 3 × 3 block of cells covers it
   Reserve(64);
   omega_xx_ = options_.initial_pose_sigma.array().square().inverse().matrix().asDiagonal();
   mu_.head<3>() = initial_pose.vector();
@@ -141,6 +144,31 @@ SeifSlam::SeifSlam(std::unique_ptr<models::MotionModel> motion,
 }
 
 SeifSlam::~SeifSlam() = default;
+
+int64_t SeifSlam::CellCoordinate(double v) const {
+  return static_cast<int64_t>(std::floor(v / cell_size_m_));
+}
+
+uint64_t SeifSlam::CellKey(int64_t cx, int64_t cy) {
+  return (static_cast<uint64_t>(cx) << 32) ^ (static_cast<uint64_t>(cy) & 0xffffffffULL);
+}
+
+void SeifSlam::RemoveFromCell(int l) {
+  if (cell_of_[l] == kNoCell) return;
+  std::vector<int>& members = grid_[cell_of_[l]];
+  members.erase(std::find(members.begin(), members.end(), l));
+  cell_of_[l] = kNoCell;
+}
+
+void SeifSlam::UpdateCell(int l) {
+  const Eigen::Vector2d m = mu_.segment<2>(Offset(l));
+  const uint64_t key = m.allFinite() ? CellKey(CellCoordinate(m.x()), CellCoordinate(m.y())) : kNoCell;
+  if (key == cell_of_[l]) return;
+  RemoveFromCell(l);
+  if (key == kNoCell) return;
+  grid_[key].push_back(l);
+  cell_of_[l] = key;
+}
 
 void SeifSlam::Reserve(int landmarks) {
   const int capacity = (static_cast<int>(xi_.size()) - 3) / 2;
@@ -163,6 +191,8 @@ int SeifSlam::AddLandmarkSlot(const Eigen::Vector2d& mean) {
   omega_ll_.push_back(Eigen::Matrix2d::Zero());
   links_.emplace_back();
   mu_.segment<2>(Offset(l)) = mean;
+  cell_of_.push_back(kNoCell);
+  UpdateCell(l);
   xi_.segment<2>(Offset(l)).setZero();
   ++live_landmarks_;
   return l;
@@ -268,14 +298,27 @@ void SeifSlam::WrapHeading() {
 void SeifSlam::Predict(const Eigen::Vector2d& u, double dt) {
   if (dt <= 0.0) return;
   StageTimer timer(&times_, "motion");
-  Invalidate();
   Eigen::Matrix3d A;
   Matrix32d G;
   const Eigen::Vector3d mx = mu_.head<3>();
+  if (!motion_pending_) flushed_pose_ = mx;  // the chain starts at the current estimate
   Eigen::Vector3d fx = motion_->Predict(pose(), u, dt, &A, &G).vector();
-  fx[2] = mx[2] + WrapAngle(fx[2] - mx[2]);  // keep μ_θ continuous; wrapped below
-  const Eigen::Matrix3d Q = G * motion_->noise().Covariance(u) * G.transpose();
-  const Eigen::Vector3d c = fx - A * mx;
+  fx[2] = mx[2] + WrapAngle(fx[2] - mx[2]);  // keep μ_θ continuous until the flush
+  // Compose with the pending motion: x_now ≈ A_p (x_flushed − μ_flushed) + μ_now + w,
+  // w ~ N(0, Q_p). A chain of pose-only linear-Gaussian steps is one such step.
+  pending_A_ = A * pending_A_;
+  pending_Q_ = A * pending_Q_ * A.transpose() + G * motion_->noise().Covariance(u) * G.transpose();
+  mu_.head<3>() = fx;
+  motion_pending_ = true;
+}
+
+void SeifSlam::FlushMotion() {
+  if (!motion_pending_) return;
+  StageTimer timer(&times_, "motion");
+  Invalidate();
+  const Eigen::Matrix3d& A = pending_A_;
+  const Eigen::Matrix3d& Q = pending_Q_;
+  const Eigen::Vector3d c = mu_.head<3>() - A * flushed_pose_;
 
   const std::vector<int> active = ActiveLandmarks();
   const Eigen::MatrixXd omega = Gather(active);
@@ -297,10 +340,10 @@ void SeifSlam::Predict(const Eigen::Vector2d& u, double dt) {
   xi.noalias() -= phi_x * (M * xi_x);
   ScatterAdd(active, updated - omega);
   AddXi(active, xi - GatherXi(active));
-  mu_.head<3>() = fx;
+  pending_A_.setIdentity();
+  pending_Q_.setZero();
+  motion_pending_ = false;
   WrapHeading();
-  // The motion update touches the pose only: its marginal propagates as in the EKF.
-  exact_pose_cov_ = A * exact_pose_cov_ * A.transpose() + Q;
 }
 
 SeifSlam::Linearization SeifSlam::ApplyMeasurements(
@@ -399,6 +442,7 @@ void SeifSlam::Marginalize(int landmark) {
   omega_ll_[landmark].setZero();
   xi_.segment<2>(Offset(landmark)).setZero();
   landmarks_[landmark].alive = false;
+  RemoveFromCell(landmark);
   if (landmarks_[landmark].truth_id >= 0) landmark_of_truth_.erase(landmarks_[landmark].truth_id);
   --live_landmarks_;
 }
@@ -414,6 +458,7 @@ void SeifSlam::RelaxLandmark(int l) {
   if (auto it = pose_links_.find(l); it != pose_links_.end()) r.noalias() -= it->second.transpose() * mu_.head<3>();
   for (const auto& [w, block] : links_[l]) r.noalias() -= block * mu_.segment<2>(Offset(w));
   mu_.segment<2>(Offset(l)) = omega_ll_[l].ldlt().solve(r);
+  UpdateCell(l);
 }
 
 void SeifSlam::Relax(const std::vector<int>& landmarks, int sweeps) {
@@ -424,6 +469,7 @@ void SeifSlam::Relax(const std::vector<int>& landmarks, int sweeps) {
 }
 
 void SeifSlam::RecoverMeanExactly() {
+  FlushMotion();
   const ExactSolver solver(*this);
   Eigen::VectorXd b(solver.dim());
   b.head<3>() = xi_.head<3>();
@@ -433,7 +479,9 @@ void SeifSlam::RecoverMeanExactly() {
   const Eigen::VectorXd x = solver.Solve(b);
   mu_.head<3>() = x.head<3>();
   for (size_t i = 0; i < landmarks_.size(); ++i) {
-    if (landmarks_[i].alive) mu_.segment<2>(Offset(static_cast<int>(i))) = x.segment<2>(solver.Column(static_cast<int>(i)));
+    if (!landmarks_[i].alive) continue;
+    mu_.segment<2>(Offset(static_cast<int>(i))) = x.segment<2>(solver.Column(static_cast<int>(i)));
+    UpdateCell(static_cast<int>(i));
   }
   ++counters_.exact_recoveries;
   Invalidate();
@@ -501,13 +549,18 @@ SeifSlam::LocalCovariance SeifSlam::Covariance(const std::vector<int>& landmarks
 }
 
 Eigen::Matrix3d SeifSlam::pose_covariance() const {
-  if (options_.pose_covariance == CovarianceRecovery::kExact) return exact_pose_cov_;
-  if (pose_cov_version_ != version_) {
-    pose_cov_ = Covariance({}, false).sigma;
-    pose_cov_ = 0.5 * (pose_cov_ + pose_cov_.transpose()).eval();
-    pose_cov_version_ = version_;
+  // Ω holds the pose at the last flush; the pending motion propagates its marginal
+  // exactly (conditioning on passive landmarks commutes with a pose-only motion).
+  const Eigen::Matrix3d* at_flush = &exact_pose_cov_;
+  if (options_.pose_covariance == CovarianceRecovery::kMarkovBlanket) {
+    if (pose_cov_version_ != version_) {
+      pose_cov_ = Covariance({}, false).sigma;
+      pose_cov_ = 0.5 * (pose_cov_ + pose_cov_.transpose()).eval();
+      pose_cov_version_ = version_;
+    }
+    at_flush = &pose_cov_;
   }
-  return pose_cov_;
+  return pending_A_ * *at_flush * pending_A_.transpose() + pending_Q_;
 }
 
 void SeifSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
@@ -516,6 +569,7 @@ void SeifSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
 }
 
 void SeifSlam::Update(const io::Scan& scan) {
+  FlushMotion();
   ++counters_.scans;
   Invalidate();
   const Pose2 p = pose();
@@ -541,13 +595,19 @@ void SeifSlam::Update(const io::Scan& scan) {
   std::vector<int> in_reach;
   {
     StageTimer timer(&times_, "associate");
-    const double reach = rb.max_range_m + 10.0;
-    for (size_t i = 0; i < landmarks_.size(); ++i) {
-      if (!landmarks_[i].alive) continue;
-      if ((mu_.segment<2>(Offset(static_cast<int>(i))) - p.translation()).squaredNorm() > reach * reach) continue;
-      in_reach.push_back(static_cast<int>(i));
-      gated[static_cast<int>(i)] = false;
+    const double reach = cell_size_m_;
+    const int64_t cx = CellCoordinate(p.x), cy = CellCoordinate(p.y);
+    for (int64_t dx = -1; dx <= 1; ++dx) {
+      for (int64_t dy = -1; dy <= 1; ++dy) {
+        auto it = grid_.find(CellKey(cx + dx, cy + dy));
+        if (it == grid_.end()) continue;
+        for (int l : it->second) {
+          if ((mu_.segment<2>(Offset(l)) - p.translation()).squaredNorm() <= reach * reach) in_reach.push_back(l);
+        }
+      }
     }
+    std::sort(in_reach.begin(), in_reach.end());
+    for (int l : in_reach) gated[l] = false;
     if (options_.known_association) {
       for (int j = 0; j < m; ++j) {
         const int truth = scan.detections[detection_index[j]].truth_id;
@@ -670,7 +730,7 @@ void SeifSlam::Update(const io::Scan& scan) {
       }
       StageTimer timer(&times_, "iteration");
       ++counters_.iterations;
-      if (options_.iterated.exact_recovery) {
+      if (i <= options_.iterated.exact_recoveries) {
         RecoverMeanExactly();
       } else {
         Relax(ActiveLandmarks(), options_.relaxation_sweeps);
@@ -763,8 +823,14 @@ std::vector<int> SeifSlam::LiveLandmarkIds() const {
   return ids;
 }
 
-Eigen::MatrixXd SeifSlam::DenseInformation() const { return Gather(LiveLandmarkIds()); }
-Eigen::VectorXd SeifSlam::DenseInformationVector() const { return GatherXi(LiveLandmarkIds()); }
+Eigen::MatrixXd SeifSlam::DenseInformation() {
+  FlushMotion();
+  return Gather(LiveLandmarkIds());
+}
+Eigen::VectorXd SeifSlam::DenseInformationVector() {
+  FlushMotion();
+  return GatherXi(LiveLandmarkIds());
+}
 Eigen::VectorXd SeifSlam::DenseMean() const { return GatherMean(LiveLandmarkIds()); }
 
 std::vector<LandmarkEstimate> SeifSlam::Map() const {

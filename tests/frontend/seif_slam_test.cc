@@ -198,9 +198,9 @@ TEST(Iseif, OneIterationIsTheSeifUpdate) {
   // One linearisation, two ways: the iteration limit, and an adaptive stop that is
   // always met after the first pass.
   SeifOptions limit = seif;
-  limit.iterated = {true, 1, 1, 1e-3, true};
+  limit.iterated = {true, 1, 1, 1e-3, 1};
   SeifOptions stop = seif;
-  stop.iterated = {true, 1, 10, 1e9, true};
+  stop.iterated = {true, 1, 10, 1e9, 1};
   for (const SeifOptions& o : {limit, stop}) {
     const SeifRun run = RunSeif(d, o);
     ASSERT_EQ(run.poses.size(), reference.poses.size());
@@ -210,7 +210,7 @@ TEST(Iseif, OneIterationIsTheSeifUpdate) {
   }
   const SeifRun iterated = RunSeif(d, [&] {
     SeifOptions o = seif;
-    o.iterated = {true, 1, 10, 1e-6, true};
+    o.iterated = {true, 1, 10, 1e-6, 10};
     return o;
   }());
   EXPECT_GT(iterated.counters.iterations, iterated.counters.iterated_updates)
@@ -280,7 +280,7 @@ TEST(Iseif, IteratedUpdateReachesTheStepsMapEstimate) {
   SeifOptions seif;
   seif.recovery = MeanRecovery::kExact;
   SeifOptions iseif = seif;
-  iseif.iterated = {true, 1, 20, 1e-10, true};
+  iseif.iterated = {true, 1, 20, 1e-10, 20};
   const double seif_gradient = worst_gradient(seif);
   const double iseif_gradient = worst_gradient(iseif);
   std::printf("relative MAP gradient: SEIF %.3g, ISEIF %.3g\n", seif_gradient, iseif_gradient);
@@ -333,6 +333,7 @@ TEST(SeifOptions, RejectsBadValues) {
   EXPECT_TRUE(bad([](SeifOptions& o) { o.initial_pose_sigma[2] = 0.0; }));
   EXPECT_TRUE(bad([](SeifOptions& o) { o.iterated.max_iterations = 0; }));
   EXPECT_TRUE(bad([](SeifOptions& o) { o.iterated.stop_change = -1; }));
+  EXPECT_TRUE(bad([](SeifOptions& o) { o.iterated.exact_recoveries = -1; }));
   EXPECT_FALSE(MeanRecoveryFromString("cg").ok());
   EXPECT_EQ(*CovarianceRecoveryFromString("markov-blanket"), CovarianceRecovery::kMarkovBlanket);
 }

@@ -6,12 +6,15 @@
 // information form: Ω = Σ⁻¹ and ξ = Ω μ, block-sparse, plus a running estimate μ of
 // the mean. A landmark is *active* while Ω links it with the pose.
 //
-//  * Motion (per control step): x' = f(x, u) linearised at μ_x, x' ≈ A x + c + w,
+//  * Motion: x' = f(x, u) linearised at μ_x, x' ≈ A x + c + w,
 //    w ~ N(0, Q). With Φ = T⁻ᵀ Ω T⁻¹ (T = diag(A, I)) and M = Q (I + Φ_xx Q)⁻¹,
 //        Ω' = Φ − Φ_{:,x} M Φ_{x,:},    ξ' = ξ_Φ − Φ_{:,x} M ξ_Φ,x,   ξ_Φ = T⁻ᵀ ξ + Φ_{:,x} c.
 //    This is Thrun's Table 12.2 written without Q⁻¹ (Q = G M(u) Gᵀ has rank 2 for
 //    two-channel controls). Φ_{:,x} is non-zero on the pose and the active landmarks
-//    only, so the cost is O(a²) for a active landmarks, whatever the map size.
+//    only, so the cost is O(a²) for a active landmarks, whatever the map size. The
+//    control steps between two scans are composed into one such step (a chain of
+//    pose-only linear-Gaussian maps is one; same linearisation points), applied to Ω
+//    when the next scan arrives: O(1) per control step.
 //  * Measurement (per scan): Ω += Hᵀ R⁻¹ H, ξ += Hᵀ R⁻¹ (ν + H μ), linearised at μ;
 //    touches the pose and the observed landmarks, which become active. A new landmark
 //    gets μ_l = g(μ_x, z) and the information of its first detection only, which equals
@@ -42,6 +45,7 @@
 #ifndef SUBSLAM_FRONTEND_SEIF_SLAM_H_
 #define SUBSLAM_FRONTEND_SEIF_SLAM_H_
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -67,10 +71,13 @@ absl::StatusOr<CovarianceRecovery> CovarianceRecoveryFromString(const std::strin
 // ISEIF's iterated measurement update (004 §2.3).
 struct IteratedUpdateOptions {
   bool enabled = false;         // false: SEIF
-  int period_scans = 1;         // iterate on every this-many-th scan (the paper: 100 or 500)
+  int period_scans = 100;       // iterate on every this-many-th scan (the paper: 100 or 500 steps)
   int max_iterations = 10;      // linearisations per iterated update (1 = the SEIF update)
   double stop_change = 1e-3;    // adaptive stop: max |Δμ| over the pose and observed landmarks [m, rad]
-  bool exact_recovery = true;   // recover the whole mean exactly between iterations (else relaxation)
+  // The first this-many linearisations are followed by an exact recovery of the whole
+  // mean (CHOLMOD); later ones by relaxation of the pose and the active landmarks. The
+  // first carries the correction to the whole map; the later ones are local.
+  int exact_recoveries = 1;
 };
 
 struct SeifOptions {
@@ -153,9 +160,10 @@ class SeifSlam final : public OnlineEstimator {
   // Landmark-landmark links (off-diagonal 2×2 blocks, each counted once).
   long num_landmark_links() const;
   // The dense information matrix, vector and mean over [pose, live landmarks in id
-  // order], and those ids (for tests and small problems).
-  Eigen::MatrixXd DenseInformation() const;
-  Eigen::VectorXd DenseInformationVector() const;
+  // order], and those ids (for tests and small problems). The first two apply the
+  // pending motion to Ω first.
+  Eigen::MatrixXd DenseInformation();
+  Eigen::VectorXd DenseInformationVector();
   Eigen::VectorXd DenseMean() const;
   std::vector<int> LiveLandmarkIds() const;
   // The landmark id each detection of the last scan was associated with or created
@@ -192,6 +200,8 @@ class SeifSlam final : public OnlineEstimator {
   void RemovePoseLink(int landmark);
   // Shifts μ_θ into (−π, π] and ξ with it (the same Gaussian in shifted coordinates).
   void WrapHeading();
+  // Applies the motion composed since the last flush to Ω and ξ (Thrun Table 12.2).
+  void FlushMotion();
   // Linearises the pairings at μ, adds Hᵀ R⁻¹ H and Hᵀ R⁻¹ (ν + Hμ); returns what it
   // added so that an iterated update can take it back.
   Linearization ApplyMeasurements(const std::vector<std::pair<int, Eigen::Vector2d>>& pairs);
@@ -205,6 +215,13 @@ class SeifSlam final : public OnlineEstimator {
   LocalCovariance Covariance(const std::vector<int>& landmarks, bool exact) const;
   void UpdateExistence(LandmarkInfo* info, bool detected) const;
   void Invalidate() { ++version_; }
+  // A uniform grid over landmark means (cell = the scan's reach), kept current on every
+  // write of a landmark mean, so a scan finds the landmarks within reach in O(1).
+  static constexpr uint64_t kNoCell = ~0ULL;
+  int64_t CellCoordinate(double v) const;
+  static uint64_t CellKey(int64_t cx, int64_t cy);
+  void UpdateCell(int landmark);
+  void RemoveFromCell(int landmark);
 
   std::unique_ptr<models::MotionModel> motion_;
   models::RangeBearingModel sensor_;
@@ -220,6 +237,9 @@ class SeifSlam final : public OnlineEstimator {
   Eigen::VectorXd xi_, mu_;  // capacity-doubling; 3 + 2 × (landmark slots) live
   std::vector<LandmarkInfo> landmarks_;
   absl::flat_hash_map<int, int> landmark_of_truth_;  // known association only
+  double cell_size_m_ = 1.0;
+  absl::flat_hash_map<uint64_t, std::vector<int>> grid_;
+  std::vector<uint64_t> cell_of_;  // per landmark slot; kNoCell when dead
   int live_landmarks_ = 0;
   size_t round_robin_ = 0;
   SeifCounters counters_;
@@ -228,7 +248,13 @@ class SeifSlam final : public OnlineEstimator {
   long version_ = 0;
   mutable long pose_cov_version_ = -1;
   mutable Eigen::Matrix3d pose_cov_;
-  Eigen::Matrix3d exact_pose_cov_;  // options.pose_covariance == kExact
+  Eigen::Matrix3d exact_pose_cov_;  // options.pose_covariance == kExact, at the last flush
+  // Motion since the last flush, composed: x_now ≈ A (x_flushed − flushed_pose_) + μ_x + w,
+  // w ~ N(0, Q); applied to Ω before anything reads it.
+  bool motion_pending_ = false;
+  Eigen::Matrix3d pending_A_ = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d pending_Q_ = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d flushed_pose_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace subslam::frontend
