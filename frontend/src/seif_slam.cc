@@ -150,7 +150,11 @@ int64_t SeifSlam::CellCoordinate(double v) const {
 }
 
 uint64_t SeifSlam::CellKey(int64_t cx, int64_t cy) {
-  return (static_cast<uint64_t>(cx) << 32) ^ (static_cast<uint64_t>(cy) & 0xffffffffULL);
+  // Offset binary in 31 bits per axis: never equal to kNoCell (all ones).
+  constexpr int64_t kLimit = (int64_t{1} << 30) - 1;
+  const uint64_t ux = static_cast<uint64_t>(std::clamp(cx, -kLimit, kLimit) + kLimit);
+  const uint64_t uy = static_cast<uint64_t>(std::clamp(cy, -kLimit, kLimit) + kLimit);
+  return (ux << 31) | uy;
 }
 
 void SeifSlam::RemoveFromCell(int l) {

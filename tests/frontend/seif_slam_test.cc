@@ -89,11 +89,12 @@ TEST(SeifSlam, EqualsEkfSlamWithoutSparsificationAndWithExactRecovery) {
               worst_mean, worst_cov);
 }
 
+// JCBB, and a world on both sides of the axes (the landmark grid's cells around the origin).
 TEST(SeifSlam, JcbbEqualsEkfSlamToo) {
   sim::ScenarioOptions so;
   so.seed = 5;
-  so.duration_s = 40.0;
-  io::Dataset d = Simulate("hybrid-120m", so);
+  so.duration_s = 50.0;
+  io::Dataset d = Simulate("iseif-circle", so);
   SeifOptions seif_options = ExactEifOptions();
   seif_options.association = AssociationMethod::kJointCompatibility;
   EkfSlamOptions ekf_options;
@@ -187,6 +188,33 @@ TEST(SeifSlam, SparsificationKeepsTheMean) {
   EXPECT_GT(seif.counters().sparsifications, 100);
   EXPECT_LT(worst, 1e-8);
 }
+// Landmarks in every quadrant around the origin (the landmark grid's cells meet there):
+// each is found again on every scan, so none is duplicated.
+TEST(SeifSlam, FindsLandmarksInEveryQuadrant) {
+  sim::ScenarioOptions so;
+  absl::StatusOr<sim::ScenarioConfig> config = sim::MakeScenario("iseif-circle", so);
+  ASSERT_TRUE(config.ok());
+  config->sensor.fov_min_rad = -M_PI;
+  config->sensor.fov_max_rad = M_PI;
+  config->max_duration_s = 20.0;
+  config->landmarks.clear();
+  int id = 0;
+  for (double x : {-12.0, -5.0, 5.0, 12.0}) {
+    for (double y : {-12.0, -5.0, 5.0, 12.0}) config->landmarks.push_back({id++, Eigen::Vector2d(x, y)});
+  }
+  absl::StatusOr<io::Dataset> d = sim::Simulate(*config, 3);
+  ASSERT_TRUE(d.ok()) << d.status().message();
+  SeifOptions options;
+  options.max_active_landmarks = 4;
+  SeifSlam seif(d->motion.MakeModel(), d->sensor.range_bearing, d->initial_pose, options);
+  for (const io::Step& step : io::BuildSteps(*d)) {
+    seif.Predict(step.control, step.dt);
+    if (step.scan_index >= 0) seif.Update(d->scans[step.scan_index]);
+  }
+  EXPECT_EQ(seif.counters().new_landmarks, 16);
+  EXPECT_EQ(seif.Map().size(), 16u);
+}
+
 TEST(Iseif, OneIterationIsTheSeifUpdate) {
   sim::ScenarioOptions so;
   so.seed = 4;
