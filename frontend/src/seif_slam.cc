@@ -458,6 +458,7 @@ void SeifSlam::RelaxPose() {
 }
 
 void SeifSlam::RelaxLandmark(int l) {
+  if (!landmarks_[l].alive) return;  // e.g. observed, then culled in the same scan
   Eigen::Vector2d r = xi_.segment<2>(Offset(l));
   if (auto it = pose_links_.find(l); it != pose_links_.end()) r.noalias() -= it->second.transpose() * mu_.head<3>();
   for (const auto& [w, block] : links_[l]) r.noalias() -= block * mu_.segment<2>(Offset(w));

@@ -215,6 +215,36 @@ TEST(SeifSlam, FindsLandmarksInEveryQuadrant) {
   EXPECT_EQ(seif.Map().size(), 16u);
 }
 
+// Clutter and missed detections with the default options: false alarms are culled
+// (marginalised out) while the sparse filter keeps running, and none is reported.
+TEST(SeifSlam, CullsFalseAlarmsUnderClutter) {
+  sim::ScenarioOptions so;
+  so.seed = 8;
+  so.duration_s = 150.0;
+  so.detection_probability = 0.7;
+  so.false_alarm_probability = 0.05;
+  io::Dataset d = Simulate("hybrid-120m", so);
+  for (bool iterated : {false, true}) {
+    SeifOptions options;
+    options.iterated.enabled = iterated;
+    options.iterated.period_scans = 7;
+    SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+    for (const io::Step& step : io::BuildSteps(d)) {
+      seif.Predict(step.control, step.dt);
+      if (step.scan_index >= 0) seif.Update(d.scans[step.scan_index]);
+      ASSERT_TRUE(seif.pose().vector().allFinite());
+    }
+    EXPECT_GT(seif.counters().deleted_landmarks, 20);
+    int far_from_truth = 0;
+    for (const LandmarkEstimate& l : seif.Map()) {
+      double nearest = INFINITY;
+      for (const io::TruthLandmark& t : d.truth_landmarks) nearest = std::min(nearest, (t.p - l.position).norm());
+      far_from_truth += nearest > 3.0 ? 1 : 0;
+    }
+    EXPECT_EQ(far_from_truth, 0) << (iterated ? "iseif" : "seif");
+  }
+}
+
 TEST(Iseif, OneIterationIsTheSeifUpdate) {
   sim::ScenarioOptions so;
   so.seed = 4;
