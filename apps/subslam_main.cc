@@ -127,6 +127,8 @@ ABSL_FLAG(std::string, seif_covariance, subslam::frontend::ToString(kSeifDefault
 ABSL_FLAG(std::string, seif_pose_covariance, subslam::frontend::ToString(kSeifDefaults.pose_covariance),
           "seif / iseif: the reported pose covariance, markov-blanket (cheap, over-confident) | exact "
           "(the filter's own marginal; one factorisation per scan)");
+ABSL_FLAG(int, seif_blanket, kSeifDefaults.blanket_max_landmarks,
+          "seif / iseif: most landmarks in a scan's Markov blanket (gating covariances)");
 ABSL_FLAG(double, seif_candidate_radius, kSeifDefaults.candidate_radius_m,
           "seif / iseif: landmarks farther than this from a detection's point are not gated with it [m]");
 ABSL_FLAG(int, iseif_period, kSeifDefaults.iterated.period_scans,
@@ -388,6 +390,7 @@ int Run() {
   options.seif.relaxation_sweeps = absl::GetFlag(FLAGS_seif_sweeps);
   options.seif.relaxation_extra_landmarks = absl::GetFlag(FLAGS_seif_extra_landmarks);
   options.seif.candidate_radius_m = absl::GetFlag(FLAGS_seif_candidate_radius);
+  options.seif.blanket_max_landmarks = absl::GetFlag(FLAGS_seif_blanket);
   options.seif.iterated.period_scans = absl::GetFlag(FLAGS_iseif_period);
   options.seif.iterated.max_iterations = absl::GetFlag(FLAGS_iseif_max_iterations);
   options.seif.iterated.stop_change = absl::GetFlag(FLAGS_iseif_stop);

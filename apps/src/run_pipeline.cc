@@ -343,6 +343,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"covariance_recovery", frontend::ToString(seif.covariance)},
         {"pose_covariance", frontend::ToString(seif.pose_covariance)},
         {"candidate_radius_m", seif.candidate_radius_m},
+        {"blanket_max_landmarks", seif.blanket_max_landmarks},
         {"iterated", seif.iterated.enabled},
         {"iterated_period_scans", seif.iterated.period_scans},
         {"iterated_max_iterations", seif.iterated.max_iterations},

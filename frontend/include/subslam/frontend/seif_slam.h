@@ -20,7 +20,8 @@
 //    gets μ_l = g(μ_x, z) and the information of its first detection only, which equals
 //    the EKF's augmentation by the inverse sensor model.
 //  * Sparsification (Thrun Table 12.7): when more than max_active_landmarks are
-//    active, those seen longest ago are made passive by the approximation
+//    active, those seen longest ago (ties: lower ids first) are made
+//    passive by the approximation
 //    p(x | m⁺, m⁰, m⁻) ≈ p(x | m⁺, m⁻ = μ⁻); only the pose/active block changes.
 //    This is the approximation that makes SEIF over-confident (004 §2.2).
 //  * Mean recovery: exact (sparse Cholesky of Ω with CHOLMOD; O(n) and more per scan),
@@ -38,6 +39,17 @@
 //    update is relinearised at the latest estimate — Gauss-Newton on the step's MAP
 //    problem (Eq. 9) — until the largest change of the pose or an observed landmark
 //    falls below stop_change, or max_iterations. The first iteration is the SEIF update.
+//    The first linearisation is followed by an exact recovery of the whole mean (this
+//    carries the correction over the map), later ones by local relaxation; association
+//    is decided once, before iterating.
+//  * Time per stage: motion, associate (covariance recovery included), measurement,
+//    iteration, sparsification, recovery, map_management (existence, new landmarks,
+//    culls) and pose_covariance (exact pose covariance only).
+//
+// Cost per scan with the defaults: O(a³ + k³) for a active landmarks and a Markov
+// blanket of k landmarks (both capped), plus the relaxation's fixed slice, whatever
+// the map size; landmarks within reach come from a uniform grid over the means. Exact
+// recovery and exact covariances cost a sparse factorisation of Ω each.
 //
 // Without sparsification and with exact recovery and covariances, SeifSlam equals
 // EkfSlam started with the same prior (tests/frontend/seif_slam_test.cc).
@@ -104,7 +116,7 @@ struct SeifOptions {
   int relaxation_extra_landmarks = 20;  // round-robin landmarks added to each scan's sweeps
   // Covariances for gating.
   CovarianceRecovery covariance = CovarianceRecovery::kMarkovBlanket;
-  int blanket_max_landmarks = 60;       // cap on the Markov-blanket landmarks per scan
+  int blanket_max_landmarks = 40;       // cap on the Markov-blanket landmarks per scan
   // The reported pose covariance. The Markov blanket conditions the pose on every
   // passive landmark and is far over-confident even without sparsification; kExact is
   // the marginal of the filter's own Ω, factorised once per scan and propagated
