@@ -6,30 +6,16 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
+#include "subslam/frontend/internal/single_map_common.h"
 #include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/graph/internal/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
-namespace {
-
-bool InOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
-
-}  // namespace
-
 absl::Status EkfSlamOptions::Validate() const {
-  if (!InOpenUnit(gate_probability) || !InOpenUnit(new_landmark_probability) ||
-      new_landmark_probability < gate_probability) {
-    return absl::InvalidArgumentError(
-        "need 0 < gate_probability <= new_landmark_probability < 1");
-  }
-  if (absl::Status s = existence.Validate(); !s.ok()) return s;
-  if (jcbb_max_nodes < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0 ||
-      cull_every_scans < 1) {
-    return absl::InvalidArgumentError(
-        "jcbb_max_nodes >= 1, cull_every_scans >= 1 and margins >= 0 required");
-  }
-  return absl::OkStatus();
+  return internal::ValidateAssociationAndExistence(gate_probability, new_landmark_probability,
+                                                   existence, jcbb_max_nodes, expect_range_margin_m,
+                                                   expect_bearing_margin_rad, cull_every_scans);
 }
 
 EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion,
@@ -121,14 +107,9 @@ void EkfSlam::Update(const io::Scan& scan) {
   const Eigen::Matrix2d R = sensor_.NoiseCovariance();
 
   // Detections outside the sensor's valid range are not used.
-  std::vector<Eigen::Vector2d> z;
-  std::vector<int> detection_index;
-  for (size_t k = 0; k < scan.detections.size(); ++k) {
-    const io::Detection& d = scan.detections[k];
-    if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
-    z.push_back(d.z());
-    detection_index.push_back(static_cast<int>(k));
-  }
+  const internal::UsableDetections usable = internal::DetectionsInRange(scan, rb);
+  const std::vector<Eigen::Vector2d>& z = usable.z;
+  const std::vector<int>& detection_index = usable.index;
   scan_features_.assign(scan.detections.size(), -1);
   counters_.detections += static_cast<long>(z.size());
   const int m = static_cast<int>(z.size());

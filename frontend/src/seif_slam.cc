@@ -10,14 +10,13 @@
 #include <optional>
 
 #include "absl/strings/str_cat.h"
+#include "subslam/frontend/internal/single_map_common.h"
 #include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/graph/internal/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
 namespace {
-
-bool InOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
 
 bool IsZero(const Eigen::MatrixXd& block) { return (block.array() == 0.0).all(); }
 
@@ -45,16 +44,11 @@ absl::StatusOr<CovarianceRecovery> CovarianceRecoveryFromString(const std::strin
 }
 
 absl::Status SeifOptions::Validate() const {
-  if (!InOpenUnit(gate_probability) || !InOpenUnit(new_landmark_probability) ||
-      new_landmark_probability < gate_probability) {
-    return absl::InvalidArgumentError(
-        "need 0 < gate_probability <= new_landmark_probability < 1");
-  }
-  if (absl::Status s = existence.Validate(); !s.ok()) return s;
-  if (jcbb_max_nodes < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0 ||
-      cull_every_scans < 1) {
-    return absl::InvalidArgumentError(
-        "jcbb_max_nodes >= 1, cull_every_scans >= 1 and margins >= 0 required");
+  if (absl::Status s = internal::ValidateAssociationAndExistence(
+          gate_probability, new_landmark_probability, existence, jcbb_max_nodes,
+          expect_range_margin_m, expect_bearing_margin_rad, cull_every_scans);
+      !s.ok()) {
+    return s;
   }
   if (!(candidate_radius_m > 0)) {
     return absl::InvalidArgumentError(absl::StrCat("candidate_radius_m must be > 0, got ", candidate_radius_m));
@@ -581,14 +575,9 @@ void SeifSlam::Update(const io::Scan& scan) {
   const models::RangeBearingConfig& rb = sensor_.config();
   const Eigen::Matrix2d R = sensor_.NoiseCovariance();
 
-  std::vector<Eigen::Vector2d> z;
-  std::vector<int> detection_index;
-  for (size_t k = 0; k < scan.detections.size(); ++k) {
-    const io::Detection& d = scan.detections[k];
-    if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
-    z.push_back(d.z());
-    detection_index.push_back(static_cast<int>(k));
-  }
+  const internal::UsableDetections usable = internal::DetectionsInRange(scan, rb);
+  const std::vector<Eigen::Vector2d>& z = usable.z;
+  const std::vector<int>& detection_index = usable.index;
   scan_features_.assign(scan.detections.size(), -1);
   counters_.detections += static_cast<long>(z.size());
   const int m = static_cast<int>(z.size());

@@ -1,0 +1,32 @@
+// Pieces shared by the single-map filters EkfSlam and SeifSlam: validation of their
+// common association and existence options, and the detections a scan can use.
+#ifndef SUBSLAM_FRONTEND_INTERNAL_SINGLE_MAP_COMMON_H_
+#define SUBSLAM_FRONTEND_INTERNAL_SINGLE_MAP_COMMON_H_
+
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/frontend/existence_model.h"
+#include "subslam/io/dataset.h"
+#include "subslam/models/range_bearing_model.h"
+
+namespace subslam::frontend::internal {
+
+// 0 < gate ≤ new-landmark gate < 1, a valid existence model, jcbb_max_nodes ≥ 1,
+// cull_every_scans ≥ 1 and non-negative visibility margins.
+absl::Status ValidateAssociationAndExistence(double gate_probability, double new_landmark_probability,
+                                             const ExistenceModel& existence, long jcbb_max_nodes,
+                                             double expect_range_margin_m,
+                                             double expect_bearing_margin_rad, int cull_every_scans);
+
+// The detections inside the sensor's valid range, as measurements z = (range, bearing),
+// with their index in the scan.
+struct UsableDetections {
+  std::vector<Eigen::Vector2d> z;
+  std::vector<int> index;
+};
+UsableDetections DetectionsInRange(const io::Scan& scan, const models::RangeBearingConfig& sensor);
+
+}  // namespace subslam::frontend::internal
+
+#endif  // SUBSLAM_FRONTEND_INTERNAL_SINGLE_MAP_COMMON_H_
