@@ -88,5 +88,62 @@ TEST(RunPipeline, VictoriaParkEkfSlamBeatsDeadReckoning) {
   EXPECT_LT(ekf->gps_final->rms_m, 0.2 * dr->gps_final->rms_m);
 }
 
+TEST(RunPipeline, SeifAndIseifRunWithTheirReport) {
+  sim::ScenarioOptions o;
+  o.seed = 2;
+  o.duration_s = 60;
+  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", o);
+  ASSERT_TRUE(d.ok());
+  for (Frontend f : {Frontend::kSeif, Frontend::kIseif}) {
+    RunOptions options;
+    options.frontend = f;
+    options.seif.iterated.period_scans = 10;
+    absl::StatusOr<RunResult> r = RunPipeline(*d, options);
+    ASSERT_TRUE(r.ok()) << r.status();
+    EXPECT_EQ(r->frontend, ToString(f));
+    EXPECT_EQ(r->report["configuration"]["seif"]["iterated"], f == Frontend::kIseif);
+    EXPECT_TRUE(r->report["time_seconds"]["stages"].contains("sparsification"));
+    EXPECT_EQ(r->report["estimator_counters"]["iterated_updates"].get<double>() > 0, f == Frontend::kIseif);
+    ASSERT_TRUE(r->errors.has_value());
+    EXPECT_LT(r->errors->rms_position_m, 1.0);
+    EXPECT_FALSE(r->landmarks.empty());
+  }
+}
+
+TEST(RunPipeline, SeifKnownAssociationNeedsTrueIds) {
+  sim::ScenarioOptions o;
+  o.duration_s = 10;
+  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", o);
+  ASSERT_TRUE(d.ok());
+  d->sensor.has_truth_id = false;
+  RunOptions options;
+  options.frontend = Frontend::kSeif;
+  options.seif.known_association = true;
+  absl::StatusOr<RunResult> r = RunPipeline(*d, options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("true ids"), std::string::npos) << r.status();
+  options.seif.max_active_landmarks = -1;
+  options.seif.known_association = false;
+  EXPECT_FALSE(RunPipeline(*d, options).ok());
+}
+
+// The paper's Table 3 (SEIF 7.53 / 5.38 m, ISEIF 4.71 / 4.83 m per axis) as an upper bound.
+TEST(RunPipeline, VictoriaParkSeifAndIseifBelowThePapersErrors) {
+  const std::string dir = testing::VictoriaParkDir();
+  if (!fs::exists(dir + "/dataset.json")) GTEST_SKIP() << "no Victoria Park data at " << dir;
+  absl::StatusOr<io::Dataset> d = io::ReadDataset(dir);
+  ASSERT_TRUE(d.ok()) << d.status();
+  for (Frontend f : {Frontend::kSeif, Frontend::kIseif}) {
+    RunOptions options;
+    options.frontend = f;
+    absl::StatusOr<RunResult> r = RunPipeline(*d, options);
+    ASSERT_TRUE(r.ok()) << r.status();
+    ASSERT_TRUE(r->gps_final.has_value());
+    EXPECT_GT(r->gps_final->matched_fixes, 4000);
+    EXPECT_LT(r->gps_final->rms_x_m, f == Frontend::kSeif ? 7.53 : 4.71) << ToString(f);
+    EXPECT_LT(r->gps_final->rms_y_m, f == Frontend::kSeif ? 5.38 : 4.83) << ToString(f);
+  }
+}
+
 }  // namespace
 }  // namespace subslam::app
