@@ -15,4 +15,8 @@ OUT="${OUT:-$ROOT/runs/demo}"
 echo
 "$BIN" run --scenario hybrid-120m --seed 1 --frontend ekfslam --out "$OUT/ekfslam"
 echo
+"$BIN" run --scenario hybrid-120m --seed 1 --frontend seif --out "$OUT/seif"
+echo
+"$BIN" run --scenario hybrid-120m --seed 1 --frontend iseif --out "$OUT/iseif"
+echo
 "$BIN" run --scenario hybrid-120m --seed 1 --frontend odometry --out "$OUT/odometry"
