@@ -60,14 +60,23 @@ std::vector<std::string> SplitList(const std::string& s) {
   return out;
 }
 
-subslam::app::RunOptions OptionsFor(Frontend frontend) {
+// The run options of a filter named on the command line, with the SEIF flags applied
+// (RunPipeline validates the values).
+absl::StatusOr<subslam::app::RunOptions> OptionsFor(const std::string& name) {
   subslam::app::RunOptions o;
-  o.frontend = frontend;
+  absl::StatusOr<Frontend> frontend = subslam::app::FrontendFromString(name);
+  if (!frontend.ok()) return frontend.status();
+  o.frontend = *frontend;
+  absl::StatusOr<subslam::frontend::MeanRecovery> recovery =
+      subslam::frontend::MeanRecoveryFromString(absl::GetFlag(FLAGS_seif_recovery));
+  if (!recovery.ok()) return recovery.status();
+  absl::StatusOr<subslam::frontend::CovarianceRecovery> pose_covariance =
+      subslam::frontend::CovarianceRecoveryFromString(absl::GetFlag(FLAGS_seif_pose_covariance));
+  if (!pose_covariance.ok()) return pose_covariance.status();
   o.seif.known_association = absl::GetFlag(FLAGS_known_association);
   o.seif.max_active_landmarks = absl::GetFlag(FLAGS_seif_max_active);
-  o.seif.recovery = *subslam::frontend::MeanRecoveryFromString(absl::GetFlag(FLAGS_seif_recovery));
-  o.seif.pose_covariance =
-      *subslam::frontend::CovarianceRecoveryFromString(absl::GetFlag(FLAGS_seif_pose_covariance));
+  o.seif.recovery = *recovery;
+  o.seif.pose_covariance = *pose_covariance;
   o.seif.iterated.period_scans = absl::GetFlag(FLAGS_iseif_period);
   o.seif.iterated.max_iterations = absl::GetFlag(FLAGS_iseif_max_iterations);
   o.seif.iterated.stop_change = absl::GetFlag(FLAGS_iseif_stop);
@@ -106,9 +115,9 @@ int main(int argc, char** argv) {
   // 1. Monte Carlo.
   std::vector<MonteCarloRow> rows;
   for (const std::string& name : SplitList(absl::GetFlag(FLAGS_filters))) {
-    absl::StatusOr<Frontend> frontend = subslam::app::FrontendFromString(name);
-    if (!frontend.ok()) {
-      std::fprintf(stderr, "%s\n", std::string(frontend.status().message()).c_str());
+    const absl::StatusOr<subslam::app::RunOptions> options = OptionsFor(name);
+    if (!options.ok()) {
+      std::fprintf(stderr, "%s\n", std::string(options.status().message()).c_str());
       return 2;
     }
     MonteCarloRow row;
@@ -122,7 +131,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "%s\n", std::string(d.status().message()).c_str());
         return 1;
       }
-      absl::StatusOr<subslam::app::RunResult> r = subslam::app::RunPipeline(*std::move(d), OptionsFor(*frontend));
+      absl::StatusOr<subslam::app::RunResult> r = subslam::app::RunPipeline(*std::move(d), *options);
       if (!r.ok()) {
         std::fprintf(stderr, "%s seed %llu: %s\n", name.c_str(), static_cast<unsigned long long>(so.seed),
                      std::string(r.status().message()).c_str());
@@ -222,8 +231,12 @@ int main(int argc, char** argv) {
       std::vector<std::string> row_filters = filters;
       if (landmarks <= absl::GetFlag(FLAGS_growth_ekf_max_landmarks)) row_filters.push_back("ekfslam");
       for (const std::string& name : row_filters) {
-        absl::StatusOr<subslam::app::RunResult> r =
-            subslam::app::RunPipeline(*d, OptionsFor(*subslam::app::FrontendFromString(name)));
+        const absl::StatusOr<subslam::app::RunOptions> options = OptionsFor(name);
+        if (!options.ok()) {
+          std::fprintf(stderr, "%s\n", std::string(options.status().message()).c_str());
+          return 2;
+        }
+        absl::StatusOr<subslam::app::RunResult> r = subslam::app::RunPipeline(*d, *options);
         if (!r.ok()) {
           std::fprintf(stderr, "%s: %s\n", name.c_str(), std::string(r.status().message()).c_str());
           return 1;

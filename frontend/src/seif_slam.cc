@@ -18,7 +18,10 @@
 namespace subslam::frontend {
 namespace {
 
-bool IsZero(const Eigen::MatrixXd& block) { return (block.array() == 0.0).all(); }
+template <typename Derived>
+bool IsZero(const Eigen::MatrixBase<Derived>& block) {
+  return (block.array() == 0.0).all();
+}
 
 }  // namespace
 
@@ -380,8 +383,6 @@ void SeifSlam::Retract(const Linearization& lin) {
   AddXi(lin.landmarks, -lin.dxi);
 }
 
-void SeifSlam::RemovePoseLink(int landmark) { pose_links_.erase(landmark); }
-
 void SeifSlam::Sparsify() {
   const int bound = options_.max_active_landmarks;
   if (bound == 0 || num_active_landmarks() <= bound) return;
@@ -417,7 +418,7 @@ void SeifSlam::Sparsify() {
   const Eigen::VectorXd dxi = D * GatherMean(active);  // ξ̃ = ξ + (Ω̃ − Ω) μ
   ScatterAdd(active, D);
   AddXi(active, dxi);
-  for (int l : passive) RemovePoseLink(l);
+  for (int l : passive) pose_links_.erase(l);  // already exactly zero: ScatterAdd erased them
   ++counters_.sparsifications;
   counters_.deactivated_landmarks += static_cast<long>(passive.size());
 }
@@ -429,9 +430,9 @@ void SeifSlam::Marginalize(int landmark) {
   std::vector<int> with_landmark = blanket;
   with_landmark.push_back(landmark);
   const Eigen::MatrixXd omega = Gather(with_landmark);
-  const int o = static_cast<int>(omega.rows()) - 2, n = o;
+  const int o = static_cast<int>(omega.rows()) - 2;  // l's rows, after the pose and the blanket
   const Eigen::LDLT<Eigen::Matrix2d> ll(omega.block<2, 2>(o, o));
-  const Eigen::MatrixXd cross = omega.block(0, o, n, 2);  // Ω_{rest, l}
+  const Eigen::MatrixXd cross = omega.block(0, o, o, 2);  // Ω_{rest, l}
   ScatterAdd(blanket, -cross * ll.solve(cross.transpose()));
   AddXi(blanket, -cross * ll.solve(xi_.segment<2>(Offset(landmark))));
   for (int w : blanket) links_[w].erase(landmark);
@@ -486,13 +487,19 @@ void SeifSlam::RecoverMeanExactly() {
   Invalidate();
 }
 
-void SeifSlam::Recover(const std::vector<int>& touched) {
+void SeifSlam::RecoverLocally() {
   StageTimer timer(&times_, "recovery");
   Invalidate();
   if (options_.recovery == MeanRecovery::kExact) {
     RecoverMeanExactly();
-    return;
+  } else {
+    Relax(ActiveLandmarks(), options_.relaxation_sweeps);  // the observed landmarks are active
   }
+}
+
+void SeifSlam::RecoverAmortised(const std::vector<int>& touched) {
+  StageTimer timer(&times_, "recovery");
+  Invalidate();
   std::vector<int> set = ActiveLandmarks();
   set.insert(set.end(), touched.begin(), touched.end());
   // A round-robin slice of the whole map, so that every landmark is revisited.
@@ -719,7 +726,7 @@ void SeifSlam::Update(const io::Scan& scan) {
         lin = ApplyMeasurements(pairs);
       }
       if (!iterate) {
-        Recover(touched);
+        RecoverLocally();  // the pose the new landmarks are initialised from
         break;
       }
       StageTimer timer(&times_, "iteration");
@@ -797,7 +804,7 @@ void SeifSlam::Update(const io::Scan& scan) {
   Sparsify();
   if (options_.recovery == MeanRecovery::kRelaxation) {
     touched.insert(touched.end(), created.begin(), created.end());
-    Recover(touched);
+    RecoverAmortised(touched);
   }
   // Only here and after the motion update: an iterated update must not see its
   // coordinates shift between applying a linearisation and taking it back.

@@ -5,6 +5,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <cmath>
+#include <functional>
 #include <memory>
 
 #include "subslam/frontend/ekf_slam.h"
@@ -35,6 +36,17 @@ SeifOptions ExactEifOptions() {
 
 Eigen::Matrix3d PriorCovariance(const SeifOptions& o) {
   return o.initial_pose_sigma.array().square().matrix().asDiagonal();
+}
+
+// Feeds the data set to the filter, calling after_scan(scan) after every update.
+void Drive(SeifSlam* seif, const io::Dataset& d,
+           const std::function<void(const io::Scan&)>& after_scan = nullptr) {
+  for (const io::Step& step : io::BuildSteps(d)) {
+    seif->Predict(step.control, step.dt);
+    if (step.scan_index < 0) continue;
+    seif->Update(d.scans[step.scan_index]);
+    if (after_scan) after_scan(d.scans[step.scan_index]);
+  }
 }
 
 double MaxRelativeDifference(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
@@ -173,18 +185,13 @@ TEST(SeifSlam, SparsificationKeepsTheMean) {
   options.known_association = true;
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   double worst = 0;
-  int scans = 0;
-  for (const io::Step& step : io::BuildSteps(d)) {
-    seif.Predict(step.control, step.dt);
-    if (step.scan_index < 0) continue;
-    seif.Update(d.scans[step.scan_index]);
+  Drive(&seif, d, [&](const io::Scan&) {
     const Eigen::VectorXd before = seif.DenseMean();
     seif.RecoverMeanExactly();
     Eigen::VectorXd diff = seif.DenseMean() - before;
     diff[2] = WrapAngle(diff[2]);
     worst = std::max(worst, diff.cwiseAbs().maxCoeff());
-    ++scans;
-  }
+  });
   EXPECT_GT(seif.counters().sparsifications, 100);
   EXPECT_LT(worst, 1e-8);
 }
@@ -207,10 +214,7 @@ TEST(SeifSlam, FindsLandmarksInEveryQuadrant) {
   SeifOptions options;
   options.max_active_landmarks = 4;
   SeifSlam seif(d->motion.MakeModel(), d->sensor.range_bearing, d->initial_pose, options);
-  for (const io::Step& step : io::BuildSteps(*d)) {
-    seif.Predict(step.control, step.dt);
-    if (step.scan_index >= 0) seif.Update(d->scans[step.scan_index]);
-  }
+  Drive(&seif, *d);
   EXPECT_EQ(seif.counters().new_landmarks, 16);
   EXPECT_EQ(seif.Map().size(), 16u);
 }
@@ -229,11 +233,9 @@ TEST(SeifSlam, CullsFalseAlarmsUnderClutter) {
     options.iterated.enabled = iterated;
     options.iterated.period_scans = 7;
     SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
-    for (const io::Step& step : io::BuildSteps(d)) {
-      seif.Predict(step.control, step.dt);
-      if (step.scan_index >= 0) seif.Update(d.scans[step.scan_index]);
-      ASSERT_TRUE(seif.pose().vector().allFinite());
-    }
+    bool finite = true;
+    Drive(&seif, d, [&](const io::Scan&) { finite &= seif.pose().vector().allFinite(); });
+    EXPECT_TRUE(finite);
     EXPECT_GT(seif.counters().deleted_landmarks, 20);
     int far_from_truth = 0;
     for (const LandmarkEstimate& l : seif.Map()) {
@@ -357,11 +359,7 @@ TEST(SeifSlam, KnownAssociationUsesTrueIdsAndDropsFalseAlarms) {
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   std::map<int, int> truth_of_landmark;
   bool consistent = true;
-  for (const io::Step& step : io::BuildSteps(d)) {
-    seif.Predict(step.control, step.dt);
-    if (step.scan_index < 0) continue;
-    const io::Scan& scan = d.scans[step.scan_index];
-    seif.Update(scan);
+  Drive(&seif, d, [&](const io::Scan& scan) {
     for (size_t k = 0; k < scan.detections.size(); ++k) {
       const int l = seif.last_scan_features()[k];
       if (scan.detections[k].truth_id < 0) {
@@ -371,7 +369,7 @@ TEST(SeifSlam, KnownAssociationUsesTrueIdsAndDropsFalseAlarms) {
         consistent &= it->second == scan.detections[k].truth_id;
       }
     }
-  }
+  });
   EXPECT_TRUE(consistent);
   EXPECT_EQ(seif.counters().ambiguous, 0);
   EXPECT_EQ(static_cast<size_t>(seif.counters().new_landmarks), truth_of_landmark.size());

@@ -209,7 +209,6 @@ class SeifSlam final : public OnlineEstimator {
   Eigen::VectorXd GatherMean(const std::vector<int>& landmarks) const;
   void ScatterAdd(const std::vector<int>& landmarks, const Eigen::MatrixXd& D);
   void AddXi(const std::vector<int>& landmarks, const Eigen::VectorXd& d);
-  void RemovePoseLink(int landmark);
   // Shifts μ_θ into (−π, π] and ξ with it (the same Gaussian in shifted coordinates).
   void WrapHeading();
   // Applies the motion composed since the last flush to Ω and ξ (Thrun Table 12.2).
@@ -223,7 +222,12 @@ class SeifSlam final : public OnlineEstimator {
   void Relax(const std::vector<int>& landmarks, int sweeps);
   void RelaxPose();
   void RelaxLandmark(int landmark);
-  void Recover(const std::vector<int>& touched);
+  // After the measurement update: exact, or relaxation of the pose and the active
+  // landmarks (options.recovery).
+  void RecoverLocally();
+  // End of a scan (relaxation only): the pose, the active and the touched landmarks and
+  // a round-robin slice of relaxation_extra_landmarks others.
+  void RecoverAmortised(const std::vector<int>& touched);
   LocalCovariance Covariance(const std::vector<int>& landmarks, bool exact) const;
   void UpdateExistence(LandmarkInfo* info, bool detected) const;
   void Invalidate() { ++version_; }
