@@ -109,6 +109,9 @@ ABSL_FLAG(int, relinearize_every, kEifDefaults.relinearize_every,
 ABSL_FLAG(bool, eif_incremental, kEifDefaults.incremental_factorization,
           "eif: update the factor of the information matrix by each join's rank update "
           "(false: refactorise it at every join)");
+ABSL_FLAG(bool, eif_bound_marginals, kEifDefaults.bound_candidate_marginals,
+          "eif: skip the covariance recovery of association candidates that fail the gate "
+          "even under an upper bound on their marginal (same decisions, less work)");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
@@ -226,6 +229,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
   o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);
+  o.bound_candidate_marginals = absl::GetFlag(FLAGS_eif_bound_marginals);
   o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   o.association.known_association = absl::GetFlag(FLAGS_known_association);
   return o;

@@ -131,8 +131,7 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   if (whitened_jacobian != nullptr) *whitened_jacobian = std::move(A);
 }
 
-void EifJoiner::Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,
-                        Eigen::VectorXd* eta) const {
+void EifJoiner::AddTriplets(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets) const {
   int row = 0;
   for (size_t a = 0; a < f.offsets.size(); ++a) {
     int col = 0;
@@ -144,33 +143,69 @@ void EifJoiner::Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* tr
       }
       col += f.sizes[b];
     }
+    row += f.sizes[a];
+  }
+}
+
+void EifJoiner::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
+  Eigen::VectorXd local(f.H.rows());
+  int row = 0;
+  for (size_t a = 0; a < f.offsets.size(); ++a) {
+    local.segment(row, f.sizes[a]) = x.segment(f.offsets[a], f.sizes[a]);
+    row += f.sizes[a];
+  }
+  const Eigen::VectorXd product = f.H * local;
+  row = 0;
+  for (size_t a = 0; a < f.offsets.size(); ++a) {
+    y->segment(f.offsets[a], f.sizes[a]) += product.segment(row, f.sizes[a]);
+    row += f.sizes[a];
+  }
+}
+
+void EifJoiner::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
+  int row = 0;
+  for (size_t a = 0; a < f.offsets.size(); ++a) {
     eta->segment(f.offsets[a], f.sizes[a]) += f.b.segment(row, f.sizes[a]);
     row += f.sizes[a];
   }
 }
 
+const Eigen::SparseMatrix<double>& EifJoiner::information() const {
+  if (lambda_factors_ == factors_.size() && Lambda_.rows() == dim_) return Lambda_;
+  std::vector<Eigen::Triplet<double>> triplets;
+  size_t count = 0;
+  for (size_t k = lambda_factors_; k < factors_.size(); ++k) count += static_cast<size_t>(factors_[k].H.size());
+  triplets.reserve(count);
+  for (size_t k = lambda_factors_; k < factors_.size(); ++k) AddTriplets(factors_[k], &triplets);
+  if (lambda_factors_ == 0) {
+    Lambda_.resize(dim_, dim_);
+    Lambda_.setFromTriplets(triplets.begin(), triplets.end());
+  } else {
+    Eigen::SparseMatrix<double> added(dim_, dim_);
+    added.setFromTriplets(triplets.begin(), triplets.end());
+    Lambda_.conservativeResize(dim_, dim_);
+    Lambda_ += added;
+  }
+  lambda_factors_ = factors_.size();
+  return Lambda_;
+}
+
 absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   {
     StageTimer timer(&times_, "update");
-    std::vector<Eigen::Triplet<double>> triplets;
+    // Λ itself is assembled only when a full factorisation needs it (information()).
     if (only_last_factor) {
-      // Λ grows by the new variables and gains the new factor's blocks: O(nnz(Λ)).
       const Eigen::Index old_dim = eta_.size();
       eta_.conservativeResize(dim_);
       eta_.tail(dim_ - old_dim).setZero();
-      Scatter(factors_.back(), &triplets, &eta_);
-      Eigen::SparseMatrix<double> added(dim_, dim_);
-      added.setFromTriplets(triplets.begin(), triplets.end());
-      Lambda_.conservativeResize(dim_, dim_);
-      Lambda_ += added;
+      AddToEta(factors_.back(), &eta_);
     } else {
-      size_t count = 0;
-      for (const Factor& f : factors_) count += static_cast<size_t>(f.H.size());
-      triplets.reserve(count);
+      // Every factor may have been relinearised: Λ need not have grown, so the marginal
+      // bounds are forgotten.
+      marginal_bound_.assign(graph_.num_landmarks(), Eigen::Matrix2d::Constant(NAN));
       eta_ = Eigen::VectorXd::Zero(dim_);
-      for (const Factor& f : factors_) Scatter(f, &triplets, &eta_);
-      Lambda_.resize(dim_, dim_);
-      Lambda_.setFromTriplets(triplets.begin(), triplets.end());
+      for (const Factor& f : factors_) AddToEta(f, &eta_);
+      lambda_factors_ = 0;
     }
   }
   bool incremental = false;
@@ -195,7 +230,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
     if (!incremental) {
       StageTimer full(&times_, "full_factorization");
       // Spare slots for the next joins' new variables (about 15 % of the state).
-      if (absl::Status st = L.Factorize(Lambda_, 64 + dim_ / 6); !st.ok()) {
+      if (absl::Status st = L.Factorize(information(), 64 + dim_ / 6); !st.ok()) {
         return absl::InternalError(absl::StrCat("EIF: ", st.message()));
       }
       ++counters_.full_factorizations;
@@ -207,14 +242,17 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
     x = solver_->factor.Solve(eta_);
   }
   if (incremental) {
-    // Guard on the updated factor: Λx must give back η, or refactorise.
+    // Guard on the updated factor: Λx must give back η, or refactorise. Λx = Σ H_f x_f
+    // over the factors' dense blocks (Λ is not assembled).
     StageTimer timer(&times_, "recovery_check");
-    const double residual = (Lambda_ * x - eta_).norm();
+    Eigen::VectorXd Lambda_x = Eigen::VectorXd::Zero(dim_);
+    for (const Factor& f : factors_) AddInformationTimes(f, x, &Lambda_x);
+    const double residual = (Lambda_x - eta_).norm();
     if (!(residual <= 1e-8 * std::max(1.0, eta_.norm()))) {
       ++counters_.failed_updates;
       --counters_.incremental_updates;
       StageTimer full(&times_, "full_factorization");
-      if (absl::Status st = solver_->factor.Factorize(Lambda_, 64 + dim_ / 6); !st.ok()) {
+      if (absl::Status st = solver_->factor.Factorize(information(), 64 + dim_ / 6); !st.ok()) {
         return absl::InternalError(absl::StrCat("EIF: ", st.message()));
       }
       ++counters_.full_factorizations;
@@ -278,6 +316,35 @@ std::vector<Matrix5d> EifJoiner::AnchorLandmarkCovariances(int anchor, const std
   return out;
 }
 
+std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
+                                                                    const std::vector<int>& landmarks) const {
+  std::vector<std::optional<Matrix5d>> out(landmarks.size());
+  if (dim_ == 0) return out;
+  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+  // The anchor's columns of Λ⁻¹ by one solve (O(nnz L)): its marginal and its exact
+  // cross-covariance with every landmark (zero for the fixed P0).
+  Eigen::MatrixXd columns = Eigen::MatrixXd::Zero(dim_, 3);
+  const int o = anchor_offset_[anchor];
+  if (o >= 0) {
+    Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(dim_, 3);
+    unit.middleRows<3>(o).setIdentity();
+    columns = solver_->factor.Solve(unit);
+  }
+  for (size_t c = 0; c < landmarks.size(); ++c) {
+    const Eigen::Matrix2d& B = marginal_bound_[landmarks[c]];
+    if (!B.allFinite()) continue;
+    // [Σ_PP Σ_PL; Σ_LP B] ⪰ [Σ_PP Σ_PL; Σ_LP Σ_LL] since B ⪰ Σ_LL.
+    const int l = landmark_offset_[landmarks[c]];
+    Matrix5d m;
+    m.topLeftCorner<3, 3>() = o >= 0 ? Eigen::Matrix3d(columns.middleRows<3>(o)) : Eigen::Matrix3d::Zero();
+    m.bottomLeftCorner<2, 3>() = columns.middleRows<2>(l);
+    m.topRightCorner<3, 2>() = m.bottomLeftCorner<2, 3>().transpose();
+    m.bottomRightCorner<2, 2>() = B;
+    out[c] = m;
+  }
+  return out;
+}
+
 absl::Status EifJoiner::Join(const LocalSubmap& s) {
   if (absl::Status v = s.Validate(); !v.ok()) return v;
   if (s.t_start < last_t_end_ - 1e-9) {
@@ -286,8 +353,8 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   }
   if (!options_.validate_joins) return JoinWith(s, /*associate=*/true);
   // Validated join: keep what a rejected join would have to undo.
-  Snapshot before{graph_, anchor_offset_, landmark_offset_, anchor_theta_, dim_, factors_, Lambda_,
-                  eta_, associator_, counters_};
+  Snapshot before{graph_, anchor_offset_, landmark_offset_, anchor_theta_, dim_, factors_,
+                  eta_, associator_, marginal_bound_, counters_};
   if (absl::Status st = JoinWith(s, /*associate=*/true); !st.ok()) return st;
   const int matched = static_cast<int>(counters_.associated - before.counters.associated);
   if (matched == 0) return absl::OkStatus();
@@ -313,9 +380,10 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   anchor_theta_ = std::move(before.anchor_theta);
   dim_ = before.dim;
   factors_ = std::move(before.factors);
-  Lambda_ = std::move(before.Lambda);
+  lambda_factors_ = 0;  // Λ is assembled again from the kept factors when needed
   eta_ = std::move(before.eta);
   associator_ = std::move(before.associator);
+  marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
   solver_->stale = true;  // it absorbed the rejected factor
   counters_ = before.counters;
   ++counters_.rejected_joins;
@@ -325,15 +393,30 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
 
 std::vector<int> EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
   StageTimer timer(&times_, "association");
+  const long columns_before = solver_->factor.columns_solved(), reach_before = solver_->factor.reach_solved();
+  // Each recovered landmark marginal is today's, so it bounds every later one (Λ grows).
+  const auto pair_covariance = [this](int anchor, const std::vector<int>& landmarks) {
+    std::vector<Matrix5d> blocks = AnchorLandmarkCovariances(anchor, landmarks);
+    for (size_t c = 0; c < landmarks.size(); ++c) {
+      marginal_bound_[landmarks[c]] = blocks[c].bottomRightCorner<2, 2>();
+    }
+    return blocks;
+  };
+  const auto bound = [this](int anchor, const std::vector<int>& landmarks) {
+    return AnchorLandmarkBounds(anchor, landmarks);
+  };
   SubmapAssociation a = associator_.Associate(
       s, start, graph_,
       [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
         return JointCovariance(anchors, landmarks);
       },
-      anchor_prefilter,
-      [this](int anchor, const std::vector<int>& landmarks) { return AnchorLandmarkCovariances(anchor, landmarks); });
+      anchor_prefilter, pair_covariance,
+      options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr);
   times_["covariance_recovery"] += a.covariance_seconds;
+  last_start_covariance_ = a.start_anchor_covariance;
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  counters_.covariance_columns += solver_->factor.columns_solved() - columns_before;
+  counters_.covariance_reach += solver_->factor.reach_solved() - reach_before;
   return std::move(a.landmark_of_feature);
 }
 
@@ -356,10 +439,19 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     if (assoc[i] >= 0) {
       ++counters_.associated;
     } else {
-      assoc[i] = graph_.AddLandmark(TransformFrom(P_s, s.landmark(i)));
+      Matrix23d J_frame;
+      Eigen::Matrix2d J_point;
+      assoc[i] = graph_.AddLandmark(TransformFrom(P_s, s.landmark(i), &J_frame, &J_point));
       landmark_offset_.push_back(dim_);
       dim_ += 2;
       ++counters_.new_landmarks;
+      // Its marginal given the data before this join and its own feature alone — the
+      // start anchor's marginal carried through the feature — bounds its marginal given
+      // everything (in the linearised model, more data never widens a marginal).
+      const Eigen::Matrix2d Q = s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+      marginal_bound_.push_back(associate ? Eigen::Matrix2d(J_frame * last_start_covariance_ * J_frame.transpose() +
+                                                            J_point * Q * J_point.transpose())
+                                          : Eigen::Matrix2d::Constant(NAN));
     }
   }
   // A rejected map joined again (associate false) must not redefine its landmarks.
@@ -411,17 +503,17 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       anchor_theta_(other.anchor_theta_),
       dim_(other.dim_),
       factors_(other.factors_),
-      Lambda_(other.Lambda_),
       eta_(other.eta_),
       solver_(std::make_unique<Solver>()),
       associator_(other.associator_),
+      marginal_bound_(other.marginal_bound_),
       last_association_(other.last_association_),
       rejected_(other.rejected_),
       times_(other.times_),
       counters_(other.counters_),
       last_t_end_(other.last_t_end_) {
   if (other.solver_->factor.ready()) {
-    SUBSLAM_CHECK(solver_->factor.Factorize(Lambda_, 64 + dim_ / 6).ok()) << "refactorising a copy failed";
+    SUBSLAM_CHECK(solver_->factor.Factorize(information(), 64 + dim_ / 6).ok()) << "refactorising a copy failed";
   }
 }
 

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <numeric>
 
+#include "subslam/graph/internal/check.h"
+
 namespace subslam::backend {
 namespace {
 
@@ -41,12 +43,6 @@ SparseCholesky::SparseCholesky() : common_(new cholmod_common) {
 }
 
 SparseCholesky::~SparseCholesky() {
-  if (solve_b_) cholmod_free_dense(&solve_b_, common_);
-  if (solve_bset_) cholmod_free_sparse(&solve_bset_, common_);
-  if (solve_x_) cholmod_free_dense(&solve_x_, common_);
-  if (solve_y_) cholmod_free_dense(&solve_y_, common_);
-  if (solve_e_) cholmod_free_dense(&solve_e_, common_);
-  if (solve_xset_) cholmod_free_sparse(&solve_xset_, common_);
   if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
   cholmod_finish(common_);
   delete common_;
@@ -173,30 +169,46 @@ const SparseCholesky::SparseColumn& SparseCholesky::ForwardColumn(int variable) 
   // until the factor changes.
   auto cached = column_cache_.find(variable);
   if (cached != column_cache_.end()) return cached->second;
-  // L y = P e_variable on the reach of the right-hand side only.
+  // y = L⁻¹ P e_variable. The right-hand side has one non-zero, at k = P(variable), so y's
+  // non-zeros are the elimination-tree path from k to the root (the rows of column j of
+  // L are ancestors of j; the parent is the smallest): a column-oriented forward solve
+  // that walks that path, O(Σ nnz(L_j)) over it, with L's unit diagonal (D sits there).
   const double* Lx = static_cast<const double*>(factor_->x);
   const int* Lp = static_cast<const int*>(factor_->p);
-  if (solve_b_ == nullptr || static_cast<int>(solve_b_->nrow) != capacity_) {
-    if (solve_b_) cholmod_free_dense(&solve_b_, common_);
-    if (solve_bset_) cholmod_free_sparse(&solve_bset_, common_);
-    solve_b_ = cholmod_zeros(capacity_, 1, CHOLMOD_REAL, common_);
-    solve_bset_ = cholmod_allocate_sparse(capacity_, 1, 1, 1, 1, 0, CHOLMOD_PATTERN, common_);
-  }
-  const int pos = position_[variable];
-  static_cast<double*>(solve_b_->x)[pos] = 1.0;
-  static_cast<int*>(solve_bset_->p)[0] = 0;
-  static_cast<int*>(solve_bset_->p)[1] = 1;
-  static_cast<int*>(solve_bset_->i)[0] = pos;
-  cholmod_solve2(CHOLMOD_L, factor_, solve_b_, solve_bset_, &solve_x_, &solve_xset_, &solve_y_, &solve_e_, common_);
-  static_cast<double*>(solve_b_->x)[pos] = 0.0;
+  const int* Li = static_cast<const int*>(factor_->i);
+  const int* Lnz = static_cast<const int*>(factor_->nz);
+  std::vector<double>& y = forward_workspace_;  // all zero between calls
+  if (static_cast<int>(y.size()) != capacity_) y.assign(capacity_, 0.0);
+  // Every row the walk writes must be on the path, or y would keep a non-zero: checked by
+  // stamping written rows and counting the ones the path then visits.
+  std::vector<int>& stamp = forward_stamp_;
+  if (static_cast<int>(stamp.size()) != capacity_) stamp.assign(capacity_, 0);
+  const int this_walk = ++walks_;
+  int written = 1, visited = 0;
   SparseColumn column;
-  const int* xi = static_cast<const int*>(solve_xset_->i);
-  const int count = static_cast<const int*>(solve_xset_->p)[1];
-  const double* xv = static_cast<const double*>(solve_x_->x);
-  for (int t = 0; t < count; ++t) {
-    column.rows.push_back(xi[t]);
-    column.values.push_back(xv[xi[t]] / std::sqrt(Lx[Lp[xi[t]]]));
+  y[position_[variable]] = 1.0;
+  stamp[position_[variable]] = this_walk;
+  for (int j = position_[variable]; j >= 0;) {
+    const double y_j = y[j];
+    y[j] = 0.0;
+    ++visited;
+    column.rows.push_back(j);
+    column.values.push_back(y_j / std::sqrt(Lx[Lp[j]]));
+    int parent = -1;
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
+      const int r = Li[p];
+      y[r] -= Lx[p] * y_j;
+      if (stamp[r] != this_walk) {
+        stamp[r] = this_walk;
+        ++written;
+      }
+      if (parent < 0 || r < parent) parent = r;
+    }
+    j = parent;
   }
+  SUBSLAM_CHECK(written == visited) << "factor pattern is not closed along its elimination tree";
+  ++columns_solved_;
+  reach_solved_ += static_cast<long>(column.rows.size());
   return column_cache_.emplace(variable, std::move(column)).first->second;
 }
 

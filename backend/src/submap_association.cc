@@ -65,7 +65,8 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
                                               const SubmapGraph& graph,
                                               const JointCovarianceFn& joint_covariance,
                                               bool anchor_prefilter,
-                                              const PairCovarianceFn& pair_covariance) const {
+                                              const PairCovarianceFn& pair_covariance,
+                                              const PairBoundFn& pair_bound) const {
   const int n = s.num_landmarks();
   SubmapAssociation out;
   out.landmark_of_feature.assign(n, -1);
@@ -86,6 +87,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   };
   const Pose2 P_s = graph.anchors()[start_anchor];
   const Eigen::Matrix3d Sigma_s = timed_covariance({start_anchor}, {});
+  out.start_anchor_covariance = Sigma_s;
   const double sigma_xy =
       std::sqrt(std::max(0.0, Sigma_s.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff()));
   const double sigma_theta = std::sqrt(std::max(0.0, Sigma_s(2, 2)));
@@ -113,6 +115,51 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
         break;
       }
     }
+  }
+  out.candidates = static_cast<int>(candidates.size());
+  const double gate2 = models::ChiSquareQuantile(options_.gate_probability, 2);
+  const double gate3 = models::ChiSquareQuantile(options_.gate_probability, 3);
+  // Step 3's test of feature i against landmark j with innovation ν and covariance S:
+  // the score (d², plus the signature term when both have one) if it passes the gate
+  // (widened by `gate_scale`).
+  const auto gated_score = [&](int i, int j, const Eigen::Vector2d& nu, const Eigen::Matrix2d& S,
+                               double gate_scale) -> std::optional<double> {
+    const std::optional<double> d2 = models::MahalanobisSquared2(nu, S);
+    if (!d2.has_value()) return std::nullopt;
+    double score = *d2, gate = gate2;
+    const double sig_l = MeanSignature(j);
+    if (options_.sigma_signature > 0 && std::isfinite(s.landmarks[i].signature) && std::isfinite(sig_l)) {
+      const double ds = (s.landmarks[i].signature - sig_l) / options_.sigma_signature;
+      score += ds * ds;
+      gate = gate3;
+    }
+    if (score >= gate * gate_scale) return std::nullopt;
+    return score;
+  };
+  if (pair_bound && pair_covariance) {
+    const absl::Time t0 = absl::Now();
+    const std::vector<std::optional<Matrix5d>> bounds = pair_bound(start_anchor, candidates);
+    out.covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
+    std::vector<int> kept;
+    for (size_t c = 0; c < candidates.size(); ++c) {
+      const int j = candidates[c];
+      bool may_pass = !bounds[c].has_value();
+      Eigen::Matrix<double, 2, 5> J;
+      Matrix23d J_frame;
+      Eigen::Matrix2d J_point;
+      const Eigen::Vector2d predicted = TransformTo(P_s, graph.landmarks()[j], &J_frame, &J_point);
+      J << J_frame, J_point;
+      for (int i = 0; i < n && !may_pass; ++i) {
+        if ((graph.landmarks()[j] - world[i]).norm() > r2[i]) continue;
+        const Eigen::Matrix2d S_upper = J * *bounds[c] * J.transpose() + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+        // The relative slack keeps a pairing that the bound and the exact test would put
+        // on either side of the gate through rounding alone.
+        may_pass = gated_score(i, j, predicted - s.landmark(i), S_upper, 1.0 + 1e-9).has_value();
+      }
+      if (may_pass) kept.push_back(j);
+    }
+    out.candidates_bounded_out = static_cast<int>(candidates.size() - kept.size());
+    candidates.swap(kept);
   }
   if (candidates.empty()) return out;
   const int c_count = static_cast<int>(candidates.size());
@@ -146,25 +193,15 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
     J << J_frame[c], J_point[c];
     return J * pair[c] * J.transpose() + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
   };
-  const double gate2 = models::ChiSquareQuantile(options_.gate_probability, 2);
-  const double gate3 = models::ChiSquareQuantile(options_.gate_probability, 3);
   frontend::AssociationProblem problem;
   problem.candidates.resize(n);
   for (int c = 0; c < c_count; ++c) {
     const int j = candidates[c];
-    const double sig_l = MeanSignature(j);
     for (int i = 0; i < n; ++i) {
       if ((graph.landmarks()[j] - world[i]).norm() > r2[i]) continue;
       const Eigen::Vector2d nu = predicted[c] - s.landmark(i);
-      const std::optional<double> d2 = models::MahalanobisSquared2(nu, individual(i, c));
-      if (!d2.has_value()) continue;
-      double score = *d2, gate = gate2;
-      if (options_.sigma_signature > 0 && std::isfinite(s.landmarks[i].signature) && std::isfinite(sig_l)) {
-        const double ds = (s.landmarks[i].signature - sig_l) / options_.sigma_signature;
-        score += ds * ds;
-        gate = gate3;
-      }
-      if (score < gate) problem.candidates[i].push_back({c, score, nu});
+      const std::optional<double> score = gated_score(i, j, nu, individual(i, c), 1.0);
+      if (score.has_value()) problem.candidates[i].push_back({c, *score, nu});
     }
   }
   for (auto& list : problem.candidates) {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <fstream>
 #include <map>
@@ -144,6 +145,58 @@ TEST(EifJoiner, IncrementalFactorEqualsRefactorizingEveryJoin) {
     for (int j = 0; j < full.num_landmarks(); ++j) landmarks[j] = j;
     EXPECT_TRUE(MatricesNear(full.JointCovariance({full.num_anchors() - 1, 7}, landmarks),
                              incremental.JointCovariance({full.num_anchors() - 1, 7}, landmarks), 1e-9));
+  }
+}
+
+// The candidates' marginal bounds (bound_candidate_marginals) are upper bounds: after
+// every join of loops with unknown association, each [last anchor, landmark] bound minus
+// the exact marginal is positive semi-definite — for landmarks bounded at creation and
+// for those whose marginal was recovered by an earlier association.
+TEST(EifJoiner, CandidateMarginalBoundsAreUpperBounds) {
+  for (uint64_t seed : {5, 11}) {
+    const SyntheticRun run = MakeRun(seed, 24, 1.0);
+    EifJoiner eif(run.anchors[0], {});
+    long checked = 0;
+    for (const LocalSubmap& s : run.submaps) {
+      ASSERT_TRUE(eif.Join(s).ok());
+      std::vector<int> landmarks(eif.num_landmarks());
+      for (int j = 0; j < eif.num_landmarks(); ++j) landmarks[j] = j;
+      const int anchor = eif.num_anchors() - 1;
+      const std::vector<std::optional<Matrix5d>> bounds = eif.AnchorLandmarkBounds(anchor, landmarks);
+      const std::vector<Matrix5d> exact = eif.AnchorLandmarkCovariances(anchor, landmarks);
+      for (int j = 0; j < eif.num_landmarks(); ++j) {
+        if (!bounds[j].has_value()) continue;
+        const Eigen::SelfAdjointEigenSolver<Matrix5d> eig(*bounds[j] - exact[j]);
+        EXPECT_GE(eig.eigenvalues().minCoeff(), -1e-9 * exact[j].norm()) << "map " << s.id << " landmark " << j;
+        // The anchor block and the cross-covariance are exact.
+        EXPECT_TRUE(MatricesNear(bounds[j]->leftCols<3>(), exact[j].leftCols<3>(), 1e-9));
+        ++checked;
+      }
+    }
+    EXPECT_GT(checked, 500) << seed;
+  }
+}
+
+// The bounds change the work of association, never its decisions: the same association
+// after every join with and without them, and fewer columns of L⁻¹ solved with them.
+TEST(EifJoiner, CandidateMarginalBoundsKeepEveryDecision) {
+  for (uint64_t seed : {5, 11, 12}) {
+    const SyntheticRun run = MakeRun(seed, 24, 1.0);
+    EifJoinerOptions options;
+    options.bound_candidate_marginals = false;
+    EifJoiner exact(run.anchors[0], options);
+    options.bound_candidate_marginals = true;
+    EifJoiner bounded(run.anchors[0], options);
+    for (const LocalSubmap& s : run.submaps) {
+      ASSERT_TRUE(exact.Join(s).ok());
+      ASSERT_TRUE(bounded.Join(s).ok());
+      ASSERT_EQ(bounded.last_association(), exact.last_association()) << "seed " << seed << " map " << s.id;
+    }
+    EXPECT_GT(bounded.counters().associated, 50) << seed;  // loops closed on the way
+    EXPECT_LT(bounded.counters().covariance_columns, exact.counters().covariance_columns) << seed;
+    for (int k = 1; k < exact.num_anchors(); ++k) {
+      EXPECT_TRUE(MatricesNear(exact.anchor(k).vector(), bounded.anchor(k).vector(), 1e-9)) << "anchor " << k;
+    }
   }
 }
 

@@ -37,6 +37,7 @@
 #include <Eigen/SparseCore>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -71,6 +72,16 @@ struct EifJoinerOptions {
   // since the last one, at every relinearisation, or if an update fails.
   bool incremental_factorization = true;
   double refactorize_fill_ratio = 1.5;
+  // Association's covariance recovery: drop the candidates that fail individual
+  // compatibility even under an upper bound on their [start anchor, landmark] marginal,
+  // before recovering theirs (submap_association.h, step 2). The bound keeps the exact
+  // anchor block and cross-covariance (one solve for the anchor's three columns of Λ⁻¹)
+  // and bounds the landmark's own block by its marginal when it was last recovered, or,
+  // for a landmark never recovered, by its marginal from the start anchor's and its
+  // feature's covariances when it was created. Both stay upper bounds while Λ only grows,
+  // so they are forgotten whenever the factors are relinearised. Association decisions
+  // are the same either way (tested); only the work differs.
+  bool bound_candidate_marginals = true;
 
   absl::Status Validate() const;
 };
@@ -98,11 +109,17 @@ class EifJoiner final : public MapJoiner {
   // For each landmark, the 5 × 5 marginal of [anchor, landmark] (what individual
   // compatibility needs), without the landmarks' cross-covariances.
   std::vector<Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;
+  // For each landmark, an upper bound on that 5 × 5 marginal: the exact anchor block and
+  // cross-covariance (one solve for the anchor's columns) with the landmark's block
+  // replaced by its marginal bound (see bound_candidate_marginals); nullopt for a
+  // landmark without one.
+  std::vector<std::optional<Matrix5d>> AnchorLandmarkBounds(int anchor, const std::vector<int>& landmarks) const;
   const std::vector<int>& last_association() const override { return last_association_; }
   // Ids of the local maps whose association failed validation.
   const std::vector<int>& rejected() const { return rejected_; }
   // The information matrix and vector (for tests and tools).
-  const Eigen::SparseMatrix<double>& information() const { return Lambda_; }
+  // Assembled on demand from the factors (a join updates only the factor of Λ and η).
+  const Eigen::SparseMatrix<double>& information() const;
   int state_dimension() const { return dim_; }
   // Where a variable sits in Λ and η (−1 for the fixed P0).
   int anchor_offset(int k) const { return anchor_offset_[k]; }
@@ -134,9 +151,10 @@ class EifJoiner final : public MapJoiner {
   // H and b of the factor at the current estimate, and (if asked) its whitened Jacobian
   // L_Q⁻¹ J, the newest factor's rank update of the incremental factor.
   void Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian = nullptr) const;
-  // Adds a factor's blocks to triplets and η.
-  void Scatter(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets,
-               Eigen::VectorXd* eta) const;
+  // Adds a factor's blocks of Λ to triplets, its b to η, or H_f x_f to y.
+  void AddTriplets(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets) const;
+  void AddToEta(const Factor& f, Eigen::VectorXd* eta) const;
+  void AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
   // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
   // solve; write the estimate back.
   absl::Status Rebuild(bool only_last_factor);
@@ -154,11 +172,17 @@ class EifJoiner final : public MapJoiner {
   std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
   int dim_ = 0;
   std::vector<Factor> factors_;
-  Eigen::SparseMatrix<double> Lambda_;
+  // Λ as the sum of the first `lambda_factors_` factors; information() adds the rest.
+  mutable Eigen::SparseMatrix<double> Lambda_;
+  mutable size_t lambda_factors_ = 0;
   Eigen::VectorXd eta_;
   struct Solver;
   std::unique_ptr<Solver> solver_;
   SubmapAssociator associator_;
+  // Per landmark, an upper bound on its marginal covariance (NaN: none); see
+  // bound_candidate_marginals.
+  std::vector<Eigen::Matrix2d> marginal_bound_;
+  Eigen::Matrix3d last_start_covariance_;  // the last association's start anchor marginal
   std::vector<int> last_association_;
   std::vector<int> rejected_;
   struct Snapshot {  // what a rejected join undoes
@@ -167,9 +191,9 @@ class EifJoiner final : public MapJoiner {
     std::vector<double> anchor_theta;
     int dim;
     std::vector<Factor> factors;
-    Eigen::SparseMatrix<double> Lambda;
     Eigen::VectorXd eta;
     SubmapAssociator associator;
+    std::vector<Eigen::Matrix2d> marginal_bound;
     JoinerCounters counters;
   };
   std::map<std::string, double> times_;

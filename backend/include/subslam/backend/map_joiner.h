@@ -33,6 +33,9 @@ struct JoinerCounters {
   long incremental_updates = 0;
   long full_factorizations = 0;
   long failed_updates = 0;
+  // Covariance recovery for association: columns of L⁻¹ solved and the rows they reached.
+  long covariance_columns = 0;
+  long covariance_reach = 0;
 
   JoinerCounters& operator+=(const JoinerCounters& o) {
     joins += o.joins;
@@ -44,6 +47,8 @@ struct JoinerCounters {
     incremental_updates += o.incremental_updates;
     full_factorizations += o.full_factorizations;
     failed_updates += o.failed_updates;
+    covariance_columns += o.covariance_columns;
+    covariance_reach += o.covariance_reach;
     return *this;
   }
 };

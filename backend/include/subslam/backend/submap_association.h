@@ -6,7 +6,13 @@
 //     three standard deviations of the start anchor's marginal uncertainty (position, and
 //     heading × the feature's distance; ours), so a loop is still found after a long drift;
 //  2. the joint marginal covariance Σ of the start anchor and the candidates only is asked
-//     of the joiner (sparse solves in the EIF, a sub-block in the EKF);
+//     of the joiner (sparse solves in the EIF, a sub-block in the EKF). A joiner that can
+//     bound the [start anchor, candidate] marginal from above cheaply (the EIF: the exact
+//     cross-covariance and the candidate's marginal when last recovered, which bounds
+//     today's because Λ only grows between relinearisations) lets the associator drop,
+//     before recovering their marginals, the candidates that fail step 3's gate even
+//     under the bound: Σ ⪯ Σ⁺ gives S ⪯ S⁺ and νᵀS⁻¹ν ≥ νᵀ(S⁺)⁻¹ν, so no pairing the
+//     exact test would keep is lost and the decisions are unchanged;
 //  3. each pair's innovation ν = P_s⁻¹ · L_j − l_i (start frame, metres) with
 //     S = J Σ Jᵀ + Q_ii is gated at χ²₂(gate_probability) (plus the signature cue when
 //     both have one: (Δs/σ)² added to d² and 3 dof);
@@ -25,8 +31,10 @@
 #define SUBSLAM_BACKEND_SUBMAP_ASSOCIATION_H_
 
 #include <Eigen/Core>
+#include <cmath>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,6 +77,11 @@ struct SubmapAssociation {
   bool jcbb_truncated = false;           // JCBB hit its node budget
   int loop_pairings_dropped = 0;         // a loop closure with too few pairings
   double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
+  int candidates = 0;                    // candidate landmarks (step 1)
+  int candidates_bounded_out = 0;        // of those, dropped under the joiner's bound (step 2)
+  // The start anchor's marginal covariance before the join (zero for the fixed P0;
+  // unset under known association).
+  Eigen::Matrix3d start_anchor_covariance = Eigen::Matrix3d::Constant(NAN);
 };
 
 class SubmapAssociator {
@@ -82,6 +95,11 @@ class SubmapAssociator {
   // given, the joint covariance is asked only for the individually compatible landmarks.
   using PairCovarianceFn =
       std::function<std::vector<Matrix5d>(int anchor, const std::vector<int>& landmarks)>;
+  // For each landmark, an upper bound (Loewner order) on the 5 × 5 marginal of
+  // [anchor, landmark], or nullopt when the joiner has none. Optional, used only with a
+  // PairCovarianceFn.
+  using PairBoundFn = std::function<std::vector<std::optional<Matrix5d>>(int anchor,
+                                                                         const std::vector<int>& landmarks)>;
 
   explicit SubmapAssociator(const SubmapAssociationOptions& options);
 
@@ -94,7 +112,8 @@ class SubmapAssociator {
   SubmapAssociation Associate(const LocalSubmap& submap, int start_anchor, const SubmapGraph& graph,
                               const JointCovarianceFn& joint_covariance,
                               bool anchor_prefilter = true,
-                              const PairCovarianceFn& pair_covariance = nullptr) const;
+                              const PairCovarianceFn& pair_covariance = nullptr,
+                              const PairBoundFn& pair_bound = nullptr) const;
 
   // After the join: `landmark_of_feature` is the final landmark of each feature; landmarks
   // numbered `first_new_landmark` and up were created by this join. Records signatures and,

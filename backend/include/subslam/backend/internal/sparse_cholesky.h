@@ -44,9 +44,9 @@ class SparseCholesky {
   Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
   // The block of A⁻¹ on the listed variables (rows and columns in the listed order):
   // with P A Pᵀ = L D Lᵀ, (A⁻¹)_SS = Yᵀ D⁻¹ Y for Y = L⁻¹ P E_S, each column of Y by a
-  // forward solve limited to the reach of its unit right-hand side (cholmod_solve2 with
-  // a Bset) — the elimination-tree path from the variable to the root, short for the
-  // recent variables association asks about.
+  // forward solve limited to the reach of its unit right-hand side — the elimination-tree
+  // path from the variable to the root, short for the recent variables association asks
+  // about.
   Eigen::MatrixXd InverseBlock(const std::vector<int>& variables) const;
   // For each group, the block of A⁻¹ on [hub, group] — the hub's and the group's own
   // entries and their cross terms, never two groups' cross terms: each column solved
@@ -60,6 +60,10 @@ class SparseCholesky {
   // Entries of L (a measure of fill) now and right after the last full factorisation.
   long nonzeros() const;
   long nonzeros_after_factorize() const { return nonzeros_after_factorize_; }
+  // Forward columns solved for InverseBlock / InverseStarBlocks so far, and the sum of
+  // their reaches (rows touched): the work of covariance recovery.
+  long columns_solved() const { return columns_solved_; }
+  long reach_solved() const { return reach_solved_; }
 
  private:
   cholmod_common_struct* common_;
@@ -76,11 +80,12 @@ class SparseCholesky {
   mutable std::vector<double> scatter_;  // Dot()'s dense scatter of one column, all zero between calls
   // Columns of Y solved since the factor last changed (std::map: references stay valid).
   mutable std::map<int, SparseColumn> column_cache_;
-  // cholmod_solve2's right-hand side, its pattern and reusable workspace.
-  mutable cholmod_dense_struct *solve_b_ = nullptr, *solve_x_ = nullptr, *solve_y_ = nullptr, *solve_e_ = nullptr;
-  mutable cholmod_sparse_struct *solve_bset_ = nullptr, *solve_xset_ = nullptr;
+  mutable std::vector<double> forward_workspace_;  // ForwardColumn()'s y, all zero between calls
+  mutable std::vector<int> forward_stamp_;         // ForwardColumn()'s rows written, by walk
+  mutable int walks_ = 0;
   int dim_ = 0, capacity_ = 0;
   long nonzeros_after_factorize_ = 0;
+  mutable long columns_solved_ = 0, reach_solved_ = 0;
 };
 
 }  // namespace subslam::backend
