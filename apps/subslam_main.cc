@@ -61,6 +61,9 @@ ABSL_FLAG(double, new_landmark_gate, kEkfDefaults.new_landmark_probability,
 ABSL_FLAG(double, existence_alpha, kEkfDefaults.existence.detection_probability, "existence model: detection probability");
 ABSL_FLAG(int, particles, kFastSlamDefaults.num_particles, "fastslam / rbpf: number of particles");
 ABSL_FLAG(uint64_t, filter_seed, kFastSlamDefaults.seed, "fastslam / rbpf: seed of the particle filter's random draws");
+ABSL_FLAG(int, threads, 0,
+          "fastslam / rbpf: threads for the per-particle scan update (0: every core); the "
+          "results are the same for any number");
 ABSL_FLAG(bool, sample_association, kFastSlamDefaults.sample_association,
           "fastslam / rbpf: sample the data association instead of maximum likelihood");
 ABSL_FLAG(int, landmark_iterations, kFastSlamDefaults.landmark_update_iterations,
@@ -369,6 +372,7 @@ int Run() {
   options.policy.delay_while_ambiguous = absl::GetFlag(FLAGS_submap_delay_ambiguous);
   options.fastslam.num_particles = absl::GetFlag(FLAGS_particles);
   options.fastslam.seed = absl::GetFlag(FLAGS_filter_seed);
+  options.fastslam.num_threads = absl::GetFlag(FLAGS_threads);
   options.fastslam.sample_association = absl::GetFlag(FLAGS_sample_association);
   options.fastslam.resample_ess_ratio = absl::GetFlag(FLAGS_resample_ess);
   options.fastslam.landmark_update_iterations = absl::GetFlag(FLAGS_landmark_iterations);

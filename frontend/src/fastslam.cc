@@ -3,10 +3,13 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <numbers>
+#include <thread>
 
 #include "subslam/frontend/internal/stage_timer.h"
+#include "subslam/frontend/internal/worker_pool.h"
 #include "subslam/graph/internal/check.h"
 #include "subslam/models/gating.h"
 
@@ -45,6 +48,7 @@ absl::Status FastSlamOptions::Validate() const {
   if (!(moment_matching.min_existence >= 0.0 && moment_matching.min_existence <= 1.0)) {
     return absl::InvalidArgumentError("moment_matching.min_existence must be in [0, 1]");
   }
+  if (num_threads < 0) return absl::InvalidArgumentError("num_threads must be >= 0 (0: every core)");
   return absl::OkStatus();
 }
 
@@ -63,8 +67,20 @@ FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
   const double half_expected = 0.5 * (rb.fov_max_rad - rb.fov_min_rad) - options_.expect_bearing_margin_rad;
   fov_cos_expected_ = half_expected >= kPi ? -2.0 : std::cos(std::max(0.0, half_expected));
   for (const char* stage : {"predict", "associate", "update", "resample"}) times_[stage] = 0;
+  const int threads = options_.num_threads > 0
+                          ? options_.num_threads
+                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  pool_ = std::make_unique<WorkerPool>(std::min(threads, options_.num_particles));
+  scratch_.resize(pool_->threads());
+  particle_rngs_.reserve(options_.num_particles);
+  for (int p = 0; p < options_.num_particles; ++p) {
+    std::seed_seq seq{options_.seed, static_cast<uint64_t>(p)};
+    particle_rngs_.emplace_back(seq);
+  }
   Reset(start);
 }
+
+FastSlam::~FastSlam() = default;
 
 void FastSlam::Reset(const Pose2& start) {
   particles_.assign(options_.num_particles, Particle{});
@@ -122,19 +138,23 @@ void FastSlam::UpdateExistence(LandmarkRecord* record, bool detected) const {
   if (options_.existence.Confirms(record->existence)) record->confirmed = true;
 }
 
-FastSlam::LandmarkGaussian* FastSlam::Mutable(LandmarkRecord* record) {
+FastSlam::LandmarkGaussian* FastSlam::Mutable(LandmarkRecord* record, Scratch* scratch) {
   if (record->gaussian.use_count() > 1) {
     record->gaussian = std::make_shared<const LandmarkGaussian>(*record->gaussian);
-    ++counters_.landmark_copies;
+    ++scratch->landmark_copies;
+  } else {
+    // Sole owner now — possibly because a particle on another thread has just copied the
+    // landmark and dropped its reference: the acquire fence orders that thread's reads of
+    // the old value (before its release of the count) before our writes.
+    std::atomic_thread_fence(std::memory_order_acquire);
   }
   // Sole owner: the object was created non-const, so writing through it is defined.
   return const_cast<LandmarkGaussian*>(record->gaussian.get());
 }
 
-FastSlam::PairScore FastSlam::Score(const Particle& particle, int i, const Eigen::Vector2d& z,
-                                    double signature, const Eigen::Vector3d& delta,
-                                    const Eigen::Matrix3d& Sigma) const {
-  const Prediction& pr = predictions_[i];
+FastSlam::PairScore FastSlam::Score(const Prediction& pr, const LandmarkGaussian& landmark,
+                                    const Eigen::Vector2d& z, double signature,
+                                    const Eigen::Vector3d& delta, const Eigen::Matrix3d& Sigma) const {
   PairScore out;
   out.nu = models::RangeBearingModel::Difference(z, pr.z) - pr.H_pose * delta;
   out.nu[1] = WrapAngle(out.nu[1]);
@@ -147,7 +167,7 @@ FastSlam::PairScore FastSlam::Score(const Particle& particle, int i, const Eigen
   // log N(ν; 0, S) without its −½ log det S, which callers add (or accumulate as a
   // product of determinants, one log per particle and scan).
   out.log_likelihood_but_det = -0.5 * out.d2 - std::log(2.0 * std::numbers::pi) +
-                               SignatureLogLikelihood(*particle.landmarks[i].gaussian, signature);
+                               SignatureLogLikelihood(landmark, signature);
   return out;
 }
 
@@ -159,20 +179,25 @@ double FastSlam::SignatureLogLikelihood(const LandmarkGaussian& l, double signat
 }
 
 void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
-                              const std::vector<double>& signature, int* decisions) {
+                              const std::vector<double>& signature, int* decisions, Scratch* scratch,
+                              std::mt19937_64* rng) const {
+  std::vector<Prediction>& predictions = scratch->predictions;
+  std::vector<GatedPair>& pairs = scratch->pairs;
+  std::vector<double>& min_d2 = scratch->min_d2;
+  std::vector<std::pair<int, double>>& likelihoods = scratch->likelihoods;
   const Eigen::Matrix2d R = sensor_.NoiseCovariance();
   const double reach = sensor_.config().max_range_m + 10.0;
   const int n = static_cast<int>(particle->landmarks.size());
   const int m = static_cast<int>(z.size());
   Eigen::Matrix3d Sigma;  // of the proposal, below
   const Pose2 x0 = CurrentPose(*particle, &Sigma);
-  predictions_.resize(n);
+  predictions.resize(n);
   // Cheap visibility cull before the atan2 of Observe: within reach, and inside the
   // field of view widened by kFovMarginRad (cos of the bearing off the FOV's centre).
   const double c_axis = std::cos(x0.theta + fov_center_), s_axis = std::sin(x0.theta + fov_center_);
   const models::RangeBearingConfig& rb = sensor_.config();
   for (int i = 0; i < n; ++i) {
-    Prediction& pr = predictions_[i];
+    Prediction& pr = predictions[i];
     const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
     pr.used = pr.gated = false;
     const Eigen::Vector2d d = l.mean - x0.translation();
@@ -204,7 +229,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   // 1. Score every (detection, landmark) pair at the prior proposal, where S depends on
   //    the landmark only: one 2×2 inverse per landmark, a few flops per pair.
   for (int i = 0; i < n; ++i) {
-    Prediction& pr = predictions_[i];
+    Prediction& pr = predictions[i];
     if (!pr.in_reach) continue;
     pr.S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
     const double det = pr.S.determinant();
@@ -213,12 +238,12 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     pr.log_norm = NAN;  // computed when a pair gates
     pr.det = det;
   }
-  min_d2_.assign(m, INFINITY);
-  pairs_.clear();
+  min_d2.assign(m, INFINITY);
+  pairs.clear();
   for (int j = 0; j < m; ++j) {
     decisions[j] = kIgnore;
     for (int i = 0; i < n; ++i) {
-      Prediction& pr = predictions_[i];
+      Prediction& pr = predictions[i];
       if (!pr.in_reach) continue;
       // νᵀS⁻¹ν ≥ ν_r² / S_rr: most pairs are rejected on range alone.
       const double nu_r = z[j][0] - pr.z[0];
@@ -228,7 +253,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
       }
       const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
       const double d2 = nu.dot(pr.S_inv * nu);
-      min_d2_[j] = std::min(min_d2_[j], d2);
+      min_d2[j] = std::min(min_d2[j], d2);
       if (d2 >= new_landmark_d2_) continue;
       pr.gated = true;
       if (d2 >= gate_d2_) continue;
@@ -240,21 +265,21 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
         rank = pr.log_norm - 0.5 * d2 +
                SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
       }
-      pairs_.push_back({rank, j, i});
+      pairs.push_back({rank, j, i});
     }
   }
   if (!options_.sample_association) {
     // 2a. One-to-one greedy assignment, best pair first; then the proposal updates in
     //     that order, each pair rescored at the current proposal for the weight.
-    std::sort(pairs_.begin(), pairs_.end(), [](const GatedPair& a, const GatedPair& b) {
+    std::sort(pairs.begin(), pairs.end(), [](const GatedPair& a, const GatedPair& b) {
       return a.rank > b.rank || (a.rank == b.rank && (a.detection < b.detection ||
                                                       (a.detection == b.detection && a.landmark < b.landmark)));
     });
-    for (const GatedPair& p : pairs_) {
-      if (decisions[p.detection] >= 0 || predictions_[p.landmark].used) continue;
-      const PairScore score = Score(*particle, p.landmark, z[p.detection], signature[p.detection],
-                                    delta, Sigma);
-      predictions_[p.landmark].used = true;
+    for (const GatedPair& p : pairs) {
+      if (decisions[p.detection] >= 0 || predictions[p.landmark].used) continue;
+      const PairScore score = Score(predictions[p.landmark], *particle->landmarks[p.landmark].gaussian,
+                                    z[p.detection], signature[p.detection], delta, Sigma);
+      predictions[p.landmark].used = true;
       decisions[p.detection] = p.landmark;
       log_w += score.log_likelihood_but_det;
       det_product *= score.det;
@@ -262,37 +287,38 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
         log_w -= 0.5 * std::log(det_product);
         det_product = 1.0;
       }
-      update_proposal(predictions_[p.landmark], score);
-      ++counters_.associated;
+      update_proposal(predictions[p.landmark], score);
+      ++scratch->associated;
     }
   } else {
     // 2b. Data-association sampling, detection by detection: among the still unused
     //     gated landmarks and "new", in proportion to their likelihoods at the current
     //     proposal.
     for (int j = 0; j < m; ++j) {
-      likelihoods_.clear();
+      likelihoods.clear();
       double max_ll = log_p0_;
-      for (const GatedPair& p : pairs_) {
-        if (p.detection != j || predictions_[p.landmark].used) continue;
-        const PairScore score = Score(*particle, p.landmark, z[j], signature[j], delta, Sigma);
+      for (const GatedPair& p : pairs) {
+        if (p.detection != j || predictions[p.landmark].used) continue;
+        const PairScore score =
+            Score(predictions[p.landmark], *particle->landmarks[p.landmark].gaussian, z[j], signature[j], delta, Sigma);
         if (score.d2 >= gate_d2_) continue;
         const double ll = score.log_likelihood_but_det - 0.5 * std::log(score.det);
-        likelihoods_.push_back({p.landmark, ll});
+        likelihoods.push_back({p.landmark, ll});
         max_ll = std::max(max_ll, ll);
       }
-      if (likelihoods_.empty()) continue;
+      if (likelihoods.empty()) continue;
       double total = std::exp(log_p0_ - max_ll);
-      for (const auto& [i, ll] : likelihoods_) total += std::exp(ll - max_ll);
-      double r = std::uniform_real_distribution<double>(0.0, total)(rng_);
-      for (const auto& [i, ll] : likelihoods_) {
+      for (const auto& [i, ll] : likelihoods) total += std::exp(ll - max_ll);
+      double r = std::uniform_real_distribution<double>(0.0, total)(*rng);
+      for (const auto& [i, ll] : likelihoods) {
         r -= std::exp(ll - max_ll);
         if (r < 0) {
-          const PairScore score = Score(*particle, i, z[j], signature[j], delta, Sigma);
-          predictions_[i].used = true;
+          const PairScore score = Score(predictions[i], *particle->landmarks[i].gaussian, z[j], signature[j], delta, Sigma);
+          predictions[i].used = true;
           decisions[j] = i;
           log_w += score.log_likelihood_but_det - 0.5 * std::log(score.det);
-          update_proposal(predictions_[i], score);
-          ++counters_.associated;
+          update_proposal(predictions[i], score);
+          ++scratch->associated;
           break;
         }
       }
@@ -305,14 +331,14 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   for (int j = 0; j < m; ++j) {
     if (decisions[j] >= 0) continue;
     log_w += log_p0_;
-    if (decisions[j] != kNew) decisions[j] = min_d2_[j] > new_landmark_d2_ ? kNew : kIgnore;
-    if (decisions[j] == kIgnore) ++counters_.ignored;
+    if (decisions[j] != kNew) decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
+    if (decisions[j] == kIgnore) ++scratch->ignored;
   }
   // Sample the pose from the proposal.
   Eigen::Vector3d x = x0.vector() + delta;
   if (Sigma.trace() > 0.0) {
     std::normal_distribution<double> normal;
-    const Eigen::Vector3d xi(normal(rng_), normal(rng_), normal(rng_));
+    const Eigen::Vector3d xi(normal(*rng), normal(*rng), normal(*rng));
     const Eigen::LLT<Eigen::Matrix3d> llt(Sigma);
     if (llt.info() == Eigen::Success) {
       x += llt.matrixL() * xi;
@@ -326,7 +352,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   // the sample moves it by centimetres) and not even within the new-landmark gate of
   // any detection.
   for (int i = 0; i < n; ++i) {
-    const Prediction& pr = predictions_[i];
+    const Prediction& pr = predictions[i];
     particle->landmarks[i].missed = pr.in_reach && !pr.gated && pr.expected;
   }
   SetPose(particle, Pose2(x[0], x[1], WrapAngle(x[2])));
@@ -380,7 +406,8 @@ void FastSlam::Vote(int m) {
 }
 
 void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
-                              const std::vector<double>& signature, const int* decisions) {
+                              const std::vector<double>& signature, const int* decisions,
+                              Scratch* scratch) const {
   const Eigen::Matrix2d R = sensor_.NoiseCovariance();
   const Pose2& x = particle->pose;
   const int m = static_cast<int>(z.size());
@@ -390,7 +417,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
     const int d = decisions[j];
     if (d >= 0) {
       LandmarkRecord& record = landmarks[d];
-      LandmarkGaussian* l = Mutable(&record);
+      LandmarkGaussian* l = Mutable(&record, scratch);
       // Iterated EKF: relinearise the measurement at the updated landmark mean.
       const Eigen::Vector2d prior_mean = l->mean;
       const Eigen::Matrix2d prior_cov = l->covariance;
@@ -432,7 +459,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       record.confirmed = options_.existence.Confirms(record.existence);
       record.feature = voted_label_[2 * j + 1];
       landmarks.push_back(std::move(record));
-      ++counters_.landmarks_created;
+      ++scratch->landmarks_created;
     }
   }
   // Expected but missed (flagged by UpdateParticle): the missed-detection update.
@@ -444,7 +471,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       return options_.existence.Deletes(r.existence, r.confirmed);
     };
     const auto first = std::remove_if(landmarks.begin(), landmarks.end(), doomed);
-    counters_.landmarks_culled += landmarks.end() - first;
+    scratch->landmarks_culled += landmarks.end() - first;
     landmarks.erase(first, landmarks.end());
   }
 }
@@ -476,14 +503,30 @@ void FastSlam::Update(const io::Scan& scan) {
   decision_label_.assign(static_cast<size_t>(P) * m, kIgnore);
   {
     StageTimer timer(&times_, "associate");
-    for (int p = 0; p < P; ++p) {
-      Particle& particle = particles_[p];
-      int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
-      UpdateParticle(&particle, z_, signature_, decisions);
-      for (int j = 0; j < m; ++j) {
-        decision_label_[p * m + j] =
-            decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
+    // Particles are handed out in small chunks as threads become free (the threads do
+    // not run at the same speed); which thread takes a particle changes nothing in the
+    // result, because each slot draws from its own stream.
+    std::atomic<int> next_chunk{0};
+    owner_.resize(P);
+    pool_->Run([&](int t) {
+      Scratch& scratch = scratch_[t];
+      for (int begin = next_chunk.fetch_add(kChunk); begin < P; begin = next_chunk.fetch_add(kChunk)) {
+        for (int p = begin; p < std::min(P, begin + kChunk); ++p) {
+          owner_[p] = t;
+          Particle& particle = particles_[p];
+          int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
+          UpdateParticle(&particle, z_, signature_, decisions, &scratch, &particle_rngs_[p]);
+          for (int j = 0; j < m; ++j) {
+            decision_label_[p * m + j] =
+                decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
+          }
+        }
       }
+    });
+    for (Scratch& scratch : scratch_) {
+      counters_.associated += scratch.associated;
+      counters_.ignored += scratch.ignored;
+      scratch.associated = scratch.ignored = 0;
     }
     pose_cache_valid_ = false;
     motion_since_scan_ = Pose2();  // every particle now holds its sampled pose
@@ -497,8 +540,19 @@ void FastSlam::Update(const io::Scan& scan) {
   }
   {
     StageTimer timer(&times_, "update");
-    for (int p = 0; p < P; ++p) {
-      ApplyDecisions(&particles_[p], z_, signature_, decisions_.data() + static_cast<size_t>(p) * m);
+    // Each thread updates the particles it has just associated (they are in its cache).
+    pool_->Run([&](int t) {
+      for (int p = 0; p < P; ++p) {
+        if (owner_[p] != t) continue;
+        ApplyDecisions(&particles_[p], z_, signature_, decisions_.data() + static_cast<size_t>(p) * m,
+                       &scratch_[t]);
+      }
+    });
+    for (Scratch& scratch : scratch_) {
+      counters_.landmark_copies += scratch.landmark_copies;
+      counters_.landmarks_created += scratch.landmarks_created;
+      counters_.landmarks_culled += scratch.landmarks_culled;
+      scratch.landmark_copies = scratch.landmarks_created = scratch.landmarks_culled = 0;
     }
   }
   // Resampling is deferred to the next Predict or Update, so that pose(), Map() and a

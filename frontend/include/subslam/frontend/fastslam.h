@@ -45,7 +45,8 @@
 // Frames: the filter works in one frame, the one of `start` given to the constructor or
 // Reset() (the world for the single-map filter, the local map's start frame — identity
 // start — for the local mapper). Units: metres, radians, seconds.
-// Deterministic for a given seed. Not thread-safe.
+// Deterministic for a given seed, whatever the number of threads (FastSlamOptions::
+// num_threads). Not thread-safe: one filter per calling thread.
 #ifndef SUBSLAM_FRONTEND_FASTSLAM_H_
 #define SUBSLAM_FRONTEND_FASTSLAM_H_
 
@@ -62,6 +63,8 @@
 #include "subslam/models/range_bearing_model.h"
 
 namespace subslam::frontend {
+
+class WorkerPool;  // internal/worker_pool.h
 
 // How gated (detection, landmark) pairs are ranked for the one-to-one assignment.
 enum class AssociationScore {
@@ -98,6 +101,11 @@ struct FastSlamOptions {
   double sigma_signature = 0.0;
   // Moment matching used by pose(), Map() and the local mapper.
   MomentMatchingOptions moment_matching;
+  // Threads for the per-particle part of a scan (association, the proposal, the pose
+  // sample, the landmark updates). The results do not depend on it: each particle slot
+  // draws from its own random stream, seeded from `seed` and the slot.
+  // 0: std::thread::hardware_concurrency().
+  int num_threads = 1;
 
   absl::Status Validate() const;
 };
@@ -118,6 +126,7 @@ class FastSlam final : public OnlineEstimator {
  public:
   FastSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
            const Pose2& start, const FastSlamOptions& options);
+  ~FastSlam() override;
 
   std::string Name() const override { return "fastslam"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;
@@ -216,19 +225,35 @@ class FastSlam final : public OnlineEstimator {
   Pose2 CurrentPose(const Particle& p, Eigen::Matrix3d* covariance = nullptr) const;
   static void SetPose(Particle* p, const Pose2& pose);
   void UpdatePoseCache() const;
-  PairScore Score(const Particle& particle, int landmark, const Eigen::Vector2d& z,
+  PairScore Score(const Prediction& prediction, const LandmarkGaussian& landmark, const Eigen::Vector2d& z,
                   double signature, const Eigen::Vector3d& delta,
                   const Eigen::Matrix3d& Sigma) const;
   double SignatureLogLikelihood(const LandmarkGaussian& l, double signature) const;
+  // Per-thread scratch of UpdateParticle, reused across scans, and its counts.
+  struct alignas(64) Scratch {  // a cache line apart: written by different threads
+    std::vector<Prediction> predictions;  // of the particle's landmarks
+    std::vector<GatedPair> pairs;
+    std::vector<double> min_d2;
+    std::vector<std::pair<int, double>> likelihoods;
+    long associated = 0, ignored = 0;
+    long landmark_copies = 0, landmarks_created = 0, landmarks_culled = 0;
+  };
+  // Associates the scan for one particle, samples its pose and updates its weight;
+  // touches only the particle, its decisions, `scratch` and `rng` (safe to run for
+  // different particles in parallel).
   void UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
-                      const std::vector<double>& signature, int* decisions);
+                      const std::vector<double>& signature, int* decisions, Scratch* scratch,
+                      std::mt19937_64* rng) const;
+  // The landmark updates, creations, existence updates and culls of one particle's
+  // decisions; touches only the particle, landmarks it alone holds (copy-on-write) and
+  // `scratch` (safe to run for different particles in parallel).
   void ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
-                      const std::vector<double>& signature, const int* decisions);
+                      const std::vector<double>& signature, const int* decisions, Scratch* scratch) const;
   void Vote(int m);
   void Normalise();
   void Resample();
   void UpdateExistence(LandmarkRecord* record, bool detected) const;
-  LandmarkGaussian* Mutable(LandmarkRecord* record);
+  static LandmarkGaussian* Mutable(LandmarkRecord* record, Scratch* scratch);
 
   std::unique_ptr<models::MotionModel> motion_;
   models::RangeBearingModel sensor_;
@@ -236,17 +261,18 @@ class FastSlam final : public OnlineEstimator {
   double gate_d2_ = 0.0, new_landmark_d2_ = 0.0, log_p0_ = 0.0;
   double fov_center_ = 0.0, fov_cos_limit_ = -2.0, fov_cos_expected_ = -2.0;
   std::vector<Particle> particles_, resampled_;
-  std::mt19937_64 rng_;
+  std::mt19937_64 rng_;                         // resampling
+  std::vector<std::mt19937_64> particle_rngs_;  // one stream per particle slot
+  std::unique_ptr<WorkerPool> pool_;
+  std::vector<Scratch> scratch_;                // one per thread
+  std::vector<int> owner_;                      // the thread that associated each particle
+  static constexpr int kChunk = 4;              // particles a thread takes at a time
   int next_feature_ = 0;
   // Scratch reused across scans.
-  std::vector<Prediction> predictions_;
   std::vector<int> decisions_;        // particles × detections: landmark index | kNew | kIgnore
   std::vector<int> decision_label_;   // the common id each decision votes for
   std::vector<int> voted_label_;      // per detection: the id written into landmarks
   std::vector<std::pair<int, double>> tally_;
-  std::vector<std::pair<int, double>> likelihoods_;
-  std::vector<GatedPair> pairs_;
-  std::vector<double> min_d2_;
   std::vector<double> weights_;
   std::vector<int> scan_features_;
   std::vector<int> detection_index_;
