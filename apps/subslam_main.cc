@@ -172,6 +172,9 @@ ABSL_FLAG(std::optional<double>, sigma_u1, std::nullopt,
 ABSL_FLAG(std::optional<double>, sigma_range, std::nullopt, "override range sigma [m]");
 ABSL_FLAG(std::optional<double>, sigma_bearing, std::nullopt, "override bearing sigma [rad]");
 ABSL_FLAG(std::optional<double>, max_range, std::nullopt, "ignore detections beyond [m]");
+ABSL_FLAG(std::optional<double>, sensor_yaw, std::nullopt,
+          "add this to every bearing [rad]: the sensor's yaw on the vehicle, a calibration "
+          "(Victoria Park: -0.019, bench/sensor_yaw_calibration)");
 ABSL_FLAG(bool, progress, true, "show a progress line on a terminal");
 ABSL_FLAG(bool, quiet, false, "do not print the summary table");
 
@@ -408,6 +411,7 @@ int Run() {
   options.noise.sigma_range = absl::GetFlag(FLAGS_sigma_range);
   options.noise.sigma_bearing = absl::GetFlag(FLAGS_sigma_bearing);
   options.noise.max_range = absl::GetFlag(FLAGS_max_range);
+  options.noise.sensor_yaw = absl::GetFlag(FLAGS_sensor_yaw);
   options.out_dir = absl::GetFlag(FLAGS_out);
   options.progress = absl::GetFlag(FLAGS_progress);
 

@@ -131,6 +131,12 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
   if (sigma_range) d->sensor.range_bearing.sigma_range_m = *sigma_range;
   if (sigma_bearing) d->sensor.range_bearing.sigma_bearing_rad = *sigma_bearing;
   if (max_range) d->sensor.range_bearing.max_range_m = *max_range;
+  if (sensor_yaw) {
+    if (!std::isfinite(*sensor_yaw)) return absl::InvalidArgumentError("--sensor_yaw must be finite");
+    for (io::Scan& scan : d->scans) {
+      for (io::Detection& det : scan.detections) det.bearing_rad = WrapAngle(det.bearing_rad + *sensor_yaw);
+    }
+  }
   return d->sensor.range_bearing.Validate();
 }
 
@@ -313,6 +319,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"sigma_bearing", rb.sigma_bearing_rad},
         {"min_range", rb.min_range_m},
         {"max_range", rb.max_range_m},
+        {"sensor_yaw", options.noise.sensor_yaw.value_or(0.0)},
         {"association", frontend::ToString(options.ekf.association)},
         {"gate_probability", options.ekf.gate_probability},
         {"new_landmark_probability", options.ekf.new_landmark_probability},

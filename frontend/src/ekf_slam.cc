@@ -4,6 +4,7 @@
 #include <limits>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/single_map_common.h"
@@ -209,6 +210,11 @@ void EkfSlam::Update(const io::Scan& scan) {
     llt.matrixL().solveInPlace(Wt);
     Eigen::VectorXd whitened = nu;
     llt.matrixL().solveInPlace(whitened);
+    // −log N(ν; 0, S) = ½ (‖L⁻¹ν‖² + log det S + 2k log 2π), log det S = 2 Σ log L_ii.
+    counters_.innovation_neg_log_likelihood +=
+        0.5 * whitened.squaredNorm() + llt.matrixLLT().diagonal().array().log().sum() +
+        k * std::log(2.0 * std::numbers::pi);
+    counters_.innovation_dof += 2 * k;
     x_.head(dim_).noalias() += Wt.transpose() * whitened;
     x_[2] = WrapAngle(x_[2]);
     // Lower triangle only: mirroring the whole matrix would cost as much as the update.
@@ -354,6 +360,8 @@ std::map<std::string, double> EkfSlam::Counters() const {
           {"ambiguous_detections", counters_.ambiguous},
           {"deleted_landmarks", counters_.deleted_landmarks},
           {"jcbb_truncated_scans", counters_.jcbb_truncated},
+          {"innovation_neg_log_likelihood", counters_.innovation_neg_log_likelihood},
+          {"innovation_dof", counters_.innovation_dof},
           {"landmarks_in_state", num_landmarks()},
           {"confirmed_landmarks", confirmed}};
 }

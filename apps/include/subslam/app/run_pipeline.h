@@ -47,6 +47,10 @@ struct NoiseOverrides {
   std::optional<double> sigma_range;    // m
   std::optional<double> sigma_bearing;  // rad
   std::optional<double> max_range;      // m: detections beyond are not used
+  // rad, added to every bearing: the sensor's yaw on the vehicle beyond the data set's
+  // own bearing_offset — a calibration (bench/sensor_yaw_calibration estimates it from
+  // EKF-SLAM's innovation likelihood; bench/RESULTS.md).
+  std::optional<double> sensor_yaw;
 
   absl::Status ApplyTo(io::Dataset* dataset) const;
 };

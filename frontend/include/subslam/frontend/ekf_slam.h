@@ -66,6 +66,12 @@ struct EkfSlamCounters {
   long ambiguous = 0;          // dropped between the two gates
   long deleted_landmarks = 0;  // tentative landmarks removed
   long jcbb_truncated = 0;
+  // The prediction-error decomposition of the likelihood: over every scan's associated
+  // detections, −log N(ν; 0, S) of the joint innovation, and its dimension (2 per
+  // pairing). Its minimum over an unknown model parameter is the parameter's maximum
+  // likelihood estimate (bench/sensor_yaw_calibration).
+  double innovation_neg_log_likelihood = 0.0;
+  long innovation_dof = 0;
 };
 
 class EkfSlam final : public OnlineEstimator {
