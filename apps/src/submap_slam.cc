@@ -214,6 +214,7 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_relinearizations"] = joiner_->counters().relinearizations;
     out["join_rejected"] = joiner_->counters().rejected_joins;
     out["join_full_factorizations"] = joiner_->counters().full_factorizations;
+    out["join_jcbb_truncated"] = joiner_->counters().jcbb_truncated;
     out["join_incremental_updates"] = joiner_->counters().incremental_updates;
     out["join_covariance_columns"] = joiner_->counters().covariance_columns;
     out["join_covariance_reach"] = joiner_->counters().covariance_reach;

@@ -165,51 +165,87 @@ Eigen::MatrixXd SparseCholesky::Solve(const Eigen::MatrixXd& B) const {
 }
 
 const SparseCholesky::SparseColumn& SparseCholesky::ForwardColumn(int variable) const {
-  // Asked again within one join (the start anchor, then the compatible candidates): cached
-  // until the factor changes.
-  auto cached = column_cache_.find(variable);
-  if (cached != column_cache_.end()) return cached->second;
-  // y = L⁻¹ P e_variable. The right-hand side has one non-zero, at k = P(variable), so y's
-  // non-zeros are the elimination-tree path from k to the root (the rows of column j of
-  // L are ancestors of j; the parent is the smallest): a column-oriented forward solve
-  // that walks that path, O(Σ nnz(L_j)) over it, with L's unit diagonal (D sits there).
+  SolveColumns({variable});
+  return column_cache_.at(variable);
+}
+
+void SparseCholesky::SolveColumns(const std::vector<int>& variables) const {
+  // Columns asked again within one join (the start anchor, then the compatible
+  // candidates) are cached until the factor changes.
+  std::vector<int> pending;
+  for (int v : variables) {
+    if (column_cache_.count(v) == 0) pending.push_back(v);
+  }
+  std::sort(pending.begin(), pending.end(), [this](int a, int b) { return position_[a] < position_[b]; });
+  pending.erase(std::unique(pending.begin(), pending.end()), pending.end());
+  // y = L⁻¹ P e_v. The right-hand side has one non-zero, at k = P(v), so y's non-zeros are
+  // the elimination-tree path from k to the root (the rows of column j of L are ancestors
+  // of j; the parent is the smallest): a column-oriented forward solve walks that path,
+  // O(Σ nnz(L_j)) over it, with L's unit diagonal (D sits there). A variable coupled to
+  // another in A (a landmark's x and y, an anchor's x, y and θ) lies on its path, so one
+  // walk carries both right-hand sides, each from its own start: one pass over L.
+  constexpr int kMaxCarried = 4;
   const double* Lx = static_cast<const double*>(factor_->x);
   const int* Lp = static_cast<const int*>(factor_->p);
   const int* Li = static_cast<const int*>(factor_->i);
   const int* Lnz = static_cast<const int*>(factor_->nz);
-  std::vector<double>& y = forward_workspace_;  // all zero between calls
-  if (static_cast<int>(y.size()) != capacity_) y.assign(capacity_, 0.0);
-  // Every row the walk writes must be on the path, or y would keep a non-zero: checked by
+  std::vector<double>& y = forward_workspace_;  // capacity × kMaxCarried, all zero between walks
+  if (y.size() != static_cast<size_t>(capacity_) * kMaxCarried) y.assign(static_cast<size_t>(capacity_) * kMaxCarried, 0.0);
+  // Every row a walk writes must be on its path, or y would keep a non-zero: checked by
   // stamping written rows and counting the ones the path then visits.
   std::vector<int>& stamp = forward_stamp_;
   if (static_cast<int>(stamp.size()) != capacity_) stamp.assign(capacity_, 0);
-  const int this_walk = ++walks_;
-  int written = 1, visited = 0;
-  SparseColumn column;
-  y[position_[variable]] = 1.0;
-  stamp[position_[variable]] = this_walk;
-  for (int j = position_[variable]; j >= 0;) {
-    const double y_j = y[j];
-    y[j] = 0.0;
-    ++visited;
-    column.rows.push_back(j);
-    column.values.push_back(y_j / std::sqrt(Lx[Lp[j]]));
-    int parent = -1;
-    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
-      const int r = Li[p];
-      y[r] -= Lx[p] * y_j;
-      if (stamp[r] != this_walk) {
-        stamp[r] = this_walk;
-        ++written;
+  while (!pending.empty()) {
+    const int this_walk = ++walks_;
+    std::vector<int> carried, left_over;
+    std::vector<SparseColumn> columns;
+    size_t next = 0;  // into pending, by position
+    int written = 0, visited = 0;
+    for (int j = position_[pending[0]]; j >= 0;) {
+      // Variables the path has passed without visiting wait for a walk of their own.
+      while (next < pending.size() && position_[pending[next]] < j) left_over.push_back(pending[next++]);
+      if (next < pending.size() && position_[pending[next]] == j && carried.size() < kMaxCarried) {
+        y[static_cast<size_t>(j) * kMaxCarried + carried.size()] = 1.0;
+        if (stamp[j] != this_walk) {
+          stamp[j] = this_walk;
+          ++written;
+        }
+        carried.push_back(pending[next++]);
+        columns.emplace_back();
       }
-      if (parent < 0 || r < parent) parent = r;
+      ++visited;
+      const int n_carried = static_cast<int>(carried.size());
+      double y_j[kMaxCarried];
+      const double inv_sqrt_d = 1.0 / std::sqrt(Lx[Lp[j]]);
+      for (int r = 0; r < n_carried; ++r) {
+        double& slot = y[static_cast<size_t>(j) * kMaxCarried + r];
+        y_j[r] = slot;
+        slot = 0.0;
+        columns[r].rows.push_back(j);
+        columns[r].values.push_back(y_j[r] * inv_sqrt_d);
+      }
+      int parent = -1;
+      for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
+        const int row = Li[p];
+        double* target = &y[static_cast<size_t>(row) * kMaxCarried];
+        for (int r = 0; r < n_carried; ++r) target[r] -= Lx[p] * y_j[r];
+        if (stamp[row] != this_walk) {
+          stamp[row] = this_walk;
+          ++written;
+        }
+        if (parent < 0 || row < parent) parent = row;
+      }
+      j = parent;
     }
-    j = parent;
+    SUBSLAM_CHECK(written == visited) << "factor pattern is not closed along its elimination tree";
+    while (next < pending.size()) left_over.push_back(pending[next++]);
+    for (size_t r = 0; r < carried.size(); ++r) {
+      ++columns_solved_;
+      reach_solved_ += static_cast<long>(columns[r].rows.size());
+      column_cache_.emplace(carried[r], std::move(columns[r]));
+    }
+    pending.swap(left_over);
   }
-  SUBSLAM_CHECK(written == visited) << "factor pattern is not closed along its elimination tree";
-  ++columns_solved_;
-  reach_solved_ += static_cast<long>(column.rows.size());
-  return column_cache_.emplace(variable, std::move(column)).first->second;
 }
 
 double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {
@@ -225,6 +261,7 @@ double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {
 Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) const {
   const int k = static_cast<int>(variables.size());
   Eigen::MatrixXd out(k, k);
+  SolveColumns(variables);
   std::vector<const SparseColumn*> Y;
   Y.reserve(k);
   for (int v : variables) Y.push_back(&ForwardColumn(v));
@@ -236,6 +273,7 @@ Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) 
 
 std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector<int>& hub,
                                                                const std::vector<std::vector<int>>& groups) const {
+  SolveColumns(hub);
   std::vector<const SparseColumn*> H;
   for (int v : hub) H.push_back(&ForwardColumn(v));
   const int h = static_cast<int>(hub.size());
@@ -247,6 +285,7 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
   out.reserve(groups.size());
   for (const std::vector<int>& group : groups) {
     const int g = static_cast<int>(group.size());
+    SolveColumns(group);
     std::vector<const SparseColumn*> G;
     for (int v : group) G.push_back(&ForwardColumn(v));
     Eigen::MatrixXd m(h + g, h + g);

@@ -234,15 +234,22 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
     } else if (!compatible.empty()) {
       Sigma = timed_covariance({start_anchor}, compatible);
     }
-    // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate].
+    // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate]; J_a Σ J_bᵀ is
+    // computed once per pair of candidates (JCBB asks for it at every node).
+    const int c_n = static_cast<int>(compatible.size());
+    std::vector<Eigen::Matrix2d> projected(static_cast<size_t>(c_n) * c_n);
+    std::vector<char> projected_known(static_cast<size_t>(c_n) * c_n, 0);
     problem.covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
-      const int oa = 3 + 2 * slot[a], ob = 3 + 2 * slot[b];
-      Eigen::Matrix2d m = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
-                          J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
-                          J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
-                          J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
-      m += s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
-      return m;
+      const size_t key = static_cast<size_t>(slot[a]) * c_n + slot[b];
+      if (!projected_known[key]) {
+        const int oa = 3 + 2 * slot[a], ob = 3 + 2 * slot[b];
+        projected[key] = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
+                         J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
+                         J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
+                         J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
+        projected_known[key] = 1;
+      }
+      return projected[key] + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
     };
     result = frontend::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
     out.jcbb_truncated = result.truncated;

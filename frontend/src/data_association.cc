@@ -58,6 +58,7 @@ class Jcbb {
     const int m = static_cast<int>(problem.candidates.size());
     L_.setZero(2 * m, 2 * m);
     y_.setZero(2 * m);
+    L21t_.resize(2 * m, 2);
     current_.assign(m, -1);
     best_.landmark_of_detection.assign(m, -1);
     for (int k = 1; k <= m; ++k) gates_.push_back(models::ChiSquareQuantile(gate_probability_, 2 * k));
@@ -79,6 +80,9 @@ class Jcbb {
   // Branches on the t-th detection that has candidates.
   void Recurse(int t, int k, double d2) {
     const int m = static_cast<int>(branching_.size());
+    // Even pairing every remaining detection cannot reach the best hypothesis' count
+    // (a tie can still win on d², so only a strict shortfall prunes).
+    if (k + (m - t) < best_.pairings) return;
     if (nodes_++ >= max_nodes_) return;
     if (t == m) {
       if (k > best_.pairings || (k == best_.pairings && d2 < best_.joint_d2)) {
@@ -108,12 +112,13 @@ class Jcbb {
 
   // Appends pairing (j, c) as block row k of L and y; returns the joint d².
   bool Extend(int j, int k, const AssociationCandidate& c, double* d2) {
-    Eigen::Matrix<double, Eigen::Dynamic, 2> B(2 * k, 2);
+    // L21t = L11⁻¹ B, B the covariances of the hypothesis' pairings with the new one; in a
+    // buffer sized once (no allocation per node).
+    auto L21t = L21t_.topRows(2 * k);
     for (int a = 0; a < k; ++a) {
       const int detection_a = paired_detection_[a];
-      B.block<2, 2>(2 * a, 0) = p_.covariance_block(detection_a, current_[detection_a], j, c.landmark);
+      L21t.block<2, 2>(2 * a, 0) = p_.covariance_block(detection_a, current_[detection_a], j, c.landmark);
     }
-    Eigen::Matrix<double, Eigen::Dynamic, 2> L21t = B;  // L11⁻¹ B
     if (k > 0) {
       L_.topLeftCorner(2 * k, 2 * k).triangularView<Eigen::Lower>().solveInPlace(L21t);
     }
@@ -137,6 +142,7 @@ class Jcbb {
   long nodes_ = 0;
   std::vector<double> gates_;
   Eigen::MatrixXd L_;
+  Eigen::Matrix<double, Eigen::Dynamic, 2> L21t_;
   Eigen::VectorXd y_;
   std::vector<int> current_;           // landmark per detection in the hypothesis
   std::vector<int> paired_detection_;  // detection of block row a

@@ -73,6 +73,9 @@ class SparseCholesky {
     std::vector<double> values;  // y_r / √D_r, so that (A⁻¹)_ab is a plain dot product
   };
   const SparseColumn& ForwardColumn(int variable) const;
+  // Solves (and caches) the columns of the listed variables not cached yet, carrying every
+  // variable that lies on a walk's path in that walk.
+  void SolveColumns(const std::vector<int>& variables) const;
   bool PositiveDiagonal() const;
   double Dot(const SparseColumn& a, const SparseColumn& b) const;
 
@@ -80,8 +83,8 @@ class SparseCholesky {
   mutable std::vector<double> scatter_;  // Dot()'s dense scatter of one column, all zero between calls
   // Columns of Y solved since the factor last changed (std::map: references stay valid).
   mutable std::map<int, SparseColumn> column_cache_;
-  mutable std::vector<double> forward_workspace_;  // ForwardColumn()'s y, all zero between calls
-  mutable std::vector<int> forward_stamp_;         // ForwardColumn()'s rows written, by walk
+  mutable std::vector<double> forward_workspace_;  // SolveColumns()'s y, all zero between walks
+  mutable std::vector<int> forward_stamp_;         // SolveColumns()'s rows written, by walk
   mutable int walks_ = 0;
   int dim_ = 0, capacity_ = 0;
   long nonzeros_after_factorize_ = 0;
