@@ -83,6 +83,9 @@ class Jcbb {
     // Even pairing every remaining detection cannot reach the best hypothesis' count
     // (a tie can still win on d², so only a strict shortfall prunes).
     if (k + (m - t) < best_.pairings) return;
+    // At best a tie on pairings, which must then win on d²; adding pairings never lowers
+    // the joint d² (each adds ‖y₂‖² ≥ 0), so this subtree cannot.
+    if (k + (m - t) == best_.pairings && best_.pairings > 0 && d2 >= best_.joint_d2) return;
     if (nodes_++ >= max_nodes_) return;
     if (t == m) {
       if (k > best_.pairings || (k == best_.pairings && d2 < best_.joint_d2)) {

@@ -2,6 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <functional>
+#include <random>
+
+#include "subslam/models/gating.h"
+
 namespace subslam::frontend {
 namespace {
 
@@ -75,6 +82,87 @@ TEST(JointCompatibility, DetectionsWithoutCandidatesCostNothing) {
   EXPECT_EQ(r.landmark_of_detection[250], 1);
   EXPECT_EQ(r.landmark_of_detection[499], 3);
   EXPECT_EQ(r.landmark_of_detection[0], -1);
+}
+
+// JCBB's search, with its pruning bounds, finds the hypothesis an exhaustive search does:
+// the most pairings, then the smallest joint d², among the one-to-one hypotheses whose
+// every prefix (in detection order) passes the joint χ² gate. Random problems with a
+// shared pose error (strongly correlated innovations), several candidates per detection
+// and candidates shared between detections.
+TEST(JointCompatibility, EqualsExhaustiveSearch) {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal;
+  std::uniform_int_distribution<int> detections(1, 6), landmarks(1, 5);
+  for (int trial = 0; trial < 300; ++trial) {
+    const int m = detections(rng), n = landmarks(rng);
+    // ν_ia = J_a p + l_a + q_i: covariance J_a P J_bᵀ + [a = b] L_a + [i = k] Q.
+    std::vector<Eigen::Matrix<double, 2, 3>> J(n);
+    for (auto& j : J) j = Eigen::Matrix<double, 2, 3>::NullaryExpr([&] { return normal(rng); });
+    const Eigen::Matrix3d P = 0.5 * Eigen::Matrix3d::Identity();
+    AssociationProblem p;
+    p.covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
+      Eigen::Matrix2d c = J[a] * P * J[b].transpose();
+      if (a == b) c += 0.3 * Eigen::Matrix2d::Identity();
+      if (i == k) c += 0.2 * Eigen::Matrix2d::Identity();
+      return c;
+    };
+    p.candidates.resize(m);
+    std::bernoulli_distribution keep(0.6);
+    for (int j = 0; j < m; ++j) {
+      for (int a = 0; a < n; ++a) {
+        if (!keep(rng)) continue;
+        const Eigen::Vector2d nu(normal(rng), normal(rng));
+        const Eigen::Matrix2d S = p.covariance_block(j, a, j, a);
+        p.candidates[j].push_back({a, nu.dot(S.inverse() * nu), nu});
+      }
+      std::sort(p.candidates[j].begin(), p.candidates[j].end(),
+                [](const auto& x, const auto& y) { return x.d2 < y.d2; });
+    }
+    // Exhaustive search.
+    int best_pairings = 0;
+    double best_d2 = 0.0;
+    std::vector<int> current(m, -1);
+    const auto joint_d2 = [&](int upto) {  // over the pairings of detections < upto
+      std::vector<std::pair<int, int>> pairs;
+      for (int j = 0; j < upto; ++j) {
+        if (current[j] >= 0) pairs.push_back({j, current[j]});
+      }
+      const int k = static_cast<int>(pairs.size());
+      Eigen::MatrixXd S(2 * k, 2 * k);
+      Eigen::VectorXd nu(2 * k);
+      for (int x = 0; x < k; ++x) {
+        for (const AssociationCandidate& c : p.candidates[pairs[x].first]) {
+          if (c.landmark == pairs[x].second) nu.segment<2>(2 * x) = c.innovation;
+        }
+        for (int y = 0; y < k; ++y) {
+          S.block<2, 2>(2 * x, 2 * y) = p.covariance_block(pairs[x].first, pairs[x].second, pairs[y].first, pairs[y].second);
+        }
+      }
+      return k == 0 ? 0.0 : nu.dot(S.llt().solve(nu));
+    };
+    std::function<void(int, int)> search = [&](int j, int k) {
+      if (j == m) {
+        const double d2 = joint_d2(m);
+        if (k > best_pairings || (k == best_pairings && d2 < best_d2)) {
+          best_pairings = k;
+          best_d2 = d2;
+        }
+        return;
+      }
+      search(j + 1, k);  // unpaired
+      for (const AssociationCandidate& c : p.candidates[j]) {
+        if (std::find(current.begin(), current.end(), c.landmark) != current.end()) continue;
+        current[j] = c.landmark;
+        if (joint_d2(j + 1) <= models::ChiSquareQuantile(0.99, 2 * (k + 1))) search(j + 1, k + 1);
+        current[j] = -1;
+      }
+    };
+    search(0, 0);
+    const AssociationResult r = JointCompatibility(p, 0.99, 1000000);
+    ASSERT_FALSE(r.truncated);
+    ASSERT_EQ(r.pairings, best_pairings) << "trial " << trial;
+    EXPECT_NEAR(r.joint_d2, best_d2, 1e-9 * std::max(1.0, best_d2)) << "trial " << trial;
+  }
 }
 
 }  // namespace
