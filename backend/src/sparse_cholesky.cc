@@ -178,13 +178,13 @@ void SparseCholesky::SolveColumns(const std::vector<int>& variables) const {
   }
   std::sort(pending.begin(), pending.end(), [this](int a, int b) { return position_[a] < position_[b]; });
   pending.erase(std::unique(pending.begin(), pending.end()), pending.end());
+  if (static_cast<int>(pending.size()) >= kSharedPathMinColumns && SolveThroughSharedPath(pending)) return;
   // y = L⁻¹ P e_v. The right-hand side has one non-zero, at k = P(v), so y's non-zeros are
   // the elimination-tree path from k to the root (the rows of column j of L are ancestors
   // of j; the parent is the smallest): a column-oriented forward solve walks that path,
   // O(Σ nnz(L_j)) over it, with L's unit diagonal (D sits there). A variable coupled to
   // another in A (a landmark's x and y, an anchor's x, y and θ) lies on its path, so one
   // walk carries both right-hand sides, each from its own start: one pass over L.
-  constexpr int kMaxCarried = 4;
   const double* Lx = static_cast<const double*>(factor_->x);
   const int* Lp = static_cast<const int*>(factor_->p);
   const int* Li = static_cast<const int*>(factor_->i);
@@ -248,6 +248,109 @@ void SparseCholesky::SolveColumns(const std::vector<int>& variables) const {
   }
 }
 
+bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) const {
+  const double* Lx = static_cast<const double*>(factor_->x);
+  const int* Lp = static_cast<const int*>(factor_->p);
+  const int* Li = static_cast<const int*>(factor_->i);
+  const int* Lnz = static_cast<const int*>(factor_->nz);
+  const auto parent = [&](int j) {
+    int up = -1;
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) up = up < 0 ? Li[p] : std::min(up, Li[p]);
+    return up;
+  };
+  // S: the elimination-tree path from the lowest pending variable to the root. Every
+  // other path meets it (one root), and from there on the walks would all run through
+  // the same — near the root dense — columns: those are solved together, densely.
+  std::vector<int> path;
+  for (int j = position_[pending[0]]; j >= 0; j = parent(j)) {
+    path.push_back(j);
+    if (static_cast<int>(path.size()) > kSharedPathMaxLength) return false;  // dense block too big
+  }
+  const int s = static_cast<int>(path.size());
+  if (s < kSharedPathMinLength) return false;  // short paths: the walks are cheap
+  std::vector<int>& index = path_index_;  // position → index in S (−1: not in S)
+  if (static_cast<int>(index.size()) != capacity_) index.assign(capacity_, -1);
+  for (int q = 0; q < s; ++q) index[path[q]] = q;
+  // L_SS, unit lower triangular: the rows of a column of S are its ancestors, all in S.
+  Eigen::MatrixXd L_SS = Eigen::MatrixXd::Zero(s, s);
+  bool closed = true;
+  for (int q = 0; q < s && closed; ++q) {
+    const int j = path[q];
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
+      if (index[Li[p]] < 0) {
+        closed = false;
+        break;
+      }
+      L_SS(index[Li[p]], q) = Lx[p];
+    }
+  }
+  SUBSLAM_CHECK(closed) << "factor pattern is not closed along its elimination tree";
+  // Each variable's walk up to S (sparse), its values at S gathered into B.
+  const int R = static_cast<int>(pending.size());
+  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(s, R);
+  std::vector<SparseColumn> columns(R);
+  std::vector<int> entry(R);  // index in S where the walk met S
+  std::vector<double>& y = forward_workspace_;  // only its first capacity entries; zero between walks
+  if (y.size() < static_cast<size_t>(capacity_)) y.assign(static_cast<size_t>(capacity_) * kMaxCarried, 0.0);
+  std::vector<int>& stamp = forward_stamp_;
+  if (static_cast<int>(stamp.size()) != capacity_) stamp.assign(capacity_, 0);
+  for (int r = 0; r < R; ++r) {
+    const int this_walk = ++walks_;
+    int written = 0, visited = 0;
+    std::vector<int> written_in_s;
+    int j = position_[pending[r]];
+    y[j] = 1.0;
+    if (index[j] < 0) {
+      stamp[j] = this_walk;
+      ++written;
+    } else {
+      written_in_s.push_back(j);
+    }
+    while (index[j] < 0) {
+      const double y_j = y[j];
+      y[j] = 0.0;
+      ++visited;
+      columns[r].rows.push_back(j);
+      columns[r].values.push_back(y_j / std::sqrt(Lx[Lp[j]]));
+      int up = -1;
+      for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
+        const int row = Li[p];
+        y[row] -= Lx[p] * y_j;
+        if (stamp[row] != this_walk) {
+          stamp[row] = this_walk;
+          if (index[row] < 0) {
+            ++written;
+          } else {
+            written_in_s.push_back(row);
+          }
+        }
+        up = up < 0 ? row : std::min(up, row);
+      }
+      SUBSLAM_CHECK(up >= 0) << "an elimination-tree path ended outside the shared path";
+      j = up;
+    }
+    SUBSLAM_CHECK(written == visited) << "factor pattern is not closed along its elimination tree";
+    entry[r] = index[j];
+    for (int row : written_in_s) {
+      B(index[row], r) = y[row];
+      y[row] = 0.0;
+    }
+  }
+  // The shared part for every variable at once: L_SS Z = B (dense, unit lower).
+  const Eigen::MatrixXd Z = L_SS.triangularView<Eigen::UnitLower>().solve(B);
+  for (int r = 0; r < R; ++r) {
+    for (int q = entry[r]; q < s; ++q) {
+      columns[r].rows.push_back(path[q]);
+      columns[r].values.push_back(Z(q, r) / std::sqrt(Lx[Lp[path[q]]]));
+    }
+    ++columns_solved_;
+    reach_solved_ += static_cast<long>(columns[r].rows.size());
+    column_cache_.emplace(pending[r], std::move(columns[r]));
+  }
+  for (int q = 0; q < s; ++q) index[path[q]] = -1;
+  return true;
+}
+
 double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {
   std::vector<double>& scatter = scatter_;
   if (static_cast<int>(scatter.size()) != capacity_) scatter.assign(capacity_, 0.0);
@@ -273,7 +376,9 @@ Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) 
 
 std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector<int>& hub,
                                                                const std::vector<std::vector<int>>& groups) const {
-  SolveColumns(hub);
+  std::vector<int> all = hub;
+  for (const std::vector<int>& group : groups) all.insert(all.end(), group.begin(), group.end());
+  SolveColumns(all);
   std::vector<const SparseColumn*> H;
   for (int v : hub) H.push_back(&ForwardColumn(v));
   const int h = static_cast<int>(hub.size());
@@ -285,7 +390,6 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
   out.reserve(groups.size());
   for (const std::vector<int>& group : groups) {
     const int g = static_cast<int>(group.size());
-    SolveColumns(group);
     std::vector<const SparseColumn*> G;
     for (int v : group) G.push_back(&ForwardColumn(v));
     Eigen::MatrixXd m(h + g, h + g);

@@ -76,6 +76,16 @@ class SparseCholesky {
   // Solves (and caches) the columns of the listed variables not cached yet, carrying every
   // variable that lies on a walk's path in that walk.
   void SolveColumns(const std::vector<int>& variables) const;
+  // For many columns at once (`pending`, sorted by position, none cached): each walks its
+  // path only until it meets the path S of the first one to the root; the part in S is
+  // solved for all of them together as one dense unit-lower triangular solve (S is where
+  // the paths merge, and near the root L is dense). False (nothing done) if S is shorter
+  // than kSharedPathMinLength or longer than kSharedPathMaxLength.
+  bool SolveThroughSharedPath(const std::vector<int>& pending) const;
+  static constexpr int kSharedPathMinColumns = 6;
+  static constexpr int kMaxCarried = 4;  // right-hand sides one SolveColumns() walk carries
+  static constexpr int kSharedPathMinLength = 150;
+  static constexpr int kSharedPathMaxLength = 2000;
   bool PositiveDiagonal() const;
   double Dot(const SparseColumn& a, const SparseColumn& b) const;
 
@@ -85,6 +95,7 @@ class SparseCholesky {
   mutable std::map<int, SparseColumn> column_cache_;
   mutable std::vector<double> forward_workspace_;  // SolveColumns()'s y, all zero between walks
   mutable std::vector<int> forward_stamp_;         // SolveColumns()'s rows written, by walk
+  mutable std::vector<int> path_index_;            // SolveThroughSharedPath(): position → index in S
   mutable int walks_ = 0;
   int dim_ = 0, capacity_ = 0;
   long nonzeros_after_factorize_ = 0;
