@@ -89,7 +89,7 @@ void FastSlam::Reset(const Pose2& start) {
     SetPose(&p, start);
     p.log_weight = log_w;
   }
-  pose_cache_valid_ = false;
+  pose_cache_valid_ = moments_valid_ = false;
   scan_features_.clear();
   scan_disagreement_ = 0.0;
   resample_pending_ = false;
@@ -528,7 +528,7 @@ void FastSlam::Update(const io::Scan& scan) {
       counters_.ignored += scratch.ignored;
       scratch.associated = scratch.ignored = 0;
     }
-    pose_cache_valid_ = false;
+    pose_cache_valid_ = moments_valid_ = false;
     motion_since_scan_ = Pose2();  // every particle now holds its sampled pose
     motion_covariance_.setZero();
     Normalise();
@@ -603,34 +603,69 @@ void FastSlam::Resample() {
   }
   particles_.swap(resampled_);
   resample_pending_ = false;
-  pose_cache_valid_ = false;
+  pose_cache_valid_ = moments_valid_ = false;
   const double log_w = -std::log(static_cast<double>(P));
   for (Particle& p : particles_) p.log_weight = log_w;
   ++counters_.resamples;
 }
 
-void FastSlam::UpdatePoseCache() const {
-  if (pose_cache_valid_) return;
+void FastSlam::UpdateMoments() const {
+  if (moments_valid_) return;
+  // The particles at the last scan, about the heaviest one (for precision), as the sums
+  // UpdatePoseCache() needs for any motion r since the scan.
   size_t heaviest = 0;
   for (size_t p = 1; p < particles_.size(); ++p) {
     if (particles_[p].log_weight > particles_[heaviest].log_weight) heaviest = p;
   }
-  const double reference = CurrentPose(particles_[heaviest]).theta;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d second = Eigen::Matrix3d::Zero();  // Σ w (R Σ_r Rᵀ + d dᵀ), d about reference
-  double total = 0.0;
+  ParticleMoments& m = moments_;
+  m = ParticleMoments{};
+  m.origin = particles_[heaviest].pose;
   for (const Particle& p : particles_) {
     const double w = std::exp(p.log_weight);
-    Eigen::Matrix3d cov;
-    const Pose2 x = CurrentPose(p, &cov);
-    const Eigen::Vector3d v(x.x, x.y, WrapAngle(x.theta - reference));
-    mean += w * v;
-    second += w * (cov + v * v.transpose());
-    total += w;
+    const Eigen::Vector3d a(p.pose.x - m.origin.x, p.pose.y - m.origin.y, WrapAngle(p.pose.theta - m.origin.theta));
+    const double c = p.cos_theta, s = p.sin_theta;
+    m.w += w;
+    m.a += w * a;
+    m.aa += w * a * a.transpose();
+    m.c += w * c;
+    m.s += w * s;
+    m.cc += w * c * c;
+    m.ss += w * s * s;
+    m.cs += w * c * s;
+    m.ac += w * c * a;
+    m.as += w * s * a;
   }
-  mean /= total;
-  second /= total;
-  cached_pose_ = Pose2(mean.x(), mean.y(), WrapAngle(mean.z() + reference));
+  moments_valid_ = true;
+}
+
+void FastSlam::UpdatePoseCache() const {
+  if (pose_cache_valid_) return;
+  UpdateMoments();
+  const ParticleMoments& m = moments_;
+  // Particle p is now at its scan pose ∘ r (r, Σ_r shared): relative to the origin,
+  // v_p = a_p + c_p e1 + s_p e2 with e1 = (r_x, r_y, 0), e2 = (−r_y, r_x, 0) (headings about
+  // the origin's do not change with r), and its covariance is J_p Σ_r J_pᵀ with
+  // J_p = c_p K1 + s_p K2 + K3. The weighted first and second moments are therefore
+  // fixed combinations of the per-scan sums: O(1) per step instead of O(N).
+  const Pose2& r = motion_since_scan_;
+  const Eigen::Vector3d e1(r.x, r.y, 0.0), e2(-r.y, r.x, 0.0);
+  const Eigen::Vector3d mean = (m.a + m.c * e1 + m.s * e2) / m.w;
+  Eigen::Matrix3d second = m.aa + m.ac * e1.transpose() + e1 * m.ac.transpose() + m.as * e2.transpose() +
+                           e2 * m.as.transpose() + m.cc * e1 * e1.transpose() + m.ss * e2 * e2.transpose() +
+                           m.cs * (e1 * e2.transpose() + e2 * e1.transpose());
+  Eigen::Matrix3d K1 = Eigen::Matrix3d::Zero(), K2 = Eigen::Matrix3d::Zero(), K3 = Eigen::Matrix3d::Zero();
+  K1(0, 0) = K1(1, 1) = 1.0;
+  K2(0, 1) = -1.0;
+  K2(1, 0) = 1.0;
+  K3(2, 2) = 1.0;
+  const Eigen::Matrix3d& Q = motion_covariance_;
+  second += m.cc * K1 * Q * K1.transpose() + m.ss * K2 * Q * K2.transpose() +
+            m.cs * (K1 * Q * K2.transpose() + K2 * Q * K1.transpose()) +
+            m.c * (K1 * Q * K3.transpose() + K3 * Q * K1.transpose()) +
+            m.s * (K2 * Q * K3.transpose() + K3 * Q * K2.transpose()) + m.w * K3 * Q * K3.transpose();
+  second /= m.w;
+  // Back to the world: the origin's position, and its heading moved by r_θ.
+  cached_pose_ = Pose2(m.origin.x + mean.x(), m.origin.y + mean.y(), WrapAngle(m.origin.theta + r.theta + mean.z()));
   cached_pose_covariance_ = second - mean * mean.transpose();
   cached_pose_covariance_ = 0.5 * (cached_pose_covariance_ + cached_pose_covariance_.transpose()).eval();
   pose_cache_valid_ = true;

@@ -89,6 +89,54 @@ TEST(FastSlam, ThreadCountDoesNotChangeTheRun) {
   }
 }
 
+// pose() and pose_covariance() come from per-scan sums in O(1) per step; they equal the
+// weighted moments of the particles' current poses (mean, spread and each particle's
+// motion covariance), computed directly, at every step — between scans too.
+TEST(FastSlam, PoseMomentsEqualTheParticlesMoments) {
+  const io::Dataset d = Simulate("hybrid-120m", 5, 20.0);
+  FastSlamOptions options;
+  options.num_particles = 40;
+  FastSlam f(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  int checked = 0;
+  std::vector<io::Step> steps = io::BuildSteps(d);
+  // Then a long stretch without scans, so that the motion since the last scan (r, Σ_r)
+  // is large.
+  for (int k = 0; k < 40; ++k) {
+    io::Step coast = steps.back();
+    coast.scan_index = -1;
+    coast.dt = 0.1;
+    steps.push_back(coast);
+  }
+  for (const io::Step& step : steps) {
+    f.Predict(step.control, step.dt);
+    if (step.scan_index >= 0) f.Update(d.scans[step.scan_index]);
+    const std::vector<ParticleHypothesis> h = f.Hypotheses();
+    size_t heaviest = 0;
+    for (size_t p = 1; p < h.size(); ++p) {
+      if (h[p].weight > h[heaviest].weight) heaviest = p;
+    }
+    const double reference = h[heaviest].pose.theta;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+    double total = 0.0;
+    for (const ParticleHypothesis& p : h) {
+      const Eigen::Vector3d v(p.pose.x, p.pose.y, WrapAngle(p.pose.theta - reference));
+      mean += p.weight * v;
+      second += p.weight * (p.pose_covariance + v * v.transpose());
+      total += p.weight;
+    }
+    mean /= total;
+    const Eigen::Matrix3d covariance = second / total - mean * mean.transpose();
+    const Pose2 pose = f.pose();
+    EXPECT_NEAR(pose.x, mean.x(), 1e-9);
+    EXPECT_NEAR(pose.y, mean.y(), 1e-9);
+    EXPECT_NEAR(WrapAngle(pose.theta - (mean.z() + reference)), 0.0, 1e-12);
+    EXPECT_LE((f.pose_covariance() - covariance).norm(), 1e-9 * covariance.norm() + 1e-11) << "step at t " << step.t;
+    ++checked;
+  }
+  EXPECT_GT(checked, 100);
+}
+
 // With no motion noise the pose is known: every particle equals the one sample, and each
 // landmark is an independent EKF at the same linearisation points as EKF-SLAM with a
 // zero pose covariance, so the two maps agree.

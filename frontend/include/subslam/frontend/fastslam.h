@@ -224,7 +224,10 @@ class FastSlam final : public OnlineEstimator {
   // The particle's pose now, and its covariance (the motion since the last scan).
   Pose2 CurrentPose(const Particle& p, Eigen::Matrix3d* covariance = nullptr) const;
   static void SetPose(Particle* p, const Pose2& pose);
+  // pose() and pose_covariance() after any motion since the last scan, in O(1) from the
+  // per-scan particle sums (UpdateMoments).
   void UpdatePoseCache() const;
+  void UpdateMoments() const;
   PairScore Score(const Prediction& prediction, const LandmarkGaussian& landmark, const Eigen::Vector2d& z,
                   double signature, const Eigen::Vector3d& delta,
                   const Eigen::Matrix3d& Sigma) const;
@@ -280,6 +283,16 @@ class FastSlam final : public OnlineEstimator {
   Pose2 motion_since_scan_;  // shared by all particles (see above)
   Eigen::Matrix3d motion_covariance_ = Eigen::Matrix3d::Zero();
   // pose() / pose_covariance(), computed once per change.
+  // Weighted sums over the particles at the last scan, about `origin` (the heaviest):
+  // a_p = (x, y, θ) − origin (heading wrapped), c_p, s_p = cos, sin of the heading.
+  struct ParticleMoments {
+    Pose2 origin;
+    double w = 0, c = 0, s = 0, cc = 0, ss = 0, cs = 0;
+    Eigen::Vector3d a = Eigen::Vector3d::Zero(), ac = Eigen::Vector3d::Zero(), as = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d aa = Eigen::Matrix3d::Zero();
+  };
+  mutable bool moments_valid_ = false;
+  mutable ParticleMoments moments_;
   mutable bool pose_cache_valid_ = false;
   mutable Pose2 cached_pose_;
   mutable Eigen::Matrix3d cached_pose_covariance_;
