@@ -306,7 +306,8 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
     } else {
       written_in_s.push_back(j);
     }
-    while (index[j] < 0) {
+    bool met = index[j] >= 0;
+    while (!met) {
       const double y_j = y[j];
       y[j] = 0.0;
       ++visited;
@@ -326,11 +327,12 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
         }
         up = up < 0 ? row : std::min(up, row);
       }
-      SUBSLAM_CHECK(up >= 0) << "an elimination-tree path ended outside the shared path";
+      if (up < 0) break;  // a root outside S (another component): the column is complete
       j = up;
+      met = index[j] >= 0;
     }
     SUBSLAM_CHECK(written == visited) << "factor pattern is not closed along its elimination tree";
-    entry[r] = index[j];
+    entry[r] = met ? index[j] : s;
     for (int row : written_in_s) {
       B(index[row], r) = y[row];
       y[row] = 0.0;
