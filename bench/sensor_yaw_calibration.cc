@@ -44,7 +44,9 @@ int main(int argc, char** argv) {
   };
   std::vector<Row> rows;
   std::printf("%10s %14s %10s %14s\n", "yaw_rad", "nll_per_dof", "dof", "gps_rms_m");
-  for (double yaw = from; yaw <= to + 1e-12; yaw += step) {
+  const int points = static_cast<int>(std::floor((to - from) / step + 1e-9)) + 1;
+  for (int k = 0; k < points; ++k) {
+    const double yaw = from + k * step;
     subslam::app::RunOptions options;
     options.frontend = subslam::app::Frontend::kEkfSlam;
     options.noise.sensor_yaw = yaw;

@@ -216,6 +216,8 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_full_factorizations"] = joiner_->counters().full_factorizations;
     out["join_jcbb_truncated"] = joiner_->counters().jcbb_truncated;
     out["join_incremental_updates"] = joiner_->counters().incremental_updates;
+    out["join_candidates"] = joiner_->counters().candidates;
+    out["join_candidates_bounded_out"] = joiner_->counters().candidates_bounded_out;
     out["join_covariance_columns"] = joiner_->counters().covariance_columns;
     out["join_covariance_reach"] = joiner_->counters().covariance_reach;
     out["global_landmarks"] = joiner_->num_landmarks();

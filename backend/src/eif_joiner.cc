@@ -391,7 +391,7 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   return JoinWith(s, /*associate=*/false);
 }
 
-std::vector<int> EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
+SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
   StageTimer timer(&times_, "association");
   const long columns_before = solver_->factor.columns_solved(), reach_before = solver_->factor.reach_solved();
   // Each recovered landmark marginal is today's, so it bounds every later one (Λ grows).
@@ -413,18 +413,23 @@ std::vector<int> EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool an
       anchor_prefilter, pair_covariance,
       options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr);
   times_["covariance_recovery"] += a.covariance_seconds;
-  last_start_covariance_ = a.start_anchor_covariance;
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  counters_.candidates += a.candidates;
+  counters_.candidates_bounded_out += a.candidates_bounded_out;
   counters_.covariance_columns += solver_->factor.columns_solved() - columns_before;
   counters_.covariance_reach += solver_->factor.reach_solved() - reach_before;
-  return std::move(a.landmark_of_feature);
+  return a;
 }
 
 absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   const int start = graph_.num_anchors() - 1;
   std::vector<int> assoc(s.num_landmarks(), -1);
+  // The start anchor's marginal before this join (NaN without one: no bounds then).
+  Eigen::Matrix3d start_covariance = Eigen::Matrix3d::Constant(NAN);
   if (associate) {
-    assoc = AssociateAt(s, start, /*anchor_prefilter=*/true);
+    SubmapAssociation a = AssociateAt(s, start, /*anchor_prefilter=*/true);
+    assoc = std::move(a.landmark_of_feature);
+    start_covariance = a.start_anchor_covariance;
   }
   const int first_new_landmark = graph_.num_landmarks();
   // Initialise the end anchor and the new landmarks through the start anchor.
@@ -449,9 +454,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
       // start anchor's marginal carried through the feature — bounds its marginal given
       // everything (in the linearised model, more data never widens a marginal).
       const Eigen::Matrix2d Q = s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
-      marginal_bound_.push_back(associate ? Eigen::Matrix2d(J_frame * last_start_covariance_ * J_frame.transpose() +
-                                                            J_point * Q * J_point.transpose())
-                                          : Eigen::Matrix2d::Constant(NAN));
+      marginal_bound_.push_back(J_frame * start_covariance * J_frame.transpose() + J_point * Q * J_point.transpose());
     }
   }
   // A rejected map joined again (associate false) must not redefine its landmarks.
@@ -533,7 +536,7 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   const int start = graph_.num_anchors() - 1;
   const int n = right.graph_.num_landmarks();
   std::vector<int> assoc(n, -1);
-  if (!graph_.factors().empty()) assoc = AssociateAt(*summary, start, /*anchor_prefilter=*/false);
+  if (!graph_.factors().empty()) assoc = AssociateAt(*summary, start, /*anchor_prefilter=*/false).landmark_of_feature;
   // Right's anchors and unmatched landmarks, through the last anchor (headings continuous).
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
   std::vector<int> anchor_map = {start};

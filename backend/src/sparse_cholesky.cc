@@ -189,8 +189,7 @@ void SparseCholesky::SolveColumns(const std::vector<int>& variables) const {
   const int* Lp = static_cast<const int*>(factor_->p);
   const int* Li = static_cast<const int*>(factor_->i);
   const int* Lnz = static_cast<const int*>(factor_->nz);
-  std::vector<double>& y = forward_workspace_;  // capacity × kMaxCarried, all zero between walks
-  if (y.size() != static_cast<size_t>(capacity_) * kMaxCarried) y.assign(static_cast<size_t>(capacity_) * kMaxCarried, 0.0);
+  std::vector<double>& y = ForwardWorkspace();  // row-major capacity × kMaxCarried
   // Every row a walk writes must be on its path, or y would keep a non-zero: checked by
   // stamping written rows and counting the ones the path then visits.
   std::vector<int>& stamp = forward_stamp_;
@@ -290,8 +289,7 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
   Eigen::MatrixXd B = Eigen::MatrixXd::Zero(s, R);
   std::vector<SparseColumn> columns(R);
   std::vector<int> entry(R);  // index in S where the walk met S
-  std::vector<double>& y = forward_workspace_;  // only its first capacity entries; zero between walks
-  if (y.size() < static_cast<size_t>(capacity_)) y.assign(static_cast<size_t>(capacity_) * kMaxCarried, 0.0);
+  std::vector<double>& y = ForwardWorkspace();  // its first capacity entries, one right-hand side
   std::vector<int>& stamp = forward_stamp_;
   if (static_cast<int>(stamp.size()) != capacity_) stamp.assign(capacity_, 0);
   for (int r = 0; r < R; ++r) {
@@ -351,6 +349,12 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
   }
   for (int q = 0; q < s; ++q) index[path[q]] = -1;
   return true;
+}
+
+std::vector<double>& SparseCholesky::ForwardWorkspace() const {
+  const size_t size = static_cast<size_t>(capacity_) * kMaxCarried;
+  if (forward_workspace_.size() != size) forward_workspace_.assign(size, 0.0);
+  return forward_workspace_;
 }
 
 double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {

@@ -721,12 +721,13 @@ FastSlam::FeatureCounts FastSlam::ConfirmedFeatureCounts() const {
   }
   const Particle& particle = particles_[heaviest];
   const double range = sensor_.config().max_range_m;
+  const Eigen::Vector2d position = CurrentPose(particle).translation();
   FeatureCounts counts;
   features_scratch_.clear();
   for (const LandmarkRecord& r : particle.landmarks) {
     if (!r.confirmed) continue;
     features_scratch_.push_back(r.feature);
-    if ((r.gaussian->mean - CurrentPose(particle).translation()).squaredNorm() <= range * range) {
+    if ((r.gaussian->mean - position).squaredNorm() <= range * range) {
       ++counts.within_range;
     }
   }

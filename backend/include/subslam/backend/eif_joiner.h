@@ -161,7 +161,7 @@ class EifJoiner final : public MapJoiner {
   absl::Status Relinearize();
   absl::Status JoinWith(const LocalSubmap& submap, bool associate);
   // Association of `s` (starting at anchor `start`) with the map, timed and counted.
-  std::vector<int> AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
+  SubmapAssociation AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
   Eigen::VectorXd StateVector() const;
   void SetState(const Eigen::VectorXd& x);
 
@@ -182,7 +182,6 @@ class EifJoiner final : public MapJoiner {
   // Per landmark, an upper bound on its marginal covariance (NaN: none); see
   // bound_candidate_marginals.
   std::vector<Eigen::Matrix2d> marginal_bound_;
-  Eigen::Matrix3d last_start_covariance_;  // the last association's start anchor marginal
   std::vector<int> last_association_;
   std::vector<int> rejected_;
   struct Snapshot {  // what a rejected join undoes

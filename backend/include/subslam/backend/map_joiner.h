@@ -33,7 +33,10 @@ struct JoinerCounters {
   long incremental_updates = 0;
   long full_factorizations = 0;
   long failed_updates = 0;
-  // Covariance recovery for association: columns of L⁻¹ solved and the rows they reached.
+  // Association's candidate landmarks, those dropped under the joiner's marginal bound
+  // before any recovery, and the recovery's work: columns of L⁻¹ solved, rows reached.
+  long candidates = 0;
+  long candidates_bounded_out = 0;
   long covariance_columns = 0;
   long covariance_reach = 0;
 
@@ -47,6 +50,8 @@ struct JoinerCounters {
     incremental_updates += o.incremental_updates;
     full_factorizations += o.full_factorizations;
     failed_updates += o.failed_updates;
+    candidates += o.candidates;
+    candidates_bounded_out += o.candidates_bounded_out;
     covariance_columns += o.covariance_columns;
     covariance_reach += o.covariance_reach;
     return *this;

@@ -21,8 +21,6 @@
 
 struct cholmod_common_struct;
 struct cholmod_factor_struct;
-struct cholmod_dense_struct;
-struct cholmod_sparse_struct;
 
 namespace subslam::backend {
 
@@ -93,7 +91,9 @@ class SparseCholesky {
   mutable std::vector<double> scatter_;  // Dot()'s dense scatter of one column, all zero between calls
   // Columns of Y solved since the factor last changed (std::map: references stay valid).
   mutable std::map<int, SparseColumn> column_cache_;
-  mutable std::vector<double> forward_workspace_;  // SolveColumns()'s y, all zero between walks
+  // The walks' y (capacity × kMaxCarried), all zero between walks; sized on first use.
+  std::vector<double>& ForwardWorkspace() const;
+  mutable std::vector<double> forward_workspace_;
   mutable std::vector<int> forward_stamp_;         // SolveColumns()'s rows written, by walk
   mutable std::vector<int> path_index_;            // SolveThroughSharedPath(): position → index in S
   mutable int walks_ = 0;
