@@ -119,8 +119,9 @@ ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
 ABSL_FLAG(bool, known_association, false,
-          "join: associate features by their truth_id instead of by nearest neighbour; "
-          "seif / iseif: associate detections by their true ids (simulations; a study option)");
+          "associate by the true ids (simulations; a study option, as Combined SLAM §7): "
+          "run: every front-end pairs detections by their truth_id and the back-end joins "
+          "local-map features by theirs; join: features by their truth_id");
 ABSL_FLAG(int, seif_max_active, kSeifDefaults.max_active_landmarks,
           "seif / iseif: sparsification bound on the active landmarks (0: never sparsify)");
 ABSL_FLAG(std::string, seif_recovery, subslam::frontend::ToString(kSeifDefaults.recovery),
@@ -388,6 +389,8 @@ int Run() {
   options.seif.new_landmark_probability = options.ekf.new_landmark_probability;
   options.seif.existence = options.ekf.existence;
   options.seif.known_association = absl::GetFlag(FLAGS_known_association);
+  options.ekf.known_association = options.seif.known_association;
+  options.fastslam.known_association = options.seif.known_association;
   options.seif.max_active_landmarks = absl::GetFlag(FLAGS_seif_max_active);
   auto recovery = subslam::frontend::MeanRecoveryFromString(absl::GetFlag(FLAGS_seif_recovery));
   if (!recovery.ok()) return Fail(recovery.status());

@@ -149,8 +149,10 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   frontend::SeifOptions seif = options.seif;
   seif.iterated.enabled = options.frontend == Frontend::kIseif;
   if (absl::Status s = seif.Validate(); !s.ok()) return s;
-  if (seif.known_association && !dataset.sensor.has_truth_id &&
-      (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif)) {
+  const bool known_association = seif.known_association || options.ekf.known_association ||
+                                 options.fastslam.known_association ||
+                                 options.backend.eif.association.known_association;
+  if (known_association && !dataset.sensor.has_truth_id) {
     return absl::InvalidArgumentError(absl::StrCat(
         "known association needs detections with true ids; data set \"", dataset.name, "\" has none"));
   }
@@ -320,7 +322,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"min_range", rb.min_range_m},
         {"max_range", rb.max_range_m},
         {"sensor_yaw", options.noise.sensor_yaw.value_or(0.0)},
-        {"association", frontend::ToString(options.ekf.association)},
+        {"association", known_association ? "known" : frontend::ToString(options.ekf.association)},
         {"gate_probability", options.ekf.gate_probability},
         {"new_landmark_probability", options.ekf.new_landmark_probability},
         {"existence_detection_probability", options.ekf.existence.detection_probability},

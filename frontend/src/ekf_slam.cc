@@ -133,11 +133,28 @@ void EkfSlam::Update(const io::Scan& scan) {
       pr.z = sensor_.Observe(p, l, &pr.H_pose, &pr.H_landmark);
       predictions.push_back(pr);
     }
+    if (options_.known_association) {
+      // A detected landmark is predicted even if the estimate puts it out of reach.
+      for (int j = 0; j < m; ++j) {
+        const int truth = scan.detections[detection_index[j]].truth_id;
+        for (int i = 0; truth >= 0 && i < num_landmarks(); ++i) {
+          if (landmarks_[i].truth_id != truth) continue;
+          if (std::none_of(predictions.begin(), predictions.end(),
+                           [i](const Prediction& pr) { return pr.landmark == i; })) {
+            Prediction pr;
+            pr.landmark = i;
+            pr.z = sensor_.Observe(p, x_.segment<2>(Offset(i)), &pr.H_pose, &pr.H_landmark);
+            predictions.push_back(pr);
+          }
+          break;
+        }
+      }
+    }
     for (Prediction& pr : predictions) pr.S = CrossCovariance(pr, pr) + R;
     for (int k = 0; k < static_cast<int>(predictions.size()); ++k) {
       prediction_of_landmark[predictions[k].landmark] = k;
     }
-    for (int j = 0; j < m; ++j) {
+    for (int j = 0; j < m && !options_.known_association; ++j) {
       for (const Prediction& pr : predictions) {
         const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
         const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
@@ -153,9 +170,36 @@ void EkfSlam::Update(const io::Scan& scan) {
     }
   }
   AssociationResult association;
+  std::vector<int> truth_of_detection(m, -1);
   {
     StageTimer timer(&times_, "associate");
-    if (options_.association == AssociationMethod::kJointCompatibility) {
+    if (options_.known_association) {
+      // The pairing the true ids give; an unseen id starts a landmark (min_d2 = ∞); a
+      // false alarm or a second detection of one id in the scan is dropped.
+      association.landmark_of_detection.assign(m, -1);
+      for (int j = 0; j < m; ++j) {
+        const int truth = scan.detections[detection_index[j]].truth_id;
+        const bool repeated = std::find(truth_of_detection.begin(), truth_of_detection.begin() + j,
+                                        truth) != truth_of_detection.begin() + j;
+        if (truth < 0 || repeated) {
+          min_d2[j] = 0.0;
+          ++counters_.known_ignored;
+          continue;
+        }
+        truth_of_detection[j] = truth;
+        for (int i = 0; i < num_landmarks(); ++i) {
+          if (landmarks_[i].truth_id != truth) continue;
+          const Prediction& pr = predictions[prediction_of_landmark[i]];
+          const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+          const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
+          SUBSLAM_CHECK(d2.has_value()) << "innovation covariance not positive definite";
+          problem.candidates[j].push_back({i, *d2, nu});
+          association.landmark_of_detection[j] = i;
+          gated[i] = true;
+          break;
+        }
+      }
+    } else if (options_.association == AssociationMethod::kJointCompatibility) {
       problem.covariance_block = [&](int, int a, int, int b) -> Eigen::Matrix2d {
         const Prediction& pa = predictions[prediction_of_landmark[a]];
         const Prediction& pb = predictions[prediction_of_landmark[b]];
@@ -238,9 +282,9 @@ void EkfSlam::Update(const io::Scan& scan) {
   for (int j = 0; j < m; ++j) {
     if (association.landmark_of_detection[j] >= 0) continue;
     if (min_d2[j] > new_landmark_d2_) {
-      AddLandmark(z[j]);
+      AddLandmark(z[j], truth_of_detection[j]);
       scan_features_[detection_index[j]] = landmarks_.back().id;
-    } else {
+    } else if (!options_.known_association) {
       ++counters_.ambiguous;
     }
   }
@@ -254,7 +298,7 @@ void EkfSlam::Update(const io::Scan& scan) {
   if (!doomed.empty()) RemoveLandmarks(doomed);
 }
 
-void EkfSlam::AddLandmark(const Eigen::Vector2d& z) {
+void EkfSlam::AddLandmark(const Eigen::Vector2d& z, int truth_id) {
   const Pose2 p = pose();
   Matrix23d G_pose;
   Eigen::Matrix2d G_z;
@@ -270,6 +314,7 @@ void EkfSlam::AddLandmark(const Eigen::Vector2d& z) {
   dim_ += 2;
   LandmarkInfo info;
   info.id = next_id_++;
+  info.truth_id = truth_id;
   info.existence = options_.existence.Initial();  // the prior and the creating detection
   info.confirmed = options_.existence.Confirms(info.existence);
   landmarks_.push_back(info);
@@ -317,6 +362,7 @@ MomentMatchedGaussian EkfSlam::Export(double min_existence) const {
     g.features.push_back(landmarks_[i].id);
     g.existence.push_back(landmarks_[i].existence);
     g.signature.push_back(std::numeric_limits<double>::quiet_NaN());
+    if (options_.known_association) g.truth_id.push_back(landmarks_[i].truth_id);
   }
   g.mean = x_(index);
   g.covariance = covariance()(index, index);
@@ -358,6 +404,7 @@ std::map<std::string, double> EkfSlam::Counters() const {
           {"associated", counters_.associated},
           {"new_landmarks", counters_.new_landmarks},
           {"ambiguous_detections", counters_.ambiguous},
+          {"known_association_ignored", counters_.known_ignored},
           {"deleted_landmarks", counters_.deleted_landmarks},
           {"jcbb_truncated_scans", counters_.jcbb_truncated},
           {"innovation_neg_log_likelihood", counters_.innovation_neg_log_likelihood},

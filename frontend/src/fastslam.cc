@@ -49,6 +49,9 @@ absl::Status FastSlamOptions::Validate() const {
     return absl::InvalidArgumentError("moment_matching.min_existence must be in [0, 1]");
   }
   if (num_threads < 0) return absl::InvalidArgumentError("num_threads must be >= 0 (0: every core)");
+  if (known_association && sample_association) {
+    return absl::InvalidArgumentError("known_association and sample_association exclude each other");
+  }
   return absl::OkStatus();
 }
 
@@ -91,6 +94,7 @@ void FastSlam::Reset(const Pose2& start) {
   }
   pose_cache_valid_ = moments_valid_ = false;
   scan_features_.clear();
+  feature_truth_.clear();
   scan_disagreement_ = 0.0;
   resample_pending_ = false;
   motion_since_scan_ = Pose2();
@@ -196,6 +200,14 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   // field of view widened by kFovMarginRad (cos of the bearing off the FOV's centre).
   const double c_axis = std::cos(x0.theta + fov_center_), s_axis = std::sin(x0.theta + fov_center_);
   const models::RangeBearingConfig& rb = sensor_.config();
+  const auto predict = [&](int i) {
+    Prediction& pr = predictions[i];
+    const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
+    Eigen::Matrix2d H_l;
+    pr.z[0] = sensor_.ObserveRange(x0, l.mean, &pr.H_pose, &H_l);
+    pr.z[1] = NAN;  // the bearing (an atan2) only for pairs that pass the range gate
+    pr.Z = H_l * l.covariance * H_l.transpose() + R;
+  };
   for (int i = 0; i < n; ++i) {
     Prediction& pr = predictions[i];
     const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
@@ -210,10 +222,29 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     pr.expected = distance >= rb.min_range_m + options_.expect_range_margin_m &&
                   distance <= rb.max_range_m - options_.expect_range_margin_m &&
                   along >= fov_cos_expected_ * distance;
-    Eigen::Matrix2d H_l;
-    pr.z[0] = sensor_.ObserveRange(x0, l.mean, &pr.H_pose, &H_l);
-    pr.z[1] = NAN;  // the bearing (an atan2) only for pairs that pass the range gate
-    pr.Z = H_l * l.covariance * H_l.transpose() + R;
+    predict(i);
+  }
+  if (options_.known_association) {
+    // Known association: detection j belongs to the particle's landmark with its true id
+    // (predicted even if the particle believes it out of reach), or starts one; a false
+    // alarm (no true id) and a second detection of one id in a scan are ignored.
+    for (int j = 0; j < m; ++j) {
+      decisions[j] = truth_[j] < 0 ? kIgnore : kNew;
+      for (int k = 0; k < j && decisions[j] != kIgnore; ++k) {
+        if (truth_[k] == truth_[j]) decisions[j] = kIgnore;
+      }
+      if (decisions[j] == kIgnore) continue;
+      for (int i = 0; i < n; ++i) {
+        if (particle->landmarks[i].truth_id != truth_[j]) continue;
+        decisions[j] = i;
+        if (!predictions[i].in_reach) {
+          predictions[i].in_reach = true;
+          predictions[i].expected = false;
+          predict(i);
+        }
+        break;
+      }
+    }
   }
   // The proposal N(x0 ⊕ δ, Σ), updated by each associated detection in turn.
   Eigen::Vector3d delta = Eigen::Vector3d::Zero();
@@ -224,6 +255,21 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     delta += K * score.nu;
     Sigma -= K * pr.H_pose * Sigma;
     Sigma = 0.5 * (Sigma + Sigma.transpose()).eval();
+  };
+  // Pairs detection j with landmark i, scored at the current proposal for the weight.
+  const auto associate = [&](int j, int i) {
+    Prediction& pr = predictions[i];
+    const PairScore score = Score(pr, *particle->landmarks[i].gaussian, z[j], signature[j], delta, Sigma);
+    pr.used = true;
+    decisions[j] = i;
+    log_w += score.log_likelihood_but_det;
+    det_product *= score.det;
+    if (det_product < 1e-200 || det_product > 1e200) {
+      log_w -= 0.5 * std::log(det_product);
+      det_product = 1.0;
+    }
+    update_proposal(pr, score);
+    ++scratch->associated;
   };
 
   // 1. Score every (detection, landmark) pair at the prior proposal, where S depends on
@@ -240,7 +286,20 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   }
   min_d2.assign(m, INFINITY);
   pairs.clear();
-  for (int j = 0; j < m; ++j) {
+  if (options_.known_association) {
+    // 2k. The given pairings in detection order, each scored at the current proposal.
+    for (int j = 0; j < m; ++j) {
+      const int i = decisions[j];
+      if (i < 0) continue;
+      Prediction& pr = predictions[i];
+      if (std::isnan(pr.z[1])) {
+        pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
+      }
+      pr.gated = true;
+      associate(j, i);
+    }
+  }
+  for (int j = 0; j < m && !options_.known_association; ++j) {
     decisions[j] = kIgnore;
     for (int i = 0; i < n; ++i) {
       Prediction& pr = predictions[i];
@@ -268,7 +327,9 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
       pairs.push_back({rank, j, i});
     }
   }
-  if (!options_.sample_association) {
+  if (options_.known_association) {
+    // Associated above.
+  } else if (!options_.sample_association) {
     // 2a. One-to-one greedy assignment, best pair first; then the proposal updates in
     //     that order, each pair rescored at the current proposal for the weight.
     std::sort(pairs.begin(), pairs.end(), [](const GatedPair& a, const GatedPair& b) {
@@ -277,18 +338,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     });
     for (const GatedPair& p : pairs) {
       if (decisions[p.detection] >= 0 || predictions[p.landmark].used) continue;
-      const PairScore score = Score(predictions[p.landmark], *particle->landmarks[p.landmark].gaussian,
-                                    z[p.detection], signature[p.detection], delta, Sigma);
-      predictions[p.landmark].used = true;
-      decisions[p.detection] = p.landmark;
-      log_w += score.log_likelihood_but_det;
-      det_product *= score.det;
-      if (det_product < 1e-200 || det_product > 1e200) {
-        log_w -= 0.5 * std::log(det_product);
-        det_product = 1.0;
-      }
-      update_proposal(predictions[p.landmark], score);
-      ++scratch->associated;
+      associate(p.detection, p.landmark);
     }
   } else {
     // 2b. Data-association sampling, detection by detection: among the still unused
@@ -331,7 +381,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   for (int j = 0; j < m; ++j) {
     if (decisions[j] >= 0) continue;
     log_w += log_p0_;
-    if (decisions[j] != kNew) decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
+    if (decisions[j] != kNew && !options_.known_association) decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
     if (decisions[j] == kIgnore) ++scratch->ignored;
   }
   // Sample the pose from the proposal.
@@ -393,6 +443,7 @@ void FastSlam::Vote(int m) {
     if (label >= 0) {
       voted_label_[2 * j] = voted_label_[2 * j + 1] = label;
       scan_features_[j] = label;
+      if (options_.known_association) feature_truth_[label] = truth_[j];
     } else {
       // Winner "ignore": landmarks that particles created anyway get a fresh minority id.
       const bool created = std::any_of(tally_.begin(), tally_.end(),
@@ -458,6 +509,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       record.existence = options_.existence.Initial();  // the prior and the creating detection
       record.confirmed = options_.existence.Confirms(record.existence);
       record.feature = voted_label_[2 * j + 1];
+      if (options_.known_association) record.truth_id = truth_[j];
       landmarks.push_back(std::move(record));
       ++scratch->landmarks_created;
     }
@@ -485,12 +537,14 @@ void FastSlam::Update(const io::Scan& scan) {
   const models::RangeBearingConfig& rb = sensor_.config();
   z_.clear();
   signature_.clear();
+  truth_.clear();
   detection_index_.clear();
   for (size_t k = 0; k < scan.detections.size(); ++k) {
     const io::Detection& d = scan.detections[k];
     if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
     z_.push_back(d.z());
     signature_.push_back(d.signature);
+    if (options_.known_association) truth_.push_back(d.truth_id);
     detection_index_.push_back(static_cast<int>(k));
   }
   const int m = static_cast<int>(z_.size());
@@ -701,7 +755,15 @@ std::vector<ParticleHypothesis> FastSlam::Hypotheses() const {
 
 MomentMatchedGaussian FastSlam::MomentMatched() const {
   const std::vector<ParticleHypothesis> h = Hypotheses();
-  return MomentMatch(h, options_.moment_matching);
+  MomentMatchedGaussian g = MomentMatch(h, options_.moment_matching);
+  if (options_.known_association) {
+    g.truth_id.reserve(g.features.size());
+    for (int f : g.features) {
+      const auto it = feature_truth_.find(f);
+      g.truth_id.push_back(it == feature_truth_.end() ? -1 : it->second);
+    }
+  }
+  return g;
 }
 
 std::vector<LandmarkEstimate> FastSlam::Map() const {

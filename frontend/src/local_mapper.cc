@@ -50,6 +50,7 @@ void LocalMapper::Close(CloseReason reason) {
     l.local_id = g.features[k];
     l.signature = g.signature[k];
     l.existence = g.existence[k];
+    if (k < g.truth_id.size() && g.truth_id[k] >= 0) l.truth_id = g.truth_id[k];  // known association
     s.landmarks.push_back(l);
   }
   const absl::Status valid = s.Validate();

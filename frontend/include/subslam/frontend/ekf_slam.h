@@ -45,6 +45,11 @@ struct EkfSlamOptions {
   // A detection outside this gate for every landmark starts a new landmark.
   double new_landmark_probability = 0.9999;
   long jcbb_max_nodes = 20000;  // JCBB search budget per scan
+  // Known association (simulations; a study option, as in Combined SLAM §7): each
+  // detection is paired with the landmark of the same io::Detection::truth_id, without
+  // gating, or starts one; false alarms (no true id) are dropped. Export() then reports
+  // each feature's true id.
+  bool known_association = false;
   // Existence model (HybridSLAM Eq. 11): the filter's α and β (not the simulator's).
   ExistenceModel existence;
   // A landmark is "expected" (a miss counts) only this far inside the sensor's range
@@ -64,6 +69,7 @@ struct EkfSlamCounters {
   long associated = 0;
   long new_landmarks = 0;
   long ambiguous = 0;          // dropped between the two gates
+  long known_ignored = 0;      // known association: false alarms and repeated ids dropped
   long deleted_landmarks = 0;  // tentative landmarks removed
   long jcbb_truncated = 0;
   // The prediction-error decomposition of the likelihood: over every scan's associated
@@ -118,6 +124,7 @@ class EkfSlam final : public OnlineEstimator {
  private:
   struct LandmarkInfo {
     int id = 0;               // stable id reported in Map()
+    int truth_id = -1;        // known association only
     double existence = 0.5;
     bool confirmed = false;
   };
@@ -131,7 +138,7 @@ class EkfSlam final : public OnlineEstimator {
 
   int Offset(int landmark) const { return 3 + 2 * landmark; }
   void Reserve(int dim);
-  void AddLandmark(const Eigen::Vector2d& z);
+  void AddLandmark(const Eigen::Vector2d& z, int truth_id);
   void RemoveLandmarks(const std::vector<int>& sorted_indices);
   Eigen::Matrix2d CrossCovariance(const Prediction& a, const Prediction& b) const;
   // Covariance access under the storage invariant (see P_).

@@ -55,6 +55,7 @@
 #include <random>
 #include <vector>
 
+#include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "subslam/frontend/existence_model.h"
 #include "subslam/frontend/moment_matching.h"
@@ -84,6 +85,11 @@ struct FastSlamOptions {
   // unused gated landmarks or "new" at random in proportion to their likelihoods.
   bool sample_association = false;
   AssociationScore association_score = AssociationScore::kLikelihood;
+  // Known association (simulations; a study option, as in Combined SLAM §7): every
+  // detection is paired with the particle's landmark of the same io::Detection::truth_id
+  // or starts one, without gating; false alarms (no true id) are ignored. MomentMatched()
+  // then reports each feature's true id.
+  bool known_association = false;
   // p0, the density of a detection explained by a new landmark or by clutter, is the
   // Gaussian density N(·; 0, R) at the new-landmark gate's boundary, R the sensor noise.
   // Resample when N_eff < resample_ess_ratio · N.
@@ -182,6 +188,7 @@ class FastSlam final : public OnlineEstimator {
     std::shared_ptr<const LandmarkGaussian> gaussian;
     double existence = 0.5;
     int feature = -1;  // common feature id
+    int truth_id = -1;  // known association only
     bool confirmed = false;
     bool missed = false;  // scratch: expected in the last scan but not detected
   };
@@ -299,6 +306,8 @@ class FastSlam final : public OnlineEstimator {
   bool resample_pending_ = false;
   std::vector<Eigen::Vector2d> z_;
   std::vector<double> signature_;
+  std::vector<int> truth_;  // known association: the true id of each usable detection
+  absl::flat_hash_map<int, int> feature_truth_;  // known association: common id → true id
   mutable std::vector<int> features_scratch_;
   mutable std::vector<char> lineage_seen_;
   double scan_disagreement_ = 0.0;

@@ -65,6 +65,8 @@ struct MomentMatchedGaussian {
   std::vector<int> features;   // common ids, increasing
   std::vector<double> existence;
   std::vector<double> signature;  // weighted mean over particles holding it (NaN if none)
+  // Known association only (else empty): each feature's true landmark id (−1: unknown).
+  std::vector<int> truth_id;
   int covariance_repairs = 0;
   int particles_used = 0;         // with nonzero weight (kDiscardParticle: holding all)
   bool fell_back_to_ignore = false;  // kDiscardParticle found no particle holding all

@@ -56,7 +56,8 @@ struct Detection {
   double range_m = 0.0;
   double bearing_rad = 0.0;  // in the vehicle frame (offset applied)
   double signature = std::numeric_limits<double>::quiet_NaN();  // NaN when absent
-  int truth_id = kUnknownTruthId;  // evaluation only; never read by estimators
+  // Evaluation; read by estimators only under their known-association study option.
+  int truth_id = kUnknownTruthId;
 
   Eigen::Vector2d z() const { return {range_m, bearing_rad}; }
 };
