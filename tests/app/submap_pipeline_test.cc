@@ -177,7 +177,7 @@ TEST(SubmapPipeline, JoinedAnchorsAreNotOverconfident) {
 // relinearised at the end. The loop closes: the final pose is far closer to the truth
 // than the same local maps chained without a back-end, and consistent with its
 // covariance (last step's NEES below χ²₃(0.999)); the whole trajectory passes the 10σ
-// test; no local-map feature mixes two true landmarks.
+// test; no local-map feature mixes two true landmarks, and no true landmark is mapped twice.
 TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
   sim::ScenarioOptions o;
   o.seed = 1;
@@ -195,6 +195,10 @@ TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
   absl::StatusOr<RunResult> joined = RunPipeline(*d, options);
   ASSERT_TRUE(joined.ok()) << joined.status();
   EXPECT_EQ(joined->impure_features, 0);
+  // Each true landmark is one global landmark (evaluated by label, not by distance).
+  ASSERT_TRUE(joined->labelled_map_errors.has_value());
+  EXPECT_GT(joined->labelled_map_errors->true_landmarks, 300);
+  EXPECT_EQ(joined->labelled_map_errors->duplicates, 0);
   EXPECT_FALSE(joined->errors->failed);
   EXPECT_LT(joined->errors->final_position_error_m, chained->errors->final_position_error_m);
   ASSERT_FALSE(joined->errors->nees.empty());

@@ -78,6 +78,24 @@ TEST(MapErrors, MatchesNearestAndCountsSpurious) {
   EXPECT_NEAR(m.rms_m, std::sqrt((0.25 + 0.25) / 2), 1e-12);
 }
 
+// By label, a landmark far from its true position still counts; unknown labels do not;
+// two estimates of one true landmark are a duplicate.
+TEST(MapErrors, LabelledErrorsFollowTheLabelsNotTheDistances) {
+  const std::vector<io::TruthLandmark> truth = {{0, {0, 0}}, {1, {10, 0}}};
+  const std::vector<LandmarkEstimate> est = {{5, {3, 4}, Eigen::Matrix2d::Identity()},
+                                             {6, {0, 0}, 4 * Eigen::Matrix2d::Identity()},
+                                             {7, {10, 0}, Eigen::Matrix2d::Identity()},
+                                             {8, {40, 0}, Eigen::Matrix2d::Identity()}};
+  const LabelledMapErrors m = ComputeLabelledMapErrors(est, {0, 0, -1, 99}, truth);
+  EXPECT_EQ(m.labelled, 2);
+  EXPECT_EQ(m.true_landmarks, 1);
+  EXPECT_EQ(m.duplicates, 1);
+  EXPECT_NEAR(m.rms_m, std::sqrt(25.0 / 2), 1e-12);
+  EXPECT_NEAR(m.rms_x_m, std::sqrt(9.0 / 2), 1e-12);
+  EXPECT_NEAR(m.mean_nees, 25.0 / 2, 1e-12);
+  EXPECT_NEAR(m.fraction_nees_in_95, 0.5, 1e-12);
+}
+
 TEST(GpsAlignment, RecoversRigidTransformAndResidual) {
   const Pose2 gps_T_est(5.0, -3.0, DegToRad(-33.0));
   Trajectory traj;

@@ -94,6 +94,9 @@ struct RunResult {
   std::optional<eval::TrajectoryErrors> errors;       // final trajectory vs true poses
   std::optional<eval::TrajectoryErrors> errors_online;  // joined local maps: the online one
   std::optional<eval::MapErrors> map_errors;          // vs true landmarks
+  // Submap runs with a back-end: the global map against the truth by label (each global
+  // landmark's majority true id over the local-map features joined into it).
+  std::optional<eval::LabelledMapErrors> labelled_map_errors;
   std::optional<eval::GpsComparison> gps_online;      // vs GPS, aligned
   std::optional<eval::GpsComparison> gps_final;
   // Local-map front-ends: the local maps (truth ids attached when the data set has
