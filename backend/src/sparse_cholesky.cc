@@ -2,6 +2,8 @@
 
 #include <cholmod.h>
 
+#include <Eigen/QR>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -111,20 +113,27 @@ absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, c
     }
   }
   const int m = static_cast<int>(unique_position.size());
-  cholmod_sparse* C = cholmod_allocate_sparse(capacity_, k, static_cast<size_t>(m) * k, 1, 1, 0, CHOLMOD_REAL, common_);
+  merged.conservativeResize(m, Eigen::NoChange);
+  // The same update C Cᵀ = W Wᵀ with C lower trapezoidal in the factor's order (C = Rᵀ of
+  // Wᵀ = QR): column j starts at the j-th row, so only as many columns as there are
+  // rows before the last ones walk the long elimination-tree paths from the early
+  // (old) variables; the rest start at the newest variables, near the root.
+  const int kc = std::min(k, m);
+  Eigen::MatrixXd R = Eigen::HouseholderQR<Eigen::MatrixXd>(merged.transpose()).matrixQR();
+  cholmod_sparse* C = cholmod_allocate_sparse(capacity_, kc, static_cast<size_t>(m) * kc, 1, 1, 0, CHOLMOD_REAL, common_);
   if (C == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
   int* Cp = static_cast<int*>(C->p);
   int* Ci = static_cast<int*>(C->i);
   double* Cx = static_cast<double*>(C->x);
   int nz = 0;
-  for (int j = 0; j < k; ++j) {
+  for (int j = 0; j < kc; ++j) {
     Cp[j] = nz;
-    for (int r = 0; r < m; ++r) {
+    for (int r = j; r < m; ++r) {
       Ci[nz] = unique_position[r];
-      Cx[nz++] = merged(r, j);
+      Cx[nz++] = R(j, r);
     }
   }
-  Cp[k] = nz;
+  Cp[kc] = nz;
   const int ok = cholmod_updown(1, C, factor_, common_);
   cholmod_free_sparse(&C, common_);
   if (!ok || common_->status != CHOLMOD_OK) return absl::InternalError("CHOLMOD: update failed");

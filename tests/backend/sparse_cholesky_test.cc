@@ -117,6 +117,18 @@ TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {
   EXPECT_TRUE(MatricesNear(grown.ldlt().solve(B), L.Solve(B), 1e-9));
   const std::vector<int> vars = {24, 25, 28, 3};
   EXPECT_TRUE(MatricesNear(grown.inverse()(vars, vars), L.InverseBlock(vars), 1e-9));
+  // More columns than rows (the update is applied as its m × m triangular equivalent),
+  // rows given out of the factor's order.
+  const std::vector<int> rows2 = {10, 3, 27};
+  const Eigen::MatrixXd W2 = Eigen::MatrixXd::Random(3, 5);
+  for (size_t r = 0; r < rows2.size(); ++r) {
+    for (size_t q = 0; q < rows2.size(); ++q) {
+      grown(rows2[r], rows2[q]) += W2.row(static_cast<int>(r)).dot(W2.row(static_cast<int>(q)));
+    }
+  }
+  ASSERT_TRUE(L.Update(n + added, rows2, W2).ok());
+  EXPECT_TRUE(MatricesNear(grown.ldlt().solve(B), L.Solve(B), 1e-9));
+  EXPECT_TRUE(MatricesNear(grown.inverse()(vars, vars), L.InverseBlock(vars), 1e-9));
 }
 
 TEST(SparseCholesky, RejectsWhatItCannotDo) {
