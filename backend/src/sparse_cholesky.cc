@@ -366,14 +366,18 @@ std::vector<double>& SparseCholesky::ForwardWorkspace() const {
   return forward_workspace_;
 }
 
-double SparseCholesky::Dot(const SparseColumn& a, const SparseColumn& b) const {
+void SparseCholesky::Dots(const SparseColumn& a, const std::vector<const SparseColumn*>& others, int begin,
+                          double* out) const {
   std::vector<double>& scatter = scatter_;
   if (static_cast<int>(scatter.size()) != capacity_) scatter.assign(capacity_, 0.0);
   for (size_t t = 0; t < a.rows.size(); ++t) scatter[a.rows[t]] = a.values[t];
-  double dot = 0.0;
-  for (size_t t = 0; t < b.rows.size(); ++t) dot += scatter[b.rows[t]] * b.values[t];
+  for (size_t o = begin; o < others.size(); ++o) {
+    const SparseColumn& b = *others[o];
+    double dot = 0.0;
+    for (size_t t = 0; t < b.rows.size(); ++t) dot += scatter[b.rows[t]] * b.values[t];
+    out[o] = dot;
+  }
   for (int r : a.rows) scatter[r] = 0.0;
-  return dot;
 }
 
 Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) const {
@@ -384,7 +388,8 @@ Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) 
   Y.reserve(k);
   for (int v : variables) Y.push_back(&ForwardColumn(v));
   for (int a = 0; a < k; ++a) {
-    for (int c = a; c < k; ++c) out(a, c) = out(c, a) = Dot(*Y[a], *Y[c]);
+    Dots(*Y[a], Y, a, out.col(a).data());  // the lower triangle, column by column
+    for (int c = a + 1; c < k; ++c) out(a, c) = out(c, a);
   }
   return out;
 }
@@ -399,7 +404,8 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
   const int h = static_cast<int>(hub.size());
   Eigen::MatrixXd hub_block(h, h);
   for (int a = 0; a < h; ++a) {
-    for (int c = a; c < h; ++c) hub_block(a, c) = hub_block(c, a) = Dot(*H[a], *H[c]);
+    Dots(*H[a], H, a, hub_block.col(a).data());
+    for (int c = a + 1; c < h; ++c) hub_block(a, c) = hub_block(c, a);
   }
   std::vector<Eigen::MatrixXd> out;
   out.reserve(groups.size());
@@ -409,11 +415,14 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
     for (int v : group) G.push_back(&ForwardColumn(v));
     Eigen::MatrixXd m(h + g, h + g);
     m.topLeftCorner(h, h) = hub_block;
+    std::vector<double> dots(g);
     for (int a = 0; a < h; ++a) {
-      for (int c = 0; c < g; ++c) m(a, h + c) = m(h + c, a) = Dot(*H[a], *G[c]);
+      Dots(*H[a], G, 0, dots.data());
+      for (int c = 0; c < g; ++c) m(a, h + c) = m(h + c, a) = dots[c];
     }
     for (int a = 0; a < g; ++a) {
-      for (int c = a; c < g; ++c) m(h + a, h + c) = m(h + c, h + a) = Dot(*G[a], *G[c]);
+      Dots(*G[a], G, a, dots.data());
+      for (int c = a; c < g; ++c) m(h + a, h + c) = m(h + c, h + a) = dots[c];
     }
     out.push_back(std::move(m));
   }

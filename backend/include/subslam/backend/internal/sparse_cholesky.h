@@ -85,10 +85,11 @@ class SparseCholesky {
   static constexpr int kSharedPathMinLength = 150;
   static constexpr int kSharedPathMaxLength = 2000;
   bool PositiveDiagonal() const;
-  double Dot(const SparseColumn& a, const SparseColumn& b) const;
+  // out[o] = aᵀ others[o] for o ≥ begin (the columns carry D^{-1/2}); a is scattered once.
+  void Dots(const SparseColumn& a, const std::vector<const SparseColumn*>& others, int begin, double* out) const;
 
   std::vector<int> position_;  // variable → row of the permuted factor
-  mutable std::vector<double> scatter_;  // Dot()'s dense scatter of one column, all zero between calls
+  mutable std::vector<double> scatter_;  // Dots()' dense scatter of one column, all zero between calls
   // Columns of Y solved since the factor last changed (std::map: references stay valid).
   mutable std::map<int, SparseColumn> column_cache_;
   // The walks' y (capacity × kMaxCarried), all zero between walks; sized on first use.
