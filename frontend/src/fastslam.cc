@@ -287,7 +287,8 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   min_d2.assign(m, INFINITY);
   pairs.clear();
   if (options_.known_association) {
-    // 2k. The given pairings in detection order, each scored at the current proposal.
+    // 2. Known association: the given pairings in detection order, each scored at the
+    //    current proposal.
     for (int j = 0; j < m; ++j) {
       const int i = decisions[j];
       if (i < 0) continue;
@@ -298,81 +299,81 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
       pr.gated = true;
       associate(j, i);
     }
-  }
-  for (int j = 0; j < m && !options_.known_association; ++j) {
-    decisions[j] = kIgnore;
-    for (int i = 0; i < n; ++i) {
-      Prediction& pr = predictions[i];
-      if (!pr.in_reach) continue;
-      // νᵀS⁻¹ν ≥ ν_r² / S_rr: most pairs are rejected on range alone.
-      const double nu_r = z[j][0] - pr.z[0];
-      if (nu_r * nu_r >= new_landmark_d2_ * pr.S(0, 0)) continue;
-      if (std::isnan(pr.z[1])) {
-        pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
-      }
-      const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
-      const double d2 = nu.dot(pr.S_inv * nu);
-      min_d2[j] = std::min(min_d2[j], d2);
-      if (d2 >= new_landmark_d2_) continue;
-      pr.gated = true;
-      if (d2 >= gate_d2_) continue;
-      double rank = -d2;
-      if (options_.association_score == AssociationScore::kLikelihood) {
-        if (std::isnan(pr.log_norm)) {
-          pr.log_norm = -std::log(2.0 * std::numbers::pi) - 0.5 * std::log(pr.det);
-        }
-        rank = pr.log_norm - 0.5 * d2 +
-               SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
-      }
-      pairs.push_back({rank, j, i});
-    }
-  }
-  if (options_.known_association) {
-    // Associated above.
-  } else if (!options_.sample_association) {
-    // 2a. One-to-one greedy assignment, best pair first; then the proposal updates in
-    //     that order, each pair rescored at the current proposal for the weight.
-    std::sort(pairs.begin(), pairs.end(), [](const GatedPair& a, const GatedPair& b) {
-      return a.rank > b.rank || (a.rank == b.rank && (a.detection < b.detection ||
-                                                      (a.detection == b.detection && a.landmark < b.landmark)));
-    });
-    for (const GatedPair& p : pairs) {
-      if (decisions[p.detection] >= 0 || predictions[p.landmark].used) continue;
-      associate(p.detection, p.landmark);
-    }
   } else {
-    // 2b. Data-association sampling, detection by detection: among the still unused
-    //     gated landmarks and "new", in proportion to their likelihoods at the current
-    //     proposal.
+    // The gated pairs, ranked.
     for (int j = 0; j < m; ++j) {
-      likelihoods.clear();
-      double max_ll = log_p0_;
-      for (const GatedPair& p : pairs) {
-        if (p.detection != j || predictions[p.landmark].used) continue;
-        const PairScore score =
-            Score(predictions[p.landmark], *particle->landmarks[p.landmark].gaussian, z[j], signature[j], delta, Sigma);
-        if (score.d2 >= gate_d2_) continue;
-        const double ll = score.log_likelihood_but_det - 0.5 * std::log(score.det);
-        likelihoods.push_back({p.landmark, ll});
-        max_ll = std::max(max_ll, ll);
-      }
-      if (likelihoods.empty()) continue;
-      double total = std::exp(log_p0_ - max_ll);
-      for (const auto& [i, ll] : likelihoods) total += std::exp(ll - max_ll);
-      double r = std::uniform_real_distribution<double>(0.0, total)(*rng);
-      for (const auto& [i, ll] : likelihoods) {
-        r -= std::exp(ll - max_ll);
-        if (r < 0) {
-          const PairScore score = Score(predictions[i], *particle->landmarks[i].gaussian, z[j], signature[j], delta, Sigma);
-          predictions[i].used = true;
-          decisions[j] = i;
-          log_w += score.log_likelihood_but_det - 0.5 * std::log(score.det);
-          update_proposal(predictions[i], score);
-          ++scratch->associated;
-          break;
+      decisions[j] = kIgnore;
+      for (int i = 0; i < n; ++i) {
+        Prediction& pr = predictions[i];
+        if (!pr.in_reach) continue;
+        // νᵀS⁻¹ν ≥ ν_r² / S_rr: most pairs are rejected on range alone.
+        const double nu_r = z[j][0] - pr.z[0];
+        if (nu_r * nu_r >= new_landmark_d2_ * pr.S(0, 0)) continue;
+        if (std::isnan(pr.z[1])) {
+          pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
         }
+        const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+        const double d2 = nu.dot(pr.S_inv * nu);
+        min_d2[j] = std::min(min_d2[j], d2);
+        if (d2 >= new_landmark_d2_) continue;
+        pr.gated = true;
+        if (d2 >= gate_d2_) continue;
+        double rank = -d2;
+        if (options_.association_score == AssociationScore::kLikelihood) {
+          if (std::isnan(pr.log_norm)) {
+            pr.log_norm = -std::log(2.0 * std::numbers::pi) - 0.5 * std::log(pr.det);
+          }
+          rank = pr.log_norm - 0.5 * d2 +
+                 SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
+        }
+        pairs.push_back({rank, j, i});
       }
-      if (decisions[j] < 0) decisions[j] = kNew;  // sampled "new" although something gated
+    }
+    if (!options_.sample_association) {
+      // 2a. One-to-one greedy assignment, best pair first; then the proposal updates in
+      //     that order, each pair rescored at the current proposal for the weight.
+      std::sort(pairs.begin(), pairs.end(), [](const GatedPair& a, const GatedPair& b) {
+        return a.rank > b.rank || (a.rank == b.rank && (a.detection < b.detection ||
+                                                        (a.detection == b.detection && a.landmark < b.landmark)));
+      });
+      for (const GatedPair& p : pairs) {
+        if (decisions[p.detection] >= 0 || predictions[p.landmark].used) continue;
+        associate(p.detection, p.landmark);
+      }
+    } else {
+      // 2b. Data-association sampling, detection by detection: among the still unused
+      //     gated landmarks and "new", in proportion to their likelihoods at the current
+      //     proposal.
+      for (int j = 0; j < m; ++j) {
+        likelihoods.clear();
+        double max_ll = log_p0_;
+        for (const GatedPair& p : pairs) {
+          if (p.detection != j || predictions[p.landmark].used) continue;
+          const PairScore score =
+              Score(predictions[p.landmark], *particle->landmarks[p.landmark].gaussian, z[j], signature[j], delta, Sigma);
+          if (score.d2 >= gate_d2_) continue;
+          const double ll = score.log_likelihood_but_det - 0.5 * std::log(score.det);
+          likelihoods.push_back({p.landmark, ll});
+          max_ll = std::max(max_ll, ll);
+        }
+        if (likelihoods.empty()) continue;
+        double total = std::exp(log_p0_ - max_ll);
+        for (const auto& [i, ll] : likelihoods) total += std::exp(ll - max_ll);
+        double r = std::uniform_real_distribution<double>(0.0, total)(*rng);
+        for (const auto& [i, ll] : likelihoods) {
+          r -= std::exp(ll - max_ll);
+          if (r < 0) {
+            const PairScore score = Score(predictions[i], *particle->landmarks[i].gaussian, z[j], signature[j], delta, Sigma);
+            predictions[i].used = true;
+            decisions[j] = i;
+            log_w += score.log_likelihood_but_det - 0.5 * std::log(score.det);
+            update_proposal(predictions[i], score);
+            ++scratch->associated;
+            break;
+          }
+        }
+        if (decisions[j] < 0) decisions[j] = kNew;  // sampled "new" although something gated
+      }
     }
   }
   log_w -= 0.5 * std::log(det_product);
@@ -381,7 +382,9 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   for (int j = 0; j < m; ++j) {
     if (decisions[j] >= 0) continue;
     log_w += log_p0_;
-    if (decisions[j] != kNew && !options_.known_association) decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
+    if (decisions[j] != kNew && !options_.known_association) {
+      decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
+    }
     if (decisions[j] == kIgnore) ++scratch->ignored;
   }
   // Sample the pose from the proposal.
