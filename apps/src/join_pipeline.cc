@@ -9,6 +9,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/io/run_output_writer.h"
 
@@ -99,6 +100,9 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   if (!options.truth_landmarks.empty()) {
     metrics["map"] = MapErrorsJson(eval::ComputeMapErrors(r.landmarks, options.truth_landmarks),
                                    options.truth_landmarks.size());
+    metrics["map_by_truth_label"] = LabelledMapErrorsJson(eval::ComputeLabelledMapErrors(
+        r.landmarks, eval::GlobalLandmarkTruthLabels(joiner->graph(), submaps, r.landmarks),
+        options.truth_landmarks));
   }
   metrics["association_vs_truth_id"] = {{"true_landmarks_seen", r.correct},
                                         {"missed_merges", r.missed},

@@ -11,6 +11,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "subslam/eval/gps_alignment.h"
+#include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
 
 namespace subslam::app {

@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/local_map_errors.h"
 #include "subslam/app/submap_slam.h"
 #include "subslam/frontend/dead_reckoning.h"
@@ -89,34 +90,6 @@ class TruthVotes {
  private:
   std::map<std::pair<int, int>, std::map<int, int>> votes_;
 };
-
-// Each global landmark's true id, by majority over the truth-labelled local-map features
-// joined into it (evaluation only), aligned with `landmarks` (ids = graph indices).
-std::vector<int> GlobalLandmarkTruthLabels(const SubmapGraph& graph, const std::vector<LocalSubmap>& labelled,
-                                           const std::vector<LandmarkEstimate>& landmarks) {
-  std::map<std::pair<int, int>, int> truth_of_feature;  // (map id, local id) → true id
-  for (const LocalSubmap& s : labelled) {
-    for (const LocalSubmapLandmark& l : s.landmarks) {
-      if (l.truth_id && *l.truth_id >= 0) truth_of_feature[{s.id, l.local_id}] = *l.truth_id;
-    }
-  }
-  std::map<int, std::map<int, int>> votes;  // global landmark → true id → features
-  for (const SubmapFactor& f : graph.factors()) {
-    for (int i = 0; i < f.submap.num_landmarks(); ++i) {
-      const auto it = truth_of_feature.find({f.submap.id, f.submap.landmarks[i].local_id});
-      if (it != truth_of_feature.end()) ++votes[f.landmark_of_feature[i]][it->second];
-    }
-  }
-  std::vector<int> out(landmarks.size(), -1);
-  for (size_t k = 0; k < landmarks.size(); ++k) {
-    const auto it = votes.find(landmarks[k].id);
-    if (it == votes.end()) continue;
-    out[k] = std::max_element(it->second.begin(), it->second.end(), [](const auto& a, const auto& b) {
-               return a.second < b.second;
-             })->first;
-  }
-  return out;
-}
 
 }  // namespace
 
@@ -280,7 +253,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     metrics["map"] = MapErrorsJson(*r.map_errors, dataset.truth_landmarks.size());
     if (chain != nullptr && chain->joiner() != nullptr) {
       r.labelled_map_errors = eval::ComputeLabelledMapErrors(
-          r.landmarks, GlobalLandmarkTruthLabels(chain->joiner()->graph(), r.local_maps, r.landmarks),
+          r.landmarks, eval::GlobalLandmarkTruthLabels(chain->joiner()->graph(), r.local_maps, r.landmarks),
           dataset.truth_landmarks);
       metrics["map_by_truth_label"] = LabelledMapErrorsJson(*r.labelled_map_errors);
     }

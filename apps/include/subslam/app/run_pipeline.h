@@ -20,6 +20,7 @@
 
 #include "absl/status/statusor.h"
 #include "subslam/eval/gps_alignment.h"
+#include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
