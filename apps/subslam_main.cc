@@ -115,6 +115,10 @@ ABSL_FLAG(bool, eif_incremental, kEifDefaults.incremental_factorization,
 ABSL_FLAG(bool, eif_bound_marginals, kEifDefaults.bound_candidate_marginals,
           "eif: skip the covariance recovery of association candidates that fail the gate "
           "even under an upper bound on their marginal (same decisions, less work)");
+ABSL_FLAG(double, relinearize_tolerance, kEifDefaults.relinearize_tolerance,
+          "eif: a relinearisation iterates until no state entry moves by more than this (m, rad)");
+ABSL_FLAG(int, max_relinearizations, kEifDefaults.max_relinearizations,
+          "eif: at most this many iterations per relinearisation");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
@@ -235,6 +239,8 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
+  o.relinearize_tolerance = absl::GetFlag(FLAGS_relinearize_tolerance);
+  o.max_relinearizations = absl::GetFlag(FLAGS_max_relinearizations);
   o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);
   o.bound_candidate_marginals = absl::GetFlag(FLAGS_eif_bound_marginals);
   o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
