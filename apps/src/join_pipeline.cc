@@ -100,9 +100,10 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   if (!options.truth_landmarks.empty()) {
     metrics["map"] = MapErrorsJson(eval::ComputeMapErrors(r.landmarks, options.truth_landmarks),
                                    options.truth_landmarks.size());
-    metrics["map_by_truth_label"] = LabelledMapErrorsJson(eval::ComputeLabelledMapErrors(
+    const eval::LabelledMapErrors labelled = eval::ComputeLabelledMapErrors(
         r.landmarks, eval::GlobalLandmarkTruthLabels(joiner->graph(), submaps, r.landmarks),
-        options.truth_landmarks));
+        options.truth_landmarks);
+    if (labelled.labelled > 0) metrics["map_by_truth_label"] = LabelledMapErrorsJson(labelled);
   }
   metrics["association_vs_truth_id"] = {{"true_landmarks_seen", r.correct},
                                         {"missed_merges", r.missed},

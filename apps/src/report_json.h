@@ -40,7 +40,7 @@ inline nlohmann::json MapErrorsJson(const eval::MapErrors& m, size_t true_landma
 }
 
 inline nlohmann::json LabelledMapErrorsJson(const eval::LabelledMapErrors& m) {
-  return {{"labelled", m.labelled},           {"true_landmarks", m.true_landmarks},
+  return {{"labelled", m.labelled},           {"distinct_true_landmarks", m.true_landmarks},
           {"duplicates", m.duplicates},       {"rms_m", m.rms_m},
           {"rms_x_m", m.rms_x_m},             {"rms_y_m", m.rms_y_m},
           {"mean_landmark_nees", m.mean_nees}, {"fraction_nees_in_95", m.fraction_nees_in_95}};

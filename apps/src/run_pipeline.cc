@@ -152,7 +152,8 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (absl::Status s = seif.Validate(); !s.ok()) return s;
   const bool known_association = seif.known_association || options.ekf.known_association ||
                                  options.fastslam.known_association ||
-                                 options.backend.eif.association.known_association;
+                                 options.backend.eif.association.known_association ||
+                                 options.backend.ekf.association.known_association;
   if (known_association && !dataset.sensor.has_truth_id) {
     return absl::InvalidArgumentError(absl::StrCat(
         "known association needs detections with true ids; data set \"", dataset.name, "\" has none"));
@@ -255,7 +256,9 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
       r.labelled_map_errors = eval::ComputeLabelledMapErrors(
           r.landmarks, eval::GlobalLandmarkTruthLabels(chain->joiner()->graph(), r.local_maps, r.landmarks),
           dataset.truth_landmarks);
-      metrics["map_by_truth_label"] = LabelledMapErrorsJson(*r.labelled_map_errors);
+      if (r.labelled_map_errors->labelled > 0) {
+        metrics["map_by_truth_label"] = LabelledMapErrorsJson(*r.labelled_map_errors);
+      }
     }
   }
   if (!dataset.gps.empty()) {

@@ -288,7 +288,8 @@ void EkfSlam::Update(const io::Scan& scan) {
       ++counters_.ambiguous;
     }
   }
-  if (counters_.scans % options_.cull_every_scans != 0) return;
+  // Known association settles existence too (every landmark has a true id): no cull.
+  if (counters_.scans % options_.cull_every_scans != 0 || options_.known_association) return;
   std::vector<int> doomed;
   for (int i = 0; i < num_landmarks(); ++i) {
     if (options_.existence.Deletes(landmarks_[i].existence, landmarks_[i].confirmed)) {

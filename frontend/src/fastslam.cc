@@ -227,15 +227,12 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   if (options_.known_association) {
     // Known association: detection j belongs to the particle's landmark with its true id
     // (predicted even if the particle believes it out of reach), or starts one; a false
-    // alarm (no true id) and a second detection of one id in a scan are ignored.
+    // alarm or a repeated id (truth_ −1, see Update) is ignored.
     for (int j = 0; j < m; ++j) {
       decisions[j] = truth_[j] < 0 ? kIgnore : kNew;
-      for (int k = 0; k < j && decisions[j] != kIgnore; ++k) {
-        if (truth_[k] == truth_[j]) decisions[j] = kIgnore;
-      }
       if (decisions[j] == kIgnore) continue;
       for (int i = 0; i < n; ++i) {
-        if (particle->landmarks[i].truth_id != truth_[j]) continue;
+        if (particle->landmarks[i].gaussian->truth_id != truth_[j]) continue;
         decisions[j] = i;
         if (!predictions[i].in_reach) {
           predictions[i].in_reach = true;
@@ -500,6 +497,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       if (voted_label_[2 * j] != kIgnore) record.feature = voted_label_[2 * j];
     } else if (d == kNew) {
       auto l = std::make_shared<LandmarkGaussian>();
+      if (options_.known_association) l->truth_id = truth_[j];
       Eigen::Matrix2d G_z;
       l->mean = sensor_.InverseObserve(x, z[j], nullptr, &G_z);
       l->covariance = G_z * R * G_z.transpose();
@@ -512,7 +510,6 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       record.existence = options_.existence.Initial();  // the prior and the creating detection
       record.confirmed = options_.existence.Confirms(record.existence);
       record.feature = voted_label_[2 * j + 1];
-      if (options_.known_association) record.truth_id = truth_[j];
       landmarks.push_back(std::move(record));
       ++scratch->landmarks_created;
     }
@@ -521,7 +518,9 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
   for (int i = 0; i < n_before; ++i) {
     if (landmarks[i].missed) UpdateExistence(&landmarks[i], false);
   }
-  if (counters_.scans % options_.cull_every_scans == 0) {
+  // Known association settles existence too (every landmark has a true id): no cull, so
+  // a true landmark keeps its one landmark and common id.
+  if (counters_.scans % options_.cull_every_scans == 0 && !options_.known_association) {
     const auto doomed = [this](const LandmarkRecord& r) {
       return options_.existence.Deletes(r.existence, r.confirmed);
     };
@@ -547,7 +546,11 @@ void FastSlam::Update(const io::Scan& scan) {
     if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
     z_.push_back(d.z());
     signature_.push_back(d.signature);
-    if (options_.known_association) truth_.push_back(d.truth_id);
+    if (options_.known_association) {
+      // A false alarm, or an id already detected in this scan: no true landmark to pair.
+      const bool repeated = d.truth_id >= 0 && std::find(truth_.begin(), truth_.end(), d.truth_id) != truth_.end();
+      truth_.push_back(repeated ? io::kFalseAlarmId : d.truth_id);
+    }
     detection_index_.push_back(static_cast<int>(k));
   }
   const int m = static_cast<int>(z_.size());

@@ -13,15 +13,10 @@
 
 namespace subslam::eval {
 
-// The map against the truth through labels rather than distances: `truth_label[i]` is
-// the true landmark estimate i stands for (e.g. the majority true id of the local-map
-// features joined into it; −1 or any id not in `truth`: unlabelled). Unlike
-// ComputeMapErrors, a landmark far from its true position still counts (as a large
-// error), so the figures hold however far the map has drifted.
 struct LabelledMapErrors {
   int labelled = 0;           // estimates with a label found in the truth
   int true_landmarks = 0;     // distinct labels among them
-  int duplicates = 0;         // labelled − true_landmarks: one true landmark, several estimates
+  int duplicates = 0;         // labelled − true_landmarks: surplus estimates of a true landmark
   double rms_m = 0.0;         // over labelled estimates
   double rms_x_m = 0.0;
   double rms_y_m = 0.0;
@@ -36,6 +31,11 @@ struct LabelledMapErrors {
 std::vector<int> GlobalLandmarkTruthLabels(const SubmapGraph& graph, const std::vector<LocalSubmap>& labelled,
                                            const std::vector<LandmarkEstimate>& landmarks);
 
+// The map against the truth through labels rather than distances: `truth_label[i]` is
+// the true landmark estimate i stands for (e.g. from GlobalLandmarkTruthLabels; −1 or
+// any id not in `truth`: unlabelled). Unlike ComputeMapErrors, a landmark far from its
+// true position still counts (as a large error), so the figures hold however far the
+// map has drifted. All zero when nothing is labelled.
 LabelledMapErrors ComputeLabelledMapErrors(const std::vector<LandmarkEstimate>& estimate,
                                            const std::vector<int>& truth_label,
                                            const std::vector<io::TruthLandmark>& truth);

@@ -1,4 +1,5 @@
-// EKF-SLAM with unknown data association: the single-map baseline (Smith, Self &
+// EKF-SLAM with unknown data association (known association: a study option, see
+// EkfSlamOptions::known_association): the single-map baseline (Smith, Self &
 // Cheeseman; as used in HybridSLAM §4 and FMJ §II), and the base of the EKF local
 // mapper of later issues.
 //
@@ -47,8 +48,8 @@ struct EkfSlamOptions {
   long jcbb_max_nodes = 20000;  // JCBB search budget per scan
   // Known association (simulations; a study option, as in Combined SLAM §7): each
   // detection is paired with the landmark of the same io::Detection::truth_id, without
-  // gating, or starts one; false alarms (no true id) are dropped. Export() then reports
-  // each feature's true id.
+  // gating, or starts one; false alarms (no true id) and repeated ids in a scan are
+  // dropped, and no landmark is culled. Export() then reports each feature's true id.
   bool known_association = false;
   // Existence model (HybridSLAM Eq. 11): the filter's α and β (not the simulator's).
   ExistenceModel existence;

@@ -1,4 +1,5 @@
-// FastSLAM 2.0 with unknown data association: the Rao-Blackwellised particle filter of
+// FastSLAM 2.0 with unknown data association (known association: a study option, see
+// FastSlamOptions::known_association): the Rao-Blackwellised particle filter of
 // the local mapper (paper 001 §2-3, Montemerlo et al. 2003), usable on its own as the
 // single-map FastSLAM 2.0 baseline (`subslam run --frontend fastslam`).
 //
@@ -87,7 +88,8 @@ struct FastSlamOptions {
   AssociationScore association_score = AssociationScore::kLikelihood;
   // Known association (simulations; a study option, as in Combined SLAM §7): every
   // detection is paired with the particle's landmark of the same io::Detection::truth_id
-  // or starts one, without gating; false alarms (no true id) are ignored. MomentMatched()
+  // or starts one, without gating; false alarms (no true id) are ignored, and no landmark
+  // is culled (each true landmark keeps one landmark and one common id). MomentMatched()
   // then reports each feature's true id.
   bool known_association = false;
   // p0, the density of a detection explained by a new landmark or by clutter, is the
@@ -183,12 +185,12 @@ class FastSlam final : public OnlineEstimator {
     Eigen::Matrix2d covariance;
     double signature_sum = 0.0;  // over `signatures` detections
     int signatures = 0;
+    int truth_id = -1;  // known association only: the true id it was created for
   };
   struct LandmarkRecord {  // per particle
     std::shared_ptr<const LandmarkGaussian> gaussian;
     double existence = 0.5;
     int feature = -1;  // common feature id
-    int truth_id = -1;  // known association only
     bool confirmed = false;
     bool missed = false;  // scratch: expected in the last scan but not detected
   };
