@@ -407,19 +407,25 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
     Dots(*H[a], H, a, hub_block.col(a).data());
     for (int c = a + 1; c < h; ++c) hub_block(a, c) = hub_block(c, a);
   }
+  // Every group's columns against the hub: each hub column scattered once for all of them.
+  std::vector<const SparseColumn*> grouped;
+  for (const std::vector<int>& group : groups) {
+    for (int v : group) grouped.push_back(&ForwardColumn(v));
+  }
+  Eigen::MatrixXd hub_dots(grouped.size(), h);  // row: a grouped column, column: a hub one
+  for (int a = 0; a < h; ++a) Dots(*H[a], grouped, 0, hub_dots.col(a).data());
   std::vector<Eigen::MatrixXd> out;
   out.reserve(groups.size());
+  int first = 0;  // the group's first row in hub_dots
   for (const std::vector<int>& group : groups) {
     const int g = static_cast<int>(group.size());
-    std::vector<const SparseColumn*> G;
-    for (int v : group) G.push_back(&ForwardColumn(v));
+    const std::vector<const SparseColumn*> G(grouped.begin() + first, grouped.begin() + first + g);
     Eigen::MatrixXd m(h + g, h + g);
     m.topLeftCorner(h, h) = hub_block;
+    m.bottomLeftCorner(g, h) = hub_dots.middleRows(first, g);
+    m.topRightCorner(h, g) = m.bottomLeftCorner(g, h).transpose();
+    first += g;
     std::vector<double> dots(g);
-    for (int a = 0; a < h; ++a) {
-      Dots(*H[a], G, 0, dots.data());
-      for (int c = 0; c < g; ++c) m(a, h + c) = m(h + c, a) = dots[c];
-    }
     for (int a = 0; a < g; ++a) {
       Dots(*G[a], G, a, dots.data());
       for (int c = a; c < g; ++c) m(h + a, h + c) = m(h + c, h + a) = dots[c];

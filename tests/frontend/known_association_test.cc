@@ -77,6 +77,7 @@ TEST(KnownAssociation, FastSlamFeaturesFollowTheTrueIds) {
   const io::Dataset d = ClutteredCombined(200.0);
   FastSlamOptions options;
   options.num_particles = 30;
+  options.num_threads = 2;  // the per-particle pairing runs on worker threads too
   options.known_association = true;
   FastSlam filter(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   int false_alarms = 0;
