@@ -182,8 +182,11 @@ nlohmann::json Figure9(const Input& in, const std::vector<Backend>& kinds) {
 nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<Backend>& kinds) {
   std::printf("\nJoining cost against the number of local maps (random worlds, constant density)\n");
   std::printf("%8s %6s %9s", "path_km", "maps", "landmarks");
-  for (Backend kind : kinds) std::printf(" %11s %9s", (std::string(subslam::app::ToString(kind)) + "_s").c_str(), "/nlog2n");
-  std::printf("\n");
+  for (Backend kind : kinds) {
+    std::printf(" %11s %9s %13s", (std::string(subslam::app::ToString(kind)) + "_s").c_str(), "/nlog2n",
+                "last10%_ms/j");
+  }
+  std::printf("   (eif: factorisation / state recovery [s])\n");
   nlohmann::json rows = nlohmann::json::array();
   for (double km : lengths_km) {
     subslam::sim::ScenarioOptions o;
@@ -201,20 +204,24 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
     for (Backend kind : kinds) {
       const bool dense = kind == Backend::kEkf || kind == Backend::kTreeEkf;
       if (dense && km > absl::GetFlag(FLAGS_growth_dense_max_km)) {
-        std::printf(" %11s %9s", "-", "-");
+        std::printf(" %11s %9s %13s", "-", "-", "-");
         continue;
       }
       std::map<std::string, double> stages;
       const std::vector<double> t = TimeEachJoin(in->maps, kind, in->dataset.initial_pose, &stages);
       const double total = t.empty() ? NAN : t.back();
       row[std::string(subslam::app::ToString(kind)) + "_stages"] = stages;
+      double last_tenth_ms = NAN;
       if (t.size() >= 10) {  // per-join time in the last tenth of the joins
         const size_t a = t.size() - t.size() / 10;
-        row[std::string(subslam::app::ToString(kind)) + "_last_tenth_ms_per_join"] =
-            1e3 * (t.back() - t[a - 1]) / static_cast<double>(t.size() - a);
+        last_tenth_ms = 1e3 * (t.back() - t[a - 1]) / static_cast<double>(t.size() - a);
+        row[std::string(subslam::app::ToString(kind)) + "_last_tenth_ms_per_join"] = last_tenth_ms;
       }
-      std::printf(" %11.4f %9.2e", total, total / (n * std::log2(std::max(2.0, n))));
+      std::printf(" %11.4f %9.2e %13.2f", total, total / (n * std::log2(std::max(2.0, n))), last_tenth_ms);
       row[std::string(subslam::app::ToString(kind)) + "_s"] = total;
+      if (kind == Backend::kEif) {
+        std::printf("   (%.3f / %.3f)", stages["factorization"], stages["recovery"] + stages["recovery_check"]);
+      }
     }
     std::printf("\n");
     rows.push_back(row);
