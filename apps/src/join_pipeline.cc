@@ -131,6 +131,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"associated_features", joiner->counters().associated},
                 {"rejected_joins", joiner->counters().rejected_joins},
                 {"relinearizations", joiner->counters().relinearizations},
+                {"relinearizations_diverged", joiner->counters().relinearizations_diverged},
                 {"jcbb_truncated", joiner->counters().jcbb_truncated},
                 {"incremental_factor_updates", joiner->counters().incremental_updates},
                 {"full_factorizations", joiner->counters().full_factorizations},

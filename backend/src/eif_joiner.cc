@@ -264,7 +264,30 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   return absl::OkStatus();
 }
 
+double EifJoiner::Cost() const {
+  const auto pose = [this](int k) {
+    const Pose2& p = graph_.anchors()[k];
+    return Pose2(p.x, p.y, anchor_theta_[k]);
+  };
+  double cost = 0.0;
+  for (const SubmapFactor& record : graph_.factors()) {
+    std::vector<Eigen::Vector2d> landmarks;
+    for (int j : record.landmark_of_feature) landmarks.push_back(graph_.landmarks()[j]);
+    const Eigen::VectorXd r =
+        LinearizeSubmapFactor(record.submap, pose(record.start_anchor), pose(record.end_anchor), landmarks).residual;
+    cost += r.dot(record.submap.covariance.ldlt().solve(r));
+  }
+  return cost;
+}
+
 absl::Status EifJoiner::Relinearize() {
+  // Gauss-Newton need not lower the cost at every iteration (a first step often raises
+  // it a little on the way to a lower minimum), but two rises in a row mean divergence
+  // (seen with wrong associations): then the best iterate is restored — the factors'
+  // linearisation whose solution it was — and the iterations end.
+  double best_cost = Cost(), last_cost = best_cost;
+  std::vector<Factor> best_factors = factors_;  // their solution is the current estimate
+  int rises = 0;
   for (int it = 0; it < options_.max_relinearizations; ++it) {
     const Eigen::VectorXd before = StateVector();
     {
@@ -273,6 +296,17 @@ absl::Status EifJoiner::Relinearize() {
     }
     if (absl::Status s = Rebuild(/*only_last_factor=*/false); !s.ok()) return s;
     ++counters_.relinearizations;
+    const double cost = Cost();
+    rises = cost > last_cost ? rises + 1 : 0;
+    last_cost = cost;
+    if (cost < best_cost) {
+      best_cost = cost;
+      best_factors = factors_;
+    } else if (rises >= 2 || !std::isfinite(cost)) {
+      ++counters_.relinearizations_diverged;
+      factors_ = std::move(best_factors);
+      return Rebuild(/*only_last_factor=*/false);
+    }
     if ((StateVector() - before).cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
   }
   return absl::OkStatus();

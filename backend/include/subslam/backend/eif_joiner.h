@@ -158,7 +158,11 @@ class EifJoiner final : public MapJoiner {
   // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
   // solve; write the estimate back.
   absl::Status Rebuild(bool only_last_factor);
+  // Gauss-Newton over every factor from the current estimate, to relinearize_tolerance or
+  // max_relinearizations; stopped at the best iterate if the cost rises twice in a row.
   absl::Status Relinearize();
+  // The nonlinear least-squares cost Σ_f r_fᵀ Q_f⁻¹ r_f at the current estimate.
+  double Cost() const;
   absl::Status JoinWith(const LocalSubmap& submap, bool associate);
   // Association of `s` (starting at anchor `start`) with the map, timed and counted.
   SubmapAssociation AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);

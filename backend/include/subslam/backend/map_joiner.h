@@ -26,6 +26,7 @@ struct JoinerCounters {
   long associated = 0;        // features matched to an existing landmark
   long new_landmarks = 0;
   long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
+  long relinearizations_diverged = 0;  // stopped at their best iterate (two rises in a row)
   long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
   long rejected_joins = 0;    // failed validation: joined again without associations
   // EIF factor maintenance: joins absorbed by an incremental update of the factor, full
@@ -45,6 +46,7 @@ struct JoinerCounters {
     associated += o.associated;
     new_landmarks += o.new_landmarks;
     relinearizations += o.relinearizations;
+    relinearizations_diverged += o.relinearizations_diverged;
     jcbb_truncated += o.jcbb_truncated;
     rejected_joins += o.rejected_joins;
     incremental_updates += o.incremental_updates;
