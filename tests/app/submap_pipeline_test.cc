@@ -14,10 +14,10 @@
 namespace subslam::app {
 namespace {
 
-io::Dataset Simulate(uint64_t seed) {
+io::Dataset Simulate(uint64_t seed, const std::string& scenario = "hybrid-120m") {
   sim::ScenarioOptions o;
   o.seed = seed;
-  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", o);
+  absl::StatusOr<io::Dataset> d = sim::SimulateScenario(scenario, o);
   EXPECT_TRUE(d.ok()) << d.status();
   return *std::move(d);
 }
@@ -179,20 +179,17 @@ TEST(SubmapPipeline, JoinedAnchorsAreNotOverconfident) {
 // covariance (last step's NEES below χ²₃(0.999)); the whole trajectory passes the 10σ
 // test; no local-map feature mixes two true landmarks, and no true landmark is mapped twice.
 TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
-  sim::ScenarioOptions o;
-  o.seed = 1;
-  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("combined-2km", o);
-  ASSERT_TRUE(d.ok()) << d.status();
+  const io::Dataset d = Simulate(1, "combined-2km");
   RunOptions options;
   options.frontend = Frontend::kRbpf;
   options.fastslam.known_association = true;
   options.backend.kind = Backend::kNone;
-  absl::StatusOr<RunResult> chained = RunPipeline(*d, options);
+  absl::StatusOr<RunResult> chained = RunPipeline(d, options);
   ASSERT_TRUE(chained.ok()) << chained.status();
   options.backend.kind = Backend::kEif;
   options.backend.eif.association.known_association = true;
   options.backend.eif.relinearize_at_end = true;
-  absl::StatusOr<RunResult> joined = RunPipeline(*d, options);
+  absl::StatusOr<RunResult> joined = RunPipeline(d, options);
   ASSERT_TRUE(joined.ok()) << joined.status();
   EXPECT_EQ(joined->impure_features, 0);
   // Each true landmark is one global landmark (evaluated by label, not by distance).
@@ -213,23 +210,20 @@ TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
 // now stop it at its best iterate: that happens here, and the joined anchors stay closer
 // to the truth than the same local maps chained without a back-end.
 TEST(SubmapPipeline, RelinearisationStopsADivergenceAtItsBestIterate) {
-  sim::ScenarioOptions o;
-  o.seed = 1;
-  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("combined-2km", o);
-  ASSERT_TRUE(d.ok()) << d.status();
+  const io::Dataset d = Simulate(1, "combined-2km");
   RunOptions run;
   run.frontend = Frontend::kRbpf;
-  absl::StatusOr<RunResult> chained = RunPipeline(*d, run);
+  absl::StatusOr<RunResult> chained = RunPipeline(d, run);
   ASSERT_TRUE(chained.ok()) << chained.status();
   JoinOptions options;
-  options.initial_pose = d->initial_pose;
+  options.initial_pose = d.initial_pose;
   options.backend.eif.relinearize_every = 10;
   options.backend.eif.relinearize_tolerance = 1e-3;
   options.backend.eif.relinearize_at_end = true;
   absl::StatusOr<JoinResult> joined = RunJoin(chained->local_maps, options);
   ASSERT_TRUE(joined.ok()) << joined.status();
   EXPECT_GT(joined->report["counts"]["relinearizations_diverged"].get<long>(), 0);
-  const eval::TrajectoryErrors anchors = eval::ComputeTrajectoryErrors(joined->anchors, d->truth_poses);
+  const eval::TrajectoryErrors anchors = eval::ComputeTrajectoryErrors(joined->anchors, d.truth_poses);
   EXPECT_LT(anchors.rms_position_m, chained->errors->rms_position_m);
 }
 
