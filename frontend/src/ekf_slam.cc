@@ -115,6 +115,25 @@ void EkfSlam::Update(const io::Scan& scan) {
   counters_.detections += static_cast<long>(z.size());
   const int m = static_cast<int>(z.size());
 
+  // Known association: the landmark each detection's true id names (−1: none yet, a new
+  // one), or kDropped for a false alarm or an id already detected in this scan.
+  constexpr int kDropped = -2;
+  std::vector<int> known_landmark(m, -1), truth_of_detection(m, -1);
+  if (options_.known_association) {
+    for (int j = 0; j < m; ++j) {
+      const int truth = scan.detections[detection_index[j]].truth_id;
+      const auto earlier = truth_of_detection.begin() + j;
+      if (truth < 0 || std::find(truth_of_detection.begin(), earlier, truth) != earlier) {
+        known_landmark[j] = kDropped;
+        continue;
+      }
+      truth_of_detection[j] = truth;
+      for (int i = 0; i < num_landmarks() && known_landmark[j] < 0; ++i) {
+        if (landmarks_[i].truth_id == truth) known_landmark[j] = i;
+      }
+    }
+  }
+
   // 1. Predicted measurements and individual compatibility.
   std::vector<Prediction> predictions;
   AssociationProblem problem;
@@ -124,36 +143,22 @@ void EkfSlam::Update(const io::Scan& scan) {
   std::vector<int> prediction_of_landmark(landmarks_.size(), -1);
   {
     StageTimer timer(&times_, "associate");
-    const double reach = rb.max_range_m + 10.0;
-    for (int i = 0; i < num_landmarks(); ++i) {
-      const Eigen::Vector2d l = x_.segment<2>(Offset(i));
-      if ((l - p.translation()).squaredNorm() > reach * reach) continue;
+    const auto predict = [&](int i) {
       Prediction pr;
       pr.landmark = i;
-      pr.z = sensor_.Observe(p, l, &pr.H_pose, &pr.H_landmark);
+      pr.z = sensor_.Observe(p, x_.segment<2>(Offset(i)), &pr.H_pose, &pr.H_landmark);
+      prediction_of_landmark[i] = static_cast<int>(predictions.size());
       predictions.push_back(pr);
+    };
+    const double reach = rb.max_range_m + 10.0;
+    for (int i = 0; i < num_landmarks(); ++i) {
+      if ((x_.segment<2>(Offset(i)) - p.translation()).squaredNorm() <= reach * reach) predict(i);
     }
-    if (options_.known_association) {
-      // A detected landmark is predicted even if the estimate puts it out of reach.
-      for (int j = 0; j < m; ++j) {
-        const int truth = scan.detections[detection_index[j]].truth_id;
-        for (int i = 0; truth >= 0 && i < num_landmarks(); ++i) {
-          if (landmarks_[i].truth_id != truth) continue;
-          if (std::none_of(predictions.begin(), predictions.end(),
-                           [i](const Prediction& pr) { return pr.landmark == i; })) {
-            Prediction pr;
-            pr.landmark = i;
-            pr.z = sensor_.Observe(p, x_.segment<2>(Offset(i)), &pr.H_pose, &pr.H_landmark);
-            predictions.push_back(pr);
-          }
-          break;
-        }
-      }
+    // A detected landmark is predicted even if the estimate puts it out of reach.
+    for (int i : known_landmark) {
+      if (i >= 0 && prediction_of_landmark[i] < 0) predict(i);
     }
     for (Prediction& pr : predictions) pr.S = CrossCovariance(pr, pr) + R;
-    for (int k = 0; k < static_cast<int>(predictions.size()); ++k) {
-      prediction_of_landmark[predictions[k].landmark] = k;
-    }
     for (int j = 0; j < m && !options_.known_association; ++j) {
       for (const Prediction& pr : predictions) {
         const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
@@ -170,34 +175,22 @@ void EkfSlam::Update(const io::Scan& scan) {
     }
   }
   AssociationResult association;
-  std::vector<int> truth_of_detection(m, -1);
   {
     StageTimer timer(&times_, "associate");
     if (options_.known_association) {
-      // The pairing the true ids give; an unseen id starts a landmark (min_d2 = ∞); a
-      // false alarm or a second detection of one id in the scan is dropped.
+      // The pairing the true ids give; an unseen id starts a landmark (below).
       association.landmark_of_detection.assign(m, -1);
       for (int j = 0; j < m; ++j) {
-        const int truth = scan.detections[detection_index[j]].truth_id;
-        const bool repeated = std::find(truth_of_detection.begin(), truth_of_detection.begin() + j,
-                                        truth) != truth_of_detection.begin() + j;
-        if (truth < 0 || repeated) {
-          min_d2[j] = 0.0;
-          ++counters_.known_ignored;
-          continue;
-        }
-        truth_of_detection[j] = truth;
-        for (int i = 0; i < num_landmarks(); ++i) {
-          if (landmarks_[i].truth_id != truth) continue;
-          const Prediction& pr = predictions[prediction_of_landmark[i]];
-          const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
-          const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
-          SUBSLAM_CHECK(d2.has_value()) << "innovation covariance not positive definite";
-          problem.candidates[j].push_back({i, *d2, nu});
-          association.landmark_of_detection[j] = i;
-          gated[i] = true;
-          break;
-        }
+        const int i = known_landmark[j];
+        if (i == kDropped) ++counters_.known_ignored;
+        if (i < 0) continue;
+        const Prediction& pr = predictions[prediction_of_landmark[i]];
+        const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+        const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
+        SUBSLAM_CHECK(d2.has_value()) << "innovation covariance not positive definite";
+        problem.candidates[j].push_back({i, *d2, nu});
+        association.landmark_of_detection[j] = i;
+        gated[i] = true;
       }
     } else if (options_.association == AssociationMethod::kJointCompatibility) {
       problem.covariance_block = [&](int, int a, int, int b) -> Eigen::Matrix2d {
@@ -280,7 +273,7 @@ void EkfSlam::Update(const io::Scan& scan) {
     }
   }
   for (int j = 0; j < m; ++j) {
-    if (association.landmark_of_detection[j] >= 0) continue;
+    if (association.landmark_of_detection[j] >= 0 || known_landmark[j] == kDropped) continue;
     if (min_d2[j] > new_landmark_d2_) {
       AddLandmark(z[j], truth_of_detection[j]);
       scan_features_[detection_index[j]] = landmarks_.back().id;

@@ -208,6 +208,10 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     pr.z[1] = NAN;  // the bearing (an atan2) only for pairs that pass the range gate
     pr.Z = H_l * l.covariance * H_l.transpose() + R;
   };
+  const auto predict_bearing = [&](int i) {
+    Prediction& pr = predictions[i];
+    if (std::isnan(pr.z[1])) pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
+  };
   for (int i = 0; i < n; ++i) {
     Prediction& pr = predictions[i];
     const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
@@ -289,11 +293,8 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     for (int j = 0; j < m; ++j) {
       const int i = decisions[j];
       if (i < 0) continue;
-      Prediction& pr = predictions[i];
-      if (std::isnan(pr.z[1])) {
-        pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
-      }
-      pr.gated = true;
+      predict_bearing(i);
+      predictions[i].gated = true;
       associate(j, i);
     }
   } else {
@@ -306,9 +307,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
         // νᵀS⁻¹ν ≥ ν_r² / S_rr: most pairs are rejected on range alone.
         const double nu_r = z[j][0] - pr.z[0];
         if (nu_r * nu_r >= new_landmark_d2_ * pr.S(0, 0)) continue;
-        if (std::isnan(pr.z[1])) {
-          pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
-        }
+        predict_bearing(i);
         const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
         const double d2 = nu.dot(pr.S_inv * nu);
         min_d2[j] = std::min(min_d2[j], d2);
@@ -360,12 +359,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
         for (const auto& [i, ll] : likelihoods) {
           r -= std::exp(ll - max_ll);
           if (r < 0) {
-            const PairScore score = Score(predictions[i], *particle->landmarks[i].gaussian, z[j], signature[j], delta, Sigma);
-            predictions[i].used = true;
-            decisions[j] = i;
-            log_w += score.log_likelihood_but_det - 0.5 * std::log(score.det);
-            update_proposal(predictions[i], score);
-            ++scratch->associated;
+            associate(j, i);
             break;
           }
         }
