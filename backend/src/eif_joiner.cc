@@ -92,13 +92,8 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
 void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   const LocalSubmap& s = record.submap;
-  const auto pose = [this](int k) {
-    const Pose2& p = graph_.anchors()[k];
-    return Pose2(p.x, p.y, anchor_theta_[k]);
-  };
-  const Pose2 start = pose(record.start_anchor), end = pose(record.end_anchor);
-  std::vector<Eigen::Vector2d> landmarks;
-  for (int j : record.landmark_of_feature) landmarks.push_back(graph_.landmarks()[j]);
+  const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
+  const std::vector<Eigen::Vector2d> landmarks = FactorLandmarks(record);
   const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
 
   // Stack the Jacobian over the variable blocks (P0, fixed, has none) and x̂.
@@ -264,19 +259,28 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   return absl::OkStatus();
 }
 
+Pose2 EifJoiner::AnchorPose(int k) const {
+  const Pose2& p = graph_.anchors()[k];
+  return Pose2(p.x, p.y, anchor_theta_[k]);
+}
+
+std::vector<Eigen::Vector2d> EifJoiner::FactorLandmarks(const SubmapFactor& record) const {
+  std::vector<Eigen::Vector2d> landmarks;
+  landmarks.reserve(record.landmark_of_feature.size());
+  for (int j : record.landmark_of_feature) landmarks.push_back(graph_.landmarks()[j]);
+  return landmarks;
+}
+
+double EifJoiner::NormalisedResidual(const SubmapFactor& record) const {
+  const Eigen::VectorXd r = LinearizeSubmapFactor(record.submap, AnchorPose(record.start_anchor),
+                                                  AnchorPose(record.end_anchor), FactorLandmarks(record))
+                                .residual;
+  return r.dot(record.submap.covariance.ldlt().solve(r));
+}
+
 double EifJoiner::Cost() const {
-  const auto pose = [this](int k) {
-    const Pose2& p = graph_.anchors()[k];
-    return Pose2(p.x, p.y, anchor_theta_[k]);
-  };
   double cost = 0.0;
-  for (const SubmapFactor& record : graph_.factors()) {
-    std::vector<Eigen::Vector2d> landmarks;
-    for (int j : record.landmark_of_feature) landmarks.push_back(graph_.landmarks()[j]);
-    const Eigen::VectorXd r =
-        LinearizeSubmapFactor(record.submap, pose(record.start_anchor), pose(record.end_anchor), landmarks).residual;
-    cost += r.dot(record.submap.covariance.ldlt().solve(r));
-  }
+  for (const SubmapFactor& record : graph_.factors()) cost += NormalisedResidual(record);
   return cost;
 }
 
@@ -285,8 +289,10 @@ absl::Status EifJoiner::Relinearize() {
   // it a little on the way to a lower minimum), but two rises in a row mean divergence
   // (seen with wrong associations): then the best iterate is restored — the factors'
   // linearisation whose solution it was — and the iterations end.
-  double best_cost = Cost(), last_cost = best_cost;
-  std::vector<Factor> best_factors = factors_;  // their solution is the current estimate
+  const bool watch = options_.max_relinearizations >= 2;  // two rises need two iterations
+  double best_cost = watch ? Cost() : 0.0, last_cost = best_cost;
+  std::vector<Factor> best_factors;  // their solution is the best iterate so far
+  if (watch) best_factors = factors_;
   int rises = 0;
   for (int it = 0; it < options_.max_relinearizations; ++it) {
     const Eigen::VectorXd before = StateVector();
@@ -296,16 +302,18 @@ absl::Status EifJoiner::Relinearize() {
     }
     if (absl::Status s = Rebuild(/*only_last_factor=*/false); !s.ok()) return s;
     ++counters_.relinearizations;
-    const double cost = Cost();
-    rises = cost > last_cost ? rises + 1 : 0;
-    last_cost = cost;
-    if (cost < best_cost) {
-      best_cost = cost;
-      best_factors = factors_;
-    } else if (rises >= 2 || !std::isfinite(cost)) {
-      ++counters_.relinearizations_diverged;
-      factors_ = std::move(best_factors);
-      return Rebuild(/*only_last_factor=*/false);
+    if (watch) {
+      const double cost = Cost();
+      rises = cost > last_cost ? rises + 1 : 0;
+      last_cost = cost;
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_factors = factors_;
+      } else if (rises >= 2 || !std::isfinite(cost)) {
+        ++counters_.relinearizations_diverged;
+        factors_ = std::move(best_factors);
+        return Rebuild(/*only_last_factor=*/false);
+      }
     }
     if ((StateVector() - before).cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
   }
@@ -394,16 +402,7 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   if (matched == 0) return absl::OkStatus();
   // The new factor's normalised residual at the new estimate, against χ² with 2 dof per
   // matched feature (the end pose and new landmarks fit exactly).
-  Factor& f = factors_.back();
-  const SubmapFactor& record = graph_.factors()[f.index];
-  std::vector<Eigen::Vector2d> lms;
-  for (int j : record.landmark_of_feature) lms.push_back(graph_.landmarks()[j]);
-  const auto pose = [this](int k) {
-    return Pose2(graph_.anchors()[k].x, graph_.anchors()[k].y, anchor_theta_[k]);
-  };
-  const SubmapFactorLinearization lin =
-      LinearizeSubmapFactor(s, pose(record.start_anchor), pose(record.end_anchor), lms);
-  const double d2 = lin.residual.dot(s.covariance.ldlt().solve(lin.residual));
+  const double d2 = NormalisedResidual(graph_.factors()[factors_.back().index]);
   const double bound = models::ChiSquareQuantile(options_.validation_probability, 2 * matched);
   if (d2 <= bound) return absl::OkStatus();
   // Rejected: undo, and join the local map again without associations (its odometry

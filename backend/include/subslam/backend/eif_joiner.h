@@ -161,8 +161,13 @@ class EifJoiner final : public MapJoiner {
   // Gauss-Newton over every factor from the current estimate, to relinearize_tolerance or
   // max_relinearizations; stopped at the best iterate if the cost rises twice in a row.
   absl::Status Relinearize();
-  // The nonlinear least-squares cost Σ_f r_fᵀ Q_f⁻¹ r_f at the current estimate.
+  // The nonlinear least-squares cost Σ_f r_fᵀ Q_f⁻¹ r_f at the current estimate, and one
+  // factor's term.
   double Cost() const;
+  double NormalisedResidual(const SubmapFactor& record) const;
+  // Anchor k with its continuous (unwrapped) heading; a factor's landmarks, in its order.
+  Pose2 AnchorPose(int k) const;
+  std::vector<Eigen::Vector2d> FactorLandmarks(const SubmapFactor& record) const;
   absl::Status JoinWith(const LocalSubmap& submap, bool associate);
   // Association of `s` (starting at anchor `start`) with the map, timed and counted.
   SubmapAssociation AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
