@@ -425,10 +425,9 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
     m.bottomLeftCorner(g, h) = hub_dots.middleRows(first, g);
     m.topRightCorner(h, g) = m.bottomLeftCorner(g, h).transpose();
     first += g;
-    std::vector<double> dots(g);
     for (int a = 0; a < g; ++a) {
-      Dots(*G[a], G, a, dots.data());
-      for (int c = a; c < g; ++c) m(h + a, h + c) = m(h + c, h + a) = dots[c];
+      Dots(*G[a], G, a, m.col(h + a).data() + h);  // the lower triangle, column by column
+      for (int c = a + 1; c < g; ++c) m(h + a, h + c) = m(h + c, h + a);
     }
     out.push_back(std::move(m));
   }
