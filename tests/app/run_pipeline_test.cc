@@ -160,7 +160,7 @@ TEST(RunPipeline, SeifAndIseifRunWithTheirReport) {
   }
 }
 
-TEST(RunPipeline, SeifKnownAssociationNeedsTrueIds) {
+TEST(RunPipeline, KnownAssociationNeedsTrueIds) {
   sim::ScenarioOptions o;
   o.duration_s = 10;
   absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", o);
@@ -175,6 +175,18 @@ TEST(RunPipeline, SeifKnownAssociationNeedsTrueIds) {
   options.seif.max_active_landmarks = -1;
   options.seif.known_association = false;
   EXPECT_FALSE(RunPipeline(*d, options).ok());
+  // The same for the local mappers and the back-end (--known_association reaches all).
+  RunOptions rbpf;
+  rbpf.frontend = Frontend::kRbpf;
+  rbpf.fastslam.known_association = true;
+  r = RunPipeline(*d, rbpf);
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("true ids"), std::string::npos) << r.status();
+  RunOptions ekf_eif;
+  ekf_eif.frontend = Frontend::kEkfLocal;
+  ekf_eif.backend.kind = Backend::kEif;
+  ekf_eif.backend.eif.association.known_association = true;
+  EXPECT_FALSE(RunPipeline(*d, ekf_eif).ok());
 }
 
 // The paper's Table 3 (SEIF 7.53 / 5.38 m, ISEIF 4.71 / 4.83 m per axis) as an upper bound.

@@ -245,6 +245,12 @@ TEST(BackendOptions, RejectsBadInput) {
   o.ceres_every = 0;
   o.ekf.association.recent_maps = -1;
   EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.eif.relinearize_tolerance = 0.0;  // --relinearize_tolerance
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.eif.max_relinearizations = 0;  // --max_relinearizations
+  EXPECT_FALSE(o.Validate().ok());
 
   const io::Dataset d = Simulate(1);
   JoinOptions join;
