@@ -27,9 +27,11 @@ absl::Status EifJoinerOptions::Validate() const {
   if (!(validation_probability > 0 && validation_probability < 1)) {
     return absl::InvalidArgumentError("validation_probability must be in (0, 1)");
   }
-  if (relinearize_every < 0 || max_relinearizations < 1 || !(relinearize_tolerance > 0)) {
+  if (relinearize_every < 0 || max_relinearizations < 1 || !(relinearize_tolerance > 0) ||
+      divergence_rises < 0) {
     return absl::InvalidArgumentError(
-        "relinearize_every >= 0, max_relinearizations >= 1, relinearize_tolerance > 0");
+        "relinearize_every >= 0, max_relinearizations >= 1, relinearize_tolerance > 0, "
+        "divergence_rises >= 0");
   }
   return absl::OkStatus();
 }
@@ -286,10 +288,11 @@ double EifJoiner::Cost() const {
 
 absl::Status EifJoiner::Relinearize() {
   // Gauss-Newton need not lower the cost at every iteration (a first step often raises
-  // it a little on the way to a lower minimum), but two rises in a row mean divergence
-  // (seen with wrong associations): then the best iterate is restored — the factors'
-  // linearisation whose solution it was — and the iterations end.
-  const bool watch = options_.max_relinearizations >= 2;  // two rises need two iterations
+  // it a little on the way to a lower minimum), but `divergence_rises` rises in a row
+  // mean divergence (seen with wrong associations): then the best iterate is restored —
+  // the factors' linearisation whose solution it was — and the iterations end.
+  const int max_rises = options_.divergence_rises;
+  const bool watch = max_rises > 0 && options_.max_relinearizations >= max_rises;
   double best_cost = watch ? Cost() : 0.0, last_cost = best_cost;
   std::vector<Factor> best_factors;  // their solution is the best iterate so far
   if (watch) best_factors = factors_;
@@ -309,7 +312,7 @@ absl::Status EifJoiner::Relinearize() {
       if (cost < best_cost) {
         best_cost = cost;
         best_factors = factors_;
-      } else if (rises >= 2 || !std::isfinite(cost)) {
+      } else if (rises >= max_rises || !std::isfinite(cost)) {
         ++counters_.relinearizations_diverged;
         factors_ = std::move(best_factors);
         return Rebuild(/*only_last_factor=*/false);

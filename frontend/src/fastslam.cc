@@ -188,6 +188,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   std::vector<Prediction>& predictions = scratch->predictions;
   std::vector<GatedPair>& pairs = scratch->pairs;
   std::vector<double>& min_d2 = scratch->min_d2;
+  std::vector<double>& best_ll = scratch->best_log_likelihood;
   std::vector<std::pair<int, double>>& likelihoods = scratch->likelihoods;
   const Eigen::Matrix2d R = sensor_.NoiseCovariance();
   const double reach = sensor_.config().max_range_m + 10.0;
@@ -286,6 +287,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     pr.det = det;
   }
   min_d2.assign(m, INFINITY);
+  best_ll.assign(m, log_p0_);
   pairs.clear();
   if (options_.known_association) {
     // 2. Known association: the given pairings in detection order, each scored at the
@@ -313,15 +315,14 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
         min_d2[j] = std::min(min_d2[j], d2);
         if (d2 >= new_landmark_d2_) continue;
         pr.gated = true;
-        if (d2 >= gate_d2_) continue;
-        double rank = -d2;
-        if (options_.association_score == AssociationScore::kLikelihood) {
-          if (std::isnan(pr.log_norm)) {
-            pr.log_norm = -std::log(2.0 * std::numbers::pi) - 0.5 * std::log(pr.det);
-          }
-          rank = pr.log_norm - 0.5 * d2 +
-                 SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
+        if (std::isnan(pr.log_norm)) {
+          pr.log_norm = -std::log(2.0 * std::numbers::pi) - 0.5 * std::log(pr.det);
         }
+        const double ll = pr.log_norm - 0.5 * d2 +
+                          SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
+        best_ll[j] = std::max(best_ll[j], ll);
+        if (d2 >= gate_d2_) continue;
+        const double rank = options_.association_score == AssociationScore::kLikelihood ? ll : -d2;
         pairs.push_back({rank, j, i});
       }
     }
@@ -372,10 +373,10 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   //    landmark, otherwise ignored; both with the density p0.
   for (int j = 0; j < m; ++j) {
     if (decisions[j] >= 0) continue;
-    log_w += log_p0_;
     if (decisions[j] != kNew && !options_.known_association) {
       decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
     }
+    log_w += decisions[j] == kIgnore && !options_.known_association ? best_ll[j] : log_p0_;
     if (decisions[j] == kIgnore) ++scratch->ignored;
   }
   // Sample the pose from the proposal.

@@ -74,6 +74,20 @@ TEST(RbpfLocalMaps, Hybrid120mJointNeesIsConsistent) {
       << t.landmarks_inside << " / " << t.landmarks;
 }
 
+// A detection between the association gate and the new-landmark gate updates nothing,
+// but a particle's weight must still score it by its landmark's likelihood: weighted
+// by the new-landmark density instead, particles whose pose puts their landmarks just
+// outside the gate were down-weighted, which cut off the tails of the pose posterior
+// (here: end pose inside its bounds in 79% of the maps). With the likelihood the end
+// pose stays consistent at a tight gate too.
+TEST(RbpfLocalMaps, Hybrid120mTightGateKeepsTheEndPoseConsistent) {
+  RunOptions options = Rbpf(300);
+  options.fastslam.gate_probability = 0.9;
+  const Totals t = RunLocalMaps("hybrid-120m", {1, 2}, 150.0, options);
+  ASSERT_GT(t.maps, 50);
+  EXPECT_GE(t.pose_inside, BinomialLowerBound(t.maps)) << t.pose_inside << " / " << t.maps;
+}
+
 // The EKF local mapper under the same policy: its local maps are consistent too.
 TEST(EkfLocalMaps, Hybrid120mJointNeesIsConsistent) {
   RunOptions options;

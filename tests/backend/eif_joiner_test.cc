@@ -356,6 +356,43 @@ TEST(EifJoiner, ValidationCatchesAnInjectedWrongAssociation) {
   EXPECT_TRUE(clean.rejected().empty());
 }
 
+// The divergence stop of relinearisation (divergence_rises), on local maps whose end
+// headings were corrupted by ±1.5 rad: a case where the first Gauss-Newton step raises
+// the cost before later ones lower it. With one rise allowed (the default: two in a row
+// stop) the iterations go on to a lower cost; with none (monotone Gauss-Newton) the
+// first step is undone — the starting linearisation and its estimate restored, counted.
+TEST(EifJoiner, RelinearisationStopsAtItsBestIterateAfterTooManyCostRises) {
+  SyntheticRun run = MakeRun(4, 24);
+  for (int k = 5; k < 24; k += 6) run.submaps[k].mean[2] += (k % 12 == 5 ? 1.5 : -1.5);
+  const auto joined = [&](bool relinearize, int rises) {
+    EifJoinerOptions options;
+    options.association.known_association = true;
+    options.relinearize_at_end = relinearize;
+    options.divergence_rises = rises;
+    auto eif = std::make_unique<EifJoiner>(run.anchors[0], options);
+    for (const LocalSubmap& s : run.submaps) EXPECT_TRUE(eif->Join(s).ok());
+    EXPECT_TRUE(eif->Finish().ok());
+    return eif;
+  };
+  const std::unique_ptr<EifJoiner> single = joined(false, 2);
+  const std::unique_ptr<EifJoiner> allowed = joined(true, 2);
+  const std::unique_ptr<EifJoiner> monotone = joined(true, 1);
+  const std::unique_ptr<EifJoiner> unwatched = joined(true, 0);
+  const double start = single->Cost();
+  EXPECT_EQ(allowed->counters().relinearizations_diverged, 0);
+  EXPECT_GT(allowed->counters().relinearizations, 2);
+  EXPECT_LT(allowed->Cost(), 0.6 * start);
+  EXPECT_EQ(unwatched->counters().relinearizations_diverged, 0);
+  EXPECT_NEAR(unwatched->Cost(), allowed->Cost(), 1e-9 * start);
+  EXPECT_EQ(monotone->counters().relinearizations_diverged, 1);
+  EXPECT_EQ(monotone->counters().relinearizations, 1);
+  EXPECT_NEAR(monotone->Cost(), start, 1e-9 * start);
+  for (size_t k = 0; k < run.anchors.size(); ++k) {
+    EXPECT_TRUE(MatricesNear(monotone->graph().anchors()[k].vector(), single->graph().anchors()[k].vector(), 1e-9))
+        << "anchor " << k;
+  }
+}
+
 TEST(EifJoiner, RejectsInvalidInput) {
   const SyntheticRun run = MakeRun(2, 3);
   EifJoiner eif(run.anchors[0], {});

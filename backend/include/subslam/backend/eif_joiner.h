@@ -65,6 +65,10 @@ struct EifJoinerOptions {
   bool relinearize_at_end = false; // at Finish()
   double relinearize_tolerance = 1e-6;  // stop when max |Δx| (m, rad) falls below
   int max_relinearizations = 20;
+  // Gauss-Newton may raise the cost once on its way to a lower minimum, but this many
+  // rises in a row end a relinearisation at its best iterate (counter
+  // relinearizations_diverged); 1 is monotone Gauss-Newton, 0 never stops on the cost.
+  int divergence_rises = 2;
   // Factorisation: each join updates the sparse LDLᵀ factor of Λ by the new factor's
   // rank-(3+2n) update (CHOLMOD update/downdate; new variables last in the ordering)
   // instead of refactorising Λ; a full factorisation with a fresh AMD ordering is done
@@ -115,6 +119,9 @@ class EifJoiner final : public MapJoiner {
   // landmark without one.
   std::vector<std::optional<Matrix5d>> AnchorLandmarkBounds(int anchor, const std::vector<int>& landmarks) const;
   const std::vector<int>& last_association() const override { return last_association_; }
+  // The nonlinear least-squares cost Σ_f r_fᵀ Q_f⁻¹ r_f of every local map's factor at
+  // the current estimate (whitened, dimensionless).
+  double Cost() const;
   // Ids of the local maps whose association failed validation.
   const std::vector<int>& rejected() const { return rejected_; }
   // The information matrix and vector (for tests and tools).
@@ -159,11 +166,10 @@ class EifJoiner final : public MapJoiner {
   // solve; write the estimate back.
   absl::Status Rebuild(bool only_last_factor);
   // Gauss-Newton over every factor from the current estimate, to relinearize_tolerance or
-  // max_relinearizations; stopped at the best iterate if the cost rises twice in a row.
+  // max_relinearizations; stopped at the best iterate after divergence_rises cost rises in
+  // a row.
   absl::Status Relinearize();
-  // The nonlinear least-squares cost Σ_f r_fᵀ Q_f⁻¹ r_f at the current estimate, and one
-  // factor's term.
-  double Cost() const;
+  // One factor's term of Cost().
   double NormalisedResidual(const SubmapFactor& record) const;
   // Anchor k with its continuous (unwrapped) heading; a factor's landmarks, in its order.
   Pose2 AnchorPose(int k) const;
