@@ -122,6 +122,9 @@ ABSL_FLAG(int, max_relinearizations, kEifDefaults.max_relinearizations,
 ABSL_FLAG(int, relinearize_max_rises, kEifDefaults.divergence_rises,
           "eif: cost rises in a row that end a relinearisation at its best iterate "
           "(1: monotone Gauss-Newton, 0: never)");
+ABSL_FLAG(double, relinearize_heading_change, kEifDefaults.relinearize_heading_change,
+          "eif: also relinearise after a join when an anchor's heading has moved this far [rad] "
+          "from where one of its factors was linearised (0: off)");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
@@ -245,6 +248,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.relinearize_tolerance = absl::GetFlag(FLAGS_relinearize_tolerance);
   o.max_relinearizations = absl::GetFlag(FLAGS_max_relinearizations);
   o.divergence_rises = absl::GetFlag(FLAGS_relinearize_max_rises);
+  o.relinearize_heading_change = absl::GetFlag(FLAGS_relinearize_heading_change);
   o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);
   o.bound_candidate_marginals = absl::GetFlag(FLAGS_eif_bound_marginals);
   o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);

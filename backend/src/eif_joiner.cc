@@ -28,10 +28,10 @@ absl::Status EifJoinerOptions::Validate() const {
     return absl::InvalidArgumentError("validation_probability must be in (0, 1)");
   }
   if (relinearize_every < 0 || max_relinearizations < 1 || !(relinearize_tolerance > 0) ||
-      divergence_rises < 0) {
+      divergence_rises < 0 || !(relinearize_heading_change >= 0)) {
     return absl::InvalidArgumentError(
         "relinearize_every >= 0, max_relinearizations >= 1, relinearize_tolerance > 0, "
-        "divergence_rises >= 0");
+        "divergence_rises >= 0, relinearize_heading_change >= 0");
   }
   return absl::OkStatus();
 }
@@ -97,6 +97,8 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
   const std::vector<Eigen::Vector2d> landmarks = FactorLandmarks(record);
   const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
+  f->start_theta = start.theta;
+  f->end_theta = end.theta;
 
   // Stack the Jacobian over the variable blocks (P0, fixed, has none) and x̂.
   const bool start_fixed = record.start_anchor == 0;
@@ -509,7 +511,20 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   if (options_.relinearize_every > 0 && counters_.joins % options_.relinearize_every == 0) {
     return Relinearize();
   }
+  if (options_.relinearize_heading_change > 0 && MaxHeadingDrift() > options_.relinearize_heading_change) {
+    return Relinearize();
+  }
   return absl::OkStatus();
+}
+
+double EifJoiner::MaxHeadingDrift() const {
+  double drift = 0.0;
+  for (const Factor& f : factors_) {
+    const SubmapFactor& record = graph_.factors()[f.index];
+    drift = std::max({drift, std::abs(anchor_theta_[record.start_anchor] - f.start_theta),
+                      std::abs(anchor_theta_[record.end_anchor] - f.end_theta)});
+  }
+  return drift;
 }
 
 absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) {

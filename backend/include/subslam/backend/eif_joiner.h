@@ -63,8 +63,14 @@ struct EifJoinerOptions {
   // Relinearisation.
   int relinearize_every = 0;       // every K joins (0: never during the run)
   bool relinearize_at_end = false; // at Finish()
-  double relinearize_tolerance = 1e-6;  // stop when max |Δx| (m, rad) falls below
+  double relinearize_tolerance = 1e-3;  // stop when max |Δx| (m, rad) falls below
   int max_relinearizations = 20;
+  // Also relinearise after a join when an anchor's heading has moved this far [rad] from
+  // where one of its factors was linearised (the submap factor is nonlinear in the
+  // headings only); 0: off. At 0.05 (≈ 3°) combined-2km's loop closes with unknown
+  // association on ten seeds of ten (at 0.1, six), and Victoria Park relinearises 8
+  // times in 320 joins (bench/RESULTS.md, seventh session).
+  double relinearize_heading_change = 0.05;
   // Gauss-Newton may raise the cost once on its way to a lower minimum, but this many
   // rises in a row end a relinearisation at its best iterate (counter
   // relinearizations_diverged); 1 is monotone Gauss-Newton, 0 never stops on the cost.
@@ -150,6 +156,7 @@ class EifJoiner final : public MapJoiner {
     std::vector<int> sizes;         // 3 or 2
     Eigen::MatrixXd H;              // Jᵀ Q⁻¹ J over the stacked variable blocks
     Eigen::VectorXd b;              // Jᵀ Q⁻¹ (J x̂ − r)
+    double start_theta = 0.0, end_theta = 0.0;  // the anchors' headings at the linearisation
   };
 
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
@@ -171,6 +178,8 @@ class EifJoiner final : public MapJoiner {
   absl::Status Relinearize();
   // One factor's term of Cost().
   double NormalisedResidual(const SubmapFactor& record) const;
+  // max over factors of |heading now − heading at the factor's linearisation| of its anchors.
+  double MaxHeadingDrift() const;
   // Anchor k with its continuous (unwrapped) heading; a factor's landmarks, in its order.
   Pose2 AnchorPose(int k) const;
   std::vector<Eigen::Vector2d> FactorLandmarks(const SubmapFactor& record) const;
