@@ -4,7 +4,7 @@
 //
 //   build/bench/backends_bench [--scenario combined-2km --seed 1 | --dataset DIR]
 //       [--frontend ekf|rbpf] [--known_association] [--backends eif,ceres,ekf,tree-ekf,tree-eif]
-//       [--growth_km 1,2,4,8,16] [--out results.json]
+//       [--growth_km 1,2,4,8,16] [--eif_relinearize_heading RAD] [--out results.json]
 //
 // Side by side: the local maps are built once (front-end, no back-end), then each
 // back-end joins them with the same association options (RunJoin); printed: anchors
@@ -28,6 +28,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "subslam/app/join_pipeline.h"
+#include "subslam/backend/eif_joiner.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/trajectory_errors.h"
@@ -44,6 +45,9 @@ ABSL_FLAG(std::string, growth_km, "1,2,4,8,16", "random-world path lengths for t
 ABSL_FLAG(std::string, growth_backends, "eif,ekf,tree-ekf,tree-eif", "back-ends of the growth table");
 ABSL_FLAG(double, growth_dense_max_km, 4.0,
           "growth table: dense back-ends (ekf, tree-ekf) only up to this path length (their covariance is O(N^2))");
+ABSL_FLAG(double, eif_relinearize_heading, subslam::backend::EifJoinerOptions{}.relinearize_heading_change,
+          "eif, tree-eif: relinearise when an anchor's heading moved this far [rad] "
+          "(0: single linearisation, as Combined SLAM's Table 1)");
 ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {
@@ -76,6 +80,7 @@ subslam::app::BackendOptions Options(Backend kind) {
   subslam::app::BackendOptions o;
   o.kind = kind;
   o.eif.association.known_association = absl::GetFlag(FLAGS_known_association);
+  o.eif.relinearize_heading_change = absl::GetFlag(FLAGS_eif_relinearize_heading);
   o.ekf.association = o.eif.association;
   return o;
 }
