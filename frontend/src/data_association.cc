@@ -115,28 +115,45 @@ class Jcbb {
 
   // Appends pairing (j, c) as block row k of L and y; returns the joint d².
   bool Extend(int j, int k, const AssociationCandidate& c, double* d2) {
-    // L21t = L11⁻¹ B, B the covariances of the hypothesis' pairings with the new one; in a
-    // buffer sized once (no allocation per node).
-    auto L21t = L21t_.topRows(2 * k);
+    // L21t = L11⁻¹ B, B the covariances of the hypothesis' pairings with the new one, by
+    // forward substitution over 2 × 2 blocks in plain fixed-size arithmetic (Eigen's
+    // triangular solves dispatch to their general kernels even for 2 × 2 blocks); the
+    // buffers are sized once, no allocation per node.
+    Eigen::Matrix2d C = p_.covariance_block(j, c.landmark, j, c.landmark);
+    Eigen::Vector2d rhs = c.innovation;
     for (int a = 0; a < k; ++a) {
       const int detection_a = paired_detection_[a];
-      L21t.block<2, 2>(2 * a, 0) = p_.covariance_block(detection_a, current_[detection_a], j, c.landmark);
+      Eigen::Matrix2d X = p_.covariance_block(detection_a, current_[detection_a], j, c.landmark);
+      for (int b = 0; b < a; ++b) {
+        X.noalias() -= Eigen::Matrix2d(L_.block<2, 2>(2 * a, 2 * b)) * L21t_.block<2, 2>(2 * b, 0);
+      }
+      SolveLower2(L_.block<2, 2>(2 * a, 2 * a), &X);
+      L21t_.block<2, 2>(2 * a, 0) = X;
+      C.noalias() -= X.transpose() * X;
+      rhs.noalias() -= X.transpose() * y_.segment<2>(2 * a);
     }
-    if (k > 0) {
-      L_.topLeftCorner(2 * k, 2 * k).triangularView<Eigen::Lower>().solveInPlace(L21t);
-    }
-    Eigen::Matrix2d C = p_.covariance_block(j, c.landmark, j, c.landmark) - L21t.transpose() * L21t;
-    Eigen::LLT<Eigen::Matrix2d> llt(C);
-    if (llt.info() != Eigen::Success) return false;
-    const Eigen::Matrix2d L22 = llt.matrixL();
-    L_.block(2 * k, 0, 2, 2 * k) = L21t.transpose();
+    // L22 L22ᵀ = C, the conditional covariance of the new innovation.
+    if (!(C(0, 0) > 0.0)) return false;
+    Eigen::Matrix2d L22 = Eigen::Matrix2d::Zero();
+    L22(0, 0) = std::sqrt(C(0, 0));
+    L22(1, 0) = C(1, 0) / L22(0, 0);
+    const double schur = C(1, 1) - L22(1, 0) * L22(1, 0);
+    if (!(schur > 0.0)) return false;
+    L22(1, 1) = std::sqrt(schur);
+    for (int a = 0; a < k; ++a) L_.block<2, 2>(2 * k, 2 * a) = L21t_.block<2, 2>(2 * a, 0).transpose();
     L_.block<2, 2>(2 * k, 2 * k) = L22;
-    Eigen::Vector2d rhs = c.innovation;
-    if (k > 0) rhs -= L21t.transpose() * y_.head(2 * k);
-    const Eigen::Vector2d y2 = L22.triangularView<Eigen::Lower>().solve(rhs);
+    Eigen::Matrix<double, 2, 1> y2 = rhs;
+    SolveLower2(L22, &y2);
     y_.segment<2>(2 * k) = y2;
     *d2 = y_.head(2 * k + 2).squaredNorm();
     return true;
+  }
+
+  // X ← L⁻¹ X for a lower-triangular 2 × 2 L.
+  template <typename Lower, int Cols>
+  static void SolveLower2(const Lower& L, Eigen::Matrix<double, 2, Cols>* X) {
+    X->row(0) /= L(0, 0);
+    X->row(1) = (X->row(1) - L(1, 0) * X->row(0)) / L(1, 1);
   }
 
   const AssociationProblem& p_;
