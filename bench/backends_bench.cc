@@ -28,8 +28,8 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "subslam/app/join_pipeline.h"
-#include "subslam/backend/eif_joiner.h"
 #include "subslam/app/run_pipeline.h"
+#include "subslam/backend/eif_joiner.h"
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/io/dataset_reader.h"
@@ -46,8 +46,9 @@ ABSL_FLAG(std::string, growth_backends, "eif,ekf,tree-ekf,tree-eif", "back-ends 
 ABSL_FLAG(double, growth_dense_max_km, 4.0,
           "growth table: dense back-ends (ekf, tree-ekf) only up to this path length (their covariance is O(N^2))");
 ABSL_FLAG(double, eif_relinearize_heading, subslam::backend::EifJoinerOptions{}.relinearize_heading_change,
-          "eif, tree-eif: relinearise when an anchor's heading moved this far [rad] "
-          "(0: single linearisation, as Combined SLAM's Table 1)");
+          "eif (and the EIF that associates for ceres and tree-eif): relinearise when an "
+          "anchor's heading moved this far [rad] (0: eif is single-linearised, as Combined "
+          "SLAM's Table 1)");
 ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {

@@ -188,7 +188,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   std::vector<Prediction>& predictions = scratch->predictions;
   std::vector<GatedPair>& pairs = scratch->pairs;
   std::vector<double>& min_d2 = scratch->min_d2;
-  std::vector<double>& best_ll = scratch->best_log_likelihood;
+  std::vector<GatedPair>& near_pairs = scratch->near_pairs;
   std::vector<std::pair<int, double>>& likelihoods = scratch->likelihoods;
   const Eigen::Matrix2d R = sensor_.NoiseCovariance();
   const double reach = sensor_.config().max_range_m + 10.0;
@@ -287,7 +287,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     pr.det = det;
   }
   min_d2.assign(m, INFINITY);
-  best_ll.assign(m, log_p0_);
+  near_pairs.clear();
   pairs.clear();
   if (options_.known_association) {
     // 2. Known association: the given pairings in detection order, each scored at the
@@ -320,7 +320,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
         }
         const double ll = pr.log_norm - 0.5 * d2 +
                           SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
-        best_ll[j] = std::max(best_ll[j], ll);
+        near_pairs.push_back({ll, j, i});
         if (d2 >= gate_d2_) continue;
         const double rank = options_.association_score == AssociationScore::kLikelihood ? ll : -d2;
         pairs.push_back({rank, j, i});
@@ -370,13 +370,21 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   }
   log_w -= 0.5 * std::log(det_product);
   // 3. Unexplained detections: a new landmark beyond the new-landmark gate of every
-  //    landmark, otherwise ignored; both with the density p0.
+  //    landmark, with the density p0; otherwise ignored, with the likelihood of its most
+  //    likely landmark that no other detection took (at least p0, which is also what a
+  //    false alarm or a sampled "new" gets).
   for (int j = 0; j < m; ++j) {
     if (decisions[j] >= 0) continue;
     if (decisions[j] != kNew && !options_.known_association) {
       decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
     }
-    log_w += decisions[j] == kIgnore && !options_.known_association ? best_ll[j] : log_p0_;
+    double log_density = log_p0_;
+    if (decisions[j] == kIgnore && !options_.known_association) {
+      for (const GatedPair& p : near_pairs) {
+        if (p.detection == j && !predictions[p.landmark].used) log_density = std::max(log_density, p.rank);
+      }
+    }
+    log_w += log_density;
     if (decisions[j] == kIgnore) ++scratch->ignored;
   }
   // Sample the pose from the proposal.

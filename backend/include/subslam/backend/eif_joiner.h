@@ -23,10 +23,12 @@
 //  2. the end anchor and the new landmarks are initialised through the start anchor;
 //  3. the information update above;
 //  4. state recovery by one solve.
-// Optional relinearisation (ISEIF's adaptive stop, paper 004 §2.3): rebuild every factor
-// at the current estimate and re-solve while the largest state change exceeds
-// `relinearize_tolerance`, every `relinearize_every` joins and/or at Finish(); iterated to
-// convergence this is Gauss-Newton over the submap graph.
+// Relinearisation (ISEIF's adaptive stop, paper 004 §2.3): rebuild every factor at the
+// current estimate and re-solve while the largest state change exceeds
+// `relinearize_tolerance` — after a join that moved an anchor's heading
+// `relinearize_heading_change` from a factor's linearisation (on by default), every
+// `relinearize_every` joins and/or at Finish(); iterated to convergence this is
+// Gauss-Newton over the submap graph.
 // Time per stage (association, covariance recovery, update, factorisation — of which
 // full_factorization —, recovery, recovery_check) is accumulated as in Table 1 of paper 000.
 // Not thread-safe.
@@ -61,15 +63,17 @@ struct EifJoinerOptions {
   bool validate_joins = false;
   double validation_probability = 0.999;
   // Relinearisation.
-  int relinearize_every = 0;       // every K joins (0: never during the run)
+  int relinearize_every = 0;       // every K joins (0: not on a schedule)
   bool relinearize_at_end = false; // at Finish()
   double relinearize_tolerance = 1e-3;  // stop when max |Δx| (m, rad) falls below
   int max_relinearizations = 20;
   // Also relinearise after a join when an anchor's heading has moved this far [rad] from
   // where one of its factors was linearised (the submap factor is nonlinear in the
   // headings only); 0: off. At 0.05 (≈ 3°) combined-2km's loop closes with unknown
-  // association on ten seeds of ten (at 0.1, six), and Victoria Park relinearises 8
-  // times in 320 joins (bench/RESULTS.md, seventh session).
+  // association on ten seeds of ten (at 0.1, six), and Victoria Park spends 8
+  // Gauss-Newton iterations on it over 320 joins (bench/RESULTS.md, seventh session).
+  // After a relinearisation stopped at its best iterate or at max_relinearizations the
+  // drift can stay above the threshold, and the next joins relinearise again.
   double relinearize_heading_change = 0.05;
   // Gauss-Newton may raise the cost once on its way to a lower minimum, but this many
   // rises in a row end a relinearisation at its best iterate (counter

@@ -26,7 +26,7 @@ struct JoinerCounters {
   long associated = 0;        // features matched to an existing landmark
   long new_landmarks = 0;
   long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
-  long relinearizations_diverged = 0;  // stopped at their best iterate (two rises in a row)
+  long relinearizations_diverged = 0;  // stopped at their best iterate (cost rises in a row)
   long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
   long rejected_joins = 0;    // failed validation: joined again without associations
   // EIF factor maintenance: joins absorbed by an incremental update of the factor, full

@@ -96,9 +96,9 @@ struct FastSlamOptions {
   // Gaussian density N(·; 0, R) at the new-landmark gate's boundary, R the sensor noise.
   // A detection between the two gates (close to a landmark, but not close enough) is
   // ignored: it updates nothing, and the particle's weight scores it by the likelihood of
-  // its most likely landmark (at least p0) — scoring it by p0 alone would down-weight
-  // particles whose pose puts a landmark just outside the gate and cut off the tails of
-  // the pose posterior (bench/RESULTS.md, seventh session).
+  // its most likely landmark that no other detection took (at least p0) — scoring it by
+  // p0 alone would down-weight particles whose pose puts a landmark just outside the
+  // gate and cut off the tails of the pose posterior (bench/RESULTS.md, seventh session).
   // Resample when N_eff < resample_ess_ratio · N.
   double resample_ess_ratio = 0.5;
   // Existence model (HybridSLAM Eq. 11): the filter's α and β.
@@ -251,7 +251,7 @@ class FastSlam final : public OnlineEstimator {
     std::vector<Prediction> predictions;  // of the particle's landmarks
     std::vector<GatedPair> pairs;
     std::vector<double> min_d2;
-    std::vector<double> best_log_likelihood;  // per detection, over landmarks in the new-landmark gate
+    std::vector<GatedPair> near_pairs;  // every pair inside the new-landmark gate, ranked by log-likelihood
     std::vector<std::pair<int, double>> likelihoods;
     long associated = 0, ignored = 0;
     long landmark_copies = 0, landmarks_created = 0, landmarks_culled = 0;
