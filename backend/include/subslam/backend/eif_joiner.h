@@ -73,7 +73,9 @@ struct EifJoinerOptions {
   // association on ten seeds of ten (at 0.1, six), and Victoria Park spends 8
   // Gauss-Newton iterations on it over 320 joins (bench/RESULTS.md, seventh session).
   // After a relinearisation stopped at its best iterate or at max_relinearizations the
-  // drift can stay above the threshold, and the next joins relinearise again.
+  // drift can stay above the threshold, and the next joins relinearise again — which
+  // carries Gauss-Newton on (measuring the drift from the stopping point instead cost
+  // accuracy with max_relinearizations = 1: bench/RESULTS.md, seventh session).
   double relinearize_heading_change = 0.05;
   // Gauss-Newton may raise the cost once on its way to a lower minimum, but this many
   // rises in a row end a relinearisation at its best iterate (counter
