@@ -27,11 +27,22 @@ absl::Status EifJoinerOptions::Validate() const {
   if (!(validation_probability > 0 && validation_probability < 1)) {
     return absl::InvalidArgumentError("validation_probability must be in (0, 1)");
   }
-  if (relinearize_every < 0 || max_relinearizations < 1 || !(relinearize_tolerance > 0) ||
-      divergence_rises < 0 || !(relinearize_heading_change >= 0)) {
+  if (relinearize_every < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("relinearize_every must be >= 0, got ", relinearize_every));
+  }
+  if (max_relinearizations < 1) {
+    return absl::InvalidArgumentError(absl::StrCat("max_relinearizations must be >= 1, got ", max_relinearizations));
+  }
+  if (!(relinearize_tolerance > 0)) {
+    return absl::InvalidArgumentError(absl::StrCat("relinearize_tolerance must be > 0, got ", relinearize_tolerance));
+  }
+  if (divergence_rises < 0) {
     return absl::InvalidArgumentError(
-        "relinearize_every >= 0, max_relinearizations >= 1, relinearize_tolerance > 0, "
-        "divergence_rises >= 0, relinearize_heading_change >= 0");
+        absl::StrCat("divergence_rises (--relinearize_max_rises) must be >= 0, got ", divergence_rises));
+  }
+  if (!(relinearize_heading_change >= 0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("relinearize_heading_change must be >= 0 [rad], got ", relinearize_heading_change));
   }
   return absl::OkStatus();
 }
