@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <Eigen/LU>
 #include <functional>
 #include <random>
@@ -61,6 +62,71 @@ TEST(JointCompatibility, PrefersConsistentShiftedHypothesis) {
   const AssociationResult r = JointCompatibility(p, 0.99, 1000);
   EXPECT_EQ(r.pairings, 2);
   EXPECT_EQ(r.landmark_of_detection, (std::vector<int>{0, 1}));
+}
+
+// The joint d² JCBB reports for its hypothesis (built one 2 × 2 block row of the
+// Cholesky factor at a time) equals νᵀ S⁻¹ ν from the dense joint innovation covariance of
+// the chosen pairings, on random problems with up to eight pairings, correlated landmarks
+// and several candidates per detection.
+TEST(JointCompatibility, JointD2EqualsTheDenseMahalanobisDistance) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> normal;
+  std::uniform_int_distribution<int> landmark_of(0, 11);
+  int checked_large = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    // Landmark prediction covariance: a random SPD 24 × 24 (12 landmarks, shared pose error).
+    Eigen::MatrixXd G(24, 24);
+    for (int r = 0; r < 24; ++r) {
+      for (int c = 0; c < 24; ++c) G(r, c) = 0.3 * normal(rng);
+    }
+    const Eigen::MatrixXd P = G * G.transpose() / 24.0 + 0.05 * Eigen::MatrixXd::Identity(24, 24);
+    AssociationProblem p;
+    p.covariance_block = [P](int i, int a, int j, int b) -> Eigen::Matrix2d {
+      Eigen::Matrix2d block = P.block<2, 2>(2 * a, 2 * b);
+      if (i == j && a == b) block += 0.1 * Eigen::Matrix2d::Identity();  // measurement noise
+      return block;
+    };
+    p.candidates.resize(8);
+    for (int j = 0; j < 8; ++j) {
+      const int count = 1 + trial % 3;
+      std::vector<int> used;
+      for (int c = 0; c < count; ++c) {
+        int a = landmark_of(rng);
+        while (std::find(used.begin(), used.end(), a) != used.end()) a = landmark_of(rng);
+        used.push_back(a);
+        const Eigen::Vector2d nu(0.3 * normal(rng), 0.3 * normal(rng));
+        const Eigen::Matrix2d S = p.covariance_block(j, a, j, a);
+        p.candidates[j].push_back({a, nu.dot(S.inverse() * nu), nu});
+      }
+      std::sort(p.candidates[j].begin(), p.candidates[j].end(),
+                [](const AssociationCandidate& x, const AssociationCandidate& y) { return x.d2 < y.d2; });
+    }
+    const AssociationResult r = JointCompatibility(p, 0.99, 100000);
+    ASSERT_FALSE(r.truncated);
+    std::vector<int> detections;
+    for (int j = 0; j < 8; ++j) {
+      if (r.landmark_of_detection[j] >= 0) detections.push_back(j);
+    }
+    ASSERT_EQ(static_cast<int>(detections.size()), r.pairings);
+    const int k = r.pairings;
+    Eigen::MatrixXd S(2 * k, 2 * k);
+    Eigen::VectorXd nu(2 * k);
+    for (int x = 0; x < k; ++x) {
+      const int i = detections[x], a = r.landmark_of_detection[i];
+      for (const AssociationCandidate& c : p.candidates[i]) {
+        if (c.landmark == a) nu.segment<2>(2 * x) = c.innovation;
+      }
+      for (int y = 0; y < k; ++y) {
+        const int j = detections[y];
+        S.block<2, 2>(2 * x, 2 * y) = p.covariance_block(i, a, j, r.landmark_of_detection[j]);
+      }
+    }
+    const double dense = k == 0 ? 0.0 : nu.dot(S.ldlt().solve(nu));
+    EXPECT_NEAR(r.joint_d2, dense, 1e-9 * std::max(1.0, dense)) << "trial " << trial << ", " << k << " pairings";
+    EXPECT_LE(r.joint_d2, models::ChiSquareQuantile(0.99, std::max(1, 2 * k)));
+    checked_large += k >= 5 ? 1 : 0;
+  }
+  EXPECT_GT(checked_large, 10);
 }
 
 // Detections without candidates do not spend the search budget: among 500 detections of
