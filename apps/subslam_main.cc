@@ -101,6 +101,9 @@ ABSL_FLAG(bool, join_jcbb, kEifDefaults.association.joint_compatibility,
 ABSL_FLAG(int, join_min_loop_pairings, kEifDefaults.association.min_loop_pairings,
           "accept a loop closure (pairings with landmarks the last local maps did not see) only "
           "with at least this many pairings (<= 1: always)");
+ABSL_FLAG(bool, join_loop_ambiguity, kEifDefaults.association.loop_ambiguity_test,
+          "eif: drop a loop closure when another jointly compatible hypothesis, without its loop "
+          "pairings, pairs as many features with old landmarks (JCBB)");
 ABSL_FLAG(double, join_loop_test_sigma, kEifDefaults.association.loop_test_min_sigma_radius_m,
           "apply --join_min_loop_pairings only when 3 sigma of the start anchor's position is at "
           "least this [m]");
@@ -241,6 +244,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.gate_probability = absl::GetFlag(FLAGS_join_gate);
   o.association.joint_compatibility = absl::GetFlag(FLAGS_join_jcbb);
   o.association.min_loop_pairings = absl::GetFlag(FLAGS_join_min_loop_pairings);
+  o.association.loop_ambiguity_test = absl::GetFlag(FLAGS_join_loop_ambiguity);
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);

@@ -209,6 +209,18 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
       return a.d2 < b.d2 || (a.d2 == b.d2 && a.landmark < b.landmark);
     });
   }
+  // Landmarks a recent local map saw; pairings with any other close a loop. The loop
+  // tests apply while the start anchor is uncertain.
+  const bool loop_regime =
+      options_.min_loop_pairings > 1 && 3.0 * sigma_xy >= options_.loop_test_min_sigma_radius_m;
+  std::vector<char> recent;
+  if (loop_regime) {
+    recent.assign(graph.num_landmarks(), 0);
+    const int first_recent = static_cast<int>(graph.factors().size()) - options_.recent_maps;
+    for (int f = std::max(0, first_recent); f < static_cast<int>(graph.factors().size()); ++f) {
+      for (int j : graph.factors()[f].landmark_of_feature) recent[j] = 1;
+    }
+  }
   frontend::AssociationResult result;
   if (options_.joint_compatibility) {
     // The joint covariance of P_s and the individually compatible candidates only.
@@ -253,6 +265,35 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
     };
     result = frontend::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
     out.jcbb_truncated = result.truncated;
+    // Loop-closure ambiguity: with the hypothesis' loop pairings struck out, does another
+    // jointly compatible hypothesis still pair as many features with old landmarks? Then
+    // the corridor offers two explanations and the loop closure waits.
+    if (options_.loop_ambiguity_test && loop_regime) {
+      frontend::AssociationProblem alternative = problem;
+      int loop_pairings = 0;
+      for (int i = 0; i < n; ++i) {
+        const int c = result.landmark_of_detection[i];
+        if (c < 0 || recent[candidates[c]]) continue;
+        ++loop_pairings;
+        std::erase_if(alternative.candidates[i], [c](const frontend::AssociationCandidate& x) { return x.landmark == c; });
+      }
+      if (loop_pairings >= options_.min_loop_pairings) {
+        const frontend::AssociationResult other =
+            frontend::JointCompatibility(alternative, options_.gate_probability, options_.jcbb_max_nodes);
+        int other_loop = 0;
+        for (int i = 0; i < n; ++i) {
+          const int c = other.landmark_of_detection[i];
+          other_loop += (c >= 0 && !recent[candidates[c]]) ? 1 : 0;
+        }
+        if (other_loop >= options_.min_loop_pairings) {
+          for (int i = 0; i < n; ++i) {
+            const int c = result.landmark_of_detection[i];
+            if (c >= 0 && !recent[candidates[c]]) result.landmark_of_detection[i] = -1;
+          }
+          out.loop_ambiguous = true;
+        }
+      }
+    }
   } else {
     result = frontend::NearestNeighbour(problem);
   }
@@ -263,12 +304,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   // with at least min_loop_pairings of them, when the start anchor is uncertain (3σ at
   // least loop_test_min_sigma_radius_m): after a long drift the gates are wide and a
   // hypothesis with one or two old landmarks is easily compatible by chance.
-  if (options_.min_loop_pairings > 1 && 3.0 * sigma_xy >= options_.loop_test_min_sigma_radius_m) {
-    std::vector<char> recent(graph.num_landmarks(), 0);
-    const int first_recent = static_cast<int>(graph.factors().size()) - options_.recent_maps;
-    for (int f = std::max(0, first_recent); f < static_cast<int>(graph.factors().size()); ++f) {
-      for (int j : graph.factors()[f].landmark_of_feature) recent[j] = 1;
-    }
+  if (loop_regime) {
     int loop_pairings = 0;
     for (int j : out.landmark_of_feature) loop_pairings += (j >= 0 && !recent[j]) ? 1 : 0;
     if (loop_pairings > 0 && loop_pairings < options_.min_loop_pairings) {

@@ -97,6 +97,52 @@ TEST(SubmapAssociator, DropsThinLoopClosuresUnderLargeUncertainty) {
   EXPECT_EQ(OldPairings(kept), 2);
 }
 
+// loop_ambiguity_test: old landmarks on a row 12 m apart and a new local map that sees
+// four of them. With the start anchor's σ at 6 m, the row shifted by one landmark is as
+// compatible as the truth (joint d² ≈ (12 / 6)²): the test drops the loop closure. At
+// σ = 2.5 m the shifted row fails the joint gate, and the closure is kept.
+TEST(SubmapAssociator, AmbiguityTestDropsALoopClosureThatAShiftedRowFitsAsWell) {
+  SubmapGraph graph{Pose2(0, 0, 0)};
+  for (int k = 1; k <= 4; ++k) graph.AddAnchor(Pose2(10.0 * k, 0, 0));
+  std::vector<int> row;
+  for (int i = 0; i < 8; ++i) row.push_back(graph.AddLandmark(Eigen::Vector2d(40.0 + 12.0 * i, 8.0)));
+  const LocalSubmap any;
+  graph.AddFactor({any, 0, 1, row});
+  graph.AddFactor({any, 1, 2, {}});
+  graph.AddFactor({any, 2, 3, {}});
+  graph.AddFactor({any, 3, 4, {}});
+  LocalSubmap s;
+  s.id = 4;
+  s.mean = Eigen::VectorXd::Zero(3 + 2 * 4);
+  s.mean.head<3>() << 10.0, 0.0, 0.0;
+  for (int i = 0; i < 4; ++i) {
+    s.mean.segment<2>(3 + 2 * i) = TransformTo(graph.anchors()[4], graph.landmarks()[row[i]]);
+    LocalSubmapLandmark l;
+    l.local_id = i;
+    s.landmarks.push_back(l);
+  }
+  s.covariance = 0.01 * Eigen::MatrixXd::Identity(s.mean.size(), s.mean.size());
+  const auto pairings = [](const SubmapAssociation& a) {
+    int count = 0;
+    for (int j : a.landmark_of_feature) count += j >= 0 ? 1 : 0;
+    return count;
+  };
+  SubmapAssociationOptions options;
+  EXPECT_TRUE(options.loop_ambiguity_test);  // the default
+  options.loop_ambiguity_test = false;
+  const SubmapAssociation plain = SubmapAssociator(options).Associate(s, 4, graph, Covariance(6.0));
+  EXPECT_EQ(plain.landmark_of_feature, (std::vector<int>{row[0], row[1], row[2], row[3]}));
+  EXPECT_FALSE(plain.loop_ambiguous);
+  options.loop_ambiguity_test = true;
+  const SubmapAssociator tested(options);
+  const SubmapAssociation ambiguous = tested.Associate(s, 4, graph, Covariance(6.0));
+  EXPECT_TRUE(ambiguous.loop_ambiguous);
+  EXPECT_EQ(pairings(ambiguous), 0);
+  const SubmapAssociation clear = tested.Associate(s, 4, graph, Covariance(2.5));
+  EXPECT_FALSE(clear.loop_ambiguous);
+  EXPECT_EQ(clear.landmark_of_feature, (std::vector<int>{row[0], row[1], row[2], row[3]}));
+}
+
 TEST(SubmapAssociationOptions, ValidationRejectsNonsense) {
   SubmapAssociationOptions o;
   EXPECT_TRUE(o.Validate().ok());

@@ -65,6 +65,14 @@ struct SubmapAssociationOptions {
   // on seeds 11-20 (wrong merges not caused by the front-end 32 → 4, loop re-observations
   // merged 1 → 233 of 618); hybrid-120m and Victoria Park are unchanged (bench/RESULTS.md).
   int min_loop_pairings = 4;
+  // With JCBB, in the same regime: a loop closure is also dropped when, with its loop
+  // pairings struck out, another jointly compatible hypothesis still has at least
+  // min_loop_pairings of them (two explanations of the same features; "local
+  // uniqueness"). On combined-2km, seeds 1-10, RBPF maps: loop re-observations merged
+  // 323 → 365 of 600, seed 10's loop closed (anchor RMS 121 → 12 m); EKF maps: 395 → 376
+  // of 594, seed 10 closes later (10 → 30 m); Victoria Park unchanged
+  // (bench/RESULTS.md, seventh session).
+  bool loop_ambiguity_test = true;
   int recent_maps = 2;
   double loop_test_min_sigma_radius_m = 5.0;
 
@@ -76,6 +84,7 @@ struct SubmapAssociation {
   std::vector<int> landmark_of_feature;  // −1: a new landmark
   bool jcbb_truncated = false;           // JCBB hit its node budget
   int loop_pairings_dropped = 0;         // a loop closure with too few pairings
+  bool loop_ambiguous = false;           // a loop closure dropped by loop_ambiguity_test
   double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
   int candidates = 0;                    // candidate landmarks (step 1)
   int candidates_bounded_out = 0;        // of those, dropped under the joiner's bound (step 2)
