@@ -133,6 +133,8 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"relinearizations", joiner->counters().relinearizations},
                 {"relinearizations_diverged", joiner->counters().relinearizations_diverged},
                 {"jcbb_truncated", joiner->counters().jcbb_truncated},
+                {"loop_closures_thin", joiner->counters().loop_closures_thin},
+                {"loop_closures_ambiguous", joiner->counters().loop_closures_ambiguous},
                 {"incremental_factor_updates", joiner->counters().incremental_updates},
                 {"full_factorizations", joiner->counters().full_factorizations},
                 {"failed_factor_updates", joiner->counters().failed_updates}}},

@@ -216,6 +216,8 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_rejected"] = joiner_->counters().rejected_joins;
     out["join_full_factorizations"] = joiner_->counters().full_factorizations;
     out["join_jcbb_truncated"] = joiner_->counters().jcbb_truncated;
+    out["join_loop_closures_thin"] = joiner_->counters().loop_closures_thin;
+    out["join_loop_closures_ambiguous"] = joiner_->counters().loop_closures_ambiguous;
     out["join_incremental_updates"] = joiner_->counters().incremental_updates;
     out["join_candidates"] = joiner_->counters().candidates;
     out["join_candidates_bounded_out"] = joiner_->counters().candidates_bounded_out;

@@ -463,6 +463,8 @@ SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool a
       options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr);
   times_["covariance_recovery"] += a.covariance_seconds;
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
+  if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
   counters_.candidates += a.candidates;
   counters_.candidates_bounded_out += a.candidates_bounded_out;
   counters_.covariance_columns += solver_->factor.columns_solved() - columns_before;

@@ -222,6 +222,8 @@ std::vector<int> EkfJoiner::AssociateAt(const LocalSubmap& s, int start, bool an
       anchor_prefilter);
   times_["covariance_recovery"] += a.covariance_seconds;
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
+  if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
   return std::move(a.landmark_of_feature);
 }
 

@@ -28,6 +28,9 @@ struct JoinerCounters {
   long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
   long relinearizations_diverged = 0;  // stopped at their best iterate (cost rises in a row)
   long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
+  // Loop closures dropped under an uncertain start anchor: too few pairings, or ambiguous.
+  long loop_closures_thin = 0;
+  long loop_closures_ambiguous = 0;
   long rejected_joins = 0;    // failed validation: joined again without associations
   // EIF factor maintenance: joins absorbed by an incremental update of the factor, full
   // factorisations (with a fresh ordering), and updates that failed and fell back to one.
@@ -48,6 +51,8 @@ struct JoinerCounters {
     relinearizations += o.relinearizations;
     relinearizations_diverged += o.relinearizations_diverged;
     jcbb_truncated += o.jcbb_truncated;
+    loop_closures_thin += o.loop_closures_thin;
+    loop_closures_ambiguous += o.loop_closures_ambiguous;
     rejected_joins += o.rejected_joins;
     incremental_updates += o.incremental_updates;
     full_factorizations += o.full_factorizations;
