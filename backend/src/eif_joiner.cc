@@ -287,9 +287,8 @@ std::vector<Eigen::Vector2d> EifJoiner::FactorLandmarks(const SubmapFactor& reco
 }
 
 double EifJoiner::NormalisedResidual(const SubmapFactor& record) const {
-  const Eigen::VectorXd r = LinearizeSubmapFactor(record.submap, AnchorPose(record.start_anchor),
-                                                  AnchorPose(record.end_anchor), FactorLandmarks(record))
-                                .residual;
+  const Eigen::VectorXd r = SubmapResidual(record.submap, AnchorPose(record.start_anchor),
+                                           AnchorPose(record.end_anchor), FactorLandmarks(record));
   return r.dot(record.submap.covariance.ldlt().solve(r));
 }
 

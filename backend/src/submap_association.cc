@@ -268,30 +268,24 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
     // Loop-closure ambiguity: with the hypothesis' loop pairings struck out, does another
     // jointly compatible hypothesis still pair as many features with old landmarks? Then
     // the corridor offers two explanations and the loop closure waits.
-    if (options_.loop_ambiguity_test && loop_regime) {
+    const auto closes_loop = [&](int c) { return c >= 0 && !recent[candidates[c]]; };
+    const auto loop_pairings_of = [&](const frontend::AssociationResult& r) {
+      return static_cast<int>(std::count_if(r.landmark_of_detection.begin(), r.landmark_of_detection.end(), closes_loop));
+    };
+    if (options_.loop_ambiguity_test && loop_regime && loop_pairings_of(result) >= options_.min_loop_pairings) {
       frontend::AssociationProblem alternative = problem;
-      int loop_pairings = 0;
       for (int i = 0; i < n; ++i) {
         const int c = result.landmark_of_detection[i];
-        if (c < 0 || recent[candidates[c]]) continue;
-        ++loop_pairings;
+        if (!closes_loop(c)) continue;
         std::erase_if(alternative.candidates[i], [c](const frontend::AssociationCandidate& x) { return x.landmark == c; });
       }
-      if (loop_pairings >= options_.min_loop_pairings) {
-        const frontend::AssociationResult other =
-            frontend::JointCompatibility(alternative, options_.gate_probability, options_.jcbb_max_nodes);
-        int other_loop = 0;
-        for (int i = 0; i < n; ++i) {
-          const int c = other.landmark_of_detection[i];
-          other_loop += (c >= 0 && !recent[candidates[c]]) ? 1 : 0;
+      const frontend::AssociationResult other =
+          frontend::JointCompatibility(alternative, options_.gate_probability, options_.jcbb_max_nodes);
+      if (loop_pairings_of(other) >= options_.min_loop_pairings) {
+        for (int& c : result.landmark_of_detection) {
+          if (closes_loop(c)) c = -1;
         }
-        if (other_loop >= options_.min_loop_pairings) {
-          for (int i = 0; i < n; ++i) {
-            const int c = result.landmark_of_detection[i];
-            if (c >= 0 && !recent[candidates[c]]) result.landmark_of_detection[i] = -1;
-          }
-          out.loop_ambiguous = true;
-        }
+        out.loop_ambiguous = true;
       }
     }
   } else {

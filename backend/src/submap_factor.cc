@@ -12,6 +12,15 @@ Eigen::VectorXd PredictSubmap(const Pose2& start, const Pose2& end,
   return h;
 }
 
+Eigen::VectorXd SubmapResidual(const LocalSubmap& submap, const Pose2& start, const Pose2& end,
+                               const std::vector<Eigen::Vector2d>& landmarks) {
+  SUBSLAM_CHECK(static_cast<int>(landmarks.size()) == submap.num_landmarks())
+      << "factor has " << landmarks.size() << " landmarks, local map " << submap.num_landmarks();
+  Eigen::VectorXd r = PredictSubmap(start, end, landmarks) - submap.mean;
+  r[2] = WrapAngle(r[2]);
+  return r;
+}
+
 SubmapFactorLinearization LinearizeSubmapFactor(const LocalSubmap& submap, const Pose2& start,
                                                 const Pose2& end,
                                                 const std::vector<Eigen::Vector2d>& landmarks) {

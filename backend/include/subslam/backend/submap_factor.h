@@ -26,6 +26,10 @@ struct SubmapFactorLinearization {
 Eigen::VectorXd PredictSubmap(const Pose2& start, const Pose2& end,
                               const std::vector<Eigen::Vector2d>& landmarks);
 
+// r(X) alone (no Jacobians): what a cost evaluation needs.
+Eigen::VectorXd SubmapResidual(const LocalSubmap& submap, const Pose2& start, const Pose2& end,
+                               const std::vector<Eigen::Vector2d>& landmarks);
+
 SubmapFactorLinearization LinearizeSubmapFactor(const LocalSubmap& submap, const Pose2& start,
                                                 const Pose2& end,
                                                 const std::vector<Eigen::Vector2d>& landmarks);
