@@ -137,6 +137,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"loop_closures_ambiguous", joiner->counters().loop_closures_ambiguous},
                 {"incremental_factor_updates", joiner->counters().incremental_updates},
                 {"full_factorizations", joiner->counters().full_factorizations},
+                {"reused_analyses", joiner->counters().reused_analyses},
                 {"failed_factor_updates", joiner->counters().failed_updates}}},
               {"time_seconds",
                {{"total", r.wall_seconds},

@@ -215,6 +215,7 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_relinearizations_diverged"] = joiner_->counters().relinearizations_diverged;
     out["join_rejected"] = joiner_->counters().rejected_joins;
     out["join_full_factorizations"] = joiner_->counters().full_factorizations;
+    out["join_reused_analyses"] = joiner_->counters().reused_analyses;
     out["join_jcbb_truncated"] = joiner_->counters().jcbb_truncated;
     out["join_loop_closures_thin"] = joiner_->counters().loop_closures_thin;
     out["join_loop_closures_ambiguous"] = joiner_->counters().loop_closures_ambiguous;

@@ -89,6 +89,9 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   const SubmapFactor& record = graph_.factors()[index];
   Factor f;
   f.index = index;
+  const Eigen::LLT<Eigen::MatrixXd> llt(record.submap.covariance);
+  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
+  f.covariance_sqrt = std::make_shared<const Eigen::MatrixXd>(llt.matrixL());
   if (record.start_anchor != 0) {
     f.offsets.push_back(anchor_offset_[record.start_anchor]);
     f.sizes.push_back(3);
@@ -130,12 +133,11 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   for (int i = 0; i < s.num_landmarks(); ++i) x.segment<2>(c + 2 * i) = landmarks[i];
 
   // Whiten with Q = L Lᵀ: A = L⁻¹ J, e = L⁻¹ (J x̂ − r).
-  const Eigen::LLT<Eigen::MatrixXd> llt(s.covariance);
-  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
+  const auto L = f->covariance_sqrt->triangularView<Eigen::Lower>();
   Eigen::MatrixXd A = J;
-  llt.matrixL().solveInPlace(A);
+  L.solveInPlace(A);
   Eigen::VectorXd e = J * x - lin.residual;
-  llt.matrixL().solveInPlace(e);
+  L.solveInPlace(e);
   f->H = A.transpose() * A;
   f->b = A.transpose() * e;
   if (whitened_jacobian != nullptr) *whitened_jacobian = std::move(A);
@@ -180,8 +182,30 @@ void EifJoiner::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
   }
 }
 
+std::vector<int> EifJoiner::FactorOffsets() const {
+  std::vector<int> offsets;
+  for (const Factor& f : factors_) {
+    offsets.push_back(static_cast<int>(f.offsets.size()));
+    offsets.insert(offsets.end(), f.offsets.begin(), f.offsets.end());
+  }
+  return offsets;
+}
+
 const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   if (lambda_factors_ == factors_.size() && Lambda_.rows() == dim_) return Lambda_;
+  if (lambda_factors_ == 0 && Lambda_.rows() == dim_ && !lambda_slots_.empty() &&
+      FactorOffsets() == lambda_slot_offsets_) {
+    // The same factors over the same variables (relinearised): refill Λ's values.
+    double* values = Lambda_.valuePtr();
+    std::fill(values, values + Lambda_.nonZeros(), 0.0);
+    size_t slot = 0;
+    for (const Factor& f : factors_) {
+      const double* h = f.H.data();
+      for (Eigen::Index e = 0; e < f.H.size(); ++e) values[lambda_slots_[slot++]] += h[e];
+    }
+    lambda_factors_ = factors_.size();
+    return Lambda_;
+  }
   std::vector<Eigen::Triplet<double>> triplets;
   size_t count = 0;
   for (size_t k = lambda_factors_; k < factors_.size(); ++k) count += static_cast<size_t>(factors_[k].H.size());
@@ -190,6 +214,28 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   if (lambda_factors_ == 0) {
     Lambda_.resize(dim_, dim_);
     Lambda_.setFromTriplets(triplets.begin(), triplets.end());
+    Lambda_.makeCompressed();
+    // Each H entry's place in Λ's values, in H's storage order, for later refills.
+    lambda_slots_.clear();
+    lambda_slots_.reserve(count);
+    const int* outer = Lambda_.outerIndexPtr();
+    const int* inner = Lambda_.innerIndexPtr();
+    for (const Factor& f : factors_) {
+      std::vector<int> index;  // the state index of each row/column of H
+      for (size_t v = 0; v < f.offsets.size(); ++v) {
+        for (int i = 0; i < f.sizes[v]; ++i) index.push_back(f.offsets[v] + i);
+      }
+      for (size_t c = 0; c < index.size(); ++c) {
+        const int* begin = inner + outer[index[c]];
+        const int* end = inner + outer[index[c] + 1];
+        for (size_t r = 0; r < index.size(); ++r) {
+          const int* at = std::lower_bound(begin, end, index[r]);
+          SUBSLAM_CHECK(at != end && *at == index[r]) << "an H entry missing from Λ";
+          lambda_slots_.push_back(static_cast<int>(at - inner));
+        }
+      }
+    }
+    lambda_slot_offsets_ = FactorOffsets();
   } else {
     Eigen::SparseMatrix<double> added(dim_, dim_);
     added.setFromTriplets(triplets.begin(), triplets.end());
@@ -198,6 +244,19 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   }
   lambda_factors_ = factors_.size();
   return Lambda_;
+}
+
+absl::Status EifJoiner::FullFactorization() {
+  StageTimer full(&times_, "full_factorization");
+  SparseCholesky& L = solver_->factor;
+  const long reuses = L.symbolic_reuses();
+  // Spare slots for the next joins' new variables (about 15 % of the state).
+  if (absl::Status st = L.Factorize(information(), 64 + dim_ / 6); !st.ok()) {
+    return absl::InternalError(absl::StrCat("EIF: ", st.message()));
+  }
+  ++counters_.full_factorizations;
+  counters_.reused_analyses += L.symbolic_reuses() - reuses;
+  return absl::OkStatus();
 }
 
 absl::Status EifJoiner::Rebuild(bool only_last_factor) {
@@ -238,12 +297,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
     solver_->last_whitened_jacobian.resize(0, 0);
     solver_->stale = false;
     if (!incremental) {
-      StageTimer full(&times_, "full_factorization");
-      // Spare slots for the next joins' new variables (about 15 % of the state).
-      if (absl::Status st = L.Factorize(information(), 64 + dim_ / 6); !st.ok()) {
-        return absl::InternalError(absl::StrCat("EIF: ", st.message()));
-      }
-      ++counters_.full_factorizations;
+      if (absl::Status st = FullFactorization(); !st.ok()) return st;
     }
   }
   Eigen::VectorXd x;
@@ -261,11 +315,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
     if (!(residual <= 1e-8 * std::max(1.0, eta_.norm()))) {
       ++counters_.failed_updates;
       --counters_.incremental_updates;
-      StageTimer full(&times_, "full_factorization");
-      if (absl::Status st = solver_->factor.Factorize(information(), 64 + dim_ / 6); !st.ok()) {
-        return absl::InternalError(absl::StrCat("EIF: ", st.message()));
-      }
-      ++counters_.full_factorizations;
+      if (absl::Status st = FullFactorization(); !st.ok()) return st;
       x = solver_->factor.Solve(eta_);
     }
   }
@@ -286,15 +336,17 @@ std::vector<Eigen::Vector2d> EifJoiner::FactorLandmarks(const SubmapFactor& reco
   return landmarks;
 }
 
-double EifJoiner::NormalisedResidual(const SubmapFactor& record) const {
-  const Eigen::VectorXd r = SubmapResidual(record.submap, AnchorPose(record.start_anchor),
-                                           AnchorPose(record.end_anchor), FactorLandmarks(record));
-  return r.dot(record.submap.covariance.ldlt().solve(r));
+double EifJoiner::NormalisedResidual(const Factor& f) const {
+  const SubmapFactor& record = graph_.factors()[f.index];
+  Eigen::VectorXd r = SubmapResidual(record.submap, AnchorPose(record.start_anchor), AnchorPose(record.end_anchor),
+                                     FactorLandmarks(record));
+  f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(r);  // rᵀ Q⁻¹ r = |L⁻¹ r|²
+  return r.squaredNorm();
 }
 
 double EifJoiner::Cost() const {
   double cost = 0.0;
-  for (const SubmapFactor& record : graph_.factors()) cost += NormalisedResidual(record);
+  for (const Factor& f : factors_) cost += NormalisedResidual(f);
   return cost;
 }
 
@@ -319,7 +371,10 @@ absl::Status EifJoiner::Relinearize() {
     ++counters_.relinearizations;
     if (watch) {
       const double cost = Cost();
-      rises = cost > last_cost ? rises + 1 : 0;
+      // Near convergence the cost changes by its rounding error only (about 1e-12 of it
+      // here), up or down: a rise counts when it is well above that.
+      constexpr double kRoundingFloor = 1e-8;
+      rises = cost > last_cost * (1.0 + kRoundingFloor) ? rises + 1 : 0;
       last_cost = cost;
       if (cost < best_cost) {
         best_cost = cost;
@@ -417,7 +472,7 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   if (matched == 0) return absl::OkStatus();
   // The new factor's normalised residual at the new estimate, against χ² with 2 dof per
   // matched feature (the end pose and new landmarks fit exactly).
-  const double d2 = NormalisedResidual(graph_.factors()[factors_.back().index]);
+  const double d2 = NormalisedResidual(factors_.back());
   const double bound = models::ChiSquareQuantile(options_.validation_probability, 2 * matched);
   if (d2 <= bound) return absl::OkStatus();
   // Rejected: undo, and join the local map again without associations (its odometry

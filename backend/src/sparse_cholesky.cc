@@ -13,16 +13,18 @@
 namespace subslam::backend {
 namespace {
 
-// A CHOLMOD view of an Eigen compressed column matrix (no copy).
-cholmod_sparse View(const Eigen::SparseMatrix<double>& m, int rows, int cols, int stype) {
+// A CHOLMOD view of the leading rows × cols block of a compressed column matrix (p, i, x)
+// whose first cols columns hold rows < rows only (no copy).
+cholmod_sparse View(const std::vector<int>& p, const std::vector<int>& i, const std::vector<double>& x, int rows,
+                    int cols) {
   cholmod_sparse s{};
   s.nrow = rows;
   s.ncol = cols;
-  s.p = const_cast<int*>(m.outerIndexPtr());
-  s.i = const_cast<int*>(m.innerIndexPtr());
-  s.x = const_cast<double*>(m.valuePtr());
-  s.nzmax = m.outerIndexPtr()[cols];
-  s.stype = stype;
+  s.p = const_cast<int*>(p.data());
+  s.i = const_cast<int*>(i.data());
+  s.x = const_cast<double*>(x.data());
+  s.nzmax = p[cols];
+  s.stype = -1;  // the lower triangle of a symmetric matrix
   s.itype = CHOLMOD_INT;
   s.xtype = CHOLMOD_REAL;
   s.dtype = CHOLMOD_DOUBLE;
@@ -46,6 +48,7 @@ SparseCholesky::SparseCholesky() : common_(new cholmod_common) {
 
 SparseCholesky::~SparseCholesky() {
   if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
+  if (symbolic_ != nullptr) cholmod_free_factor(&symbolic_, common_);
   cholmod_finish(common_);
   delete common_;
 }
@@ -54,29 +57,56 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
   const int n = static_cast<int>(A.rows());
   const int capacity = n + std::max(0, spare);
-  // The lower triangle of A, then the spare slots' identity (their columns come after A's,
-  // so the first n columns alone are A).
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(static_cast<size_t>(A.nonZeros()) / 2 + static_cast<size_t>(capacity));
-  for (int c = 0; c < A.outerSize(); ++c) {
+  // The lower triangle of A, column by column (Eigen keeps each column's rows sorted), then
+  // the spare slots' identity: their columns come after A's, so the first n columns alone
+  // are A.
+  std::vector<int>& p = lower_p_;
+  std::vector<int>& i = lower_i_;
+  std::vector<double>& x = lower_x_;
+  p.assign(1, 0);
+  i.clear();
+  x.clear();
+  i.reserve(static_cast<size_t>(A.nonZeros()) / 2 + static_cast<size_t>(capacity));
+  x.reserve(i.capacity());
+  for (int c = 0; c < n; ++c) {
     for (Eigen::SparseMatrix<double>::InnerIterator it(A, c); it; ++it) {
-      if (it.row() >= it.col()) triplets.emplace_back(static_cast<int>(it.row()), static_cast<int>(it.col()), it.value());
+      if (it.row() < c) continue;
+      SUBSLAM_CHECK(static_cast<int>(i.size()) == p.back() || it.row() > i.back()) << "unsorted sparse column " << c;
+      i.push_back(static_cast<int>(it.row()));
+      x.push_back(it.value());
     }
+    p.push_back(static_cast<int>(i.size()));
   }
-  for (int s = n; s < capacity; ++s) triplets.emplace_back(s, s, 1.0);
-  Eigen::SparseMatrix<double> lower(capacity, capacity);
-  lower.setFromTriplets(triplets.begin(), triplets.end());
-  lower.makeCompressed();
-  // AMD on A alone; the spare slots go last.
-  std::vector<int> perm(capacity);
-  if (n > 0) {
-    cholmod_sparse a = View(lower, n, n, -1);
-    if (!cholmod_amd(&a, nullptr, 0, perm.data(), common_)) return absl::InternalError("CHOLMOD: AMD ordering failed");
+  for (int s = n; s < capacity; ++s) {
+    i.push_back(s);
+    x.push_back(1.0);
+    p.push_back(static_cast<int>(i.size()));
   }
-  std::iota(perm.begin() + n, perm.end(), n);
-  cholmod_sparse all = View(lower, capacity, capacity, -1);
-  factor_ = cholmod_analyze_p(&all, perm.data(), nullptr, 0, common_);
-  if (factor_ == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
+  cholmod_sparse all = View(p, i, x, capacity, capacity);
+  // The symbolic analysis (AMD on A alone, the spare slots last; elimination tree; column
+  // counts) depends on the pattern only: while it is the last analysed one — Gauss-Newton
+  // iterations relinearise the same factors — a copy of that analysis is factorised again.
+  const bool same_pattern = symbolic_ != nullptr && capacity == static_cast<int>(symbolic_->n) &&
+                            p == analysed_p_ && i == analysed_i_;
+  if (same_pattern) {
+    factor_ = cholmod_copy_factor(symbolic_, common_);
+    if (factor_ == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
+    ++symbolic_reuses_;
+  } else {
+    if (symbolic_ != nullptr) cholmod_free_factor(&symbolic_, common_);
+    std::vector<int> perm(capacity);
+    if (n > 0) {
+      cholmod_sparse a = View(p, i, x, n, n);
+      if (!cholmod_amd(&a, nullptr, 0, perm.data(), common_)) return absl::InternalError("CHOLMOD: AMD ordering failed");
+    }
+    std::iota(perm.begin() + n, perm.end(), n);
+    symbolic_ = cholmod_analyze_p(&all, perm.data(), nullptr, 0, common_);
+    if (symbolic_ == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
+    analysed_p_ = p;
+    analysed_i_ = i;
+    factor_ = cholmod_copy_factor(symbolic_, common_);
+    if (factor_ == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
+  }
   cholmod_factorize(&all, factor_, common_);
   // A simplicial LDLᵀ factorises some indefinite matrices too: D must be positive.
   if (common_->status != CHOLMOD_OK || factor_->minor < factor_->n || !PositiveDiagonal()) {

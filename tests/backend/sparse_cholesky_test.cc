@@ -131,6 +131,50 @@ TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {
   EXPECT_TRUE(MatricesNear(grown.inverse()(vars, vars), L.InverseBlock(vars), 1e-9));
 }
 
+// A refactorisation with A's pattern reuses the symbolic analysis — also after rank
+// updates have grown the factor's pattern — and equals a fresh factorisation; a
+// different pattern (an entry more, or more spare slots) is analysed again.
+TEST(SparseCholesky, RefactorizingTheSamePatternReusesTheAnalysis) {
+  std::mt19937_64 rng(4);
+  const int n = 40;
+  const Eigen::MatrixXd A = RandomSpd(n, &rng);
+  Eigen::MatrixXd A2 = A;  // the same pattern, other values
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      if (A(r, c) != 0.0) A2(r, c) = r == c ? A(r, c) + 1.0 : 0.5 * A(r, c);
+    }
+  }
+  SparseCholesky L;
+  ASSERT_TRUE(L.Factorize(Sparse(A), 5).ok());
+  ASSERT_TRUE(L.Update(n + 1, {2, n}, Eigen::MatrixXd::Ones(2, 1)).ok());
+  ASSERT_TRUE(L.Factorize(Sparse(A2), 5).ok());
+  EXPECT_EQ(L.symbolic_reuses(), 1);
+  SparseCholesky fresh;
+  ASSERT_TRUE(fresh.Factorize(Sparse(A2), 5).ok());
+  EXPECT_EQ(fresh.symbolic_reuses(), 0);
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(n, 2);
+  EXPECT_TRUE(MatricesNear(A2.ldlt().solve(B), L.Solve(B), 1e-10));
+  EXPECT_EQ(L.Solve(B), fresh.Solve(B));  // the same ordering and arithmetic
+  EXPECT_EQ(L.nonzeros(), fresh.nonzeros());
+  const std::vector<int> vars = {0, 17, 39};
+  EXPECT_TRUE(MatricesNear(A2.inverse()(vars, vars), L.InverseBlock(vars), 1e-10));
+  // An entry more: analysed again.
+  Eigen::MatrixXd A3 = A2;
+  int far = n - 1;
+  while (A3(0, far) != 0.0) --far;
+  A3(0, far) = A3(far, 0) = 0.01;
+  ASSERT_TRUE(L.Factorize(Sparse(A3), 5).ok());
+  EXPECT_EQ(L.symbolic_reuses(), 1);
+  EXPECT_TRUE(MatricesNear(A3.ldlt().solve(B), L.Solve(B), 1e-10));
+  // More spare slots: analysed again.
+  ASSERT_TRUE(L.Factorize(Sparse(A3), 9).ok());
+  EXPECT_EQ(L.symbolic_reuses(), 1);
+  EXPECT_EQ(L.capacity(), n + 9);
+  ASSERT_TRUE(L.Factorize(Sparse(A3), 9).ok());
+  EXPECT_EQ(L.symbolic_reuses(), 2);
+  EXPECT_TRUE(MatricesNear(A3.ldlt().solve(B), L.Solve(B), 1e-10));
+}
+
 TEST(SparseCholesky, RejectsWhatItCannotDo) {
   std::mt19937_64 rng(3);
   const Eigen::MatrixXd A = RandomSpd(10, &rng);

@@ -163,6 +163,9 @@ class EifJoiner final : public MapJoiner {
     Eigen::MatrixXd H;              // Jᵀ Q⁻¹ J over the stacked variable blocks
     Eigen::VectorXd b;              // Jᵀ Q⁻¹ (J x̂ − r)
     double start_theta = 0.0, end_theta = 0.0;  // the anchors' headings at the linearisation
+    // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
+    // factor; computed once, shared by copies.
+    std::shared_ptr<const Eigen::MatrixXd> covariance_sqrt;
   };
 
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
@@ -178,12 +181,15 @@ class EifJoiner final : public MapJoiner {
   // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
   // solve; write the estimate back.
   absl::Status Rebuild(bool only_last_factor);
+  // Factorises Λ afresh (the symbolic analysis reused while Λ's pattern is unchanged),
+  // with spare slots for the next joins' new variables.
+  absl::Status FullFactorization();
   // Gauss-Newton over every factor from the current estimate, to relinearize_tolerance or
   // max_relinearizations; stopped at the best iterate after divergence_rises cost rises in
   // a row.
   absl::Status Relinearize();
   // One factor's term of Cost().
-  double NormalisedResidual(const SubmapFactor& record) const;
+  double NormalisedResidual(const Factor& f) const;
   // max over factors of |heading now − heading at the factor's linearisation| of its anchors.
   double MaxHeadingDrift() const;
   // Anchor k with its continuous (unwrapped) heading; a factor's landmarks, in its order.
@@ -205,6 +211,13 @@ class EifJoiner final : public MapJoiner {
   // Λ as the sum of the first `lambda_factors_` factors; information() adds the rest.
   mutable Eigen::SparseMatrix<double> Lambda_;
   mutable size_t lambda_factors_ = 0;
+  // Where each factor's H entries (column by column, factors in order) sit in Λ's values,
+  // and the factors' variable offsets they were found for: while those are the same, a
+  // relinearised Λ is only refilled (same pattern), not assembled again.
+  mutable std::vector<int> lambda_slots_;
+  mutable std::vector<int> lambda_slot_offsets_;
+  // The variable offsets of every factor, concatenated (what Λ's pattern depends on).
+  std::vector<int> FactorOffsets() const;
   Eigen::VectorXd eta_;
   struct Solver;
   std::unique_ptr<Solver> solver_;

@@ -33,9 +33,11 @@ struct JoinerCounters {
   long loop_closures_ambiguous = 0;
   long rejected_joins = 0;    // failed validation: joined again without associations
   // EIF factor maintenance: joins absorbed by an incremental update of the factor, full
-  // factorisations (with a fresh ordering), and updates that failed and fell back to one.
+  // factorisations (of them, those that reused the last symbolic analysis: the same
+  // pattern, as in Gauss-Newton iterations), and updates that failed and fell back to one.
   long incremental_updates = 0;
   long full_factorizations = 0;
+  long reused_analyses = 0;
   long failed_updates = 0;
   // Association's candidate landmarks, those dropped under the joiner's marginal bound
   // before any recovery, and the recovery's work: columns of L⁻¹ solved, rows reached.
@@ -56,6 +58,7 @@ struct JoinerCounters {
     rejected_joins += o.rejected_joins;
     incremental_updates += o.incremental_updates;
     full_factorizations += o.full_factorizations;
+    reused_analyses += o.reused_analyses;
     failed_updates += o.failed_updates;
     candidates += o.candidates;
     candidates_bounded_out += o.candidates_bounded_out;

@@ -31,8 +31,10 @@ class SparseCholesky {
   SparseCholesky(const SparseCholesky&) = delete;
   SparseCholesky& operator=(const SparseCholesky&) = delete;
 
-  // Factorises A (n × n, symmetric; both triangles stored or the lower one) with a fresh
-  // AMD ordering and `spare` identity slots after it.
+  // Factorises A (n × n, symmetric; both triangles stored or the lower one) with an AMD
+  // ordering and `spare` identity slots after it. The symbolic analysis (ordering,
+  // elimination tree, column counts) is redone only when A's pattern (or n, or spare)
+  // differs from the last analysed one; otherwise it is reused, with the same result.
   absl::Status Factorize(const Eigen::SparseMatrix<double>& A, int spare);
   // A += W Wᵀ, where row r of W belongs to variable rows[r]; variables numbered from dim()
   // up to new_dim − 1 are new and claim spare slots (their identity is removed).
@@ -61,11 +63,20 @@ class SparseCholesky {
   // Forward columns solved for InverseBlock / InverseStarBlocks so far, and the sum of
   // their reaches (rows touched): the work of covariance recovery.
   long columns_solved() const { return columns_solved_; }
+  // Factorize() calls that reused the previous symbolic analysis (same pattern).
+  long symbolic_reuses() const { return symbolic_reuses_; }
   long reach_solved() const { return reach_solved_; }
 
  private:
   cholmod_common_struct* common_;
   cholmod_factor_struct* factor_ = nullptr;
+  // The last symbolic analysis and the pattern (lower triangle and spare slots, compressed
+  // columns) it was made for; lower_*: Factorize()'s matrix, kept to reuse its storage.
+  cholmod_factor_struct* symbolic_ = nullptr;
+  std::vector<int> analysed_p_, analysed_i_;
+  std::vector<int> lower_p_, lower_i_;
+  std::vector<double> lower_x_;
+  long symbolic_reuses_ = 0;
   struct SparseColumn {
     std::vector<int> rows;       // the reach, in the factor's order
     std::vector<double> values;  // y_r / √D_r, so that (A⁻¹)_ab is a plain dot product
