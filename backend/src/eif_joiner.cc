@@ -143,20 +143,23 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   if (whitened_jacobian != nullptr) *whitened_jacobian = std::move(A);
 }
 
-void EifJoiner::AddTriplets(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets) const {
+template <typename Visit>
+void EifJoiner::ForEachEntry(const Factor& f, Visit visit) {
   int row = 0;
   for (size_t a = 0; a < f.offsets.size(); ++a) {
     int col = 0;
     for (size_t b = 0; b < f.offsets.size(); ++b) {
       for (int i = 0; i < f.sizes[a]; ++i) {
-        for (int j = 0; j < f.sizes[b]; ++j) {
-          triplets->emplace_back(f.offsets[a] + i, f.offsets[b] + j, f.H(row + i, col + j));
-        }
+        for (int j = 0; j < f.sizes[b]; ++j) visit(f.offsets[a] + i, f.offsets[b] + j, f.H(row + i, col + j));
       }
       col += f.sizes[b];
     }
     row += f.sizes[a];
   }
+}
+
+void EifJoiner::AddTriplets(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets) const {
+  ForEachEntry(f, [triplets](int row, int col, double h) { triplets->emplace_back(row, col, h); });
 }
 
 void EifJoiner::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
@@ -195,14 +198,12 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   if (lambda_factors_ == factors_.size() && Lambda_.rows() == dim_) return Lambda_;
   if (lambda_factors_ == 0 && Lambda_.rows() == dim_ && !lambda_slots_.empty() &&
       FactorOffsets() == lambda_slot_offsets_) {
-    // The same factors over the same variables (relinearised): refill Λ's values.
+    // The same factors over the same variables (relinearised): refill Λ's values, in
+    // AddTriplets' order (so that an entry's terms are summed as setFromTriplets sums them).
     double* values = Lambda_.valuePtr();
     std::fill(values, values + Lambda_.nonZeros(), 0.0);
-    size_t slot = 0;
-    for (const Factor& f : factors_) {
-      const double* h = f.H.data();
-      for (Eigen::Index e = 0; e < f.H.size(); ++e) values[lambda_slots_[slot++]] += h[e];
-    }
+    const int* slot = lambda_slots_.data();
+    for (const Factor& f : factors_) ForEachEntry(f, [&](int, int, double h) { values[*slot++] += h; });
     lambda_factors_ = factors_.size();
     return Lambda_;
   }
@@ -215,25 +216,19 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
     Lambda_.resize(dim_, dim_);
     Lambda_.setFromTriplets(triplets.begin(), triplets.end());
     Lambda_.makeCompressed();
-    // Each H entry's place in Λ's values, in H's storage order, for later refills.
+    // Each H entry's place in Λ's values, in AddTriplets' order, for later refills.
     lambda_slots_.clear();
     lambda_slots_.reserve(count);
     const int* outer = Lambda_.outerIndexPtr();
     const int* inner = Lambda_.innerIndexPtr();
     for (const Factor& f : factors_) {
-      std::vector<int> index;  // the state index of each row/column of H
-      for (size_t v = 0; v < f.offsets.size(); ++v) {
-        for (int i = 0; i < f.sizes[v]; ++i) index.push_back(f.offsets[v] + i);
-      }
-      for (size_t c = 0; c < index.size(); ++c) {
-        const int* begin = inner + outer[index[c]];
-        const int* end = inner + outer[index[c] + 1];
-        for (size_t r = 0; r < index.size(); ++r) {
-          const int* at = std::lower_bound(begin, end, index[r]);
-          SUBSLAM_CHECK(at != end && *at == index[r]) << "an H entry missing from Λ";
-          lambda_slots_.push_back(static_cast<int>(at - inner));
-        }
-      }
+      ForEachEntry(f, [&](int row, int col, double) {
+        const int* begin = inner + outer[col];
+        const int* end = inner + outer[col + 1];
+        const int* at = std::lower_bound(begin, end, row);
+        SUBSLAM_CHECK(at != end && *at == row) << "an H entry missing from Λ";
+        lambda_slots_.push_back(static_cast<int>(at - inner));
+      });
     }
     lambda_slot_offsets_ = FactorOffsets();
   } else {

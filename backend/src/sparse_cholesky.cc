@@ -86,12 +86,11 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   // The symbolic analysis (AMD on A alone, the spare slots last; elimination tree; column
   // counts) depends on the pattern only: while it is the last analysed one — Gauss-Newton
   // iterations relinearise the same factors — a copy of that analysis is factorised again.
-  const bool same_pattern = symbolic_ != nullptr && capacity == static_cast<int>(symbolic_->n) &&
-                            p == analysed_p_ && i == analysed_i_;
+  const bool same_pattern = symbolic_ != nullptr && n == analysed_n_ &&
+                            capacity == static_cast<int>(symbolic_->n) && p == analysed_p_ && i == analysed_i_;
   if (same_pattern) {
     factor_ = cholmod_copy_factor(symbolic_, common_);
     if (factor_ == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
-    ++symbolic_reuses_;
   } else {
     if (symbolic_ != nullptr) cholmod_free_factor(&symbolic_, common_);
     std::vector<int> perm(capacity);
@@ -102,6 +101,7 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
     std::iota(perm.begin() + n, perm.end(), n);
     symbolic_ = cholmod_analyze_p(&all, perm.data(), nullptr, 0, common_);
     if (symbolic_ == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
+    analysed_n_ = n;
     analysed_p_ = p;
     analysed_i_ = i;
     factor_ = cholmod_copy_factor(symbolic_, common_);
@@ -113,6 +113,7 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
     cholmod_free_factor(&factor_, common_);
     return absl::InternalError("CHOLMOD: the matrix is not positive definite");
   }
+  if (same_pattern) ++symbolic_reuses_;
   position_.assign(capacity, 0);
   const int* P = static_cast<const int*>(factor_->Perm);
   for (int k = 0; k < capacity; ++k) position_[P[k]] = k;

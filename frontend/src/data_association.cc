@@ -76,6 +76,8 @@ class Jcbb {
       if (!problem.candidates[j].empty()) branching_.push_back(j);
     }
     row_stamp_.assign(m, 0);
+    rows_before_.assign(m, 0);
+    for (size_t t = 0; t < branching_.size(); ++t) rows_before_[branching_[t]] = static_cast<int>(t);
     first_pair_.assign(m + 1, 0);
     for (int j = 0; j < m; ++j) first_pair_[j + 1] = first_pair_[j] + static_cast<int>(problem.candidates[j].size());
     solved_.resize(first_pair_[m]);
@@ -135,18 +137,19 @@ class Jcbb {
     std::vector<Eigen::Vector2d> rhs;      // its innovation less rows 0 … a
   };
 
-  // Appends pairing (j, c) as block row k of L and y; returns the joint d².
+  // Appends pairing (j, c) as block row k of L and y (its rows solved so far in *s,
+  // updated); returns the joint d².
   bool Extend(int j, int k, const AssociationCandidate& c, Solved* s, double* d2) {
-    // L21t = L11⁻¹ B, B the covariances of the hypothesis' pairings with the new one, by
+    // X = L11⁻¹ B, B the covariances of the hypothesis' pairings with the new one, by
     // forward substitution over 2 × 2 blocks in plain fixed-size arithmetic (Eigen's
     // triangular solves dispatch to their general kernels even for 2 × 2 blocks), resumed
     // after the rows solved under the same pairings.
-    if (s->X.empty()) {
-      const size_t m = row_stamp_.size();
-      s->stamp.resize(m);
-      s->X.resize(m);
-      s->C.resize(m);
-      s->rhs.resize(m);
+    if (static_cast<int>(s->X.size()) < k) {  // sized once, for the deepest row j can see
+      const size_t rows = static_cast<size_t>(rows_before_[j]);
+      s->stamp.resize(rows);
+      s->X.resize(rows);
+      s->C.resize(rows);
+      s->rhs.resize(rows);
     }
     int r = 0;
     while (r < s->rows && r < k && s->stamp[r] == row_stamp_[r]) ++r;
@@ -203,6 +206,7 @@ class Jcbb {
   long stamps_ = 0;
   std::vector<int> first_pair_;  // candidate pairings of detection j: first_pair_[j] …
   std::vector<Solved> solved_;   // by candidate pairing
+  std::vector<int> rows_before_;  // at most this many pairings precede detection j's
   std::vector<int> current_;           // landmark per detection in the hypothesis
   std::vector<int> paired_detection_;  // detection of block row a
   std::vector<int> branching_;         // detections with at least one candidate, in order

@@ -10,7 +10,8 @@
 // incrementally: each join is a rank-(3+2n) update of the factor (cholmod_updown), its
 // new variables taking spare slots kept last in the fill-reducing (AMD) ordering; a full
 // factorisation with a fresh ordering happens when the slots run out or the fill has
-// grown, and at every relinearisation. The estimate is Λ⁻¹η by one solve, checked by its
+// grown, and at every relinearisation (whose Gauss-Newton iterations after the first
+// refactorise the same pattern: the symbolic analysis and Λ's pattern are reused). The estimate is Λ⁻¹η by one solve, checked by its
 // residual (an update that fails the check is replaced by a full factorisation).
 // Headings are kept continuous in the state (never wrapped between linearisations) so
 // every stored linear model stays valid; they are wrapped in the outputs.
@@ -83,7 +84,7 @@ struct EifJoinerOptions {
   int divergence_rises = 2;
   // Factorisation: each join updates the sparse LDLᵀ factor of Λ by the new factor's
   // rank-(3+2n) update (CHOLMOD update/downdate; new variables last in the ordering)
-  // instead of refactorising Λ; a full factorisation with a fresh AMD ordering is done
+  // instead of refactorising Λ; a full factorisation (AMD ordering) is done
   // when the spare slots run out, when L's fill has grown by `refactorize_fill_ratio`
   // since the last one, at every relinearisation, or if an update fails.
   bool incremental_factorization = true;
@@ -176,6 +177,9 @@ class EifJoiner final : public MapJoiner {
   void Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian = nullptr) const;
   // Adds a factor's blocks of Λ to triplets, its b to η, or H_f x_f to y.
   void AddTriplets(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets) const;
+  // visit(row, col, value) for each entry of the factor's H, at its place in the state.
+  template <typename Visit>
+  static void ForEachEntry(const Factor& f, Visit visit);
   void AddToEta(const Factor& f, Eigen::VectorXd* eta) const;
   void AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
   // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
@@ -184,6 +188,8 @@ class EifJoiner final : public MapJoiner {
   // Factorises Λ afresh (the symbolic analysis reused while Λ's pattern is unchanged),
   // with spare slots for the next joins' new variables.
   absl::Status FullFactorization();
+  // The variable offsets of every factor, concatenated (what Λ's pattern depends on).
+  std::vector<int> FactorOffsets() const;
   // Gauss-Newton over every factor from the current estimate, to relinearize_tolerance or
   // max_relinearizations; stopped at the best iterate after divergence_rises cost rises in
   // a row.
@@ -216,8 +222,6 @@ class EifJoiner final : public MapJoiner {
   // relinearised Λ is only refilled (same pattern), not assembled again.
   mutable std::vector<int> lambda_slots_;
   mutable std::vector<int> lambda_slot_offsets_;
-  // The variable offsets of every factor, concatenated (what Λ's pattern depends on).
-  std::vector<int> FactorOffsets() const;
   Eigen::VectorXd eta_;
   struct Solver;
   std::unique_ptr<Solver> solver_;

@@ -1,5 +1,6 @@
 // A sparse LDLᵀ factor of a symmetric positive definite matrix A (CHOLMOD, simplicial)
-// that can grow: besides a full factorisation with a fresh fill-reducing ordering (AMD),
+// that can grow: besides a full factorisation with a fill-reducing ordering (AMD; the
+// analysis is reused while the pattern is the same),
 // it takes rank-k updates A += W Wᵀ (cholmod_updown) and new variables, which occupy
 // spare slots kept as identity rows at the end of the ordering until claimed. This is the
 // incremental factor of the EIF joiner (internal: not part of the API).
@@ -63,9 +64,9 @@ class SparseCholesky {
   // Forward columns solved for InverseBlock / InverseStarBlocks so far, and the sum of
   // their reaches (rows touched): the work of covariance recovery.
   long columns_solved() const { return columns_solved_; }
-  // Factorize() calls that reused the previous symbolic analysis (same pattern).
-  long symbolic_reuses() const { return symbolic_reuses_; }
   long reach_solved() const { return reach_solved_; }
+  // Successful Factorize() calls that reused the previous symbolic analysis.
+  long symbolic_reuses() const { return symbolic_reuses_; }
 
  private:
   cholmod_common_struct* common_;
@@ -73,6 +74,7 @@ class SparseCholesky {
   // The last symbolic analysis and the pattern (lower triangle and spare slots, compressed
   // columns) it was made for; lower_*: Factorize()'s matrix, kept to reuse its storage.
   cholmod_factor_struct* symbolic_ = nullptr;
+  int analysed_n_ = -1;
   std::vector<int> analysed_p_, analysed_i_;
   std::vector<int> lower_p_, lower_i_;
   std::vector<double> lower_x_;
