@@ -88,8 +88,15 @@ subslam::app::BackendOptions Options(Backend kind) {
 
 // Cumulative joining time after each local map (and Finish at the end, added to the last);
 // the joiner's stage times in `stages`, if given.
+// The size of an EIF's information form after the last join.
+struct InformationSize {
+  long state = 0;           // variables
+  long lambda_entries = 0;  // stored entries of Λ (both triangles)
+  long factor_entries = 0;  // entries of its LDLᵀ factor
+};
+
 std::vector<double> TimeEachJoin(const std::vector<subslam::LocalSubmap>& maps, Backend kind, const subslam::Pose2& p0,
-                                 std::map<std::string, double>* stages = nullptr) {
+                                 std::map<std::string, double>* stages = nullptr, InformationSize* size = nullptr) {
   std::unique_ptr<subslam::backend::MapJoiner> j = subslam::app::MakeJoiner(Options(kind), p0);
   std::vector<double> out;
   const absl::Time start = absl::Now();
@@ -100,6 +107,11 @@ std::vector<double> TimeEachJoin(const std::vector<subslam::LocalSubmap>& maps, 
   if (!j->Finish().ok()) return {};
   out.back() = absl::ToDoubleSeconds(absl::Now() - start);
   if (stages != nullptr) *stages = j->stage_times();
+  if (const auto* eif = dynamic_cast<const subslam::backend::EifJoiner*>(j.get()); eif != nullptr && size != nullptr) {
+    size->state = eif->state_dimension();
+    size->lambda_entries = static_cast<long>(eif->information().nonZeros());
+    size->factor_entries = eif->factor_nonzeros();
+  }
   return out;
 }
 
@@ -192,7 +204,7 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
     std::printf(" %11s %9s %13s", (std::string(subslam::app::ToString(kind)) + "_s").c_str(), "/nlog2n",
                 "last10%_ms/j");
   }
-  std::printf("   (eif: factorisation / state recovery [s])\n");
+  std::printf("   (eif: factorisation / state recovery [s]; Λ and L entries per local map)\n");
   nlohmann::json rows = nlohmann::json::array();
   for (double km : lengths_km) {
     subslam::sim::ScenarioOptions o;
@@ -214,7 +226,8 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
         continue;
       }
       std::map<std::string, double> stages;
-      const std::vector<double> t = TimeEachJoin(in->maps, kind, in->dataset.initial_pose, &stages);
+      InformationSize size;
+      const std::vector<double> t = TimeEachJoin(in->maps, kind, in->dataset.initial_pose, &stages, &size);
       const double total = t.empty() ? NAN : t.back();
       row[std::string(subslam::app::ToString(kind)) + "_stages"] = stages;
       double last_tenth_ms = NAN;
@@ -226,7 +239,11 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
       std::printf(" %11.4f %9.2e %13.2f", total, total / (n * std::log2(std::max(2.0, n))), last_tenth_ms);
       row[std::string(subslam::app::ToString(kind)) + "_s"] = total;
       if (kind == Backend::kEif) {
-        std::printf("   (%.3f / %.3f)", stages["factorization"], stages["recovery"] + stages["recovery_check"]);
+        std::printf("   (%.3f / %.3f; %.0f / %.0f)", stages["factorization"], stages["recovery"] + stages["recovery_check"],
+                    static_cast<double>(size.lambda_entries) / n, static_cast<double>(size.factor_entries) / n);
+        row["eif_state_dimension"] = size.state;
+        row["eif_lambda_entries"] = size.lambda_entries;
+        row["eif_factor_entries"] = size.factor_entries;
       }
     }
     std::printf("\n");

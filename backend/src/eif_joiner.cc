@@ -241,6 +241,8 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   return Lambda_;
 }
 
+long EifJoiner::factor_nonzeros() const { return solver_->factor.nonzeros(); }
+
 absl::Status EifJoiner::FullFactorization() {
   StageTimer full(&times_, "full_factorization");
   SparseCholesky& L = solver_->factor;
