@@ -16,6 +16,17 @@ function(subslam_add_module NAME)
     $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
   target_link_libraries(subslam_${NAME} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  # Code that includes these headers must be built for the same instruction set: Eigen's
+  # alignment follows it, and with it the layout of every struct holding a fixed-size
+  # Eigen member and how Eigen allocates and frees memory (a mismatch corrupts the heap).
+  # So the exported targets hand -march=native on to their users; configure with
+  # SUBSLAM_NATIVE=OFF for a portable library. A sanitized build hands on its runtime.
+  if(SUBSLAM_NATIVE)
+    target_compile_options(subslam_${NAME} INTERFACE -march=native)
+  endif()
+  if(SUBSLAM_SANITIZE)
+    target_link_options(subslam_${NAME} INTERFACE -fsanitize=address,undefined)
+  endif()
   install(TARGETS subslam_${NAME} EXPORT subslamTargets
           ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
           LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
