@@ -20,11 +20,13 @@ function(subslam_add_module NAME)
   # alignment follows it, and with it the layout of every struct holding a fixed-size
   # Eigen member and how Eigen allocates and frees memory (a mismatch corrupts the heap).
   # So the exported targets hand -march=native on to their users; configure with
-  # SUBSLAM_NATIVE=OFF for a portable library. A sanitized build hands on its runtime.
+  # SUBSLAM_NATIVE=OFF for a portable library. The same holds for AddressSanitizer (Eigen
+  # allocates differently under it), so a sanitized build hands on its flags too.
   if(SUBSLAM_NATIVE)
     target_compile_options(subslam_${NAME} INTERFACE -march=native)
   endif()
   if(SUBSLAM_SANITIZE)
+    target_compile_options(subslam_${NAME} INTERFACE -fsanitize=address,undefined)
     target_link_options(subslam_${NAME} INTERFACE -fsanitize=address,undefined)
   endif()
   install(TARGETS subslam_${NAME} EXPORT subslamTargets
