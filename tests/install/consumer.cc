@@ -1,10 +1,12 @@
-// Runs the README's snippets as another project would: reads a data set, builds RBPF
-// local maps and joins them with the EIF. Exits 0 when every local map joined.
+// Runs the README's snippets as another project would: reads a data set, runs EKF-SLAM
+// over it, builds RBPF local maps and joins them with the EIF. Exits 0 when both ran and
+// every local map joined.
 #include <cmath>
 #include <cstdio>
 #include <string>
 
 #include <subslam/backend/eif_joiner.h>
+#include <subslam/frontend/ekf_slam.h>
 #include <subslam/frontend/local_mapper.h>
 #include <subslam/io/dataset_reader.h>
 #include <subslam/io/steps.h>
@@ -19,6 +21,20 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", std::string(dataset.status().message()).c_str());
     return 1;
   }
+  // The single-map baseline.
+  subslam::frontend::EkfSlam ekf(dataset->motion.MakeModel(), dataset->sensor.range_bearing, dataset->initial_pose,
+                                 subslam::frontend::EkfSlamOptions{});
+  for (const subslam::io::Step& step : subslam::io::BuildSteps(*dataset)) {
+    ekf.Predict(step.control, step.dt);
+    if (step.scan_index >= 0) ekf.Update(dataset->scans[step.scan_index]);
+  }
+  const std::vector<subslam::LandmarkEstimate> ekf_map = ekf.Map();
+  const Eigen::Matrix3d ekf_covariance = ekf.pose_covariance();
+  std::printf("EKF-SLAM: %zu landmarks, final position sd %.2f m\n", ekf_map.size(),
+              std::sqrt(ekf_covariance(0, 0) + ekf_covariance(1, 1)));
+  if (ekf_map.empty()) return 1;
+
+  // Local maps joined by the EIF.
   subslam::frontend::RbpfLocalMapper mapper(dataset->motion.MakeModel(), dataset->sensor.range_bearing,
                                             subslam::frontend::FastSlamOptions{},
                                             subslam::frontend::SubmapPolicyOptions{}, /*t_start=*/0.0);
