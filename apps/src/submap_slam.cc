@@ -86,7 +86,15 @@ void SubmapSlam::JoinClosed() {
   for (frontend::ClosedLocalMap& c : newly_closed) {
     const LocalSubmap& s = c.submap;
     if (joiner_) {
-      if (absl::Status st = joiner_->Join(s); !st.ok() && status_.ok()) status_ = st;
+      // After a failed join the joiner is left as it was (or without a factor): nothing
+      // more is joined or asked of it, and Finish() reports the error.
+      if (!status_.ok()) {
+        closed_.push_back(std::move(c));
+        continue;
+      }
+      if (absl::Status st = joiner_->Join(s); !st.ok()) {
+        status_ = absl::Status(st.code(), absl::StrCat("joining local map ", s.id, ": ", st.message()));
+      }
       ++joins_;
       if (backend_ == Backend::kCeres && ceres_every_ > 0 && joins_ % ceres_every_ == 0 && status_.ok()) {
         status_ = SolveAndAdopt();
@@ -100,7 +108,7 @@ void SubmapSlam::JoinClosed() {
     }
     closed_.push_back(std::move(c));
   }
-  if (joiner_) {  // the tree joiner answers without folding its nodes
+  if (joiner_ && status_.ok()) {  // the tree joiner answers without folding its nodes
     anchor_ = joiner_->LastAnchor();
     anchor_covariance_ = joiner_->LastAnchorCovariance();
   } else {
@@ -149,7 +157,7 @@ absl::Status SubmapSlam::Finish() {
   JoinClosed();
   if (joiner_ && status_.ok()) status_ = joiner_->Finish();
   if (backend_ == Backend::kCeres && status_.ok()) status_ = SolveAndAdopt();
-  if (joiner_) {  // the online pose after the run: on the final estimate
+  if (joiner_ && status_.ok()) {  // the online pose after the run: on the final estimate
     anchor_ = Anchor(mapper_->current_map_id());
     anchor_covariance_ = AnchorCovariance(mapper_->current_map_id());
   }

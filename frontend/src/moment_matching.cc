@@ -59,9 +59,12 @@ std::vector<std::pair<int, Resolved>> ResolveDuplicates(const ParticleHypothesis
 }  // namespace
 
 bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor) {
-  if (Eigen::LLT<Eigen::MatrixXd>(*covariance).info() == Eigen::Success) return false;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(*covariance);
   const double floor = std::max(relative_floor * eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-15);
+  // Positive definite and conditioned well enough to be whitened by a joiner: kept as is.
+  if (eig.eigenvalues().minCoeff() >= floor && Eigen::LLT<Eigen::MatrixXd>(*covariance).info() == Eigen::Success) {
+    return false;
+  }
   *covariance = eig.eigenvectors() * eig.eigenvalues().cwiseMax(floor).asDiagonal() *
                 eig.eigenvectors().transpose();
   *covariance = 0.5 * (*covariance + covariance->transpose()).eval();

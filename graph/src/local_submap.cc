@@ -1,6 +1,7 @@
 #include "subslam/graph/local_submap.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <set>
 
@@ -37,6 +38,14 @@ absl::Status LocalSubmap::Validate() const {
   }
   if (Eigen::LLT<Eigen::MatrixXd>(covariance).info() != Eigen::Success) {
     return error("covariance is not positive definite");
+  }
+  // Joiners whiten by the covariance's Cholesky factor: past this condition number the
+  // information it carries is rounding error (and CHOLMOD fails on the sum).
+  const Eigen::VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(covariance).eigenvalues();
+  if (!(eigenvalues.minCoeff() >= kMinRelativeEigenvalue * eigenvalues.maxCoeff())) {
+    return error("covariance is numerically singular (eigenvalues ", eigenvalues.minCoeff(), " to ",
+                 eigenvalues.maxCoeff(), "; the smallest must be at least ", kMinRelativeEigenvalue,
+                 " of the largest)");
   }
   return absl::OkStatus();
 }

@@ -55,7 +55,8 @@ struct MomentMatchingOptions {
   DuplicateFeaturePolicy duplicates = DuplicateFeaturePolicy::kHighestExistence;
   // Export only common features whose existence (see above) is at least this.
   double min_existence = 0.95;
-  // Eigenvalue floor of a repaired covariance (relative to its largest eigenvalue).
+  // Eigenvalue floor of the exported covariance (relative to its largest eigenvalue): an
+  // indefinite or more ill-conditioned one is repaired (see RepairCovariance; counted).
   double repair_relative_floor = 1e-9;
 };
 
@@ -72,8 +73,11 @@ struct MomentMatchedGaussian {
   bool fell_back_to_ignore = false;  // kDiscardParticle found no particle holding all
 };
 
-// Makes a symmetric matrix positive definite if it is not, by raising its eigenvalues
-// to relative_floor × the largest (at least 1e-15). Returns whether it repaired.
+// Makes a symmetric matrix positive definite and conditioned at most 1 / relative_floor,
+// by raising every eigenvalue below relative_floor × the largest (at least 1e-15) to that
+// floor. Returns whether it changed the matrix. An ill-conditioned covariance is
+// repaired too: e.g. a local map closed one step after it opened has a rank-2 pose
+// covariance (three pose variables, two control noises), which no joiner can whiten.
 bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor);
 
 // Requires at least one particle with positive weight.

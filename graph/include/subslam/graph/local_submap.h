@@ -38,7 +38,7 @@ struct LocalSubmap {
   Eigen::MatrixXd covariance;  // (3 + 2n) × (3 + 2n)
   std::vector<LocalSubmapLandmark> landmarks;
   // How many times the conversion had to repair the covariance to make it positive
-  // definite (0 normally; reported, never silent).
+  // definite and well conditioned (0 normally; reported, never silent).
   int covariance_repairs = 0;
 
   int num_landmarks() const { return static_cast<int>(landmarks.size()); }
@@ -49,8 +49,10 @@ struct LocalSubmap {
   }
 
   // Sizes agree, values finite, t_start ≤ t_end, heading wrapped, local ids unique,
-  // existence in [0, 1], covariance symmetric (to 1e-9 relative) and positive definite.
+  // existence in [0, 1], covariance symmetric (to 1e-9 relative), positive definite and
+  // not numerically singular (smallest eigenvalue ≥ kMinRelativeEigenvalue × largest).
   absl::Status Validate() const;
+  static constexpr double kMinRelativeEigenvalue = 1e-13;
 };
 
 }  // namespace subslam
