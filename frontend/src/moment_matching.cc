@@ -59,12 +59,14 @@ std::vector<std::pair<int, Resolved>> ResolveDuplicates(const ParticleHypothesis
 }  // namespace
 
 bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor) {
+  // Positive definite and conditioned well enough to be whitened by a joiner: kept as is.
+  // The Cholesky factor's reciprocal condition estimate (1-norm, O(n²)) settles the usual
+  // case; 1/κ₁ ≤ 1/κ₂ = λ_min/λ_max, and the margin covers the estimate's error.
+  const Eigen::LLT<Eigen::MatrixXd> llt(*covariance);
+  if (llt.info() == Eigen::Success && llt.rcond() >= 1e3 * relative_floor) return false;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(*covariance);
   const double floor = std::max(relative_floor * eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-15);
-  // Positive definite and conditioned well enough to be whitened by a joiner: kept as is.
-  if (eig.eigenvalues().minCoeff() >= floor && Eigen::LLT<Eigen::MatrixXd>(*covariance).info() == Eigen::Success) {
-    return false;
-  }
+  if (llt.info() == Eigen::Success && eig.eigenvalues().minCoeff() >= floor) return false;
   *covariance = eig.eigenvectors() * eig.eigenvalues().cwiseMax(floor).asDiagonal() *
                 eig.eigenvectors().transpose();
   *covariance = 0.5 * (*covariance + covariance->transpose()).eval();

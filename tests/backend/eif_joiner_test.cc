@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "subslam/backend/submap_factor.h"
+#include "subslam/frontend/moment_matching.h"
 #include "synthetic_run.h"
 #include "test_util.h"
 
@@ -433,6 +434,34 @@ TEST(EifJoiner, RelinearisationStopsAtItsBestIterateAfterTooManyCostRises) {
     EXPECT_TRUE(MatricesNear(monotone->graph().anchors()[k].vector(), single->graph().anchors()[k].vector(), 1e-9))
         << "anchor " << k;
   }
+}
+
+// The last local map of a run may span one step: no features, and a pose covariance of
+// rank 2 that only rounding keeps positive definite. Joined as is it made CHOLMOD fail
+// (and `subslam run` abort); it is now rejected with a clear error, and joins once
+// repaired as the front-ends repair it.
+TEST(EifJoiner, JoinsAOneStepLocalMapOnceItsCovarianceIsRepaired) {
+  const SyntheticRun run = MakeRun(3, 2);
+  LocalSubmap one_step;
+  one_step.id = run.submaps[1].id + 1;
+  one_step.t_start = run.submaps[1].t_end;
+  one_step.t_end = one_step.t_start + 0.1;
+  one_step.mean = Eigen::Vector3d(0.1, 0.0, 0.0);
+  Eigen::Matrix<double, 3, 2> J;  // ∂(x, y, θ)/∂(v, ω) of a 0.1 s step at 1 m/s
+  J << 0.1, 0.0, 0.0, 0.005, 0.0, 0.1;
+  one_step.covariance = J * Eigen::Vector2d(0.26 * 0.26, 0.0093 * 0.0093).asDiagonal() * J.transpose() +
+                        1e-22 * Eigen::Matrix3d::Identity();
+  EifJoiner eif(run.anchors[0], {});
+  for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
+  const absl::Status rejected = eif.Join(one_step);
+  EXPECT_FALSE(rejected.ok());
+  EXPECT_NE(rejected.message().find("numerically singular"), std::string::npos) << rejected;
+  ASSERT_TRUE(frontend::RepairCovariance(&one_step.covariance, 1e-9));
+  ASSERT_TRUE(eif.Join(one_step).ok());
+  ASSERT_TRUE(eif.Finish().ok());
+  EXPECT_EQ(eif.num_anchors(), 4);
+  EXPECT_TRUE(eif.LastAnchorCovariance().allFinite());
+  EXPECT_EQ(Eigen::LLT<Eigen::Matrix3d>(eif.LastAnchorCovariance()).info(), Eigen::Success);
 }
 
 TEST(EifJoiner, RejectsInvalidInput) {

@@ -167,5 +167,28 @@ TEST(RepairCovariance, LeavesPositiveDefiniteAloneAndRepairsIndefinite) {
   EXPECT_NEAR(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(bad).eigenvalues().maxCoeff(), 3.0, 1e-12);
 }
 
+// A local map closed one step after it opened: the pose covariance J M Jᵀ has rank 2
+// (three pose variables, two control noises) and only rounding keeps its Cholesky factor
+// alive. It is repaired to condition 1 / floor, its large eigenvalues kept.
+TEST(RepairCovariance, RepairsANumericallySingularCovariance) {
+  Eigen::Matrix<double, 3, 2> J;  // ∂(x, y, θ)/∂(v, ω) of a 0.1 s step at 1 m/s
+  J << 0.1, 0.0, 0.0, 0.005, 0.0, 0.1;
+  const Eigen::Matrix2d M = Eigen::Vector2d(0.26 * 0.26, 0.0093 * 0.0093).asDiagonal();
+  Eigen::MatrixXd singular = J * M * J.transpose() + 1e-22 * Eigen::Matrix3d::Identity();
+  ASSERT_EQ(Eigen::LLT<Eigen::MatrixXd>(singular).info(), Eigen::Success);
+  const Eigen::Vector3d before = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(singular).eigenvalues();
+  ASSERT_LT(before[0], 1e-13 * before[2]);
+  EXPECT_TRUE(RepairCovariance(&singular, 1e-9));
+  const Eigen::Vector3d after = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(singular).eigenvalues();
+  EXPECT_NEAR(after[0], 1e-9 * before[2], 1e-12 * before[2]);
+  EXPECT_NEAR(after[1], before[1], 1e-12 * before[2]);
+  EXPECT_NEAR(after[2], before[2], 1e-12 * before[2]);
+  // Conditioned just inside the floor: left alone.
+  Eigen::MatrixXd conditioned = Eigen::Vector3d(1.0, 1e-3, 1e-8).asDiagonal();
+  const Eigen::MatrixXd kept = conditioned;
+  EXPECT_FALSE(RepairCovariance(&conditioned, 1e-9));
+  EXPECT_EQ(conditioned, kept);
+}
+
 }  // namespace
 }  // namespace subslam::frontend

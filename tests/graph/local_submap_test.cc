@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <string>
+
 namespace subslam {
 namespace {
 
@@ -25,6 +28,21 @@ TEST(LocalSubmap, AcceptsAValidMapAndReadsBlocks) {
   EXPECT_EQ(s.end_pose().theta, 0.2);
   EXPECT_EQ(s.landmark(1), Eigen::Vector2d(-2.0, 6.0));
   EXPECT_EQ(s.landmark_covariance(0)(0, 0), 0.1);
+}
+
+// A covariance that is positive definite only through rounding (condition ~1e17) is
+// rejected with its eigenvalues: a joiner cannot whiten by it.
+TEST(LocalSubmap, RejectsANumericallySingularCovariance) {
+  LocalSubmap s = Valid();
+  Eigen::VectorXd direction = Eigen::VectorXd::Ones(7).normalized();
+  s.covariance = Eigen::MatrixXd::Identity(7, 7) - direction * direction.transpose() +
+                 1e-17 * direction * direction.transpose();
+  ASSERT_EQ(Eigen::LLT<Eigen::MatrixXd>(s.covariance).info(), Eigen::Success);
+  const absl::Status st = s.Validate();
+  EXPECT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("numerically singular"), std::string::npos) << st;
+  s.covariance += 1e-11 * direction * direction.transpose();  // condition 1e11: accepted
+  EXPECT_TRUE(s.Validate().ok()) << s.Validate();
 }
 
 TEST(LocalSubmap, RejectsEachBrokenInvariant) {
