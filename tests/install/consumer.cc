@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include <subslam/backend/eif_joiner.h>
 #include <subslam/frontend/ekf_slam.h>
@@ -34,10 +35,11 @@ int main(int argc, char** argv) {
               std::sqrt(ekf_covariance(0, 0) + ekf_covariance(1, 1)));
   if (ekf_map.empty()) return 1;
 
-  // Local maps joined by the EIF.
+  // Local maps joined by the EIF; the first map opens at the data set's first time.
+  const double t_start = dataset->controls.empty() ? 0.0 : dataset->controls.front().t;
   subslam::frontend::RbpfLocalMapper mapper(dataset->motion.MakeModel(), dataset->sensor.range_bearing,
                                             subslam::frontend::FastSlamOptions{},
-                                            subslam::frontend::SubmapPolicyOptions{}, /*t_start=*/0.0);
+                                            subslam::frontend::SubmapPolicyOptions{}, t_start);
   subslam::backend::EifJoiner joiner(dataset->initial_pose, subslam::backend::EifJoinerOptions{});
   int joined = 0;
   const auto join_closed = [&]() {
@@ -56,7 +58,11 @@ int main(int argc, char** argv) {
     if (!join_closed()) return 1;
   }
   mapper.Finish();
-  if (!join_closed() || !joiner.Finish().ok()) return 1;
+  if (!join_closed()) return 1;
+  if (absl::Status st = joiner.Finish(); !st.ok()) {
+    std::fprintf(stderr, "finish: %s\n", std::string(st.message()).c_str());
+    return 1;
+  }
   const subslam::Pose2 anchor = joiner.LastAnchor();
   const Eigen::Matrix3d covariance = joiner.LastAnchorCovariance();
   std::printf("joined %d local maps; last anchor (%.2f, %.2f, %.3f), position sd %.2f m\n", joined, anchor.x,

@@ -1,7 +1,7 @@
 # Installs subslam from SUBSLAM_BUILD_DIR into WORK_DIR/prefix, configures and builds the
 # consumer project in SOURCE_DIR against it, simulates a short data set with SUBSLAM_APP
 # and runs the consumer on it. Run by CTest: cmake -D… -P run_consumer.cmake.
-foreach(var SUBSLAM_BUILD_DIR SOURCE_DIR WORK_DIR SUBSLAM_APP CXX_COMPILER)
+foreach(var SUBSLAM_BUILD_DIR SOURCE_DIR WORK_DIR SUBSLAM_APP CXX_COMPILER GENERATOR)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "run_consumer.cmake: ${var} not set")
   endif()
@@ -16,9 +16,26 @@ function(run step)
 endfunction()
 
 file(REMOVE_RECURSE "${WORK_DIR}")
+file(MAKE_DIRECTORY "${WORK_DIR}")
+# `cmake --install` rewrites the build tree's install_manifest.txt: keep the user's.
+set(manifest "${SUBSLAM_BUILD_DIR}/install_manifest.txt")
+if(EXISTS "${manifest}")
+  file(COPY_FILE "${manifest}" "${WORK_DIR}/install_manifest.saved")
+endif()
 run(install ${CMAKE_COMMAND} --install "${SUBSLAM_BUILD_DIR}" --prefix "${WORK_DIR}/prefix")
-set(configure_args -S "${SOURCE_DIR}" -B "${WORK_DIR}/build" -DCMAKE_BUILD_TYPE=Release
-    "-DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix" "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}")
+if(EXISTS "${WORK_DIR}/install_manifest.saved")
+  file(COPY_FILE "${WORK_DIR}/install_manifest.saved" "${manifest}")
+else()
+  file(REMOVE "${manifest}")
+endif()
+# The consumer is configured like the library: same generator, compiler, flags and
+# dependency search path (the test prefix first).
+set(configure_args -S "${SOURCE_DIR}" -B "${WORK_DIR}/build" -G "${GENERATOR}" -DCMAKE_BUILD_TYPE=Release
+    "-DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix;${PARENT_PREFIX_PATH}" "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}"
+    "-DCMAKE_CXX_FLAGS=${CXX_FLAGS}" -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF)
+if(MAKE_PROGRAM)
+  list(APPEND configure_args "-DCMAKE_MAKE_PROGRAM=${MAKE_PROGRAM}")
+endif()
 if(CXX_LAUNCHER)
   list(APPEND configure_args "-DCMAKE_CXX_COMPILER_LAUNCHER=${CXX_LAUNCHER}")
 endif()
