@@ -16,17 +16,18 @@ function(subslam_add_module NAME)
     $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
   target_link_libraries(subslam_${NAME} PUBLIC ${ARG_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
-  # Code that includes these headers must be built for the same instruction set: Eigen's
-  # alignment follows it, and with it the layout of every struct holding a fixed-size
-  # Eigen member and how Eigen allocates and frees memory (a mismatch corrupts the heap).
-  # So the exported targets hand -march=native on to their users; configure with
-  # SUBSLAM_NATIVE=OFF for a portable library. The same holds for AddressSanitizer (Eigen
-  # allocates differently under it), so a sanitized build hands on its flags too.
-  if(SUBSLAM_NATIVE)
-    target_compile_options(subslam_${NAME} INTERFACE -march=native)
-  endif()
-  if(SUBSLAM_SANITIZE)
-    target_compile_options(subslam_${NAME} INTERFACE -fsanitize=address,undefined)
+  # Eigen's memory layout is part of the library's ABI. By default it follows the
+  # instruction set: objects aligned to 16 bytes and plain malloc with SSE; 32 or 64
+  # bytes and Eigen's own allocator with AVX or AVX-512, or under AddressSanitizer.
+  # Code built differently on the other side corrupts the heap as soon as an Eigen
+  # object crosses over. So the layout is pinned, and handed on to every user of these
+  # targets, whatever -march either side is built with: alignment assumed at most 16
+  # bytes (object layout as with SSE), and always Eigen's own allocator (which frees
+  # whatever alignment allocated). -march=native stays a pure speed choice (no
+  # measurable cost of the pinning: bench/RESULTS.md).
+  target_compile_definitions(subslam_${NAME} PUBLIC EIGEN_MAX_ALIGN_BYTES=16 EIGEN_MAX_STATIC_ALIGN_BYTES=16
+                             EIGEN_MALLOC_ALREADY_ALIGNED=0)
+  if(SUBSLAM_SANITIZE)  # users of a sanitized build link its runtime
     target_link_options(subslam_${NAME} INTERFACE -fsanitize=address,undefined)
   endif()
   install(TARGETS subslam_${NAME} EXPORT subslamTargets

@@ -1,6 +1,8 @@
 # Installs subslam from SUBSLAM_BUILD_DIR into WORK_DIR/prefix, configures and builds the
 # consumer project in SOURCE_DIR against it, simulates a short data set with SUBSLAM_APP
-# and runs the consumer on it. Run by CTest: cmake -D… -P run_consumer.cmake.
+# and runs the consumer on it; then, on a machine with AVX2, the same consumer built for
+# AVX2 (another Eigen alignment than the library's unless the layout is pinned, see
+# cmake/SubslamHelpers.cmake). Run by CTest: cmake -D… -P run_consumer.cmake.
 foreach(var SUBSLAM_BUILD_DIR SOURCE_DIR WORK_DIR SUBSLAM_APP CXX_COMPILER GENERATOR)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "run_consumer.cmake: ${var} not set")
@@ -44,3 +46,15 @@ run(build ${CMAKE_COMMAND} --build "${WORK_DIR}/build")
 run(simulate "${SUBSLAM_APP}" simulate --scenario hybrid-120m --seed 1 --duration 60 --out "${WORK_DIR}/data")
 run(consumer "${WORK_DIR}/build/consumer" "${WORK_DIR}/data")
 message(STATUS "${last_output}")
+file(READ /proc/cpuinfo cpuinfo LIMIT 20000)
+if(cpuinfo MATCHES " avx2 " AND cpuinfo MATCHES " fma ")
+  list(FIND configure_args "${WORK_DIR}/build" at)
+  list(REMOVE_AT configure_args ${at})
+  list(INSERT configure_args ${at} "${WORK_DIR}/build-avx2")
+  list(FILTER configure_args EXCLUDE REGEX "^-DCMAKE_CXX_FLAGS=")
+  list(APPEND configure_args "-DCMAKE_CXX_FLAGS=${CXX_FLAGS} -mavx2 -mfma")
+  run(configure-avx2 ${CMAKE_COMMAND} ${configure_args})
+  run(build-avx2 ${CMAKE_COMMAND} --build "${WORK_DIR}/build-avx2")
+  run(consumer-avx2 "${WORK_DIR}/build-avx2/consumer" "${WORK_DIR}/data")
+  message(STATUS "AVX2 build: ${last_output}")
+endif()
