@@ -21,11 +21,12 @@ function(subslam_add_module NAME)
   # bytes and Eigen's own allocator with AVX or AVX-512, or under AddressSanitizer.
   # Code built differently on the other side corrupts the heap as soon as an Eigen
   # object crosses over. So the layout is pinned, and handed on to every user of these
-  # targets, whatever -march either side is built with: alignment assumed at most 16
-  # bytes (object layout as with SSE), and always Eigen's own allocator (which frees
-  # whatever alignment allocated). -march=native stays a pure speed choice (no
-  # measurable cost of the pinning: bench/RESULTS.md).
-  target_compile_definitions(subslam_${NAME} PUBLIC EIGEN_MAX_ALIGN_BYTES=16 EIGEN_MAX_STATIC_ALIGN_BYTES=16
+  # targets, whatever -march either side is built with: fixed-size objects aligned to
+  # 16 bytes (their layout as with SSE); heap blocks always from Eigen's own allocator,
+  # 64-byte aligned (the AVX-512 packet; its realloc moves data by the alignment it was
+  # built with, so every side must use the same). -march=native stays a pure speed
+  # choice (no measurable cost of the pinning: bench/RESULTS.md).
+  target_compile_definitions(subslam_${NAME} PUBLIC EIGEN_MAX_ALIGN_BYTES=64 EIGEN_MAX_STATIC_ALIGN_BYTES=16
                              EIGEN_MALLOC_ALREADY_ALIGNED=0)
   if(SUBSLAM_SANITIZE)  # users of a sanitized build link its runtime
     target_link_options(subslam_${NAME} INTERFACE -fsanitize=address,undefined)

@@ -1,5 +1,6 @@
 #include "subslam/app/submap_slam.h"
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "subslam/graph/internal/check.h"
@@ -93,7 +94,11 @@ void SubmapSlam::JoinClosed() {
         continue;
       }
       if (absl::Status st = joiner_->Join(s); !st.ok()) {
-        status_ = absl::Status(st.code(), absl::StrCat("joining local map ", s.id, ": ", st.message()));
+        // Name the map unless the message does (LocalSubmap::Validate's do).
+        const std::string map = absl::StrCat("local map ", s.id);
+        status_ = absl::StrContains(st.message(), map)
+                      ? st
+                      : absl::Status(st.code(), absl::StrCat("joining ", map, ": ", st.message()));
       }
       ++joins_;
       if (backend_ == Backend::kCeres && ceres_every_ > 0 && joins_ % ceres_every_ == 0 && status_.ok()) {
@@ -108,8 +113,9 @@ void SubmapSlam::JoinClosed() {
     }
     closed_.push_back(std::move(c));
   }
-  if (joiner_ && status_.ok()) {  // the tree joiner answers without folding its nodes
-    anchor_ = joiner_->LastAnchor();
+  if (joiner_) {
+    if (!status_.ok()) return;  // the anchor stays the last one joined
+    anchor_ = joiner_->LastAnchor();  // the tree joiner answers without folding its nodes
     anchor_covariance_ = joiner_->LastAnchorCovariance();
   } else {
     anchor_ = chain_.back();

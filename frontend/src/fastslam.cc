@@ -8,6 +8,7 @@
 #include <numbers>
 #include <thread>
 
+#include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/frontend/internal/worker_pool.h"
 #include "subslam/graph/internal/check.h"
@@ -47,6 +48,11 @@ absl::Status FastSlamOptions::Validate() const {
   }
   if (!(moment_matching.min_existence >= 0.0 && moment_matching.min_existence <= 1.0)) {
     return absl::InvalidArgumentError("moment_matching.min_existence must be in [0, 1]");
+  }
+  // Exported maps must pass LocalSubmap::Validate's conditioning test (1e-13).
+  if (!(moment_matching.repair_relative_floor >= 1e-12 && moment_matching.repair_relative_floor < 1.0)) {
+    return absl::InvalidArgumentError(absl::StrCat("moment_matching.repair_relative_floor must be in [1e-12, 1), got ",
+                                                   moment_matching.repair_relative_floor));
   }
   if (num_threads < 0) return absl::InvalidArgumentError("num_threads must be >= 0 (0: every core)");
   if (known_association && sample_association) {

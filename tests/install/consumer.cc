@@ -49,6 +49,14 @@ int main(int argc, char** argv) {
         return false;
       }
       ++joined;
+      // Grow a vector the library allocated, here (Eigen's realloc on its block).
+      Eigen::VectorXd& mean = closed.submap.mean;
+      const Eigen::VectorXd before = mean;
+      mean.conservativeResize(mean.size() + 7);
+      if (mean.head(before.size()) != before) {
+        std::fprintf(stderr, "a resized local-map mean lost its values\n");
+        return false;
+      }
     }
     return true;
   };

@@ -1,7 +1,7 @@
 # Installs subslam from SUBSLAM_BUILD_DIR into WORK_DIR/prefix, configures and builds the
 # consumer project in SOURCE_DIR against it, simulates a short data set with SUBSLAM_APP
 # and runs the consumer on it; then, on a machine with AVX2, the same consumer built for
-# AVX2 (another Eigen alignment than the library's unless the layout is pinned, see
+# AVX2 (-march=haswell) (another Eigen alignment than the library's unless the layout is pinned, see
 # cmake/SubslamHelpers.cmake). Run by CTest: cmake -D… -P run_consumer.cmake.
 foreach(var SUBSLAM_BUILD_DIR SOURCE_DIR WORK_DIR SUBSLAM_APP CXX_COMPILER GENERATOR)
   if(NOT DEFINED ${var})
@@ -32,9 +32,13 @@ else()
 endif()
 # The consumer is configured like the library: same generator, compiler, flags and
 # dependency search path (the test prefix first).
-set(configure_args -S "${SOURCE_DIR}" -B "${WORK_DIR}/build" -G "${GENERATOR}" -DCMAKE_BUILD_TYPE=Release
-    "-DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix;${PARENT_PREFIX_PATH}" "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}"
-    "-DCMAKE_CXX_FLAGS=${CXX_FLAGS}" -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF)
+# The prefix path is a list: it goes through an initial-cache file, where its ';' stay
+# inside one value (PARENT_PREFIX_PATH comes with '|' for ';', see tests/CMakeLists.txt).
+string(REPLACE "|" ";" parent_prefix_path "${PARENT_PREFIX_PATH}")
+file(WRITE "${WORK_DIR}/init.cmake" "set(CMAKE_PREFIX_PATH \"${WORK_DIR}/prefix;${parent_prefix_path}\" CACHE STRING \"\")\n")
+set(configure_args -S "${SOURCE_DIR}" -B "${WORK_DIR}/build" -G "${GENERATOR}" -C "${WORK_DIR}/init.cmake"
+    -DCMAKE_BUILD_TYPE=Release "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}" "-DCMAKE_CXX_FLAGS=${CXX_FLAGS}"
+    -DCMAKE_FIND_USE_PACKAGE_REGISTRY=OFF)
 if(MAKE_PROGRAM)
   list(APPEND configure_args "-DCMAKE_MAKE_PROGRAM=${MAKE_PROGRAM}")
 endif()
@@ -47,12 +51,12 @@ run(simulate "${SUBSLAM_APP}" simulate --scenario hybrid-120m --seed 1 --duratio
 run(consumer "${WORK_DIR}/build/consumer" "${WORK_DIR}/data")
 message(STATUS "${last_output}")
 file(READ /proc/cpuinfo cpuinfo LIMIT 20000)
-if(cpuinfo MATCHES " avx2 " AND cpuinfo MATCHES " fma ")
+if(cpuinfo MATCHES " avx2 " AND cpuinfo MATCHES " fma " AND cpuinfo MATCHES " bmi2 ")
   list(FIND configure_args "${WORK_DIR}/build" at)
   list(REMOVE_AT configure_args ${at})
   list(INSERT configure_args ${at} "${WORK_DIR}/build-avx2")
   list(FILTER configure_args EXCLUDE REGEX "^-DCMAKE_CXX_FLAGS=")
-  list(APPEND configure_args "-DCMAKE_CXX_FLAGS=${CXX_FLAGS} -mavx2 -mfma")
+  list(APPEND configure_args "-DCMAKE_CXX_FLAGS=${CXX_FLAGS} -march=haswell")  # last -march wins
   run(configure-avx2 ${CMAKE_COMMAND} ${configure_args})
   run(build-avx2 ${CMAKE_COMMAND} --build "${WORK_DIR}/build-avx2")
   run(consumer-avx2 "${WORK_DIR}/build-avx2/consumer" "${WORK_DIR}/data")
