@@ -86,14 +86,15 @@ subslam::app::BackendOptions Options(Backend kind) {
   return o;
 }
 
-// Cumulative joining time after each local map (and Finish at the end, added to the last);
-// the joiner's stage times in `stages`, if given.
 // The size of an EIF's information form after the last join.
 struct InformationSize {
   long state = 0;           // variables
   long lambda_entries = 0;  // stored entries of Λ (both triangles)
   long factor_entries = 0;  // entries of its LDLᵀ factor
 };
+
+// Cumulative joining time after each local map (and Finish at the end, added to the last);
+// the joiner's stage times in `stages` and, for the EIF, its size in `size`, if given.
 
 std::vector<double> TimeEachJoin(const std::vector<subslam::LocalSubmap>& maps, Backend kind, const subslam::Pose2& p0,
                                  std::map<std::string, double>* stages = nullptr, InformationSize* size = nullptr) {

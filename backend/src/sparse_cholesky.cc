@@ -86,8 +86,8 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   // The symbolic analysis (AMD on A alone, the spare slots last; elimination tree; column
   // counts) depends on the pattern only: while it is the last analysed one — Gauss-Newton
   // iterations relinearise the same factors — a copy of that analysis is factorised again.
-  const bool same_pattern = symbolic_ != nullptr && n == analysed_n_ &&
-                            capacity == static_cast<int>(symbolic_->n) && p == analysed_p_ && i == analysed_i_;
+  // (p's length is capacity + 1, so equal p means equal spare slots too.)
+  const bool same_pattern = symbolic_ != nullptr && n == analysed_n_ && p == analysed_p_ && i == analysed_i_;
   if (same_pattern) {
     factor_ = cholmod_copy_factor(symbolic_, common_);
     if (factor_ == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");

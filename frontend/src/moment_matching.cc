@@ -61,7 +61,8 @@ std::vector<std::pair<int, Resolved>> ResolveDuplicates(const ParticleHypothesis
 bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor) {
   // Positive definite and conditioned well enough to be whitened by a joiner: kept as is.
   // The Cholesky factor's reciprocal condition estimate (1-norm, O(n²)) settles the usual
-  // case; 1/κ₁ ≤ 1/κ₂ = λ_min/λ_max, and the margin covers the estimate's error.
+  // case: 1/κ₁ ≤ 1/κ₂ = λ_min/λ_max, and the factor 10³ leaves room for the estimate,
+  // which may overstate 1/κ₁ (in practice by a factor of about 3 at most).
   const Eigen::LLT<Eigen::MatrixXd> llt(*covariance);
   if (llt.info() == Eigen::Success && llt.rcond() >= 1e3 * relative_floor) return false;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(*covariance);

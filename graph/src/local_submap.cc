@@ -40,7 +40,8 @@ absl::Status LocalSubmap::Validate() const {
   if (llt.info() != Eigen::Success) return error("covariance is not positive definite");
   // Joiners whiten by the covariance's Cholesky factor: past this condition number the
   // information it carries is rounding error (and CHOLMOD fails on the sum). The factor's
-  // reciprocal condition estimate settles the usual case (1/κ₁ ≤ λ_min/λ_max).
+  // reciprocal condition estimate settles the usual case (1/κ₁ ≤ λ_min/λ_max; the factor
+  // 10³ leaves room for the estimate's error).
   if (llt.rcond() >= 1e3 * kMinRelativeEigenvalue) return absl::OkStatus();
   const Eigen::VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(covariance).eigenvalues();
   if (!(eigenvalues.minCoeff() >= kMinRelativeEigenvalue * eigenvalues.maxCoeff())) {

@@ -252,6 +252,14 @@ TEST(FastSlamOptions, ValidationRejectsNonsense) {
   o = {};
   o.num_threads = -1;
   EXPECT_FALSE(o.Validate().ok());
+  // A repair floor below what LocalSubmap::Validate accepts would abort at export.
+  o = {};
+  o.moment_matching.repair_relative_floor = 0.0;
+  EXPECT_FALSE(o.Validate().ok());
+  o.moment_matching.repair_relative_floor = 1.0;
+  EXPECT_FALSE(o.Validate().ok());
+  o.moment_matching.repair_relative_floor = 1e-12;
+  EXPECT_TRUE(o.Validate().ok());
 }
 
 }  // namespace

@@ -11,8 +11,9 @@
 // new variables taking spare slots kept last in the fill-reducing (AMD) ordering; a full
 // factorisation with a fresh ordering happens when the slots run out or the fill has
 // grown, and at every relinearisation (whose Gauss-Newton iterations after the first
-// refactorise the same pattern: the symbolic analysis and Λ's pattern are reused). The estimate is Λ⁻¹η by one solve, checked by its
-// residual (an update that fails the check is replaced by a full factorisation).
+// refactorise the same pattern: the symbolic analysis and Λ's pattern are reused). The
+// estimate is Λ⁻¹η by one solve, checked by its residual (an update that fails the check
+// is replaced by a full factorisation).
 // Headings are kept continuous in the state (never wrapped between linearisations) so
 // every stored linear model stays valid; they are wrapped in the outputs.
 //
@@ -219,9 +220,9 @@ class EifJoiner final : public MapJoiner {
   // Λ as the sum of the first `lambda_factors_` factors; information() adds the rest.
   mutable Eigen::SparseMatrix<double> Lambda_;
   mutable size_t lambda_factors_ = 0;
-  // Where each factor's H entries (column by column, factors in order) sit in Λ's values,
-  // and the factors' variable offsets they were found for: while those are the same, a
-  // relinearised Λ is only refilled (same pattern), not assembled again.
+  // Where each factor's H entries (in ForEachEntry's order, factors in order) sit in Λ's
+  // values, and the factors' variable offsets they were found for: while those are the
+  // same, a relinearised Λ is only refilled (same pattern), not assembled again.
   mutable std::vector<int> lambda_slots_;
   mutable std::vector<int> lambda_slot_offsets_;
   Eigen::VectorXd eta_;
