@@ -120,6 +120,9 @@ ABSL_FLAG(bool, eif_bound_marginals, kEifDefaults.bound_candidate_marginals,
           "even under an upper bound on their marginal (same decisions, less work)");
 ABSL_FLAG(double, relinearize_tolerance, kEifDefaults.relinearize_tolerance,
           "eif: a relinearisation iterates until no state entry moves by more than this (m, rad)");
+ABSL_FLAG(double, relinearize_step_chi2, kEifDefaults.relinearize_step_chi2,
+          "eif: ... or until the step's squared Mahalanobis length (dx' Lambda dx, chi-square "
+          "units) falls below this (0: off)");
 ABSL_FLAG(int, max_relinearizations, kEifDefaults.max_relinearizations,
           "eif: at most this many iterations per relinearisation");
 ABSL_FLAG(int, relinearize_max_rises, kEifDefaults.divergence_rises,
@@ -250,6 +253,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
   o.relinearize_tolerance = absl::GetFlag(FLAGS_relinearize_tolerance);
+  o.relinearize_step_chi2 = absl::GetFlag(FLAGS_relinearize_step_chi2);
   o.max_relinearizations = absl::GetFlag(FLAGS_max_relinearizations);
   o.divergence_rises = absl::GetFlag(FLAGS_relinearize_max_rises);
   o.relinearize_heading_change = absl::GetFlag(FLAGS_relinearize_heading_change);

@@ -49,6 +49,8 @@ ABSL_FLAG(double, eif_relinearize_heading, subslam::backend::EifJoinerOptions{}.
           "eif (and the EIF that associates for ceres and tree-eif): relinearise when an "
           "anchor's heading moved this far [rad] (0: eif is single-linearised, as Combined "
           "SLAM's Table 1)");
+ABSL_FLAG(double, eif_relinearize_step_chi2, subslam::backend::EifJoinerOptions{}.relinearize_step_chi2,
+          "eif: Gauss-Newton also stops when the step's dx' Lambda dx falls below this (0: off)");
 ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {
@@ -82,6 +84,7 @@ subslam::app::BackendOptions Options(Backend kind) {
   o.kind = kind;
   o.eif.association.known_association = absl::GetFlag(FLAGS_known_association);
   o.eif.relinearize_heading_change = absl::GetFlag(FLAGS_eif_relinearize_heading);
+  o.eif.relinearize_step_chi2 = absl::GetFlag(FLAGS_eif_relinearize_step_chi2);
   o.ekf.association = o.eif.association;
   return o;
 }

@@ -33,6 +33,9 @@ absl::Status EifJoinerOptions::Validate() const {
   if (max_relinearizations < 1) {
     return absl::InvalidArgumentError(absl::StrCat("max_relinearizations must be >= 1, got ", max_relinearizations));
   }
+  if (!(relinearize_step_chi2 >= 0)) {
+    return absl::InvalidArgumentError(absl::StrCat("relinearize_step_chi2 must be >= 0, got ", relinearize_step_chi2));
+  }
   if (!(relinearize_tolerance > 0)) {
     return absl::InvalidArgumentError(absl::StrCat("relinearize_tolerance must be > 0, got ", relinearize_tolerance));
   }
@@ -175,6 +178,21 @@ void EifJoiner::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, E
     y->segment(f.offsets[a], f.sizes[a]) += product.segment(row, f.sizes[a]);
     row += f.sizes[a];
   }
+}
+
+double EifJoiner::InformationNorm(const Eigen::VectorXd& x) const {
+  double norm = 0.0;
+  Eigen::VectorXd local;
+  for (const Factor& f : factors_) {
+    local.resize(f.H.rows());
+    int row = 0;
+    for (size_t a = 0; a < f.offsets.size(); ++a) {
+      local.segment(row, f.sizes[a]) = x.segment(f.offsets[a], f.sizes[a]);
+      row += f.sizes[a];
+    }
+    norm += local.dot(f.H * local);
+  }
+  return norm;
 }
 
 void EifJoiner::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
@@ -382,7 +400,13 @@ absl::Status EifJoiner::Relinearize() {
         return Rebuild(/*only_last_factor=*/false);
       }
     }
-    if ((StateVector() - before).cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
+    const Eigen::VectorXd step = StateVector() - before;
+    if (step.cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
+    // The step's length in the information metric of the linearisation that produced it
+    // (ΔxᵀΛΔx, twice the cost decrease it predicts): a small fraction of the estimate's
+    // uncertainty is converged for estimation, however far it moved an ill-determined
+    // variable in metres.
+    if (InformationNorm(step) < options_.relinearize_step_chi2) break;
   }
   return absl::OkStatus();
 }

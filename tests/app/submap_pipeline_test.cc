@@ -251,6 +251,11 @@ TEST(BackendOptions, RejectsBadInput) {
   o.eif.relinearize_tolerance = 0.0;  // --relinearize_tolerance
   EXPECT_FALSE(o.Validate().ok());
   o = {};
+  o.eif.relinearize_step_chi2 = -1e-3;  // --relinearize_step_chi2
+  EXPECT_FALSE(o.Validate().ok());
+  o.eif.relinearize_step_chi2 = NAN;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
   o.eif.max_relinearizations = 0;  // --max_relinearizations
   EXPECT_FALSE(o.Validate().ok());
   o = {};

@@ -478,4 +478,35 @@ TEST(EifJoiner, RejectsInvalidInput) {
 }
 
 }  // namespace
+
+// relinearize_step_chi2, ISEIF's adaptive stop with the Mahalanobis length of the step:
+// Gauss-Newton stops once a step is a small fraction of the estimate's uncertainty. While
+// each step shrinks by at least half (linear convergence), the steps still to come sum to
+// less than the last one, so the stopped estimate lies within that χ² distance of the
+// converged one, measured in the converged estimate's own covariance.
+TEST(EifJoiner, GaussNewtonStopsWhenTheStepIsSmallInTheInformationMetric) {
+  const SyntheticRun run = MakeRun(8, 12, 3.0);
+  constexpr double kStepChi2 = 1e-3;
+  EifJoinerOptions converged_options = ConvergingKnownAssociation();
+  EifJoinerOptions stopped_options = converged_options;
+  stopped_options.relinearize_step_chi2 = kStepChi2;
+  EifJoiner converged(run.anchors[0], converged_options), stopped(run.anchors[0], stopped_options);
+  for (const LocalSubmap& s : run.submaps) {
+    ASSERT_TRUE(converged.Join(s).ok());
+    ASSERT_TRUE(stopped.Join(s).ok());
+  }
+  ASSERT_TRUE(converged.Finish().ok());
+  ASSERT_TRUE(stopped.Finish().ok());
+  EXPECT_LT(stopped.counters().relinearizations, converged.counters().relinearizations);
+  std::vector<int> anchors, landmarks;
+  for (int k = 1; k < converged.num_anchors(); ++k) anchors.push_back(k);
+  for (int j = 0; j < converged.num_landmarks(); ++j) landmarks.push_back(j);
+  const Eigen::MatrixXd covariance = converged.JointCovariance(anchors, landmarks);
+  Eigen::VectorXd difference = StackedEstimate(stopped) - StackedEstimate(converged);
+  for (size_t k = 0; k < anchors.size(); ++k) difference[3 * k + 2] = WrapAngle(difference[3 * k + 2]);
+  const double distance2 = difference.dot(covariance.ldlt().solve(difference));
+  EXPECT_GT(distance2, 0.0);  // it did stop short
+  EXPECT_LT(distance2, kStepChi2);
+}
+
 }  // namespace subslam::backend

@@ -67,7 +67,17 @@ struct EifJoinerOptions {
   // Relinearisation.
   int relinearize_every = 0;       // every K joins (0: not on a schedule)
   bool relinearize_at_end = false; // at Finish()
-  double relinearize_tolerance = 1e-3;  // stop when max |Δx| (m, rad) falls below
+  // A relinearisation's Gauss-Newton iterations stop when the last step Δx is small
+  // either way: max |Δx| below `relinearize_tolerance` (m, rad), or ΔxᵀΛΔx below
+  // `relinearize_step_chi2` (0: off), Λ the information of the linearisation that gave the
+  // step — its length in units of the estimate's own uncertainty (χ² units; the step
+  // predicts a cost decrease of half of it). The second test is ISEIF's adaptive stop
+  // (paper 004 §2.3) with the Mahalanobis distance between iterates: Gauss-Newton
+  // converges linearly here (each step ≈ 0.1-0.15 of the last on combined-2km), and
+  // millimetre steps of landmarks known to a metre took two more iterations for nothing
+  // (bench/RESULTS.md, ninth session).
+  double relinearize_tolerance = 1e-3;
+  double relinearize_step_chi2 = 1e-3;
   int max_relinearizations = 20;
   // Also relinearise after a join when an anchor's heading has moved this far [rad] from
   // where one of its factors was linearised (the submap factor is nonlinear in the
@@ -184,6 +194,8 @@ class EifJoiner final : public MapJoiner {
   template <typename Visit>
   static void ForEachEntry(const Factor& f, Visit visit);
   void AddToEta(const Factor& f, Eigen::VectorXd* eta) const;
+  // xᵀΛx over the factors' current H (Λ need not be assembled).
+  double InformationNorm(const Eigen::VectorXd& x) const;
   void AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
   // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
   // solve; write the estimate back.
