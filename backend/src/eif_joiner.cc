@@ -234,20 +234,36 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
     Lambda_.resize(dim_, dim_);
     Lambda_.setFromTriplets(triplets.begin(), triplets.end());
     Lambda_.makeCompressed();
-    // Each H entry's place in Λ's values, in AddTriplets' order, for later refills.
-    lambda_slots_.clear();
-    lambda_slots_.reserve(count);
+    // Each H entry's place in Λ's values, in AddTriplets' (ForEachEntry's) order, for
+    // later refills. A variable's rows are consecutive and all present in a column that
+    // has one of them, so one search per column of each block pair places the block's
+    // whole column: rows r_a + i sit at p + i.
+    lambda_slots_.resize(count);
     const int* outer = Lambda_.outerIndexPtr();
     const int* inner = Lambda_.innerIndexPtr();
+    size_t next = 0;
     for (const Factor& f : factors_) {
-      ForEachEntry(f, [&](int row, int col, double) {
-        const int* begin = inner + outer[col];
-        const int* end = inner + outer[col + 1];
-        const int* at = std::lower_bound(begin, end, row);
-        SUBSLAM_CHECK(at != end && *at == row) << "an H entry missing from Λ";
-        lambda_slots_.push_back(static_cast<int>(at - inner));
-      });
+      for (size_t a = 0; a < f.offsets.size(); ++a) {
+        const int size_a = f.sizes[a];
+        for (size_t b = 0; b < f.offsets.size(); ++b) {
+          const int size_b = f.sizes[b];
+          for (int j = 0; j < size_b; ++j) {
+            const int col = f.offsets[b] + j;
+            const int* begin = inner + outer[col];
+            const int* end = inner + outer[col + 1];
+            const int* at = std::lower_bound(begin, end, f.offsets[a]);
+            SUBSLAM_CHECK(end - at >= size_a && at[0] == f.offsets[a] && at[size_a - 1] == f.offsets[a] + size_a - 1)
+                << "an H block missing from Λ";
+            // ForEachEntry visits the block row by row: entry (i, j) is i·size_b + j.
+            for (int i = 0; i < size_a; ++i) {
+              lambda_slots_[next + static_cast<size_t>(i * size_b + j)] = static_cast<int>(at - inner) + i;
+            }
+          }
+          next += static_cast<size_t>(size_a * size_b);
+        }
+      }
     }
+    SUBSLAM_CHECK(next == count) << "Λ slots: " << next << " of " << count;
     lambda_slot_offsets_ = FactorOffsets();
   } else {
     Eigen::SparseMatrix<double> added(dim_, dim_);
