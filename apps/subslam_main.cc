@@ -107,6 +107,9 @@ ABSL_FLAG(bool, join_loop_ambiguity, kEifDefaults.association.loop_ambiguity_tes
 ABSL_FLAG(double, join_loop_test_sigma, kEifDefaults.association.loop_test_min_sigma_radius_m,
           "apply --join_min_loop_pairings only when 3 sigma of the start anchor's position is at "
           "least this [m]");
+ABSL_FLAG(int, join_loop_confirmation_maps, kEifDefaults.loop_confirmation_maps,
+          "eif: undo a loop closure made under an uncertain anchor unless one of this many next "
+          "local maps pairs a feature with another old landmark (0: off)");
 ABSL_FLAG(bool, validate_joins, kEifDefaults.validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
           "(the map is joined again without associations)");
@@ -249,6 +252,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.min_loop_pairings = absl::GetFlag(FLAGS_join_min_loop_pairings);
   o.association.loop_ambiguity_test = absl::GetFlag(FLAGS_join_loop_ambiguity);
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
+  o.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);

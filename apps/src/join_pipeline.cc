@@ -135,6 +135,8 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"jcbb_truncated", joiner->counters().jcbb_truncated},
                 {"loop_closures_thin", joiner->counters().loop_closures_thin},
                 {"loop_closures_ambiguous", joiner->counters().loop_closures_ambiguous},
+                {"loop_closures_confirmed", joiner->counters().loop_closures_confirmed},
+                {"loop_closures_unconfirmed", joiner->counters().loop_closures_unconfirmed},
                 {"incremental_factor_updates", joiner->counters().incremental_updates},
                 {"full_factorizations", joiner->counters().full_factorizations},
                 {"reused_analyses", joiner->counters().reused_analyses},

@@ -1,5 +1,7 @@
 #include "subslam/backend/eif_joiner.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
@@ -26,6 +28,9 @@ absl::Status EifJoinerOptions::Validate() const {
   if (absl::Status s = association.Validate(); !s.ok()) return s;
   if (!(validation_probability > 0 && validation_probability < 1)) {
     return absl::InvalidArgumentError("validation_probability must be in (0, 1)");
+  }
+  if (loop_confirmation_maps < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_maps must be >= 0, got ", loop_confirmation_maps));
   }
   if (relinearize_every < 0) {
     return absl::InvalidArgumentError(absl::StrCat("relinearize_every must be >= 0, got ", relinearize_every));
@@ -500,20 +505,16 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
     return absl::InvalidArgumentError(absl::StrCat("local map ", s.id, " starts at ", s.t_start,
                                                    " before the previous one ended (", last_t_end_, ")"));
   }
-  if (!options_.validate_joins) return JoinWith(s, /*associate=*/true);
-  // Validated join: keep what a rejected join would have to undo.
-  Snapshot before{graph_, anchor_offset_, landmark_offset_, anchor_theta_, dim_, factors_,
+  if (absl::Status st = JoinOne(s); !st.ok()) return st;
+  return CheckPendingLoopClosure();
+}
+
+EifJoiner::Snapshot EifJoiner::TakeSnapshot() const {
+  return Snapshot{graph_, anchor_offset_, landmark_offset_, anchor_theta_, dim_, factors_,
                   eta_, associator_, marginal_bound_, counters_};
-  if (absl::Status st = JoinWith(s, /*associate=*/true); !st.ok()) return st;
-  const int matched = static_cast<int>(counters_.associated - before.counters.associated);
-  if (matched == 0) return absl::OkStatus();
-  // The new factor's normalised residual at the new estimate, against χ² with 2 dof per
-  // matched feature (the end pose and new landmarks fit exactly).
-  const double d2 = NormalisedResidual(factors_.back());
-  const double bound = models::ChiSquareQuantile(options_.validation_probability, 2 * matched);
-  if (d2 <= bound) return absl::OkStatus();
-  // Rejected: undo, and join the local map again without associations (its odometry
-  // still links the chain; its features become new landmarks).
+}
+
+void EifJoiner::Restore(Snapshot before) {
   graph_ = std::move(before.graph);
   anchor_offset_ = std::move(before.anchor_offset);
   landmark_offset_ = std::move(before.landmark_offset);
@@ -524,11 +525,92 @@ absl::Status EifJoiner::Join(const LocalSubmap& s) {
   eta_ = std::move(before.eta);
   associator_ = std::move(before.associator);
   marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
-  solver_->stale = true;  // it absorbed the rejected factor
+  solver_->stale = true;  // it absorbed the undone factors
   counters_ = before.counters;
+}
+
+absl::Status EifJoiner::JoinOne(const LocalSubmap& s) {
+  if (!options_.validate_joins) return JoinWith(s, /*associate=*/true);
+  // Validated join: keep what a rejected join would have to undo.
+  Snapshot before = TakeSnapshot();
+  const long associated_before = counters_.associated;
+  if (absl::Status st = JoinWith(s, /*associate=*/true); !st.ok()) return st;
+  const int matched = static_cast<int>(counters_.associated - associated_before);
+  if (matched == 0) return absl::OkStatus();
+  // The new factor's normalised residual at the new estimate, against χ² with 2 dof per
+  // matched feature (the end pose and new landmarks fit exactly).
+  const double d2 = NormalisedResidual(factors_.back());
+  const double bound = models::ChiSquareQuantile(options_.validation_probability, 2 * matched);
+  if (d2 <= bound) return absl::OkStatus();
+  // Rejected: undo, and join the local map again without associations (its odometry
+  // still links the chain; its features become new landmarks).
+  if (pending_loop_ && pending_loop_->factor >= static_cast<int>(graph_.factors().size()) - 1) {
+    pending_loop_.reset();  // the closure was this join's, now undone
+  }
+  Restore(std::move(before));
   ++counters_.rejected_joins;
   rejected_.push_back(s.id);
   return JoinWith(s, /*associate=*/false);
+}
+
+absl::Status EifJoiner::CheckPendingLoopClosure() {
+  if (!pending_loop_) return absl::OkStatus();
+  const int last = static_cast<int>(graph_.factors().size()) - 1;
+  const int closing = pending_loop_->factor;
+  if (last <= closing) return absl::OkStatus();  // the closing map itself was just joined
+  // Old landmarks the closure did not use: they existed before the closing map, the
+  // recent maps before it did not see them, and no map since has seen them.
+  const int old_landmarks = pending_loop_->before.graph.num_landmarks();
+  std::vector<char> used(old_landmarks, 0);
+  const int first = std::max(0, closing - options_.association.recent_maps);
+  for (int f = first; f < last; ++f) {
+    for (int j : graph_.factors()[f].landmark_of_feature) {
+      if (j < old_landmarks) used[j] = 1;
+    }
+  }
+  for (int j : graph_.factors()[last].landmark_of_feature) {
+    if (j < old_landmarks && !used[j]) {
+      pending_loop_.reset();
+      ++counters_.loop_closures_confirmed;
+      return absl::OkStatus();
+    }
+  }
+  if (last - closing < options_.loop_confirmation_maps) return absl::OkStatus();
+  // Unconfirmed: back to the joiner before the closing map, whose work stays counted,
+  // and the maps since joined again, the closing one without loop pairings.
+  PendingLoopClosure pending = std::move(*pending_loop_);
+  pending_loop_.reset();
+  std::vector<LocalSubmap> maps;
+  for (int f = closing; f <= last; ++f) maps.push_back(graph_.factors()[f].submap);
+  const JoinerCounters work = counters_;
+  Restore(std::move(pending.before));
+  rejected_.resize(pending.rejected);
+  // Decisions (thin, ambiguous, truncated) count those of the joins that stand; work and
+  // confirmations count everything done.
+  counters_.relinearizations = work.relinearizations;
+  counters_.relinearizations_diverged = work.relinearizations_diverged;
+  counters_.loop_closures_confirmed = work.loop_closures_confirmed;
+  counters_.loop_closures_unconfirmed = work.loop_closures_unconfirmed + 1;
+  counters_.incremental_updates = work.incremental_updates;
+  counters_.full_factorizations = work.full_factorizations;
+  counters_.reused_analyses = work.reused_analyses;
+  counters_.failed_updates = work.failed_updates;
+  counters_.candidates = work.candidates;
+  counters_.candidates_bounded_out = work.candidates_bounded_out;
+  counters_.covariance_columns = work.covariance_columns;
+  counters_.covariance_reach = work.covariance_reach;
+  for (size_t m = 0; m < maps.size(); ++m) {
+    suppress_loop_closure_ = m == 0;
+    const absl::Status st = JoinOne(maps[m]);
+    suppress_loop_closure_ = false;
+    if (!st.ok()) return st;
+    // A closure made again by a later map waits for its own confirmation; its window
+    // cannot end within these maps.
+    if (m > 0) {
+      if (absl::Status c = CheckPendingLoopClosure(); !c.ok()) return c;
+    }
+  }
+  return absl::OkStatus();
 }
 
 SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
@@ -572,6 +654,22 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     SubmapAssociation a = AssociateAt(s, start, /*anchor_prefilter=*/true);
     assoc = std::move(a.landmark_of_feature);
     start_covariance = a.start_anchor_covariance;
+    if (suppress_loop_closure_) {
+      // Joined again after its loop closure went unconfirmed: no pairing with a landmark
+      // that the recent maps did not see.
+      std::vector<char> recent(graph_.num_landmarks(), 0);
+      const int factors = static_cast<int>(graph_.factors().size());
+      for (int f = std::max(0, factors - options_.association.recent_maps); f < factors; ++f) {
+        for (int j : graph_.factors()[f].landmark_of_feature) recent[j] = 1;
+      }
+      for (int& j : assoc) {
+        if (j >= 0 && !recent[j]) j = -1;
+      }
+    } else if (a.uncertain_loop_pairings > 0 && options_.loop_confirmation_maps > 0 && !pending_loop_ &&
+               3.0 * std::sqrt(std::max(0.0, start_covariance.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff())) >=
+                   options_.loop_confirmation_min_sigma_radius_m) {
+      pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size()};
+    }
   }
   const int first_new_landmark = graph_.num_landmarks();
   // Initialise the end anchor and the new landmarks through the start anchor.
@@ -667,6 +765,7 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       marginal_bound_(other.marginal_bound_),
       last_association_(other.last_association_),
       rejected_(other.rejected_),
+      pending_loop_(other.pending_loop_),
       times_(other.times_),
       counters_(other.counters_),
       last_t_end_(other.last_t_end_) {

@@ -306,6 +306,8 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
         if (j >= 0 && !recent[j]) j = -1;
       }
       out.loop_pairings_dropped = loop_pairings;
+    } else {
+      out.uncertain_loop_pairings = loop_pairings;
     }
   }
   return out;

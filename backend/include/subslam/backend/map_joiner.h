@@ -31,6 +31,10 @@ struct JoinerCounters {
   // Loop closures dropped under an uncertain start anchor: too few pairings, or ambiguous.
   long loop_closures_thin = 0;
   long loop_closures_ambiguous = 0;
+  // Loop closures made under an uncertain start anchor that the next local maps did or
+  // did not confirm (the EIF's loop_confirmation_maps); unconfirmed ones were undone.
+  long loop_closures_confirmed = 0;
+  long loop_closures_unconfirmed = 0;
   long rejected_joins = 0;    // failed validation: joined again without associations
   // EIF factor maintenance: joins absorbed by an incremental update of the factor, full
   // factorisations (of them, those that reused the last symbolic analysis: the same
@@ -55,6 +59,8 @@ struct JoinerCounters {
     jcbb_truncated += o.jcbb_truncated;
     loop_closures_thin += o.loop_closures_thin;
     loop_closures_ambiguous += o.loop_closures_ambiguous;
+    loop_closures_confirmed += o.loop_closures_confirmed;
+    loop_closures_unconfirmed += o.loop_closures_unconfirmed;
     rejected_joins += o.rejected_joins;
     incremental_updates += o.incremental_updates;
     full_factorizations += o.full_factorizations;

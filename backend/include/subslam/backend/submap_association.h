@@ -85,6 +85,9 @@ struct SubmapAssociation {
   bool jcbb_truncated = false;           // JCBB hit its node budget
   int loop_pairings_dropped = 0;         // a loop closure with too few pairings
   bool loop_ambiguous = false;           // a loop closure dropped by loop_ambiguity_test
+  // A loop closure kept under an uncertain start anchor (the regime of the loop tests):
+  // its number of loop pairings (0: none kept, or the anchor was certain).
+  int uncertain_loop_pairings = 0;
   double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
   int candidates = 0;                    // candidate landmarks (step 1)
   int candidates_bounded_out = 0;        // of those, dropped under the joiner's bound (step 2)
