@@ -32,6 +32,10 @@ absl::Status EifJoinerOptions::Validate() const {
   if (loop_confirmation_maps < 0) {
     return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_maps must be >= 0, got ", loop_confirmation_maps));
   }
+  if (!(loop_confirmation_min_sigma_radius_m >= 0 && std::isfinite(loop_confirmation_min_sigma_radius_m))) {
+    return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_min_sigma_radius_m must be finite and >= 0 [m], got ",
+                                                   loop_confirmation_min_sigma_radius_m));
+  }
   if (relinearize_every < 0) {
     return absl::InvalidArgumentError(absl::StrCat("relinearize_every must be >= 0, got ", relinearize_every));
   }
@@ -424,7 +428,7 @@ absl::Status EifJoiner::Relinearize() {
     const Eigen::VectorXd step = StateVector() - before;
     if (step.cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
     // The step's length in the information metric of the linearisation that produced it
-    // (ΔxᵀΛΔx, twice the cost decrease it predicts): a small fraction of the estimate's
+    // (ΔxᵀΛΔx, the decrease of Cost() it predicts): a small fraction of the estimate's
     // uncertainty is converged for estimation, however far it moved an ill-determined
     // variable in metres.
     if (InformationNorm(step) < options_.relinearize_step_chi2) break;
@@ -585,6 +589,10 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   const JoinerCounters work = counters_;
   Restore(std::move(pending.before));
   rejected_.resize(pending.rejected);
+  // The closing map is associated again before any join refactorises: the factor must be
+  // the restored Λ's (the restored estimate is already its solution).
+  if (absl::Status st = FullFactorization(); !st.ok()) return st;
+  solver_->stale = false;
   // Decisions (thin, ambiguous, truncated) count those of the joins that stand; work and
   // confirmations count everything done.
   counters_.relinearizations = work.relinearizations;
@@ -651,6 +659,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   // The start anchor's marginal before this join (NaN without one: no bounds then).
   Eigen::Matrix3d start_covariance = Eigen::Matrix3d::Constant(NAN);
   if (associate) {
+    const JoinerCounters counters_before = counters_;  // a pending closure's snapshot keeps these
     SubmapAssociation a = AssociateAt(s, start, /*anchor_prefilter=*/true);
     assoc = std::move(a.landmark_of_feature);
     start_covariance = a.start_anchor_covariance;
@@ -665,10 +674,13 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
       for (int& j : assoc) {
         if (j >= 0 && !recent[j]) j = -1;
       }
-    } else if (a.uncertain_loop_pairings > 0 && options_.loop_confirmation_maps > 0 && !pending_loop_ &&
+    } else if (a.uncertain_loop_pairings > 0 && options_.loop_confirmation_maps > 0 &&
+               options_.relinearize_heading_change > 0 && !pending_loop_ &&
                3.0 * std::sqrt(std::max(0.0, start_covariance.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff())) >=
                    options_.loop_confirmation_min_sigma_radius_m) {
       pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size()};
+      // Its association is done again on an undo: count it then, not twice.
+      pending_loop_->before.counters = counters_before;
     }
   }
   const int first_new_landmark = graph_.num_landmarks();
@@ -747,6 +759,7 @@ absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) {
 }
 
 absl::Status EifJoiner::Finish() {
+  pending_loop_.reset();  // a closure still waiting at the end stands: no more maps to ask
   if (options_.relinearize_at_end && !factors_.empty()) return Relinearize();
   return absl::OkStatus();
 }
@@ -785,6 +798,9 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   if (right_ptr == nullptr) return absl::InvalidArgumentError("EIF JoinMap: the right map is not an EIF map");
   const EifJoiner& right = *right_ptr;
   if (right.graph_.factors().empty()) return absl::OkStatus();
+  // A loop closure still waiting for confirmation stands: once whole maps are joined the
+  // maps after it are no longer a sequence to replay (and right's own is right's).
+  pending_loop_.reset();
   absl::StatusOr<LocalSubmap> summary = SummarizeForJoin(right, last_t_end_);
   if (!summary.ok()) return summary.status();
   const int start = graph_.num_anchors() - 1;

@@ -566,10 +566,13 @@ std::vector<LocalSubmap> Run(bool true_closure) {
   const Pose2 e(40, 0, 0), f(60, 0, 0), g(80, 0, 0), h(100, 0, 0);
   maps.push_back(Map(5, origin, a, closing, 0.1, 0.005));
   // The next map sees trees 4-7 if the closure is true, and two trees far from any old one
-  // if not.
+  // if not — and then it sees again one of the trees the closure took for tree 3: an old
+  // landmark, but one the closure used, which confirms nothing.
   maps.push_back(Map(6, a, e,
                      true_closure ? std::vector<Tree>(old.begin() + 4, old.end())
-                                  : std::vector<Tree>{{304, {45, 20}}, {305, {50, -20}}},
+                                  : std::vector<Tree>{{304, {45, 20}},
+                                                      {305, {50, -20}},
+                                                      {303, old[3].world}},
                      0.1, 0.005));
   maps.push_back(Map(7, e, f, {{200, {55, 15}}, {201, {70, -15}}}, 0.1, 0.005));
   maps.push_back(Map(8, f, g, {{202, {78, 12}}, {203, {90, -14}}}, 0.1, 0.005));
@@ -621,6 +624,13 @@ TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
   EXPECT_EQ(eif.counters().joins, 10);
   EXPECT_EQ(eif.num_landmarks(), 8 + 8 + 4 + 2 + 6);  // every tree once
   EXPECT_EQ(eif.num_anchors(), 11);
+  // With a single linearisation there is no confirmation: the closure stays.
+  EifJoinerOptions single = options;
+  single.relinearize_heading_change = 0.0;
+  EifJoiner single_linearisation(Pose2(0, 0, 0), single);
+  for (const LocalSubmap& s : wrong) ASSERT_TRUE(single_linearisation.Join(s).ok());
+  EXPECT_EQ(ClosingPairings(single_linearisation), 4);
+  EXPECT_EQ(single_linearisation.counters().loop_closures_unconfirmed, 0);
   // Undone and joined again, the maps give what a joiner that never took the closure
   // gives: one whose loop test drops a four-pairing closure as too thin.
   EifJoinerOptions thin = off;

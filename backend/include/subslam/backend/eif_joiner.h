@@ -75,7 +75,15 @@ struct EifJoinerOptions {
   // ground; a chance fit finds nothing more. Otherwise every join from the closing map on
   // is undone (the joiner returns to its state before that map) and the maps are joined
   // again, the closing one without its loop pairings (its features become new
-  // landmarks). The online estimate carries the closure meanwhile. 0 maps: off.
+  // landmarks). The online estimate carries the closure meanwhile, and a closure still
+  // waiting at Finish() or when whole maps are joined (tree joining) stands. 0 maps: off.
+  // It rides on association's loop regime (SubmapAssociationOptions: min_loop_pairings
+  // > 1, estimated association), and is off where that is.
+  // It needs the estimate after the closure to be right, so it applies only while the
+  // joiner relinearises when headings move (relinearize_heading_change > 0): with a
+  // single linearisation the estimate after a correction of a hundred metres is too far
+  // off for the next maps to find the old map, and combined-2km's correct closures were
+  // all undone (bench/RESULTS.md, ninth session).
   // combined-2km, known-association local maps, seeds 1-10: the one wrong closure (RBPF
   // maps, seed 7) found no such landmark in its next three maps; every correct closure of
   // a lost anchor found one within three (bench/RESULTS.md, ninth session).
@@ -87,8 +95,8 @@ struct EifJoinerOptions {
   // A relinearisation's Gauss-Newton iterations stop when the last step Δx is small
   // either way: max |Δx| below `relinearize_tolerance` (m, rad), or ΔxᵀΛΔx below
   // `relinearize_step_chi2` (0: off), Λ the information of the linearisation that gave the
-  // step — its length in units of the estimate's own uncertainty (χ² units; the step
-  // predicts a cost decrease of half of it). The second test is ISEIF's adaptive stop
+  // step — its length in units of the estimate's own uncertainty (χ² units; it is the
+  // decrease of Cost() that the step predicts). The second test is ISEIF's adaptive stop
   // (paper 004 §2.3) with the Mahalanobis distance between iterates: Gauss-Newton
   // converges linearly here (each step ≈ 0.1-0.15 of the last on combined-2km), and
   // millimetre steps of landmarks known to a metre took two more iterations for nothing
@@ -274,8 +282,9 @@ class EifJoiner final : public MapJoiner {
     std::vector<Eigen::Matrix2d> marginal_bound;
     JoinerCounters counters;
   };
-  // A loop closure waiting for confirmation: the joiner before its map was joined, the
-  // index of its map's factor, and the rejected_ entries then.
+  // A loop closure waiting for confirmation: the joiner before its map was joined (taken
+  // after that map's association, with the counters from before it), the index of its
+  // map's factor, and the rejected_ entries then.
   struct PendingLoopClosure {
     Snapshot before;
     int factor = 0;
