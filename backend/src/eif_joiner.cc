@@ -104,6 +104,8 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   const Eigen::LLT<Eigen::MatrixXd> llt(record.submap.covariance);
   SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
   f.covariance_sqrt = std::make_shared<const Eigen::MatrixXd>(llt.matrixL());
+  Eigen::MatrixXd information = llt.solve(Eigen::MatrixXd::Identity(llt.rows(), llt.cols()));
+  f.information = std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
   if (record.start_anchor != 0) {
     f.offsets.push_back(anchor_offset_[record.start_anchor]);
     f.sizes.push_back(3);
@@ -118,6 +120,10 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
 }
 
 void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
+  if (whitened_jacobian == nullptr) {
+    LinearizeStructured(f);
+    return;
+  }
   const SubmapFactor& record = graph_.factors()[f->index];
   const LocalSubmap& s = record.submap;
   const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
@@ -155,6 +161,62 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   if (whitened_jacobian != nullptr) *whitened_jacobian = std::move(A);
 }
 
+// H = Jᵀ Q⁻¹ J and b = Jᵀ Q⁻¹ (J x̂ − r) from J's structure, without whitening: J's
+// anchor columns J_a are dense (m × 3 or 6), and its landmark columns hold one 2 × 2 block
+// R_i = ∂r_i/∂L_i in feature i's rows only. With W = Q⁻¹ (kept per factor):
+//   H_aa = J_aᵀ W J_a,  H_a,i = (W J_a)_iᵀ R_i,  H_i,k = R_iᵀ W_ik R_k,
+//   b_a = J_aᵀ w,  b_i = R_iᵀ w_i,  w = W (J x̂ − r),
+// O(m² · 6) instead of the O(m³) triangular solve and product (m = 3 + 2n).
+void EifJoiner::LinearizeStructured(Factor* f) const {
+  const SubmapFactor& record = graph_.factors()[f->index];
+  const LocalSubmap& s = record.submap;
+  const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
+  f->start_theta = start.theta;
+  f->end_theta = end.theta;
+  const int n = s.num_landmarks(), m = 3 + 2 * n;
+  const bool start_fixed = record.start_anchor == 0;
+  const int na = start_fixed ? 3 : 6;
+  Eigen::MatrixXd J_a = Eigen::MatrixXd::Zero(m, na);
+  Eigen::VectorXd x_a(na), r(m), Jx(m);
+  Eigen::Matrix3d J_s, J_e;
+  const Pose2 relative = Between(start, end, &J_s, &J_e);
+  r.head<3>() = relative.vector() - s.mean.head<3>();
+  r[2] = WrapAngle(r[2]);
+  if (!start_fixed) {
+    J_a.topLeftCorner<3, 3>() = J_s;
+    x_a.head<3>() = start.vector();
+  }
+  J_a.block<3, 3>(0, na - 3) = J_e;
+  x_a.tail<3>() = end.vector();
+  std::vector<Eigen::Matrix2d> R(n);
+  std::vector<Eigen::Vector2d> landmarks(n);
+  for (int i = 0; i < n; ++i) {
+    landmarks[i] = graph_.landmarks()[record.landmark_of_feature[i]];
+    Matrix23d J_frame;
+    r.segment<2>(3 + 2 * i) = TransformTo(start, landmarks[i], &J_frame, &R[i]) - s.landmark(i);
+    if (!start_fixed) J_a.block<2, 3>(3 + 2 * i, 0) = J_frame;
+  }
+  Jx.noalias() = J_a * x_a;
+  for (int i = 0; i < n; ++i) Jx.segment<2>(3 + 2 * i) += R[i] * landmarks[i];
+  const Eigen::MatrixXd& W = *f->information;
+  const Eigen::MatrixXd WJ_a = W * J_a;
+  const Eigen::VectorXd w = W * (Jx - r);
+  const int cols = na + 2 * n;
+  f->H.resize(cols, cols);
+  f->b.resize(cols);
+  f->H.topLeftCorner(na, na).noalias() = J_a.transpose() * WJ_a;
+  f->b.head(na).noalias() = J_a.transpose() * w;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::MatrixXd cross = WJ_a.middleRows<2>(3 + 2 * i).transpose() * R[i];  // na × 2
+    f->H.block(0, na + 2 * i, na, 2) = cross;
+    f->H.block(na + 2 * i, 0, 2, na) = cross.transpose();
+    f->b.segment<2>(na + 2 * i) = R[i].transpose() * w.segment<2>(3 + 2 * i);
+    for (int k = 0; k < n; ++k) {
+      f->H.block<2, 2>(na + 2 * i, na + 2 * k) = R[i].transpose() * W.block<2, 2>(3 + 2 * i, 3 + 2 * k) * R[k];
+    }
+  }
+}
+
 template <typename Visit>
 void EifJoiner::ForEachEntry(const Factor& f, Visit visit) {
   int row = 0;
@@ -168,10 +230,6 @@ void EifJoiner::ForEachEntry(const Factor& f, Visit visit) {
     }
     row += f.sizes[a];
   }
-}
-
-void EifJoiner::AddTriplets(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets) const {
-  ForEachEntry(f, [triplets](int row, int col, double h) { triplets->emplace_back(row, col, h); });
 }
 
 void EifJoiner::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
@@ -223,10 +281,8 @@ std::vector<int> EifJoiner::FactorOffsets() const {
 
 const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   if (lambda_factors_ == factors_.size() && Lambda_.rows() == dim_) return Lambda_;
-  if (lambda_factors_ == 0 && Lambda_.rows() == dim_ && !lambda_slots_.empty() &&
-      FactorOffsets() == lambda_slot_offsets_) {
-    // The same factors over the same variables (relinearised): refill Λ's values, in
-    // AddTriplets' order (so that an entry's terms are summed as setFromTriplets sums them).
+  if (Lambda_.rows() == dim_ && !lambda_slots_.empty() && FactorOffsets() == lambda_slot_offsets_) {
+    // The same factors over the same variables (relinearised): refill Λ's values.
     double* values = Lambda_.valuePtr();
     std::fill(values, values + Lambda_.nonZeros(), 0.0);
     const int* slot = lambda_slots_.data();
@@ -234,54 +290,87 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
     lambda_factors_ = factors_.size();
     return Lambda_;
   }
-  std::vector<Eigen::Triplet<double>> triplets;
-  size_t count = 0;
-  for (size_t k = lambda_factors_; k < factors_.size(); ++k) count += static_cast<size_t>(factors_[k].H.size());
-  triplets.reserve(count);
-  for (size_t k = lambda_factors_; k < factors_.size(); ++k) AddTriplets(factors_[k], &triplets);
-  if (lambda_factors_ == 0) {
-    Lambda_.resize(dim_, dim_);
-    Lambda_.setFromTriplets(triplets.begin(), triplets.end());
-    Lambda_.makeCompressed();
-    // Each H entry's place in Λ's values, in AddTriplets' (ForEachEntry's) order, for
-    // later refills. A variable's rows are consecutive and all present in a column that
-    // has one of them, so one search per column of each block pair places the block's
-    // whole column: rows r_a + i sit at p + i.
-    lambda_slots_.resize(count);
-    const int* outer = Lambda_.outerIndexPtr();
-    const int* inner = Lambda_.innerIndexPtr();
-    size_t next = 0;
-    for (const Factor& f : factors_) {
-      for (size_t a = 0; a < f.offsets.size(); ++a) {
-        const int size_a = f.sizes[a];
-        for (size_t b = 0; b < f.offsets.size(); ++b) {
-          const int size_b = f.sizes[b];
-          for (int j = 0; j < size_b; ++j) {
-            const int col = f.offsets[b] + j;
-            const int* begin = inner + outer[col];
-            const int* end = inner + outer[col + 1];
-            const int* at = std::lower_bound(begin, end, f.offsets[a]);
-            SUBSLAM_CHECK(end - at >= size_a && at[0] == f.offsets[a] && at[size_a - 1] == f.offsets[a] + size_a - 1)
-                << "an H block missing from Λ";
-            // ForEachEntry visits the block row by row: entry (i, j) is i·size_b + j.
-            for (int i = 0; i < size_a; ++i) {
-              lambda_slots_[next + static_cast<size_t>(i * size_b + j)] = static_cast<int>(at - inner) + i;
-            }
-          }
-          next += static_cast<size_t>(size_a * size_b);
-        }
-      }
-    }
-    SUBSLAM_CHECK(next == count) << "Λ slots: " << next << " of " << count;
-    lambda_slot_offsets_ = FactorOffsets();
-  } else {
-    Eigen::SparseMatrix<double> added(dim_, dim_);
-    added.setFromTriplets(triplets.begin(), triplets.end());
-    Lambda_.conservativeResize(dim_, dim_);
-    Lambda_ += added;
-  }
+  // A new pattern (a join or a relinearisation since the last assembly): Λ's structure
+  // is built from the factors' variable blocks — the rows of a column are those of every
+  // variable sharing a factor with its variable, whole blocks in order — and each H
+  // entry's place in Λ's values is recorded for the refill below and the next ones.
+  BuildLambdaPattern();
+  double* values = Lambda_.valuePtr();
+  std::fill(values, values + Lambda_.nonZeros(), 0.0);
+  const int* slot = lambda_slots_.data();
+  for (const Factor& f : factors_) ForEachEntry(f, [&](int, int, double h) { values[*slot++] += h; });
   lambda_factors_ = factors_.size();
   return Lambda_;
+}
+
+void EifJoiner::BuildLambdaPattern() const {
+  // Each variable block by its first row: its size and the sorted first rows of the
+  // blocks it shares a factor with (itself included).
+  std::vector<int> size_of(dim_, 0);
+  std::vector<std::vector<int>> neighbours(dim_);
+  size_t count = 0;
+  for (const Factor& f : factors_) {
+    count += static_cast<size_t>(f.H.size());
+    for (size_t b = 0; b < f.offsets.size(); ++b) {
+      size_of[f.offsets[b]] = f.sizes[b];
+      for (size_t a = 0; a < f.offsets.size(); ++a) neighbours[f.offsets[b]].push_back(f.offsets[a]);
+    }
+  }
+  // Rows above each neighbour within a column of block b, in neighbours[b]'s order.
+  std::vector<std::vector<int>> above(dim_);
+  std::vector<int> column_rows(dim_, 0);
+  for (int o = 0; o < dim_; ++o) {
+    if (size_of[o] == 0) continue;
+    std::vector<int>& list = neighbours[o];
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+    int rows = 0;
+    above[o].reserve(list.size());
+    for (int u : list) {
+      above[o].push_back(rows);
+      rows += size_of[u];
+    }
+    for (int j = 0; j < size_of[o]; ++j) column_rows[o + j] = rows;
+  }
+  Lambda_.resize(dim_, dim_);
+  long nonzeros = 0;
+  for (int c = 0; c < dim_; ++c) nonzeros += column_rows[c];
+  Lambda_.resizeNonZeros(nonzeros);
+  int* outer = Lambda_.outerIndexPtr();
+  int* inner = Lambda_.innerIndexPtr();
+  outer[0] = 0;
+  for (int c = 0; c < dim_; ++c) outer[c + 1] = outer[c] + column_rows[c];
+  for (int o = 0; o < dim_; ++o) {
+    for (int j = 0; j < size_of[o]; ++j) {
+      int* row = inner + outer[o + j];
+      for (int u : neighbours[o]) {
+        for (int i = 0; i < size_of[u]; ++i) *row++ = u + i;
+      }
+    }
+  }
+  SUBSLAM_CHECK(outer[dim_] == nonzeros) << "Λ's pattern: " << outer[dim_] << " of " << nonzeros;
+  // Each H entry's slot, in ForEachEntry's order (block pairs (a, b), rows i outer,
+  // columns j inner): row block a sits at above[b][rank of a] in every column of b.
+  lambda_slots_.resize(count);
+  size_t next = 0;
+  for (const Factor& f : factors_) {
+    for (size_t a = 0; a < f.offsets.size(); ++a) {
+      const int size_a = f.sizes[a];
+      for (size_t b = 0; b < f.offsets.size(); ++b) {
+        const int size_b = f.sizes[b];
+        const std::vector<int>& list = neighbours[f.offsets[b]];
+        const int rank = static_cast<int>(std::lower_bound(list.begin(), list.end(), f.offsets[a]) - list.begin());
+        const int base = above[f.offsets[b]][rank];
+        for (int i = 0; i < size_a; ++i) {
+          for (int j = 0; j < size_b; ++j) {
+            lambda_slots_[next + static_cast<size_t>(i * size_b + j)] = outer[f.offsets[b] + j] + base + i;
+          }
+        }
+        next += static_cast<size_t>(size_a * size_b);
+      }
+    }
+  }
+  lambda_slot_offsets_ = FactorOffsets();
 }
 
 long EifJoiner::factor_nonzeros() const { return solver_->factor.nonzeros(); }

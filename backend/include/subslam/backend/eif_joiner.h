@@ -205,6 +205,7 @@ class EifJoiner final : public MapJoiner {
     // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
     // factor; computed once, shared by copies.
     std::shared_ptr<const Eigen::MatrixXd> covariance_sqrt;
+    std::shared_ptr<const Eigen::MatrixXd> information;  // Q⁻¹, likewise
   };
 
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
@@ -213,21 +214,24 @@ class EifJoiner final : public MapJoiner {
   // H and b of the factor at the current estimate, and (if asked) its whitened Jacobian
   // L_Q⁻¹ J, the newest factor's rank update of the incremental factor.
   void Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian = nullptr) const;
-  // Adds a factor's blocks of Λ to triplets, its b to η, or H_f x_f to y.
-  void AddTriplets(const Factor& f, std::vector<Eigen::Triplet<double>>* triplets) const;
+  // The same H and b from the Jacobian's block structure and Q⁻¹ (no whitening).
+  void LinearizeStructured(Factor* f) const;
   // visit(row, col, value) for each entry of the factor's H, at its place in the state.
   template <typename Visit>
   static void ForEachEntry(const Factor& f, Visit visit);
+  // Adds a factor's b to η, or H_f x_f to y.
   void AddToEta(const Factor& f, Eigen::VectorXd* eta) const;
+  void AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
   // xᵀΛx over the factors' current H (Λ need not be assembled).
   double InformationNorm(const Eigen::VectorXd& x) const;
-  void AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
   // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
   // solve; write the estimate back.
   absl::Status Rebuild(bool only_last_factor);
   // Factorises Λ afresh (the symbolic analysis reused while Λ's pattern is unchanged),
   // with spare slots for the next joins' new variables.
   absl::Status FullFactorization();
+  // Λ's pattern (values left unset) and lambda_slots_ from the factors' variable blocks.
+  void BuildLambdaPattern() const;
   // The variable offsets of every factor, concatenated (what Λ's pattern depends on).
   std::vector<int> FactorOffsets() const;
   // Gauss-Newton over every factor from the current estimate, to relinearize_tolerance or
@@ -254,7 +258,8 @@ class EifJoiner final : public MapJoiner {
   std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
   int dim_ = 0;
   std::vector<Factor> factors_;
-  // Λ as the sum of the first `lambda_factors_` factors; information() adds the rest.
+  // Λ, the sum of every factor's H while lambda_factors_ == factors_.size() (a join or a
+  // relinearisation makes it stale; information() assembles it again).
   mutable Eigen::SparseMatrix<double> Lambda_;
   mutable size_t lambda_factors_ = 0;
   // Where each factor's H entries (in ForEachEntry's order, factors in order) sit in Λ's
