@@ -290,7 +290,20 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
     lambda_factors_ = factors_.size();
     return Lambda_;
   }
-  // A new pattern (a join or a relinearisation since the last assembly): Λ's structure
+  if (lambda_factors_ > 0 && Lambda_.rows() <= dim_) {
+    // Joins since the last assembly, the older factors unchanged: add the new ones.
+    std::vector<Eigen::Triplet<double>> triplets;
+    for (size_t k = lambda_factors_; k < factors_.size(); ++k) {
+      ForEachEntry(factors_[k], [&](int row, int col, double h) { triplets.emplace_back(row, col, h); });
+    }
+    Eigen::SparseMatrix<double> added(dim_, dim_);
+    added.setFromTriplets(triplets.begin(), triplets.end());
+    Lambda_.conservativeResize(dim_, dim_);
+    Lambda_ += added;
+    lambda_factors_ = factors_.size();
+    return Lambda_;
+  }
+  // Relinearised factors over a new pattern: Λ's structure
   // is built from the factors' variable blocks — the rows of a column are those of every
   // variable sharing a factor with its variable, whole blocks in order — and each H
   // entry's place in Λ's values is recorded for the refill below and the next ones.

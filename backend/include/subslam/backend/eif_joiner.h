@@ -258,8 +258,8 @@ class EifJoiner final : public MapJoiner {
   std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
   int dim_ = 0;
   std::vector<Factor> factors_;
-  // Λ, the sum of every factor's H while lambda_factors_ == factors_.size() (a join or a
-  // relinearisation makes it stale; information() assembles it again).
+  // Λ as the sum of the first `lambda_factors_` factors' H (0: none, or relinearised since):
+  // information() adds the newer factors, or refills or assembles it again.
   mutable Eigen::SparseMatrix<double> Lambda_;
   mutable size_t lambda_factors_ = 0;
   // Where each factor's H entries (in ForEachEntry's order, factors in order) sit in Λ's
