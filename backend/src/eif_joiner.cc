@@ -104,8 +104,6 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   const Eigen::LLT<Eigen::MatrixXd> llt(record.submap.covariance);
   SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
   f.covariance_sqrt = std::make_shared<const Eigen::MatrixXd>(llt.matrixL());
-  Eigen::MatrixXd information = llt.solve(Eigen::MatrixXd::Identity(llt.rows(), llt.cols()));
-  f.information = std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
   if (record.start_anchor != 0) {
     f.offsets.push_back(anchor_offset_[record.start_anchor]);
     f.sizes.push_back(3);
@@ -198,6 +196,12 @@ void EifJoiner::LinearizeStructured(Factor* f) const {
   }
   Jx.noalias() = J_a * x_a;
   for (int i = 0; i < n; ++i) Jx.segment<2>(3 + 2 * i) += R[i] * landmarks[i];
+  if (f->information == nullptr) {  // Q⁻¹ = L⁻ᵀ L⁻¹, once per factor (shared by copies)
+    Eigen::MatrixXd L_inv = Eigen::MatrixXd::Identity(m, m);
+    f->covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(L_inv);
+    Eigen::MatrixXd information = L_inv.transpose() * L_inv;
+    f->information = std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
+  }
   const Eigen::MatrixXd& W = *f->information;
   const Eigen::MatrixXd WJ_a = W * J_a;
   const Eigen::VectorXd w = W * (Jx - r);
