@@ -156,7 +156,7 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   L.solveInPlace(e);
   f->H = A.transpose() * A;
   f->b = A.transpose() * e;
-  if (whitened_jacobian != nullptr) *whitened_jacobian = std::move(A);
+  *whitened_jacobian = std::move(A);
 }
 
 // H = Jᵀ Q⁻¹ J and b = Jᵀ Q⁻¹ (J x̂ − r) from J's structure, without whitening: J's
@@ -209,14 +209,16 @@ void EifJoiner::LinearizeStructured(Factor* f) const {
   f->H.resize(cols, cols);
   f->b.resize(cols);
   f->H.topLeftCorner(na, na).noalias() = J_a.transpose() * WJ_a;
+  f->H.topLeftCorner(na, na) = 0.5 * (f->H.topLeftCorner(na, na) + f->H.topLeftCorner(na, na).transpose()).eval();
   f->b.head(na).noalias() = J_a.transpose() * w;
   for (int i = 0; i < n; ++i) {
     const Eigen::MatrixXd cross = WJ_a.middleRows<2>(3 + 2 * i).transpose() * R[i];  // na × 2
     f->H.block(0, na + 2 * i, na, 2) = cross;
     f->H.block(na + 2 * i, 0, 2, na) = cross.transpose();
     f->b.segment<2>(na + 2 * i) = R[i].transpose() * w.segment<2>(3 + 2 * i);
-    for (int k = 0; k < n; ++k) {
+    for (int k = 0; k <= i; ++k) {  // H symmetric to the bit
       f->H.block<2, 2>(na + 2 * i, na + 2 * k) = R[i].transpose() * W.block<2, 2>(3 + 2 * i, 3 + 2 * k) * R[k];
+      if (k < i) f->H.block<2, 2>(na + 2 * k, na + 2 * i) = f->H.block<2, 2>(na + 2 * i, na + 2 * k).transpose();
     }
   }
 }
@@ -285,7 +287,8 @@ std::vector<int> EifJoiner::FactorOffsets() const {
 
 const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   if (lambda_factors_ == factors_.size() && Lambda_.rows() == dim_) return Lambda_;
-  if (Lambda_.rows() == dim_ && !lambda_slots_.empty() && FactorOffsets() == lambda_slot_offsets_) {
+  if (lambda_factors_ == 0 && Lambda_.rows() == dim_ && !lambda_slots_.empty() &&
+      FactorOffsets() == lambda_slot_offsets_) {
     // The same factors over the same variables (relinearised): refill Λ's values.
     double* values = Lambda_.valuePtr();
     std::fill(values, values + Lambda_.nonZeros(), 0.0);
@@ -305,6 +308,7 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
     Lambda_.conservativeResize(dim_, dim_);
     Lambda_ += added;
     lambda_factors_ = factors_.size();
+    lambda_slot_offsets_.clear();  // the slots are not this pattern's
     return Lambda_;
   }
   // Relinearised factors over a new pattern: Λ's structure

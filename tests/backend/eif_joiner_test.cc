@@ -83,6 +83,72 @@ TEST(SubmapFactor, JacobiansMatchNumericalDifferentiation) {
   }
 }
 
+// Λ is Σ_f J_fᵀ Q_f⁻¹ J_f over the factors, however it was assembled. After Gauss-Newton
+// (rebuilt from the factors' variable blocks, then refilled) it equals that sum formed
+// here from LinearizeSubmapFactor at the converged estimate; local map 0 starts at the
+// fixed P0, and local map 13 joins two of its features to one landmark. After
+// single-linearisation joins that each refactorise (each factor added to the last Λ) it
+// equals a copy's Λ, assembled afresh from the same factors.
+TEST(EifJoiner, InformationIsTheSumOfItsFactorsHoweverAssembled) {
+  SyntheticRun run = MakeRun(5, 24, 1.0);
+  LocalSubmap& twice = run.submaps[13];
+  ASSERT_GE(twice.num_landmarks(), 2);
+  twice.landmarks[1].truth_id = twice.landmarks[0].truth_id;
+  EifJoiner converged(run.anchors[0], ConvergingKnownAssociation());
+  EifJoinerOptions added_options;
+  added_options.association.known_association = true;
+  added_options.relinearize_heading_change = 0.0;
+  added_options.incremental_factorization = false;
+  EifJoiner added(run.anchors[0], added_options);
+  for (const LocalSubmap& s : run.submaps) {
+    ASSERT_TRUE(converged.Join(s).ok());
+    ASSERT_TRUE(added.Join(s).ok());
+  }
+  ASSERT_TRUE(converged.Finish().ok());
+  ASSERT_GT(converged.counters().relinearizations, 1);
+  const int dim = converged.state_dimension();
+  Eigen::MatrixXd expected = Eigen::MatrixXd::Zero(dim, dim);
+  int repeated = 0;
+  for (const SubmapFactor& f : converged.graph().factors()) {
+    std::vector<Eigen::Vector2d> landmarks;
+    for (int j : f.landmark_of_feature) landmarks.push_back(converged.landmark(j));
+    const SubmapFactorLinearization lin =
+        LinearizeSubmapFactor(f.submap, converged.anchor(f.start_anchor), converged.anchor(f.end_anchor), landmarks);
+    std::vector<int> rows;  // of the state, per column of J
+    std::vector<Eigen::MatrixXd> blocks;
+    if (f.start_anchor != 0) {
+      for (int i = 0; i < 3; ++i) rows.push_back(converged.anchor_offset(f.start_anchor) + i);
+      blocks.push_back(lin.J_start);
+    }
+    for (int i = 0; i < 3; ++i) rows.push_back(converged.anchor_offset(f.end_anchor) + i);
+    blocks.push_back(lin.J_end);
+    for (int j : f.landmark_of_feature) {
+      for (int i = 0; i < 2; ++i) rows.push_back(converged.landmark_offset(j) + i);
+    }
+    blocks.push_back(lin.J_landmarks);
+    std::set<int> distinct(f.landmark_of_feature.begin(), f.landmark_of_feature.end());
+    repeated += static_cast<int>(f.landmark_of_feature.size() - distinct.size());
+    Eigen::MatrixXd J(lin.residual.size(), static_cast<Eigen::Index>(rows.size()));
+    int c = 0;
+    for (const Eigen::MatrixXd& b : blocks) {
+      J.middleCols(c, b.cols()) = b;
+      c += static_cast<int>(b.cols());
+    }
+    const Eigen::MatrixXd H = J.transpose() * f.submap.covariance.ldlt().solve(J);
+    for (size_t a = 0; a < rows.size(); ++a) {
+      for (size_t b = 0; b < rows.size(); ++b) expected(rows[a], rows[b]) += H(a, b);
+    }
+  }
+  EXPECT_EQ(repeated, 1);
+  const Eigen::MatrixXd lambda = Eigen::MatrixXd(converged.information());
+  EXPECT_LT((lambda - expected).norm(), 1e-8 * expected.norm());
+  const std::unique_ptr<MapJoiner> copy = added.Clone();
+  const auto* fresh = dynamic_cast<const EifJoiner*>(copy.get());
+  ASSERT_NE(fresh, nullptr);
+  const Eigen::MatrixXd sum = Eigen::MatrixXd(added.information());
+  EXPECT_LT((sum - Eigen::MatrixXd(fresh->information())).norm(), 1e-12 * sum.norm());
+}
+
 // The recovered marginals are the blocks of the dense inverse of Λ.
 TEST(EifJoiner, MarginalsEqualBlocksOfTheDenseInverse) {
   const SyntheticRun run = MakeRun(5);

@@ -205,7 +205,9 @@ class EifJoiner final : public MapJoiner {
     // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
     // factor; computed once, shared by copies.
     std::shared_ptr<const Eigen::MatrixXd> covariance_sqrt;
-    std::shared_ptr<const Eigen::MatrixXd> information;  // Q⁻¹, likewise, on first relinearisation
+    // Q⁻¹, computed on the factor's first relinearisation (copies made before that compute
+    // their own).
+    std::shared_ptr<const Eigen::MatrixXd> information;
   };
 
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
