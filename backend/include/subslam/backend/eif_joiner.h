@@ -64,29 +64,31 @@ struct EifJoinerOptions {
   // correction), so it waits for the relinearising joiner (issue 5).
   bool validate_joins = false;
   double validation_probability = 0.999;
-  // Loop-closure confirmation (beyond the papers). A loop closure made while the start
-  // anchor is lost — 3σ of its position at least `loop_confirmation_min_sigma_radius_m`,
-  // by default the 2·TH1 of association's anchor search: the map could lie anywhere in an
-  // area wider than the sensor's reach, so matching it is relocalisation, where chance
-  // fits of a few features abound — stands only if one of the next
-  // `loop_confirmation_maps` local maps pairs a feature with an old landmark the closure
-  // did not use: one that existed before the closing map, that the recent maps before it
-  // did not see, and that no map since has seen. A true closure leads on into mapped
-  // ground; a chance fit finds nothing more. Otherwise every join from the closing map on
-  // is undone (the joiner returns to its state before that map) and the maps are joined
-  // again, the closing one without its loop pairings (its features become new
-  // landmarks). The online estimate carries the closure meanwhile, and a closure still
-  // waiting at Finish() or when whole maps are joined (tree joining) stands. 0 maps: off.
-  // It rides on association's loop regime (SubmapAssociationOptions: min_loop_pairings
-  // > 1, estimated association), and is off where that is.
-  // It needs the estimate after the closure to be right, so it applies only while the
-  // joiner relinearises when headings move (relinearize_heading_change > 0): with a
-  // single linearisation the estimate after a correction of a hundred metres is too far
-  // off for the next maps to find the old map, and combined-2km's correct closures were
-  // all undone (bench/RESULTS.md, ninth session).
-  // combined-2km, known-association local maps, seeds 1-10: the one wrong closure (RBPF
-  // maps, seed 7) found no such landmark in its next three maps; every correct closure of
-  // a lost anchor found one within three (bench/RESULTS.md, ninth session).
+  // Loop-closure confirmation (beyond the papers).
+  //  - When: a loop closure made while the start anchor is lost, 3σ of its position at
+  //    least `loop_confirmation_min_sigma_radius_m` (default association's 2·TH1: the map
+  //    could lie anywhere in an area wider than the sensor's reach, so matching it is
+  //    relocalisation, where chance fits of a few features abound).
+  //  - Rule: it stands only if one of the next `loop_confirmation_maps` local maps pairs
+  //    a feature with an old landmark the closure did not use — one that existed before
+  //    the closing map, that the recent maps before it did not see, and that no map since
+  //    has seen. A true closure leads on into mapped ground; a chance fit finds nothing
+  //    more.
+  //  - Otherwise: every join from the closing map on is undone (the joiner returns to its
+  //    state before that map) and the maps are joined again, the closing one without its
+  //    loop pairings (its features become new landmarks). The online estimate carries the
+  //    closure meanwhile; a closure still waiting at Finish() or at a whole-map (tree)
+  //    join stands.
+  //  - Scope: it rides on association's loop regime (min_loop_pairings > 1, estimated
+  //    association), and needs the estimate after the closure to be right, so it applies
+  //    only while the joiner relinearises when headings move (relinearize_heading_change
+  //    > 0). With a single linearisation the estimate after a correction of a hundred
+  //    metres is too far off for the next maps to find the old map: combined-2km's
+  //    correct closures were all undone. 0 maps: off.
+  //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
+  //    wrong closure (RBPF maps, seed 7) found no such landmark in its next three maps;
+  //    every correct first closure found one within three (bench/RESULTS.md, ninth
+  //    session).
   int loop_confirmation_maps = 3;
   double loop_confirmation_min_sigma_radius_m = 60.0;
   // Relinearisation.
