@@ -690,6 +690,16 @@ TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
   EXPECT_EQ(eif.counters().joins, 10);
   EXPECT_EQ(eif.num_landmarks(), 8 + 8 + 4 + 2 + 6);  // every tree once
   EXPECT_EQ(eif.num_anchors(), 11);
+  // Validated joins (their own snapshot and undo) make no difference here: every join
+  // fits (exact means), and the closure is undone the same way.
+  EifJoinerOptions validated_options = options;
+  validated_options.validate_joins = true;
+  EifJoiner validated(Pose2(0, 0, 0), validated_options);
+  for (const LocalSubmap& s : wrong) ASSERT_TRUE(validated.Join(s).ok());
+  EXPECT_EQ(ClosingPairings(validated), 0);
+  EXPECT_EQ(validated.counters().loop_closures_unconfirmed, 1);
+  EXPECT_EQ(validated.counters().rejected_joins, 0);
+  EXPECT_EQ(validated.num_landmarks(), eif.num_landmarks());
   // With a single linearisation there is no confirmation: the closure stays.
   EifJoinerOptions single = options;
   single.relinearize_heading_change = 0.0;
