@@ -98,7 +98,6 @@ struct InformationSize {
 
 // Cumulative joining time after each local map (and Finish at the end, added to the last);
 // the joiner's stage times in `stages` and, for the EIF, its size in `size`, if given.
-
 std::vector<double> TimeEachJoin(const std::vector<subslam::LocalSubmap>& maps, Backend kind, const subslam::Pose2& p0,
                                  std::map<std::string, double>* stages = nullptr, InformationSize* size = nullptr) {
   std::unique_ptr<subslam::backend::MapJoiner> j = subslam::app::MakeJoiner(Options(kind), p0);

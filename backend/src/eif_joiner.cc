@@ -1,7 +1,5 @@
 #include "subslam/backend/eif_joiner.h"
 
-#include <Eigen/Eigenvalues>
-
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
@@ -196,7 +194,7 @@ void EifJoiner::LinearizeStructured(Factor* f) const {
   }
   Jx.noalias() = J_a * x_a;
   for (int i = 0; i < n; ++i) Jx.segment<2>(3 + 2 * i) += R[i] * landmarks[i];
-  if (f->information == nullptr) {  // Q⁻¹ = L⁻ᵀ L⁻¹, once per factor (shared by copies)
+  if (f->information == nullptr) {  // Q⁻¹ = L⁻ᵀ L⁻¹, once per factor
     Eigen::MatrixXd L_inv = Eigen::MatrixXd::Identity(m, m);
     f->covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(L_inv);
     Eigen::MatrixXd information = L_inv.transpose() * L_inv;
@@ -254,18 +252,9 @@ void EifJoiner::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, E
 }
 
 double EifJoiner::InformationNorm(const Eigen::VectorXd& x) const {
-  double norm = 0.0;
-  Eigen::VectorXd local;
-  for (const Factor& f : factors_) {
-    local.resize(f.H.rows());
-    int row = 0;
-    for (size_t a = 0; a < f.offsets.size(); ++a) {
-      local.segment(row, f.sizes[a]) = x.segment(f.offsets[a], f.sizes[a]);
-      row += f.sizes[a];
-    }
-    norm += local.dot(f.H * local);
-  }
-  return norm;
+  Eigen::VectorXd Lambda_x = Eigen::VectorXd::Zero(x.size());
+  for (const Factor& f : factors_) AddInformationTimes(f, x, &Lambda_x);
+  return x.dot(Lambda_x);
 }
 
 void EifJoiner::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
@@ -774,20 +763,12 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     assoc = std::move(a.landmark_of_feature);
     start_covariance = a.start_anchor_covariance;
     if (suppress_loop_closure_) {
-      // Joined again after its loop closure went unconfirmed: no pairing with a landmark
-      // that the recent maps did not see.
-      std::vector<char> recent(graph_.num_landmarks(), 0);
-      const int factors = static_cast<int>(graph_.factors().size());
-      for (int f = std::max(0, factors - options_.association.recent_maps); f < factors; ++f) {
-        for (int j : graph_.factors()[f].landmark_of_feature) recent[j] = 1;
-      }
-      for (int& j : assoc) {
-        if (j >= 0 && !recent[j]) j = -1;
-      }
-    } else if (a.uncertain_loop_pairings > 0 && options_.loop_confirmation_maps > 0 &&
+      // Joined again after its loop closure went unconfirmed (from the same state, so
+      // association closes the same loop): without its loop pairings.
+      for (int i : a.uncertain_loop_features) assoc[i] = -1;
+    } else if (!a.uncertain_loop_features.empty() && options_.loop_confirmation_maps > 0 &&
                options_.relinearize_heading_change > 0 && !pending_loop_ &&
-               3.0 * std::sqrt(std::max(0.0, start_covariance.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff())) >=
-                   options_.loop_confirmation_min_sigma_radius_m) {
+               3.0 * a.start_position_sigma_m >= options_.loop_confirmation_min_sigma_radius_m) {
       pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size()};
       // Its association is done again on an undo: count it then, not twice.
       pending_loop_->before.counters = counters_before;

@@ -90,6 +90,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   out.start_anchor_covariance = Sigma_s;
   const double sigma_xy =
       std::sqrt(std::max(0.0, Sigma_s.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff()));
+  out.start_position_sigma_m = sigma_xy;
   const double sigma_theta = std::sqrt(std::max(0.0, Sigma_s(2, 2)));
   std::vector<char> is_candidate(graph.num_landmarks(), anchor_prefilter ? 0 : 1);
   const double r1 = options_.anchor_search_radius_m + 3.0 * sigma_xy;
@@ -307,7 +308,10 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
       }
       out.loop_pairings_dropped = loop_pairings;
     } else {
-      out.uncertain_loop_pairings = loop_pairings;
+      for (int i = 0; i < n; ++i) {
+        const int j = out.landmark_of_feature[i];
+        if (j >= 0 && !recent[j]) out.uncertain_loop_features.push_back(i);
+      }
     }
   }
   return out;

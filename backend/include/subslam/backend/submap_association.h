@@ -86,14 +86,17 @@ struct SubmapAssociation {
   int loop_pairings_dropped = 0;         // a loop closure with too few pairings
   bool loop_ambiguous = false;           // a loop closure dropped by loop_ambiguity_test
   // A loop closure kept under an uncertain start anchor (the regime of the loop tests):
-  // its number of loop pairings (0: none kept, or the anchor was certain).
-  int uncertain_loop_pairings = 0;
+  // the features paired with landmarks no recent map saw (empty: none kept, or the anchor
+  // was certain).
+  std::vector<int> uncertain_loop_features;
   double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
   int candidates = 0;                    // candidate landmarks (step 1)
   int candidates_bounded_out = 0;        // of those, dropped under the joiner's bound (step 2)
   // The start anchor's marginal covariance before the join (zero for the fixed P0;
   // unset under known association).
   Eigen::Matrix3d start_anchor_covariance = Eigen::Matrix3d::Constant(NAN);
+  // √ of the largest eigenvalue of its position block [m] (unset under known association).
+  double start_position_sigma_m = NAN;
 };
 
 class SubmapAssociator {
