@@ -44,8 +44,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   // Marginal covariances of every anchor: the joiner's (timed, for comparison with
   // ceres::Covariance), or Ceres's at its solution.
   const absl::Time covariance_start = absl::Now();
-  std::vector<Eigen::Matrix3d> joiner_covariances;
-  for (int k : all_anchors) joiner_covariances.push_back(joiner->AnchorCovariance(k));
+  const std::vector<Eigen::Matrix3d> joiner_covariances = joiner->AnchorCovariances();
   const double joiner_covariance_seconds = absl::ToDoubleSeconds(absl::Now() - covariance_start);
   // Association against truth ids, from the final association table (factors in time
   // order): global landmark → true ids joined to it, and the reverse.
@@ -88,9 +87,9 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     r.anchors.push_back({r.anchor_times[k], solved ? solved->anchors()[k] : joiner->anchor(k),
                          solved ? ceres_covariances[k] : joiner_covariances[k]});
   }
+  const std::vector<Eigen::Matrix2d> landmark_covariances = joiner->LandmarkCovariances();
   for (int j = 0; j < joiner->num_landmarks(); ++j) {
-    r.landmarks.push_back({j, solved ? solved->landmarks()[j] : joiner->landmark(j),
-                           joiner->LandmarkCovariance(j)});
+    r.landmarks.push_back({j, solved ? solved->landmarks()[j] : joiner->landmark(j), landmark_covariances[j]});
   }
 
   nlohmann::json metrics = nlohmann::json::object();

@@ -173,13 +173,15 @@ absl::Status SubmapSlam::Finish() {
 Trajectory SubmapSlam::FinalTrajectory() const {
   Trajectory out;
   out.reserve(steps_.size());
+  // Every anchor's marginal at once (the joiner's bulk recovery).
+  const std::vector<Eigen::Matrix3d> anchor_covariances = joiner_ ? joiner_->AnchorCovariances() : chain_covariance_;
   int cached = -1;
   Pose2 anchor;
   Eigen::Matrix3d anchor_cov;
   for (const StepRecord& r : steps_) {
     if (r.map != cached) {
       anchor = Anchor(r.map);
-      anchor_cov = AnchorCovariance(r.map);
+      anchor_cov = anchor_covariances[r.map];
       cached = r.map;
     }
     Eigen::Matrix3d J_a, J_l;
@@ -192,9 +194,8 @@ Trajectory SubmapSlam::FinalTrajectory() const {
 std::vector<LandmarkEstimate> SubmapSlam::Map() const {
   std::vector<LandmarkEstimate> out;
   if (joiner_) {
-    for (int j = 0; j < joiner_->num_landmarks(); ++j) {
-      out.push_back({j, joiner_->landmark(j), joiner_->LandmarkCovariance(j)});
-    }
+    const std::vector<Eigen::Matrix2d> covariances = joiner_->LandmarkCovariances();
+    for (int j = 0; j < joiner_->num_landmarks(); ++j) out.push_back({j, joiner_->landmark(j), covariances[j]});
     return out;
   }
   for (size_t k = 0; k < closed_.size(); ++k) {

@@ -559,6 +559,33 @@ Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors,
   return 0.5 * (out + out.transpose());
 }
 
+std::vector<Eigen::Matrix3d> EifJoiner::AnchorCovariances() const {
+  std::vector<Eigen::Matrix3d> out(graph_.num_anchors(), Eigen::Matrix3d::Zero());  // P0 fixed: zero
+  std::vector<int> free;
+  std::vector<std::vector<int>> groups;
+  for (int k = 0; k < graph_.num_anchors(); ++k) {
+    if (anchor_offset_[k] < 0) continue;
+    const int o = anchor_offset_[k];
+    free.push_back(k);
+    groups.push_back({o, o + 1, o + 2});
+  }
+  if (groups.empty()) return out;
+  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+  const std::vector<Eigen::MatrixXd> blocks = solver_->factor.DiagonalInverseBlocks(groups);
+  for (size_t g = 0; g < free.size(); ++g) out[free[g]] = 0.5 * (blocks[g] + blocks[g].transpose());
+  return out;
+}
+
+std::vector<Eigen::Matrix2d> EifJoiner::LandmarkCovariances() const {
+  std::vector<std::vector<int>> groups;
+  for (int j = 0; j < graph_.num_landmarks(); ++j) groups.push_back({landmark_offset_[j], landmark_offset_[j] + 1});
+  std::vector<Eigen::Matrix2d> out;
+  if (groups.empty()) return out;
+  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+  for (const Eigen::MatrixXd& b : solver_->factor.DiagonalInverseBlocks(groups)) out.push_back(0.5 * (b + b.transpose()));
+  return out;
+}
+
 std::vector<Matrix5d> EifJoiner::AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const {
   std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());
   if (dim_ == 0) return out;

@@ -7,6 +7,20 @@
 
 namespace subslam::backend {
 
+std::vector<Eigen::Matrix3d> MapJoiner::AnchorCovariances() const {
+  std::vector<Eigen::Matrix3d> out;
+  out.reserve(num_anchors());
+  for (int k = 0; k < num_anchors(); ++k) out.push_back(AnchorCovariance(k));
+  return out;
+}
+
+std::vector<Eigen::Matrix2d> MapJoiner::LandmarkCovariances() const {
+  std::vector<Eigen::Matrix2d> out;
+  out.reserve(num_landmarks());
+  for (int j = 0; j < num_landmarks(); ++j) out.push_back(LandmarkCovariance(j));
+  return out;
+}
+
 LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j) {
   const SubmapGraph& g = j.graph();
   SUBSLAM_CHECK(!g.factors().empty()) << "an empty map has no summary";

@@ -121,6 +121,7 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   capacity_ = capacity;
   nonzeros_after_factorize_ = nonzeros();
   column_cache_.clear();
+  selected_.reset();
   return absl::OkStatus();
 }
 
@@ -190,6 +191,7 @@ absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, c
   if (!PositiveDiagonal()) return absl::InternalError("CHOLMOD: the updated matrix is not positive definite");
   dim_ = new_dim;
   column_cache_.clear();
+  selected_.reset();
   return absl::OkStatus();
 }
 
@@ -461,6 +463,103 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
       for (int c = a + 1; c < g; ++c) m(h + a, h + c) = m(h + c, h + a);
     }
     out.push_back(std::move(m));
+  }
+  return out;
+}
+
+const SparseCholesky::SelectedInverse& SparseCholesky::Selected() const {
+  if (selected_.has_value()) return *selected_;
+  const double* Lx = static_cast<const double*>(factor_->x);
+  const int* Lp = static_cast<const int*>(factor_->p);
+  const int* Li = static_cast<const int*>(factor_->i);
+  const int* Lnz = static_cast<const int*>(factor_->nz);
+  const int n = capacity_;
+  SelectedInverse sel;
+  sel.start.assign(n + 1, 0);
+  for (int j = 0; j < n; ++j) sel.start[j + 1] = sel.start[j] + Lnz[j] - 1;  // D sits first
+  const int nnz = sel.start[n];
+  sel.rows.resize(nnz);
+  sel.lower.resize(nnz);
+  sel.z.assign(nnz, 0.0);
+  sel.diagonal.assign(n, 0.0);
+  // Column j's rows sorted (CHOLMOD keeps a simplicial column's rows in no set order once
+  // updates have added fill), with their values.
+  std::vector<std::pair<int, double>> column;
+  for (int j = 0; j < n; ++j) {
+    column.clear();
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) column.emplace_back(Li[p], Lx[p]);
+    std::sort(column.begin(), column.end());
+    for (size_t t = 0; t < column.size(); ++t) {
+      sel.rows[sel.start[j] + t] = column[t].first;
+      sel.lower[sel.start[j] + t] = column[t].second;
+    }
+  }
+  // From the last column to the first: column j's Z needs Z on its rows' pairs only,
+  // which lie in later columns (the rows of column j below row r are rows of column r:
+  // the factor's pattern is closed along the elimination tree).
+  std::vector<double> acc;
+  for (int j = n - 1; j >= 0; --j) {
+    const int begin = sel.start[j], m = sel.start[j + 1] - begin;
+    const int* R = sel.rows.data() + begin;
+    const double* l = sel.lower.data() + begin;
+    acc.assign(m, 0.0);  // acc[a] = Σ_b L_{R[b] j} Z_{R[a] R[b]}
+    for (int b = 0; b < m; ++b) {
+      const int rb = R[b];
+      acc[b] += l[b] * sel.diagonal[rb];
+      const int* col = sel.rows.data() + sel.start[rb];
+      const int* end = sel.rows.data() + sel.start[rb + 1];
+      const int* at = col;
+      for (int c = b + 1; c < m; ++c) {
+        if (at >= end || *at != R[c]) at = std::lower_bound(at, end, R[c]);
+        SUBSLAM_CHECK(at < end && *at == R[c]) << "factor pattern is not closed along its elimination tree";
+        const double z = sel.z[at - sel.rows.data()];  // Z_{R[c] R[b]}
+        acc[c] += l[b] * z;
+        acc[b] += l[c] * z;
+        ++at;
+      }
+    }
+    double diagonal = 1.0 / Lx[Lp[j]];
+    for (int a = 0; a < m; ++a) {
+      sel.z[begin + a] = -acc[a];
+      diagonal += l[a] * acc[a];
+    }
+    sel.diagonal[j] = diagonal;
+  }
+  selected_ = std::move(sel);
+  return *selected_;
+}
+
+std::optional<double> SparseCholesky::SelectedEntry(int a, int b) const {
+  const SelectedInverse& sel = *selected_;
+  if (a == b) return sel.diagonal[a];
+  if (a > b) std::swap(a, b);
+  const int* begin = sel.rows.data() + sel.start[a];
+  const int* end = sel.rows.data() + sel.start[a + 1];
+  const int* at = std::lower_bound(begin, end, b);
+  if (at == end || *at != b) return std::nullopt;
+  return sel.z[at - sel.rows.data()];
+}
+
+std::vector<Eigen::MatrixXd> SparseCholesky::DiagonalInverseBlocks(const std::vector<std::vector<int>>& groups) const {
+  std::vector<Eigen::MatrixXd> out;
+  out.reserve(groups.size());
+  if (groups.empty()) return out;
+  Selected();
+  for (const std::vector<int>& group : groups) {
+    const int k = static_cast<int>(group.size());
+    Eigen::MatrixXd block(k, k);
+    bool on_pattern = true;
+    for (int a = 0; a < k && on_pattern; ++a) {
+      for (int c = a; c < k; ++c) {
+        const std::optional<double> z = SelectedEntry(position_[group[a]], position_[group[c]]);
+        if (!z.has_value()) {
+          on_pattern = false;
+          break;
+        }
+        block(a, c) = block(c, a) = *z;
+      }
+    }
+    out.push_back(on_pattern ? std::move(block) : InverseBlock(group));
   }
   return out;
 }

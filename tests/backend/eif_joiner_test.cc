@@ -169,6 +169,20 @@ TEST(EifJoiner, MarginalsEqualBlocksOfTheDenseInverse) {
   EXPECT_TRUE(MatricesNear(inverse(rows, rows), joint, 1e-9));
   EXPECT_TRUE(MatricesNear(joint.block<3, 3>(0, 0), eif.AnchorCovariance(3), 1e-12));
   EXPECT_TRUE(MatricesNear(Eigen::Matrix3d::Zero(), eif.AnchorCovariance(0), 0.0));  // P0 fixed
+  // Every marginal at once (the sparse-inverse recursion on the factor's pattern).
+  const std::vector<Eigen::Matrix3d> all_anchors = eif.AnchorCovariances();
+  const std::vector<Eigen::Matrix2d> all_landmarks = eif.LandmarkCovariances();
+  ASSERT_EQ(static_cast<int>(all_anchors.size()), eif.num_anchors());
+  ASSERT_EQ(static_cast<int>(all_landmarks.size()), eif.num_landmarks());
+  EXPECT_TRUE(MatricesNear(Eigen::Matrix3d::Zero(), all_anchors[0], 0.0));
+  for (int k = 1; k < eif.num_anchors(); ++k) {
+    const int o = eif.anchor_offset(k);
+    EXPECT_TRUE(MatricesNear(inverse.block<3, 3>(o, o), all_anchors[k], 1e-9)) << "anchor " << k;
+  }
+  for (int j = 0; j < eif.num_landmarks(); ++j) {
+    const int o = eif.landmark_offset(j);
+    EXPECT_TRUE(MatricesNear(inverse.block<2, 2>(o, o), all_landmarks[j], 1e-9)) << "landmark " << j;
+  }
 }
 
 // The incremental factor (rank updates of the LDLᵀ factor, new variables in spare slots)

@@ -95,6 +95,53 @@ TEST(SparseCholesky, ManyColumnsThroughTheSharedPathEqualTheDenseInverse) {
   EXPECT_TRUE(MatricesNear(inverse(vars, vars), L.InverseBlock(vars), 1e-9));
 }
 
+// The diagonal blocks from A⁻¹ on L's pattern (the sparse-inverse recursion) equal the
+// dense inverse's: groups coupled in A, single variables, a group with an uncoupled pair
+// (answered by forward solves), after a full factorisation and after rank updates that
+// add fill and claim spare slots.
+TEST(SparseCholesky, DiagonalInverseBlocksEqualTheDenseInverse) {
+  std::mt19937_64 rng(9);
+  const int n = 60, added = 3;
+  Eigen::MatrixXd A = RandomSpd(n, &rng);
+  // Couple 10-11 and 40-41-42 densely, as a landmark's and an anchor's coordinates are.
+  for (const std::vector<int>& g : {std::vector<int>{10, 11}, std::vector<int>{40, 41, 42}}) {
+    for (int a : g) {
+      for (int b : g) A(a, b) += a == b ? 1.0 : 0.3;
+    }
+  }
+  SparseCholesky L;
+  ASSERT_TRUE(L.Factorize(Sparse(A), 5).ok());
+  std::vector<std::vector<int>> groups = {{10, 11}, {42, 40, 41}, {7}, {59}, {0}};
+  for (int v = 0; v < n; ++v) groups.push_back({v});
+  // An uncoupled pair, far apart in the chain (A's entry is zero; L's may be too).
+  ASSERT_EQ(A(2, 50), 0.0);
+  groups.push_back({2, 50});
+  const auto check = [&](const Eigen::MatrixXd& matrix) {
+    const Eigen::MatrixXd inverse = matrix.inverse();
+    const std::vector<Eigen::MatrixXd> blocks = L.DiagonalInverseBlocks(groups);
+    ASSERT_EQ(blocks.size(), groups.size());
+    for (size_t g = 0; g < groups.size(); ++g) {
+      EXPECT_TRUE(MatricesNear(inverse(groups[g], groups[g]), blocks[g], 1e-9)) << "group " << g;
+    }
+  };
+  check(A);
+  // Rank updates: a link between distant variables (fill) and new variables.
+  const std::vector<int> rows = {1, 55, 60, 61, 62};
+  const Eigen::MatrixXd W = Eigen::MatrixXd::Random(static_cast<int>(rows.size()), 5);
+  ASSERT_TRUE(L.Update(n + added, rows, W).ok());
+  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + added, n + added);
+  grown.topLeftCorner(n, n) = A;
+  for (size_t r = 0; r < rows.size(); ++r) {
+    for (size_t q = 0; q < rows.size(); ++q) {
+      grown(rows[r], rows[q]) += W.row(static_cast<int>(r)).dot(W.row(static_cast<int>(q)));
+    }
+  }
+  groups.push_back({60, 61, 62});
+  groups.push_back({1, 55});
+  check(grown);
+  EXPECT_TRUE(L.DiagonalInverseBlocks({}).empty());
+}
+
 // A += W Wᵀ with new variables claiming spare slots equals factorising the grown matrix,
 // including when a variable is listed twice (its rows add up).
 TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {

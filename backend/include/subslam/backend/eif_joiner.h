@@ -161,6 +161,9 @@ class EifJoiner final : public MapJoiner {
   // Marginal covariances by sparse solves with the factor.
   Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
                                   const std::vector<int>& landmarks) const override;
+  // All marginals from Λ⁻¹ on the factor's pattern (one sparse-inverse recursion).
+  std::vector<Eigen::Matrix3d> AnchorCovariances() const override;
+  std::vector<Eigen::Matrix2d> LandmarkCovariances() const override;
   // For each landmark, the 5 × 5 marginal of [anchor, landmark] (what individual
   // compatibility needs), without the landmarks' cross-covariances.
   std::vector<Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;

@@ -97,6 +97,11 @@ class MapJoiner {
                                           const std::vector<int>& landmarks) const = 0;
   Eigen::Matrix3d AnchorCovariance(int k) const { return JointCovariance({k}, {}); }
   Eigen::Matrix2d LandmarkCovariance(int j) const { return JointCovariance({}, {j}); }
+  // Every anchor's and every landmark's marginal at once (the final trajectory's and the
+  // map's covariances): by default one JointCovariance per variable; a joiner may answer
+  // more cheaply in bulk (the EIF does, from its inverse on the factor's pattern).
+  virtual std::vector<Eigen::Matrix3d> AnchorCovariances() const;
+  virtual std::vector<Eigen::Matrix2d> LandmarkCovariances() const;
 
   // The last anchor and its marginal covariance: the reference of the online pose. A
   // joiner may answer without forming the whole map (the tree joiner does).

@@ -55,6 +55,8 @@ class TreeJoiner final : public MapJoiner {
                                   const std::vector<int>& landmarks) const override {
     return Whole().JointCovariance(anchors, landmarks);
   }
+  std::vector<Eigen::Matrix3d> AnchorCovariances() const override { return Whole().AnchorCovariances(); }
+  std::vector<Eigen::Matrix2d> LandmarkCovariances() const override { return Whole().LandmarkCovariances(); }
   const std::vector<int>& last_association() const override { return Whole().last_association(); }
   const SubmapAssociator& associator() const override { return Whole().associator(); }
   // Chained over the nodes (no fold).

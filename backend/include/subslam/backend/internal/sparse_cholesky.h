@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <map>
+#include <optional>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -54,6 +55,17 @@ class SparseCholesky {
   // once, dot products only where needed.
   std::vector<Eigen::MatrixXd> InverseStarBlocks(const std::vector<int>& hub,
                                                  const std::vector<std::vector<int>>& groups) const;
+
+  // The diagonal blocks of A⁻¹ on many groups of variables at once (each group's block,
+  // rows and columns in the listed order; no cross terms between groups), from A⁻¹'s
+  // entries on the pattern of L: the sparse-inverse (Takahashi) recursion
+  // Z_kj = −Σ_{i∈L_j} L_ij Z_ik, Z_jj = 1/D_j − Σ_{i∈L_j} L_ij Z_ij over the columns from
+  // the last, O(Σ_j nnz(L_j)²) once per factor instead of a forward solve per variable.
+  // A group's pairs lie on L's pattern when they are coupled in A (a landmark's x and y,
+  // an anchor's three coordinates); a group with an uncoupled pair gets its block by
+  // forward solves instead (InverseBlock). For all marginals of a map; a few blocks are
+  // cheaper by InverseBlock.
+  std::vector<Eigen::MatrixXd> DiagonalInverseBlocks(const std::vector<std::vector<int>>& groups) const;
 
   bool ready() const { return factor_ != nullptr; }
   int dim() const { return dim_; }
@@ -98,6 +110,20 @@ class SparseCholesky {
   static constexpr int kSharedPathMinLength = 150;
   static constexpr int kSharedPathMaxLength = 2000;
   bool PositiveDiagonal() const;
+  // A⁻¹ on L's pattern, computed on first use after the factor last changed
+  // (DiagonalInverseBlocks): per factor column j (factor order), its rows below the
+  // diagonal sorted, and Z there; Z's diagonal apart.
+  struct SelectedInverse {
+    std::vector<int> start;     // column j's entries: [start[j], start[j + 1])
+    std::vector<int> rows;
+    std::vector<double> lower;  // L_ij
+    std::vector<double> z;      // Z_ij
+    std::vector<double> diagonal;
+  };
+  const SelectedInverse& Selected() const;
+  // Z at factor positions (a, b) if it lies on L's pattern.
+  std::optional<double> SelectedEntry(int a, int b) const;
+  mutable std::optional<SelectedInverse> selected_;
   // out[o] = aᵀ others[o] for o ≥ begin (the columns carry D^{-1/2}); a is scattered once.
   void Dots(const SparseColumn& a, const std::vector<const SparseColumn*>& others, int begin, double* out) const;
 
