@@ -7,6 +7,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <future>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -374,13 +375,19 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     absl::StatusOr<std::filesystem::path> dir = CreateOutputDirectory(options.out_dir);
     if (!dir.ok()) return dir.status();
     const std::filesystem::path& out = *dir;
-    if (auto s = io::WriteTrajectoryCsv((out / "trajectory_online.csv").string(), r.online); !s.ok()) return s;
-    if (auto s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory); !s.ok()) return s;
-    if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
-    if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;
-    if (chain != nullptr) {
-      if (auto s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps); !s.ok()) return s;
-    }
+    // The files are independent, and formatting the trajectories is most of the time
+    // (Victoria Park: 69,000 rows each): half of it goes to a second thread.
+    std::future<absl::Status> second = std::async(std::launch::async, [&r, &out, chain] {
+      absl::Status s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory);
+      if (s.ok() && chain != nullptr) s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps);
+      return s;
+    });
+    absl::Status first = io::WriteTrajectoryCsv((out / "trajectory_online.csv").string(), r.online);
+    if (first.ok()) first = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks);
+    if (first.ok()) first = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n");
+    const absl::Status second_status = second.get();
+    if (!first.ok()) return first;
+    if (!second_status.ok()) return second_status;
   }
   return r;
 }
