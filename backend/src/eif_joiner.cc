@@ -605,23 +605,31 @@ std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
   std::vector<std::optional<Matrix5d>> out(landmarks.size());
   if (dim_ == 0) return out;
   SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
-  // The anchor's columns of Λ⁻¹ by one solve (O(nnz L)): its marginal and its exact
-  // cross-covariance with every landmark (zero for the fixed P0).
-  Eigen::MatrixXd columns = Eigen::MatrixXd::Zero(dim_, 3);
+  // The anchor's columns of Λ⁻¹ on its own rows and the bounded landmarks' (a back
+  // substitution over their paths to the root only): its marginal and its exact
+  // cross-covariance with each landmark (zero for the fixed P0).
   const int o = anchor_offset_[anchor];
-  if (o >= 0) {
-    Eigen::MatrixXd unit = Eigen::MatrixXd::Zero(dim_, 3);
-    unit.middleRows<3>(o).setIdentity();
-    columns = solver_->factor.Solve(unit);
-  }
+  std::vector<int> rows, bounded;
   for (size_t c = 0; c < landmarks.size(); ++c) {
+    if (!marginal_bound_[landmarks[c]].allFinite()) continue;
+    bounded.push_back(static_cast<int>(c));
+    rows.push_back(landmark_offset_[landmarks[c]]);
+    rows.push_back(landmark_offset_[landmarks[c]] + 1);
+  }
+  if (bounded.empty()) return out;
+  Eigen::MatrixXd columns = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(rows.size()) + 3, 3);
+  if (o >= 0) {
+    rows.insert(rows.end(), {o, o + 1, o + 2});
+    columns = solver_->factor.InverseColumnsAt({o, o + 1, o + 2}, rows);
+  }
+  const Eigen::Matrix3d anchor_block = columns.bottomRows<3>();
+  for (size_t b = 0; b < bounded.size(); ++b) {
+    const int c = bounded[b];
     const Eigen::Matrix2d& B = marginal_bound_[landmarks[c]];
-    if (!B.allFinite()) continue;
     // [Σ_PP Σ_PL; Σ_LP B] ⪰ [Σ_PP Σ_PL; Σ_LP Σ_LL] since B ⪰ Σ_LL.
-    const int l = landmark_offset_[landmarks[c]];
     Matrix5d m;
-    m.topLeftCorner<3, 3>() = o >= 0 ? Eigen::Matrix3d(columns.middleRows<3>(o)) : Eigen::Matrix3d::Zero();
-    m.bottomLeftCorner<2, 3>() = columns.middleRows<2>(l);
+    m.topLeftCorner<3, 3>() = anchor_block;
+    m.bottomLeftCorner<2, 3>() = columns.middleRows<2>(static_cast<Eigen::Index>(2 * b));
     m.topRightCorner<3, 2>() = m.bottomLeftCorner<2, 3>().transpose();
     m.bottomRightCorner<2, 2>() = B;
     out[c] = m;

@@ -122,6 +122,7 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   nonzeros_after_factorize_ = nonzeros();
   column_cache_.clear();
   selected_.reset();
+  parent_.assign(capacity_, -2);
   return absl::OkStatus();
 }
 
@@ -192,6 +193,7 @@ absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, c
   dim_ = new_dim;
   column_cache_.clear();
   selected_.reset();
+  parent_.assign(capacity_, -2);
   return absl::OkStatus();
 }
 
@@ -294,11 +296,7 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
   const int* Lp = static_cast<const int*>(factor_->p);
   const int* Li = static_cast<const int*>(factor_->i);
   const int* Lnz = static_cast<const int*>(factor_->nz);
-  const auto parent = [&](int j) {
-    int up = -1;
-    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) up = up < 0 ? Li[p] : std::min(up, Li[p]);
-    return up;
-  };
+  const auto parent = [this](int j) { return Parent(j); };
   // S: the elimination-tree path from the lowest pending variable to the root. Every
   // other path meets it (one root), and from there on the walks would all run through
   // the same — near the root dense — columns: those are solved together, densely.
@@ -463,6 +461,69 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
       for (int c = a + 1; c < g; ++c) m(h + a, h + c) = m(h + c, h + a);
     }
     out.push_back(std::move(m));
+  }
+  return out;
+}
+
+int SparseCholesky::Parent(int j) const {
+  int& parent = parent_[j];
+  if (parent == -2) {
+    const int* Lp = static_cast<const int*>(factor_->p);
+    const int* Li = static_cast<const int*>(factor_->i);
+    const int* Lnz = static_cast<const int*>(factor_->nz);
+    parent = -1;
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) parent = parent < 0 ? Li[p] : std::min(parent, Li[p]);
+  }
+  return parent;
+}
+
+Eigen::MatrixXd SparseCholesky::InverseColumnsAt(const std::vector<int>& columns, const std::vector<int>& rows) const {
+  const int k = static_cast<int>(columns.size());
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(rows.size()), k);
+  if (k == 0 || rows.empty()) return out;
+  const double* Lx = static_cast<const double*>(factor_->x);
+  const int* Lp = static_cast<const int*>(factor_->p);
+  const int* Li = static_cast<const int*>(factor_->i);
+  const int* Lnz = static_cast<const int*>(factor_->nz);
+  // U: the union of the paths from the requested rows to the root (each column's rows
+  // are its ancestors, the parent the smallest), in factor positions.
+  std::vector<int>& stamp = back_stamp_;
+  if (static_cast<int>(stamp.size()) != capacity_) stamp.assign(capacity_, 0);
+  const int this_walk = ++back_walks_;
+  std::vector<int> U;
+  for (int v : rows) {
+    for (int j = position_[v]; j >= 0 && stamp[j] != this_walk; j = Parent(j)) {
+      stamp[j] = this_walk;
+      U.push_back(j);
+    }
+  }
+  std::sort(U.begin(), U.end());
+  // z = D⁻¹ L⁻¹ P e_c from the cached forward columns (they hold y / √D), then
+  // Lᵀ x = z from the root down, over U only: x_j = z_j − Σ_{i∈L_j} L_ij x_i, where every
+  // i is an ancestor of j, so in U.
+  SolveColumns(columns);
+  std::vector<double>& x = ForwardWorkspace();  // capacity × kMaxCarried, all zero between uses
+  for (int c0 = 0; c0 < k; c0 += kMaxCarried) {
+    const int width = std::min(kMaxCarried, k - c0);
+    for (int c = 0; c < width; ++c) {
+      const SparseColumn& y = ForwardColumn(columns[c0 + c]);
+      for (size_t t = 0; t < y.rows.size(); ++t) {
+        const int r = y.rows[t];
+        if (stamp[r] == this_walk) x[static_cast<size_t>(r) * kMaxCarried + c] = y.values[t] / std::sqrt(Lx[Lp[r]]);
+      }
+    }
+    for (auto it = U.rbegin(); it != U.rend(); ++it) {
+      const int j = *it;
+      double* xj = &x[static_cast<size_t>(j) * kMaxCarried];
+      for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
+        const double* xi = &x[static_cast<size_t>(Li[p]) * kMaxCarried];
+        for (int c = 0; c < width; ++c) xj[c] -= Lx[p] * xi[c];
+      }
+    }
+    for (size_t r = 0; r < rows.size(); ++r) {
+      for (int c = 0; c < width; ++c) out(static_cast<Eigen::Index>(r), c0 + c) = x[static_cast<size_t>(position_[rows[r]]) * kMaxCarried + c];
+    }
+    for (int j : U) std::fill_n(&x[static_cast<size_t>(j) * kMaxCarried], kMaxCarried, 0.0);
   }
   return out;
 }

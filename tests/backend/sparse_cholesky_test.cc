@@ -142,6 +142,37 @@ TEST(SparseCholesky, DiagonalInverseBlocksEqualTheDenseInverse) {
   EXPECT_TRUE(L.DiagonalInverseBlocks({}).empty());
 }
 
+// Selected rows of A⁻¹'s columns (a back substitution over the rows' paths to the root
+// only) equal the dense inverse's: more columns than one pass carries, rows among the
+// columns, rows in a second component, after a full factorisation and after an update.
+TEST(SparseCholesky, InverseColumnsAtSelectedRowsEqualTheDenseInverse) {
+  std::mt19937_64 rng(13);
+  const int n = 80;
+  Eigen::MatrixXd A = RandomSpd(n, &rng);
+  // Variables 70 … 79 form a second component.
+  A.block(70, 0, 10, 70).setZero();
+  A.block(0, 70, 70, 10).setZero();
+  SparseCholesky L;
+  ASSERT_TRUE(L.Factorize(Sparse(A), 4).ok());
+  const std::vector<int> columns = {3, 4, 5, 40, 66, 71};
+  const std::vector<int> rows = {0, 5, 17, 40, 41, 69, 72, 79, 3};
+  EXPECT_TRUE(MatricesNear(A.inverse()(rows, columns), L.InverseColumnsAt(columns, rows), 1e-9));
+  // Twice: the workspace is left clean.
+  EXPECT_TRUE(MatricesNear(A.inverse()(rows, columns), L.InverseColumnsAt(columns, rows), 1e-9));
+  const std::vector<int> update_rows = {2, 60, 80};
+  const Eigen::MatrixXd W = Eigen::MatrixXd::Random(3, 3);
+  ASSERT_TRUE(L.Update(n + 1, update_rows, W).ok());
+  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + 1, n + 1);
+  grown.topLeftCorner(n, n) = A;
+  for (int r = 0; r < 3; ++r) {
+    for (int q = 0; q < 3; ++q) grown(update_rows[r], update_rows[q]) += W.row(r).dot(W.row(q));
+  }
+  const std::vector<int> columns2 = {80, 2};
+  const std::vector<int> rows2 = {1, 60, 80, 75, 33};
+  EXPECT_TRUE(MatricesNear(grown.inverse()(rows2, columns2), L.InverseColumnsAt(columns2, rows2), 1e-9));
+  EXPECT_EQ(L.InverseColumnsAt({}, rows2).cols(), 0);
+}
+
 // A += W Wᵀ with new variables claiming spare slots equals factorising the grown matrix,
 // including when a variable is listed twice (its rows add up).
 TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {

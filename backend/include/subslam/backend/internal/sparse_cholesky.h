@@ -56,6 +56,12 @@ class SparseCholesky {
   std::vector<Eigen::MatrixXd> InverseStarBlocks(const std::vector<int>& hub,
                                                  const std::vector<std::vector<int>>& groups) const;
 
+  // Rows `rows` of A⁻¹'s columns `columns` ((A⁻¹)_{rows, columns}), without the other
+  // rows: each column's forward solve (cached, as for InverseBlock), then a back
+  // substitution over the elimination-tree paths from the requested rows to the root
+  // only (x_j needs x on j's ancestors alone). O(Σ nnz(L_j)) over those paths instead of
+  // O(nnz(L)) for a full solve: a join's start anchor against its candidate landmarks.
+  Eigen::MatrixXd InverseColumnsAt(const std::vector<int>& columns, const std::vector<int>& rows) const;
   // The diagonal blocks of A⁻¹ on many groups of variables at once (each group's block,
   // rows and columns in the listed order; no cross terms between groups), from A⁻¹'s
   // entries on the pattern of L: the sparse-inverse (Takahashi) recursion
@@ -135,7 +141,13 @@ class SparseCholesky {
   std::vector<double>& ForwardWorkspace() const;
   mutable std::vector<double> forward_workspace_;
   mutable std::vector<int> forward_stamp_;         // SolveColumns()'s rows written, by walk
-  mutable std::vector<int> path_index_;            // SolveThroughSharedPath(): position → index in S
+  mutable std::vector<int> path_index_;
+  // Column j's parent in the elimination tree (its smallest row; −1 at a root), found on
+  // first use after the factor last changed (−2: not yet).
+  int Parent(int j) const;
+  mutable std::vector<int> parent_;
+  mutable std::vector<int> back_stamp_;            // InverseColumnsAt(): positions on a requested path
+  mutable int back_walks_ = 0;            // SolveThroughSharedPath(): position → index in S
   mutable int walks_ = 0;
   int dim_ = 0, capacity_ = 0;
   long nonzeros_after_factorize_ = 0;
