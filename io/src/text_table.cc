@@ -26,13 +26,22 @@ absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
   absl::StatusOr<std::string> text = ReadFileToString(path);
   if (!text.ok()) return text.status();
   std::vector<TextRow> rows;
+  std::vector<absl::string_view> fields;
+  const auto separator = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
   int line_number = 0;
   for (absl::string_view line : absl::StrSplit(*text, '\n')) {
     ++line_number;
     line = absl::StripAsciiWhitespace(line);
     if (line.empty() || line.front() == '#') continue;
-    std::vector<absl::string_view> fields =
-        absl::StrSplit(line, absl::ByAnyChar(" \t\r"), absl::SkipEmpty());
+    // Fields separated by runs of blanks, tabs and carriage returns.
+    fields.clear();
+    for (size_t k = 0; k < line.size();) {
+      while (k < line.size() && separator(line[k])) ++k;
+      size_t end = k;
+      while (end < line.size() && !separator(line[end])) ++end;
+      if (end > k) fields.push_back(line.substr(k, end - k));
+      k = end;
+    }
     const int n = static_cast<int>(fields.size());
     if (n < static_cast<int>(column_names.size())) {
       return absl::InvalidArgumentError(absl::StrCat(
@@ -46,18 +55,19 @@ absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
     TextRow row;
     row.line = line_number;
     row.values.resize(n);
+    // The field's name, for an error message only.
+    const auto name = [&column_names](int i) {
+      return i < static_cast<int>(column_names.size()) ? column_names[i] : absl::StrCat("column ", i + 1);
+    };
     for (int i = 0; i < n; ++i) {
-      const std::string name = i < static_cast<int>(column_names.size())
-                                   ? column_names[i]
-                                   : absl::StrCat("column ", i + 1);
       double value = 0.0;
       if (!absl::SimpleAtod(fields[i], &value)) {
-        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name,
+        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name(i),
                                                        "' (column ", i + 1, ") is not a number: '",
                                                        fields[i], "'"));
       }
       if (!std::isfinite(value)) {
-        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name,
+        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name(i),
                                                        "' (column ", i + 1,
                                                        ") is not finite: '", fields[i], "'"));
       }
