@@ -418,6 +418,29 @@ Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) 
   std::vector<const SparseColumn*> Y;
   Y.reserve(k);
   for (int v : variables) Y.push_back(&ForwardColumn(v));
+  if (k >= kDenseBlockMinColumns) {
+    // Many columns (association's joint covariance): their paths share the rows near the
+    // root, so the columns are laid side by side over the union of their rows and
+    // (A⁻¹)_SS = YᵀY is one dense product instead of k² / 2 sparse dot products.
+    std::vector<int>& index = path_index_;  // position → row of the dense Y (−1: none)
+    if (static_cast<int>(index.size()) != capacity_) index.assign(capacity_, -1);
+    std::vector<int> rows;
+    for (const SparseColumn* y : Y) {
+      for (int r : y->rows) {
+        if (index[r] < 0) {
+          index[r] = static_cast<int>(rows.size());
+          rows.push_back(r);
+        }
+      }
+    }
+    Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(rows.size()), k);
+    for (int c = 0; c < k; ++c) {
+      for (size_t t = 0; t < Y[c]->rows.size(); ++t) dense(index[Y[c]->rows[t]], c) = Y[c]->values[t];
+    }
+    for (int r : rows) index[r] = -1;
+    out.noalias() = dense.transpose() * dense;
+    return out;
+  }
   for (int a = 0; a < k; ++a) {
     Dots(*Y[a], Y, a, out.col(a).data());  // the lower triangle, column by column
     for (int c = a + 1; c < k; ++c) out(a, c) = out(c, a);

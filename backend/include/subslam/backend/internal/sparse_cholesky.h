@@ -112,6 +112,8 @@ class SparseCholesky {
   // than kSharedPathMinLength or longer than kSharedPathMaxLength.
   bool SolveThroughSharedPath(const std::vector<int>& pending) const;
   static constexpr int kSharedPathMinColumns = 6;
+  // InverseBlock() on at least this many variables forms YᵀY as one dense product.
+  static constexpr int kDenseBlockMinColumns = 8;
   static constexpr int kMaxCarried = 4;  // right-hand sides one SolveColumns() walk carries
   static constexpr int kSharedPathMinLength = 150;
   static constexpr int kSharedPathMaxLength = 2000;
