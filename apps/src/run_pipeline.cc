@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <future>
+#include <system_error>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -376,15 +377,23 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     if (!dir.ok()) return dir.status();
     const std::filesystem::path& out = *dir;
     // The files are independent, and formatting the trajectories is most of the time
-    // (Victoria Park: 69,000 rows each): half of it goes to a second thread.
-    std::future<absl::Status> second = std::async(std::launch::async, [&r, &out, chain] {
+    // (Victoria Park: 69,000 rows each): half of it goes to a second thread. The report
+    // is serialised first (nlohmann's serialiser reads the C locale, not to be shared).
+    const std::string report_text = r.report.dump(2) + "\n";
+    const auto write_second = [&r, &out, chain] {
       absl::Status s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory);
       if (s.ok() && chain != nullptr) s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps);
       return s;
-    });
+    };
+    std::future<absl::Status> second;
+    try {
+      second = std::async(std::launch::async, write_second);
+    } catch (const std::system_error&) {  // no thread to be had: write them here, after the rest
+      second = std::async(std::launch::deferred, write_second);
+    }
     absl::Status first = io::WriteTrajectoryCsv((out / "trajectory_online.csv").string(), r.online);
     if (first.ok()) first = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks);
-    if (first.ok()) first = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n");
+    if (first.ok()) first = io::WriteTextFile((out / "report.json").string(), report_text);
     const absl::Status second_status = second.get();
     if (!first.ok()) return first;
     if (!second_status.ok()) return second_status;

@@ -173,6 +173,7 @@ absl::Status SubmapSlam::Finish() {
 Trajectory SubmapSlam::FinalTrajectory() const {
   Trajectory out;
   out.reserve(steps_.size());
+  if (steps_.empty()) return out;
   // Every anchor's marginal at once (the joiner's bulk recovery).
   const std::vector<Eigen::Matrix3d> anchor_covariances = joiner_ ? joiner_->AnchorCovariances() : chain_covariance_;
   int cached = -1;
@@ -181,7 +182,7 @@ Trajectory SubmapSlam::FinalTrajectory() const {
   for (const StepRecord& r : steps_) {
     if (r.map != cached) {
       anchor = Anchor(r.map);
-      anchor_cov = anchor_covariances[r.map];
+      anchor_cov = anchor_covariances.at(r.map);
       cached = r.map;
     }
     Eigen::Matrix3d J_a, J_l;

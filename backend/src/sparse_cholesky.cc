@@ -57,6 +57,7 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
   const int n = static_cast<int>(A.rows());
   const int capacity = n + std::max(0, spare);
+  InvalidateCaches(capacity);
   // The lower triangle of A, column by column (Eigen keeps each column's rows sorted), then
   // the spare slots' identity: their columns come after A's, so the first n columns alone
   // are A.
@@ -120,15 +121,14 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   dim_ = n;
   capacity_ = capacity;
   nonzeros_after_factorize_ = nonzeros();
-  column_cache_.clear();
-  selected_.reset();
-  parent_.assign(capacity_, -2);
   return absl::OkStatus();
 }
 
 absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, const Eigen::MatrixXd& W) {
   if (factor_ == nullptr) return absl::FailedPreconditionError("no factor to update");
   if (new_dim < dim_ || new_dim > capacity_) return absl::OutOfRangeError("no spare slot for the new variables");
+  // The factor changes from here on, also when a later step fails.
+  InvalidateCaches(capacity_);
   const int k = static_cast<int>(W.cols());
   // C = P W: rows in the factor's order, sorted and unique within each column (a variable
   // listed twice, e.g. two features joined to one landmark, sums its rows).
@@ -191,9 +191,6 @@ absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, c
   // A downdate that lost positive definiteness leaves a non-positive pivot in D.
   if (!PositiveDiagonal()) return absl::InternalError("CHOLMOD: the updated matrix is not positive definite");
   dim_ = new_dim;
-  column_cache_.clear();
-  selected_.reset();
-  parent_.assign(capacity_, -2);
   return absl::OkStatus();
 }
 
@@ -488,6 +485,12 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
   return out;
 }
 
+void SparseCholesky::InvalidateCaches(int capacity) {
+  column_cache_.clear();
+  selected_.reset();
+  parent_.assign(capacity, -2);
+}
+
 int SparseCholesky::Parent(int j) const {
   int& parent = parent_[j];
   if (parent == -2) {
@@ -508,6 +511,8 @@ Eigen::MatrixXd SparseCholesky::InverseColumnsAt(const std::vector<int>& columns
   const int* Lp = static_cast<const int*>(factor_->p);
   const int* Li = static_cast<const int*>(factor_->i);
   const int* Lnz = static_cast<const int*>(factor_->nz);
+  for (int v : columns) SUBSLAM_CHECK(v >= 0 && v < dim_) << "variable " << v << " out of range";
+  for (int v : rows) SUBSLAM_CHECK(v >= 0 && v < dim_) << "variable " << v << " out of range";
   // U: the union of the paths from the requested rows to the root (each column's rows
   // are its ancestors, the parent the smallest), in factor positions.
   std::vector<int>& stamp = back_stamp_;
@@ -523,13 +528,15 @@ Eigen::MatrixXd SparseCholesky::InverseColumnsAt(const std::vector<int>& columns
   std::sort(U.begin(), U.end());
   // z = D⁻¹ L⁻¹ P e_c from the cached forward columns (they hold y / √D), then
   // Lᵀ x = z from the root down, over U only: x_j = z_j − Σ_{i∈L_j} L_ij x_i, where every
-  // i is an ancestor of j, so in U.
+  // i is an ancestor of j, so in U. (The columns are solved before the workspace is used.)
   SolveColumns(columns);
+  std::vector<const SparseColumn*> Y;
+  for (int v : columns) Y.push_back(&ForwardColumn(v));
   std::vector<double>& x = ForwardWorkspace();  // capacity × kMaxCarried, all zero between uses
   for (int c0 = 0; c0 < k; c0 += kMaxCarried) {
     const int width = std::min(kMaxCarried, k - c0);
     for (int c = 0; c < width; ++c) {
-      const SparseColumn& y = ForwardColumn(columns[c0 + c]);
+      const SparseColumn& y = *Y[c0 + c];
       for (size_t t = 0; t < y.rows.size(); ++t) {
         const int r = y.rows[t];
         if (stamp[r] == this_walk) x[static_cast<size_t>(r) * kMaxCarried + c] = y.values[t] / std::sqrt(Lx[Lp[r]]);
@@ -566,13 +573,14 @@ const SparseCholesky::SelectedInverse& SparseCholesky::Selected() const {
   sel.lower.resize(nnz);
   sel.z.assign(nnz, 0.0);
   sel.diagonal.assign(n, 0.0);
-  // Column j's rows sorted (CHOLMOD keeps a simplicial column's rows in no set order once
-  // updates have added fill), with their values.
+  // Column j's rows sorted, with their values. (Every factor seen so far, also after
+  // updates added fill, had its columns' rows in order; the lookups below need them so,
+  // and the order is not something this code relies on CHOLMOD for.)
   std::vector<std::pair<int, double>> column;
   for (int j = 0; j < n; ++j) {
     column.clear();
     for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) column.emplace_back(Li[p], Lx[p]);
-    std::sort(column.begin(), column.end());
+    if (!std::is_sorted(column.begin(), column.end())) std::sort(column.begin(), column.end());
     for (size_t t = 0; t < column.size(); ++t) {
       sel.rows[sel.start[j] + t] = column[t].first;
       sel.lower[sel.start[j] + t] = column[t].second;
@@ -628,6 +636,9 @@ std::vector<Eigen::MatrixXd> SparseCholesky::DiagonalInverseBlocks(const std::ve
   std::vector<Eigen::MatrixXd> out;
   out.reserve(groups.size());
   if (groups.empty()) return out;
+  for (const std::vector<int>& group : groups) {
+    for (int v : group) SUBSLAM_CHECK(v >= 0 && v < dim_) << "variable " << v << " out of range";
+  }
   Selected();
   for (const std::vector<int>& group : groups) {
     const int k = static_cast<int>(group.size());

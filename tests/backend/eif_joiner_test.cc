@@ -246,16 +246,21 @@ TEST(EifJoiner, CandidateMarginalBoundsAreUpperBounds) {
       ASSERT_TRUE(eif.Join(s).ok());
       std::vector<int> landmarks(eif.num_landmarks());
       for (int j = 0; j < eif.num_landmarks(); ++j) landmarks[j] = j;
-      const int anchor = eif.num_anchors() - 1;
-      const std::vector<std::optional<Matrix5d>> bounds = eif.AnchorLandmarkBounds(anchor, landmarks);
-      const std::vector<Matrix5d> exact = eif.AnchorLandmarkCovariances(anchor, landmarks);
-      for (int j = 0; j < eif.num_landmarks(); ++j) {
-        if (!bounds[j].has_value()) continue;
-        const Eigen::SelfAdjointEigenSolver<Matrix5d> eig(*bounds[j] - exact[j]);
-        EXPECT_GE(eig.eigenvalues().minCoeff(), -1e-9 * exact[j].norm()) << "map " << s.id << " landmark " << j;
-        // The anchor block and the cross-covariance are exact.
-        EXPECT_TRUE(MatricesNear(bounds[j]->leftCols<3>(), exact[j].leftCols<3>(), 1e-9));
-        ++checked;
+      // The last anchor, and the fixed P0 (zero anchor block and cross-covariance).
+      for (const int anchor : {eif.num_anchors() - 1, 0}) {
+        const std::vector<std::optional<Matrix5d>> bounds = eif.AnchorLandmarkBounds(anchor, landmarks);
+        const std::vector<Matrix5d> exact = eif.AnchorLandmarkCovariances(anchor, landmarks);
+        for (int j = 0; j < eif.num_landmarks(); ++j) {
+          if (!bounds[j].has_value()) continue;
+          const Eigen::SelfAdjointEigenSolver<Matrix5d> eig(*bounds[j] - exact[j]);
+          EXPECT_GE(eig.eigenvalues().minCoeff(), -1e-9 * exact[j].norm()) << "map " << s.id << " landmark " << j;
+          // The anchor block and the cross-covariance are exact.
+          EXPECT_TRUE(MatricesNear(bounds[j]->leftCols<3>(), exact[j].leftCols<3>(), 1e-9));
+          if (anchor == 0) {
+            EXPECT_TRUE(bounds[j]->leftCols<3>().isZero(0.0));
+          }
+          ++checked;
+        }
       }
     }
     EXPECT_GT(checked, 500) << seed;

@@ -95,63 +95,92 @@ TEST(SparseCholesky, ManyColumnsThroughTheSharedPathEqualTheDenseInverse) {
   EXPECT_TRUE(MatricesNear(inverse(vars, vars), L.InverseBlock(vars), 1e-9));
 }
 
-// The diagonal blocks from A⁻¹ on L's pattern (the sparse-inverse recursion) equal the
-// dense inverse's: groups coupled in A, single variables, a group with an uncoupled pair
-// (answered by forward solves), after a full factorisation and after rank updates that
-// add fill and claim spare slots.
-TEST(SparseCholesky, DiagonalInverseBlocksEqualTheDenseInverse) {
-  std::mt19937_64 rng(9);
-  const int n = 60, added = 3;
-  Eigen::MatrixXd A = RandomSpd(n, &rng);
-  // Couple 10-11 and 40-41-42 densely, as a landmark's and an anchor's coordinates are.
-  for (const std::vector<int>& g : {std::vector<int>{10, 11}, std::vector<int>{40, 41, 42}}) {
-    for (int a : g) {
-      for (int b : g) A(a, b) += a == b ? 1.0 : 0.3;
-    }
-  }
-  SparseCholesky L;
-  ASSERT_TRUE(L.Factorize(Sparse(A), 5).ok());
-  std::vector<std::vector<int>> groups = {{10, 11}, {42, 40, 41}, {7}, {59}, {0}};
-  for (int v = 0; v < n; ++v) groups.push_back({v});
-  // An uncoupled pair, far apart in the chain (A's entry is zero; L's may be too).
-  ASSERT_EQ(A(2, 50), 0.0);
-  groups.push_back({2, 50});
-  const auto check = [&](const Eigen::MatrixXd& matrix) {
-    const Eigen::MatrixXd inverse = matrix.inverse();
-    const std::vector<Eigen::MatrixXd> blocks = L.DiagonalInverseBlocks(groups);
-    ASSERT_EQ(blocks.size(), groups.size());
-    for (size_t g = 0; g < groups.size(); ++g) {
-      EXPECT_TRUE(MatricesNear(inverse(groups[g], groups[g]), blocks[g], 1e-9)) << "group " << g;
-    }
+// A chain of `chain` variables (each linked to the next) and, apart, a second chain of
+// `other`: a sparse factor whose pattern is known (no path between the two).
+Eigen::MatrixXd TwoChains(int chain, int other, std::mt19937_64* rng) {
+  const int n = chain + other;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+  std::normal_distribution<double> normal;
+  const auto link = [&](int i, int j) {
+    const Eigen::Vector2d w(normal(*rng), normal(*rng));
+    A(i, i) += w[0] * w[0];
+    A(j, j) += w[1] * w[1];
+    A(i, j) += w[0] * w[1];
+    A(j, i) += w[0] * w[1];
   };
-  check(A);
-  // Rank updates: a link between distant variables (fill) and new variables.
-  const std::vector<int> rows = {1, 55, 60, 61, 62};
-  const Eigen::MatrixXd W = Eigen::MatrixXd::Random(static_cast<int>(rows.size()), 5);
-  ASSERT_TRUE(L.Update(n + added, rows, W).ok());
-  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + added, n + added);
-  grown.topLeftCorner(n, n) = A;
+  for (int i = 0; i + 1 < chain; ++i) link(i, i + 1);
+  for (int i = chain; i + 1 < n; ++i) link(i, i + 1);
+  A += 0.1 * Eigen::MatrixXd::Identity(n, n);
+  return A;
+}
+
+// Adds W Wᵀ on `rows` to a copy of A grown to n rows.
+Eigen::MatrixXd Updated(const Eigen::MatrixXd& A, int n, const std::vector<int>& rows, const Eigen::MatrixXd& W) {
+  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n, n);
+  grown.topLeftCorner(A.rows(), A.cols()) = A;
   for (size_t r = 0; r < rows.size(); ++r) {
     for (size_t q = 0; q < rows.size(); ++q) {
       grown(rows[r], rows[q]) += W.row(static_cast<int>(r)).dot(W.row(static_cast<int>(q)));
     }
   }
+  return grown;
+}
+
+// The diagonal blocks from A⁻¹ on L's pattern (the sparse-inverse recursion) equal the
+// dense inverse's: coupled pairs and triples, single variables, a pair across the two
+// components (off L's pattern: answered by forward solves), after a full factorisation and
+// after rank updates — a long link in the middle of a chain (fill in the columns between
+// its ends) and new variables claiming spare slots.
+TEST(SparseCholesky, DiagonalInverseBlocksEqualTheDenseInverse) {
+  std::mt19937_64 rng(9);
+  const int chain = 50, other = 10, n = chain + other;
+  Eigen::MatrixXd A = TwoChains(chain, other, &rng);
+  // 40, 41, 42 coupled to each other, as an anchor's coordinates are.
+  A(40, 42) = A(42, 40) = 0.2;
+  A(40, 40) += 1.0;
+  A(42, 42) += 1.0;
+  SparseCholesky L;
+  ASSERT_TRUE(L.Factorize(Sparse(A), 5).ok());
+  std::vector<std::vector<int>> groups = {{10, 11}, {42, 40, 41}, {55, 56}};
+  for (int v = 0; v < n; ++v) groups.push_back({v});
+  const auto check = [&](const Eigen::MatrixXd& matrix) {
+    const Eigen::MatrixXd inverse = matrix.inverse();
+    const long solved_before = L.columns_solved();
+    const std::vector<Eigen::MatrixXd> blocks = L.DiagonalInverseBlocks(groups);
+    EXPECT_EQ(blocks.size(), groups.size());
+    for (size_t g = 0; g < groups.size() && g < blocks.size(); ++g) {
+      EXPECT_TRUE(MatricesNear(inverse(groups[g], groups[g]), blocks[g], 1e-9)) << "group " << g;
+    }
+    return L.columns_solved() - solved_before;
+  };
+  EXPECT_EQ(check(A), 0);  // every group on the pattern: no forward solve
+  groups.push_back({3, 57});  // across the components: off the pattern
+  EXPECT_GT(check(A), 0);
+  // A long link in the first chain, then new variables linked to both chains.
+  const std::vector<int> link = {5, 45};
+  const Eigen::MatrixXd W1 = Eigen::MatrixXd::Random(2, 2);
+  ASSERT_TRUE(L.Update(n, link, W1).ok());
+  const Eigen::MatrixXd A1 = Updated(A, n, link, W1);
+  groups.push_back({5, 45});
+  check(A1);
+  const std::vector<int> rows = {1, 20, 58, 60, 61, 62};
+  const Eigen::MatrixXd W2 = Eigen::MatrixXd::Random(static_cast<int>(rows.size()), 6);
+  ASSERT_TRUE(L.Update(n + 3, rows, W2).ok());
   groups.push_back({60, 61, 62});
-  groups.push_back({1, 55});
-  check(grown);
+  groups.push_back({1, 20});
+  check(Updated(A1, n + 3, rows, W2));
   EXPECT_TRUE(L.DiagonalInverseBlocks({}).empty());
 }
 
 // Selected rows of A⁻¹'s columns (a back substitution over the rows' paths to the root
 // only) equal the dense inverse's: more columns than one pass carries, rows among the
-// columns, rows in a second component, after a full factorisation and after an update.
+// columns, rows in a second component, after a full factorisation and after an update
+// that changes the elimination tree (a long link in a chain: rows far below it now have
+// other ancestors).
 TEST(SparseCholesky, InverseColumnsAtSelectedRowsEqualTheDenseInverse) {
   std::mt19937_64 rng(13);
-  const int n = 80;
-  Eigen::MatrixXd A = RandomSpd(n, &rng);
-  // Variables 70 … 79 form a second component.
-  A.block(70, 0, 10, 70).setZero();
-  A.block(0, 70, 70, 10).setZero();
+  const int chain = 70, other = 10, n = chain + other;
+  const Eigen::MatrixXd A = TwoChains(chain, other, &rng);
   SparseCholesky L;
   ASSERT_TRUE(L.Factorize(Sparse(A), 4).ok());
   const std::vector<int> columns = {3, 4, 5, 40, 66, 71};
@@ -159,17 +188,21 @@ TEST(SparseCholesky, InverseColumnsAtSelectedRowsEqualTheDenseInverse) {
   EXPECT_TRUE(MatricesNear(A.inverse()(rows, columns), L.InverseColumnsAt(columns, rows), 1e-9));
   // Twice: the workspace is left clean.
   EXPECT_TRUE(MatricesNear(A.inverse()(rows, columns), L.InverseColumnsAt(columns, rows), 1e-9));
+  // A long link between the chain's ends; then a new variable.
+  const std::vector<int> link = {1, 68};
+  const Eigen::MatrixXd W1 = Eigen::MatrixXd::Random(2, 1);
+  ASSERT_TRUE(L.Update(n, link, W1).ok());
+  const Eigen::MatrixXd A1 = Updated(A, n, link, W1);
+  const std::vector<int> rows1 = {2, 10, 30, 50, 67};
+  const std::vector<int> columns1 = {0, 69};
+  EXPECT_TRUE(MatricesNear(A1.inverse()(rows1, columns1), L.InverseColumnsAt(columns1, rows1), 1e-9));
   const std::vector<int> update_rows = {2, 60, 80};
-  const Eigen::MatrixXd W = Eigen::MatrixXd::Random(3, 3);
-  ASSERT_TRUE(L.Update(n + 1, update_rows, W).ok());
-  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + 1, n + 1);
-  grown.topLeftCorner(n, n) = A;
-  for (int r = 0; r < 3; ++r) {
-    for (int q = 0; q < 3; ++q) grown(update_rows[r], update_rows[q]) += W.row(r).dot(W.row(q));
-  }
+  const Eigen::MatrixXd W2 = Eigen::MatrixXd::Random(3, 3);
+  ASSERT_TRUE(L.Update(n + 1, update_rows, W2).ok());
+  const Eigen::MatrixXd A2 = Updated(A1, n + 1, update_rows, W2);
   const std::vector<int> columns2 = {80, 2};
   const std::vector<int> rows2 = {1, 60, 80, 75, 33};
-  EXPECT_TRUE(MatricesNear(grown.inverse()(rows2, columns2), L.InverseColumnsAt(columns2, rows2), 1e-9));
+  EXPECT_TRUE(MatricesNear(A2.inverse()(rows2, columns2), L.InverseColumnsAt(columns2, rows2), 1e-9));
   EXPECT_EQ(L.InverseColumnsAt({}, rows2).cols(), 0);
 }
 

@@ -129,6 +129,10 @@ class SparseCholesky {
     std::vector<double> diagonal;
   };
   const SelectedInverse& Selected() const;
+  // Drops what was computed from the factor (forward columns, the selected inverse — a few
+  // arrays of nnz(L) entries, kept until the factor changes — and the parents); called
+  // before the factor changes, so an error part-way leaves nothing stale.
+  void InvalidateCaches(int capacity);
   // Z at factor positions (a, b) if it lies on L's pattern.
   std::optional<double> SelectedEntry(int a, int b) const;
   mutable std::optional<SelectedInverse> selected_;
@@ -143,13 +147,15 @@ class SparseCholesky {
   std::vector<double>& ForwardWorkspace() const;
   mutable std::vector<double> forward_workspace_;
   mutable std::vector<int> forward_stamp_;         // SolveColumns()'s rows written, by walk
+  // Position → index in SolveThroughSharedPath()'s path S, or in InverseBlock()'s dense Y;
+  // all −1 between uses.
   mutable std::vector<int> path_index_;
   // Column j's parent in the elimination tree (its smallest row; −1 at a root), found on
   // first use after the factor last changed (−2: not yet).
   int Parent(int j) const;
   mutable std::vector<int> parent_;
-  mutable std::vector<int> back_stamp_;            // InverseColumnsAt(): positions on a requested path
-  mutable int back_walks_ = 0;            // SolveThroughSharedPath(): position → index in S
+  mutable std::vector<int> back_stamp_;  // InverseColumnsAt(): positions on a requested path
+  mutable int back_walks_ = 0;
   mutable int walks_ = 0;
   int dim_ = 0, capacity_ = 0;
   long nonzeros_after_factorize_ = 0;
