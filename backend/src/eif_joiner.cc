@@ -490,6 +490,18 @@ double EifJoiner::Cost() const {
 }
 
 absl::Status EifJoiner::Relinearize() {
+  if (absl::Status st = GaussNewton(); !st.ok()) return st;
+  // Every factor moved, so the landmarks' marginal bounds were forgotten: today's exact
+  // marginals, all at once from the sparse inverse, bound every later one until the next
+  // relinearisation (Λ only grows), so association can skip candidates at once again.
+  if (options_.bound_candidate_marginals && graph_.num_landmarks() > 0) {
+    StageTimer timer(&times_, "covariance_recovery");
+    marginal_bound_ = LandmarkCovariances();
+  }
+  return absl::OkStatus();
+}
+
+absl::Status EifJoiner::GaussNewton() {
   // Gauss-Newton need not lower the cost at every iteration (a first step often raises
   // it a little on the way to a lower minimum), but `divergence_rises` rises in a row
   // mean divergence (seen with wrong associations): then the best iterate is restored —

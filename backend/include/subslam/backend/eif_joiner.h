@@ -31,7 +31,8 @@
 // `relinearize_heading_change` from a factor's linearisation (on by default), every
 // `relinearize_every` joins and/or at Finish(); iterated to convergence this is
 // Gauss-Newton over the submap graph.
-// Time per stage (association, covariance recovery, update, factorisation — of which
+// Time per stage (association, covariance recovery — association's, plus the marginal
+// bounds recomputed after a relinearisation —, update, factorisation — of which
 // full_factorization —, recovery, recovery_check) is accumulated as in Table 1 of paper 000.
 // Not thread-safe.
 #ifndef SUBSLAM_BACKEND_EIF_JOINER_H_
@@ -130,12 +131,13 @@ struct EifJoinerOptions {
   // Association's covariance recovery: drop the candidates that fail individual
   // compatibility even under an upper bound on their [start anchor, landmark] marginal,
   // before recovering theirs (submap_association.h, step 2). The bound keeps the exact
-  // anchor block and cross-covariance (one solve for the anchor's three columns of Λ⁻¹)
+  // anchor block and cross-covariance (the anchor's three columns of Λ⁻¹ on the candidates' rows)
   // and bounds the landmark's own block by its marginal when it was last recovered, or,
   // for a landmark never recovered, by its marginal from the start anchor's and its
   // feature's covariances when it was created. Both stay upper bounds while Λ only grows,
-  // so they are forgotten whenever the factors are relinearised. Association decisions
-  // are the same either way (tested); only the work differs.
+  // so they are replaced whenever the factors are relinearised: by every landmark's exact
+  // marginal at the new linearisation, all at once (the sparse-inverse recursion).
+  // Association decisions are the same either way (tested); only the work differs.
   bool bound_candidate_marginals = true;
 
   absl::Status Validate() const;
@@ -245,6 +247,7 @@ class EifJoiner final : public MapJoiner {
   // max_relinearizations; stopped at the best iterate after divergence_rises cost rises in
   // a row.
   absl::Status Relinearize();
+  absl::Status GaussNewton();  // Relinearize()'s iterations
   // One factor's term of Cost().
   double NormalisedResidual(const Factor& f) const;
   // max over factors of |heading now − heading at the factor's linearisation| of its anchors.
