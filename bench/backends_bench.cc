@@ -147,16 +147,16 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
       if (g.ok()) error = g->rms_m;
     }
     std::printf("%-9s %10.3f %10.2f %8.1f%% %10zu %8ld %4ld/%-3ld %9.1f %12.3f\n", subslam::app::ToString(kind), error,
-                nees, 100.0 * inside, r->landmarks.size(), r->wrong, r->loop_merged, r->loop_merged + r->loop_missed,
+                nees, 100.0 * inside, r->landmarks.size(), r->association.wrong, r->association.loop_merged, r->association.loop_merged + r->association.loop_missed,
                 1e3 * r->wall_seconds, 1e3 * r->wall_seconds / std::max<size_t>(1, in.maps.size()));
     rows.push_back({{"backend", subslam::app::ToString(kind)},
                     {truth ? "anchor_rms_m" : "gps_rms_m", error},
                     {"mean_anchor_nees", nees},
                     {"anchors_in_95_bounds", inside},
                     {"landmarks", r->landmarks.size()},
-                    {"wrong_merges", r->wrong},
-                    {"loop_merged", r->loop_merged},
-                    {"loop_reobservations", r->loop_merged + r->loop_missed},
+                    {"wrong_merges", r->association.wrong},
+                    {"loop_merged", r->association.loop_merged},
+                    {"loop_reobservations", r->association.loop_merged + r->association.loop_missed},
                     {"join_seconds", r->wall_seconds},
                     {"stages", r->report["time_seconds"]["stages"]}});
   }

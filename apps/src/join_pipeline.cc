@@ -15,6 +15,64 @@
 
 namespace subslam::app {
 
+AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph) {
+  AssociationVsTruth c;
+  // Association against truth ids, from the final association table (factors in time
+  // order): global landmark → true ids joined to it, and the reverse.
+  std::map<int, std::set<int>> truths_of_global;
+  std::map<int, std::set<int>> globals_of_truth;
+  std::set<int> globals_with_mixed_feature;
+  std::map<int, std::vector<std::vector<int>>> feature_truths_of_global;  // per global: each feature's true ids
+  std::map<int, std::pair<int, int>> last_seen;  // truth id → (local map index, global id)
+  int map_index = 0;
+  for (const SubmapFactor& f : graph.factors()) {
+    for (int i = 0; i < f.submap.num_landmarks(); ++i) {
+      const std::optional<int>& t = f.submap.landmarks[i].truth_id;
+      if (!t.has_value() || *t < 0) continue;
+      const int g = f.landmark_of_feature[i];
+      truths_of_global[g].insert(*t);
+      const std::optional<int>& mixed = f.submap.landmarks[i].truth_landmarks;
+      if (mixed.has_value() && *mixed >= 2) globals_with_mixed_feature.insert(g);
+      const std::vector<int>& ids = f.submap.landmarks[i].truth_ids;
+      feature_truths_of_global[g].push_back(ids.empty() ? std::vector<int>{*t} : ids);
+      globals_of_truth[*t].insert(g);
+      auto seen = last_seen.find(*t);
+      if (seen != last_seen.end()) {
+        const bool loop = map_index - seen->second.first > 2;
+        const bool merged = seen->second.second == g;
+        (loop ? (merged ? c.loop_merged : c.loop_missed) : (merged ? c.recent_merged : c.recent_missed)) += 1;
+      }
+      last_seen[*t] = {map_index, g};
+    }
+    ++map_index;
+  }
+  for (const auto& [g, truths] : truths_of_global) {
+    c.wrong += static_cast<long>(truths.size()) - 1;
+    if (globals_with_mixed_feature.count(g)) c.wrong_with_mixed_feature += static_cast<long>(truths.size()) - 1;
+  }
+  for (const auto& [g, features] : feature_truths_of_global) {
+    // Union-find over the true ids, each feature linking its own: the components are the
+    // groups of features that share a true landmark.
+    std::map<int, int> parent;
+    const auto find = [&parent](int id) {
+      while (parent[id] != id) id = parent[id] = parent[parent[id]];
+      return id;
+    };
+    for (const std::vector<int>& ids : features) {
+      for (int id : ids) parent.emplace(id, id);
+      for (int id : ids) parent[find(id)] = find(ids.front());
+    }
+    long groups = 0;
+    for (const auto& [id, up] : parent) groups += find(id) == id ? 1 : 0;
+    c.wrong_sharing_no_true_landmark += groups - 1;
+  }
+  for (const auto& [t, globals] : globals_of_truth) {
+    c.missed += static_cast<long>(globals.size()) - 1;
+    c.correct += 1;
+  }
+  return c;
+}
+
 absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options) {
   if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
   if (options.backend.kind == Backend::kNone) return absl::InvalidArgumentError("join needs a back-end");
@@ -46,40 +104,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   const absl::Time covariance_start = absl::Now();
   const std::vector<Eigen::Matrix3d> joiner_covariances = joiner->AnchorCovariances();
   const double joiner_covariance_seconds = absl::ToDoubleSeconds(absl::Now() - covariance_start);
-  // Association against truth ids, from the final association table (factors in time
-  // order): global landmark → true ids joined to it, and the reverse.
-  std::map<int, std::set<int>> truths_of_global;
-  std::map<int, std::set<int>> globals_of_truth;
-  std::set<int> globals_with_mixed_feature;
-  std::map<int, std::pair<int, int>> last_seen;  // truth id → (local map index, global id)
-  int map_index = 0;
-  for (const SubmapFactor& f : joiner->graph().factors()) {
-    for (int i = 0; i < f.submap.num_landmarks(); ++i) {
-      const std::optional<int>& t = f.submap.landmarks[i].truth_id;
-      if (!t.has_value() || *t < 0) continue;
-      const int g = f.landmark_of_feature[i];
-      truths_of_global[g].insert(*t);
-      const std::optional<int>& mixed = f.submap.landmarks[i].truth_landmarks;
-      if (mixed.has_value() && *mixed >= 2) globals_with_mixed_feature.insert(g);
-      globals_of_truth[*t].insert(g);
-      auto seen = last_seen.find(*t);
-      if (seen != last_seen.end()) {
-        const bool loop = map_index - seen->second.first > 2;
-        const bool merged = seen->second.second == g;
-        (loop ? (merged ? r.loop_merged : r.loop_missed) : (merged ? r.recent_merged : r.recent_missed)) += 1;
-      }
-      last_seen[*t] = {map_index, g};
-    }
-    ++map_index;
-  }
-  for (const auto& [g, truths] : truths_of_global) {
-    r.wrong += static_cast<long>(truths.size()) - 1;
-    if (globals_with_mixed_feature.count(g)) r.wrong_with_mixed_feature += static_cast<long>(truths.size()) - 1;
-  }
-  for (const auto& [t, globals] : globals_of_truth) {
-    r.missed += static_cast<long>(globals.size()) - 1;
-    r.correct += 1;
-  }
+  r.association = CountAssociationsAgainstTruth(joiner->graph());
   r.local_maps = static_cast<int>(submaps.size());
   r.anchor_times.push_back(submaps.front().t_start);
   for (const LocalSubmap& s : submaps) r.anchor_times.push_back(s.t_end);
@@ -104,14 +129,16 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
         options.truth_landmarks);
     if (labelled.labelled > 0) metrics["map_by_truth_label"] = LabelledMapErrorsJson(labelled);
   }
-  metrics["association_vs_truth_id"] = {{"true_landmarks_seen", r.correct},
-                                        {"missed_merges", r.missed},
-                                        {"wrong_merges", r.wrong},
-                                        {"wrong_merges_with_mixed_feature", r.wrong_with_mixed_feature},
-                                        {"reobserved_recent_merged", r.recent_merged},
-                                        {"reobserved_recent_missed", r.recent_missed},
-                                        {"reobserved_loop_merged", r.loop_merged},
-                                        {"reobserved_loop_missed", r.loop_missed}};
+  const AssociationVsTruth& a = r.association;
+  metrics["association_vs_truth_id"] = {{"true_landmarks_seen", a.correct},
+                                        {"missed_merges", a.missed},
+                                        {"wrong_merges", a.wrong},
+                                        {"wrong_merges_with_mixed_feature", a.wrong_with_mixed_feature},
+                                        {"wrong_merges_sharing_no_true_landmark", a.wrong_sharing_no_true_landmark},
+                                        {"reobserved_recent_merged", a.recent_merged},
+                                        {"reobserved_recent_missed", a.recent_missed},
+                                        {"reobserved_loop_merged", a.loop_merged},
+                                        {"reobserved_loop_missed", a.loop_missed}};
   nlohmann::json stages = nlohmann::json::object();
   for (const auto& [stage, seconds] : joiner->stage_times()) stages[stage] = seconds;
   r.report = {{"format", "subslam-join-report/1"},

@@ -82,7 +82,12 @@ class TruthVotes {
                                          [](const auto& a, const auto& b) { return a.second < b.second; });
       l.truth_id = best->first;
       int true_landmarks = 0;
-      for (const auto& [truth, count] : it->second) true_landmarks += truth >= 0 ? 1 : 0;
+      l.truth_ids.clear();
+      for (const auto& [truth, count] : it->second) {  // ascending ids
+        if (truth < 0) continue;
+        ++true_landmarks;
+        l.truth_ids.push_back(truth);
+      }
       l.truth_landmarks = true_landmarks;
       impure += true_landmarks > 1 ? 1 : 0;
     }

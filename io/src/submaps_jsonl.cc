@@ -1,5 +1,6 @@
 #include "subslam/io/submaps_jsonl.h"
 
+#include <climits>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -27,6 +28,7 @@ json ToJson(const LocalSubmap& s) {
                   {"existence", l.existence},
                   {"truth_id", l.truth_id ? json(*l.truth_id) : json(nullptr)}};
     if (l.truth_landmarks) entry["truth_landmarks"] = *l.truth_landmarks;
+    if (!l.truth_ids.empty()) entry["truth_ids"] = l.truth_ids;
     landmarks.push_back(std::move(entry));
   }
   json out = {{"id", s.id},       {"t_start", s.t_start}, {"t_end", s.t_end},
@@ -66,7 +68,7 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
     const json& l = landmarks[i];
     const std::string path = absl::StrCat("landmarks[", i, "]");
     if (!l.is_object()) return r.Error(path, "expected an object");
-    if (auto st = r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id", "truth_landmarks"});
+    if (auto st = r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id", "truth_landmarks", "truth_ids"});
         !st.ok()) {
       return st;
     }
@@ -96,6 +98,21 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
       if (!count.ok()) return count.status();
       if (*count < 0) return r.Error(path + ".truth_landmarks", "must be >= 0");
       out.truth_landmarks = *count;
+    }
+    if (l.contains("truth_ids") && !l.at("truth_ids").is_null()) {
+      const json& ids = l.at("truth_ids");
+      const std::string field = path + ".truth_ids";
+      if (!ids.is_array()) return r.Error(field, absl::StrCat("expected an array of true ids, got ", ids.dump()));
+      for (size_t k = 0; k < ids.size(); ++k) {
+        if (!ids[k].is_number_integer() || ids[k].get<long long>() < 0 || ids[k].get<long long>() > INT_MAX) {
+          return r.Error(absl::StrCat(field, "[", k, "]"), absl::StrCat("expected an id >= 0, got ", ids[k].dump()));
+        }
+        const int id = ids[k].get<int>();
+        if (!out.truth_ids.empty() && id <= out.truth_ids.back()) {
+          return r.Error(absl::StrCat(field, "[", k, "]"), "ids must be ascending and distinct");
+        }
+        out.truth_ids.push_back(id);
+      }
     }
     s.landmarks.push_back(out);
   }

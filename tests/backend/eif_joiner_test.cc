@@ -618,7 +618,7 @@ LocalSubmap Map(int id, const Pose2& start, const Pose2& end, const std::vector<
   std::vector<Eigen::Vector2d> seen;
   for (const Tree& t : trees) {
     seen.push_back(t.world);
-    m.landmarks.push_back({static_cast<int>(m.landmarks.size()), NAN, 1.0, t.truth_id, 1});
+    m.landmarks.push_back({static_cast<int>(m.landmarks.size()), NAN, 1.0, t.truth_id, 1, {}});
   }
   m.mean = PredictSubmap(start, end, seen);
   Eigen::VectorXd sigma = Eigen::VectorXd::Constant(m.mean.size(), 0.1);

@@ -79,7 +79,7 @@ inline SyntheticRun MakeRun(uint64_t seed, int legs = 12, double noise = 1.0) {
     m.mean = truth + Eigen::LLT<Eigen::MatrixXd>(Q).matrixL() * draw;
     m.mean[2] = WrapAngle(m.mean[2]);
     m.covariance = Q;
-    for (size_t i = 0; i < seen.size(); ++i) m.landmarks.push_back({static_cast<int>(i), NAN, 1.0, ids[i], 1});
+    for (size_t i = 0; i < seen.size(); ++i) m.landmarks.push_back({static_cast<int>(i), NAN, 1.0, ids[i], 1, {}});
     run.submaps.push_back(m);
   }
   return run;

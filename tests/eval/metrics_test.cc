@@ -136,7 +136,7 @@ TEST(LocalMapNees, KnownValue) {
   // True end pose in the start frame: (5, 0, 0); true landmark: (4, 2).
   s.mean << 5.1, 0.0, 0.0, 4.0, 2.2;
   s.covariance = 0.01 * Eigen::MatrixXd::Identity(5, 5);
-  s.landmarks = {{0, NAN, 1.0, 3, std::nullopt}};
+  s.landmarks = {{0, NAN, 1.0, 3, std::nullopt, {}}};
   const std::optional<LocalMapNees> e = EvaluateLocalMap(s, truth, landmarks);
   ASSERT_TRUE(e.has_value());
   EXPECT_EQ(e->dof, 5);

@@ -17,7 +17,7 @@ LocalSubmap Valid() {
   s.mean << 5.0, 1.0, 0.2, 3.0, 4.0, -2.0, 6.0;
   s.covariance = Eigen::MatrixXd::Identity(7, 7) * 0.1;
   s.covariance(0, 3) = s.covariance(3, 0) = 0.05;
-  s.landmarks = {{0, 0.3, 0.99, 17}, {5, NAN, 0.97, std::nullopt}};
+  s.landmarks = {{0, 0.3, 0.99, 17, std::nullopt, {}}, {5, NAN, 0.97, std::nullopt, std::nullopt, {}}};
   return s;
 }
 

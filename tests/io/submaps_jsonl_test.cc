@@ -21,7 +21,8 @@ LocalSubmap Map(int id, int n) {
   s.covariance = A * A.transpose() + 0.01 * Eigen::MatrixXd::Identity(3 + 2 * n, 3 + 2 * n);
   for (int i = 0; i < n; ++i) {
     s.landmarks.push_back({7 * i, i % 2 ? NAN : 0.1 * i, 0.96, i % 3 ? std::optional<int>(i) : std::nullopt,
-                           i % 3 ? std::optional<int>(1 + i % 2) : std::nullopt});
+                           i % 3 ? std::optional<int>(1 + i % 2) : std::nullopt,
+                           i % 3 ? std::vector<int>{i, i + 100} : std::vector<int>{}});
   }
   return s;
 }
@@ -54,6 +55,7 @@ TEST(SubmapsJsonl, RoundTripIsBitIdentical) {
       }
       EXPECT_EQ(a.truth_id, b.truth_id);
       EXPECT_EQ(a.truth_landmarks, b.truth_landmarks);
+      EXPECT_EQ(a.truth_ids, b.truth_ids);
     }
   }
 }
@@ -79,6 +81,12 @@ TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
       {good + "\n" + good + "\n", ":2: field 'id': ids must increase"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"signature":null,"existence":0.99,"truth_id":2,"truth_landmarks":-1}]})",
        "field 'landmarks[0].truth_landmarks': must be >= 0"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[4,-2]}]})",
+       "field 'landmarks[0].truth_ids[1]': expected an id >= 0, got -2"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[4,4]}]})",
+       "field 'landmarks[0].truth_ids[1]': ids must be ascending and distinct"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":7}]})",
+       "field 'landmarks[0].truth_ids': expected an array of true ids, got 7"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":1.5}]})", "landmarks[0].existence"},
   };
   for (size_t k = 0; k < cases.size(); ++k) {

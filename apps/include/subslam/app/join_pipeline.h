@@ -46,13 +46,10 @@ struct JoinOptions {
   std::vector<io::TruthLandmark> truth_landmarks;
 };
 
-struct JoinResult {
-  int local_maps = 0;
-  std::vector<double> anchor_times;  // s
-  Trajectory anchors;                // with marginal covariances
-  std::vector<LandmarkEstimate> landmarks;
-  double wall_seconds = 0.0;
-  // Association against truth_id (when the local maps carry them): pairs of features that
+// Association against truth_id (when the local maps carry them), from a joined graph's
+// association table (factors in time order).
+struct AssociationVsTruth {
+  // Pairs of features that
   // share a true landmark and were joined to the same global landmark (correct), to
   // different ones (missed), and pairs joined to the same global landmark whose true
   // landmarks differ (wrong).
@@ -61,10 +58,29 @@ struct JoinResult {
   // mixed by the front-end (its detections came from ≥ 2 true landmarks; known when the
   // local maps carry truth_landmarks) — the back-end's own wrong merges are the rest.
   long wrong_with_mixed_feature = 0;
+  // Wrong merges counted by all the true landmarks of each feature's detections (when the
+  // local maps carry truth_ids; else its majority id): the features joined to one global
+  // landmark fall into groups linked by a shared true landmark, and every group beyond
+  // the first is a wrong merge. A merge of two features that mix the same two trees with
+  // different majorities counts in `wrong`, not here: this is the lower bound, `wrong`
+  // the upper.
+  long wrong_sharing_no_true_landmark = 0;
   // Re-observations of a true landmark, by how long ago it was last seen: within the
   // last two local maps (recent) or earlier (a loop), and whether they were joined to the
   // same global landmark as then.
   long recent_merged = 0, recent_missed = 0, loop_merged = 0, loop_missed = 0;
+};
+
+// Counts them; features without a true id (unknown or false alarm) are left out.
+AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph);
+
+struct JoinResult {
+  int local_maps = 0;
+  std::vector<double> anchor_times;  // s
+  Trajectory anchors;                // with marginal covariances
+  std::vector<LandmarkEstimate> landmarks;
+  double wall_seconds = 0.0;
+  AssociationVsTruth association;  // against the local maps' truth ids
   std::optional<backend::CeresSolveReport> ceres;
   nlohmann::json report;
 };

@@ -28,6 +28,8 @@ struct LocalSubmapLandmark {
   // Evaluation only: how many distinct true landmarks the feature's detections came from
   // (≥ 2: the front-end mixed them; truth_id is the majority).
   std::optional<int> truth_landmarks;
+  // Evaluation only: those true landmarks' ids, ascending (empty: not known).
+  std::vector<int> truth_ids;
 };
 
 struct LocalSubmap {
