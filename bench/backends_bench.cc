@@ -155,6 +155,7 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
                     {"anchors_in_95_bounds", inside},
                     {"landmarks", r->landmarks.size()},
                     {"wrong_merges", r->association.wrong},
+                    {"wrong_merges_sharing_no_true_landmark", r->association.wrong_sharing_no_true_landmark},
                     {"loop_merged", r->association.loop_merged},
                     {"loop_reobservations", r->association.loop_merged + r->association.loop_missed},
                     {"join_seconds", r->wall_seconds},

@@ -898,7 +898,8 @@ absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) {
 
 absl::Status EifJoiner::Finish() {
   pending_loop_.reset();  // a closure still waiting at the end stands: no more maps to ask
-  if (options_.relinearize_at_end && !factors_.empty()) return Relinearize();
+  // No association follows: the marginal bounds are not refreshed.
+  if (options_.relinearize_at_end && !factors_.empty()) return GaussNewton();
   return absl::OkStatus();
 }
 

@@ -1,5 +1,6 @@
 #include "subslam/io/submaps_jsonl.h"
 
+#include <algorithm>
 #include <climits>
 #include <cmath>
 #include <fstream>
@@ -104,14 +105,26 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
       const std::string field = path + ".truth_ids";
       if (!ids.is_array()) return r.Error(field, absl::StrCat("expected an array of true ids, got ", ids.dump()));
       for (size_t k = 0; k < ids.size(); ++k) {
-        if (!ids[k].is_number_integer() || ids[k].get<long long>() < 0 || ids[k].get<long long>() > INT_MAX) {
-          return r.Error(absl::StrCat(field, "[", k, "]"), absl::StrCat("expected an id >= 0, got ", ids[k].dump()));
+        const bool in_range = ids[k].is_number_unsigned() ? ids[k].get<unsigned long long>() <= INT_MAX
+                                                           : ids[k].is_number_integer() && ids[k].get<long long>() >= 0;
+        if (!in_range) {
+          return r.Error(absl::StrCat(field, "[", k, "]"),
+                         absl::StrCat("expected an integer id in [0, ", INT_MAX, "], got ", ids[k].dump()));
         }
         const int id = ids[k].get<int>();
         if (!out.truth_ids.empty() && id <= out.truth_ids.back()) {
           return r.Error(absl::StrCat(field, "[", k, "]"), "ids must be ascending and distinct");
         }
         out.truth_ids.push_back(id);
+      }
+      // They must agree with the feature's majority id and its count of true landmarks.
+      if (out.truth_id.has_value() && *out.truth_id >= 0 && !out.truth_ids.empty() &&
+          !std::binary_search(out.truth_ids.begin(), out.truth_ids.end(), *out.truth_id)) {
+        return r.Error(field, absl::StrCat("does not contain truth_id ", *out.truth_id));
+      }
+      if (out.truth_landmarks.has_value() && *out.truth_landmarks != static_cast<int>(out.truth_ids.size())) {
+        return r.Error(field, absl::StrCat("lists ", out.truth_ids.size(), " ids but truth_landmarks is ",
+                                           *out.truth_landmarks));
       }
     }
     s.landmarks.push_back(out);

@@ -52,49 +52,6 @@ TEST(SparseCholesky, FactorizeSolvesAndRecoversInverseBlocks) {
   EXPECT_TRUE(MatricesNear(inverse({5, 6}, {5, 6}), star[2], 1e-10));
 }
 
-// Many columns at once go through the shared path to the root as one dense solve (a
-// long chain: paths of hundreds of rows), also after rank updates, and with variables in
-// a second, disconnected component (whose paths never meet the first one's): the blocks
-// equal the dense inverse's.
-TEST(SparseCholesky, ManyColumnsThroughTheSharedPathEqualTheDenseInverse) {
-  const int chain = 700, other = 40, n = chain + other;
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
-  std::mt19937_64 rng(5);
-  std::normal_distribution<double> normal;
-  const auto link = [&](int i, int j) {
-    const Eigen::Vector2d w(normal(rng), normal(rng));
-    A(i, i) += w[0] * w[0];
-    A(j, j) += w[1] * w[1];
-    A(i, j) += w[0] * w[1];
-    A(j, i) += w[0] * w[1];
-  };
-  for (int i = 0; i + 1 < chain; ++i) link(i, i + 1);
-  for (int i = chain; i + 1 < n; ++i) link(i, i + 1);
-  A += 0.1 * Eigen::MatrixXd::Identity(n, n);
-  SparseCholesky L;
-  ASSERT_TRUE(L.Factorize(Sparse(A), 8).ok());
-  std::vector<int> vars = {n - 1, chain + 3};  // the second component too
-  for (int k = 0; k < 24; ++k) vars.push_back((k * 97 + 11) % chain);
-  const long reach_before = L.reach_solved();
-  EXPECT_TRUE(MatricesNear(A.inverse()(vars, vars), L.InverseBlock(vars), 1e-9));
-  EXPECT_GT(L.reach_solved() - reach_before, 150L * 20);  // long paths: the shared solve ran
-  // After a rank update touching both ends of the chain (the cache is dropped).
-  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(3, 1);
-  W << 0.7, -0.4, 0.9;
-  ASSERT_TRUE(L.Update(n, {0, chain / 2, chain - 1}, W).ok());
-  Eigen::MatrixXd A2 = A;
-  const std::vector<int> rows = {0, chain / 2, chain - 1};
-  for (int a = 0; a < 3; ++a) {
-    for (int b = 0; b < 3; ++b) A2(rows[a], rows[b]) += W(a, 0) * W(b, 0);
-  }
-  const std::vector<Eigen::MatrixXd> star = L.InverseStarBlocks({vars[2], vars[3]}, {{vars[4], vars[5]}, {n - 2}});
-  const Eigen::MatrixXd inverse = A2.inverse();
-  EXPECT_TRUE(MatricesNear(inverse({vars[2], vars[3], vars[4], vars[5]}, {vars[2], vars[3], vars[4], vars[5]}),
-                           star[0], 1e-9));
-  EXPECT_TRUE(MatricesNear(inverse({vars[2], vars[3], n - 2}, {vars[2], vars[3], n - 2}), star[1], 1e-9));
-  EXPECT_TRUE(MatricesNear(inverse(vars, vars), L.InverseBlock(vars), 1e-9));
-}
-
 // A chain of `chain` variables (each linked to the next) and, apart, a second chain of
 // `other`: a sparse factor whose pattern is known (no path between the two).
 Eigen::MatrixXd TwoChains(int chain, int other, std::mt19937_64* rng) {
@@ -124,6 +81,35 @@ Eigen::MatrixXd Updated(const Eigen::MatrixXd& A, int n, const std::vector<int>&
     }
   }
   return grown;
+}
+
+// Many columns at once go through the shared path to the root as one dense solve (a
+// long chain: paths of hundreds of rows), also after rank updates, and with variables in
+// a second, disconnected component (whose paths never meet the first one's): the blocks
+// equal the dense inverse's.
+TEST(SparseCholesky, ManyColumnsThroughTheSharedPathEqualTheDenseInverse) {
+  const int chain = 700, other = 40, n = chain + other;
+  std::mt19937_64 rng(5);
+  const Eigen::MatrixXd A = TwoChains(chain, other, &rng);
+  SparseCholesky L;
+  ASSERT_TRUE(L.Factorize(Sparse(A), 8).ok());
+  std::vector<int> vars = {n - 1, chain + 3};  // the second component too
+  for (int k = 0; k < 24; ++k) vars.push_back((k * 97 + 11) % chain);
+  const long reach_before = L.reach_solved();
+  EXPECT_TRUE(MatricesNear(A.inverse()(vars, vars), L.InverseBlock(vars), 1e-9));
+  EXPECT_GT(L.reach_solved() - reach_before, 150L * 20);  // long paths: the shared solve ran
+  // After a rank update touching both ends of the chain (the cache is dropped).
+  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(3, 1);
+  W << 0.7, -0.4, 0.9;
+  const std::vector<int> rows = {0, chain / 2, chain - 1};
+  ASSERT_TRUE(L.Update(n, rows, W).ok());
+  const Eigen::MatrixXd A2 = Updated(A, n, rows, W);
+  const std::vector<Eigen::MatrixXd> star = L.InverseStarBlocks({vars[2], vars[3]}, {{vars[4], vars[5]}, {n - 2}});
+  const Eigen::MatrixXd inverse = A2.inverse();
+  EXPECT_TRUE(MatricesNear(inverse({vars[2], vars[3], vars[4], vars[5]}, {vars[2], vars[3], vars[4], vars[5]}),
+                           star[0], 1e-9));
+  EXPECT_TRUE(MatricesNear(inverse({vars[2], vars[3], n - 2}, {vars[2], vars[3], n - 2}), star[1], 1e-9));
+  EXPECT_TRUE(MatricesNear(inverse(vars, vars), L.InverseBlock(vars), 1e-9));
 }
 
 // The diagonal blocks from A⁻¹ on L's pattern (the sparse-inverse recursion) equal the

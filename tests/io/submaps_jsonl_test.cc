@@ -22,7 +22,7 @@ LocalSubmap Map(int id, int n) {
   for (int i = 0; i < n; ++i) {
     s.landmarks.push_back({7 * i, i % 2 ? NAN : 0.1 * i, 0.96, i % 3 ? std::optional<int>(i) : std::nullopt,
                            i % 3 ? std::optional<int>(1 + i % 2) : std::nullopt,
-                           i % 3 ? std::vector<int>{i, i + 100} : std::vector<int>{}});
+                           i % 3 ? (i % 2 ? std::vector<int>{i, i + 100} : std::vector<int>{i}) : std::vector<int>{}});
   }
   return s;
 }
@@ -82,7 +82,15 @@ TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"signature":null,"existence":0.99,"truth_id":2,"truth_landmarks":-1}]})",
        "field 'landmarks[0].truth_landmarks': must be >= 0"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[4,-2]}]})",
-       "field 'landmarks[0].truth_ids[1]': expected an id >= 0, got -2"},
+       "field 'landmarks[0].truth_ids[1]': expected an integer id in [0, 2147483647], got -2"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[4,3000000000]}]})",
+       "field 'landmarks[0].truth_ids[1]': expected an integer id in [0, 2147483647], got 3000000000"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[1.5]}]})",
+       "field 'landmarks[0].truth_ids[0]': expected an integer id in [0, 2147483647], got 1.5"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_id":5,"truth_ids":[4,6]}]})",
+       "field 'landmarks[0].truth_ids': does not contain truth_id 5"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_id":4,"truth_landmarks":1,"truth_ids":[4,6]}]})",
+       "field 'landmarks[0].truth_ids': lists 2 ids but truth_landmarks is 1"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[4,4]}]})",
        "field 'landmarks[0].truth_ids[1]': ids must be ascending and distinct"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":7}]})",

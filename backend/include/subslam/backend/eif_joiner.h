@@ -135,8 +135,9 @@ struct EifJoinerOptions {
   // and bounds the landmark's own block by its marginal when it was last recovered, or,
   // for a landmark never recovered, by its marginal from the start anchor's and its
   // feature's covariances when it was created. Both stay upper bounds while Λ only grows,
-  // so they are replaced whenever the factors are relinearised: by every landmark's exact
-  // marginal at the new linearisation, all at once (the sparse-inverse recursion).
+  // so they are dropped whenever the factors are relinearised; a relinearisation after a
+  // join then sets them to every landmark's exact marginal at the new linearisation, all
+  // at once (the sparse-inverse recursion).
   // Association decisions are the same either way (tested); only the work differs.
   bool bound_candidate_marginals = true;
 
@@ -246,8 +247,10 @@ class EifJoiner final : public MapJoiner {
   // Gauss-Newton over every factor from the current estimate, to relinearize_tolerance or
   // max_relinearizations; stopped at the best iterate after divergence_rises cost rises in
   // a row.
+  // Gauss-Newton to convergence (GaussNewton), then the marginal bounds from the new
+  // factor for the joins that follow.
   absl::Status Relinearize();
-  absl::Status GaussNewton();  // Relinearize()'s iterations
+  absl::Status GaussNewton();
   // One factor's term of Cost().
   double NormalisedResidual(const Factor& f) const;
   // max over factors of |heading now − heading at the factor's linearisation| of its anchors.
