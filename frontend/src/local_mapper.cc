@@ -1,5 +1,10 @@
 #include "subslam/frontend/local_mapper.h"
 
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+
 #include "absl/time/clock.h"
 #include "subslam/graph/internal/check.h"
 
@@ -9,7 +14,9 @@ LocalMapper::LocalMapper(const SubmapPolicyOptions& policy,
                          const models::RangeBearingConfig& sensor, double t_start)
     : policy_(policy, sensor.sigma_range_m, sensor.sigma_bearing_rad),
       t_(t_start),
-      t_map_start_(t_start) {}
+      t_map_start_(t_start),
+      max_feature_sigma_m_(policy.max_feature_sigma_ratio *
+                           std::max(sensor.sigma_range_m, sensor.sigma_bearing_rad * sensor.max_range_m)) {}
 
 void LocalMapper::Predict(const Eigen::Vector2d& u, double dt) {
   if (dt <= 0.0) return;
@@ -35,7 +42,8 @@ void LocalMapper::Finish() {
 
 void LocalMapper::Close(CloseReason reason) {
   const absl::Time start = absl::Now();
-  const MomentMatchedGaussian g = Export();
+  MomentMatchedGaussian g = Export();
+  DropUncertainFeatures(&g);
   ClosedLocalMap closed;
   closed.reason = reason;
   LocalSubmap& s = closed.submap;
@@ -66,6 +74,48 @@ void LocalMapper::Close(CloseReason reason) {
   export_seconds_ += absl::ToDoubleSeconds(absl::Now() - start);
 }
 
+void LocalMapper::DropUncertainFeatures(MomentMatchedGaussian* g) {
+  if (max_feature_sigma_m_ <= 0.0) return;
+  const int n = static_cast<int>(g->features.size());
+  // Each feature's covariance given the end pose, P_ff − P_fp P_pp⁺ P_pf: what the map
+  // says about the feature relative to the vehicle, without the drift they share (a
+  // feature mapped late in a long map is uncertain in the start frame, not relative to
+  // the end pose). P_pp may be singular (a map of one step): its pseudo-inverse.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> pose(g->covariance.topLeftCorner<3, 3>());
+  const Eigen::Vector3d lambda = pose.eigenvalues();
+  Eigen::Vector3d inverse_lambda = Eigen::Vector3d::Zero();
+  for (int i = 0; i < 3; ++i) {
+    if (lambda[i] > 1e-12 * std::max(lambda.maxCoeff(), 1e-300)) inverse_lambda[i] = 1.0 / lambda[i];
+  }
+  const Eigen::Matrix3d pose_pinv = pose.eigenvectors() * inverse_lambda.asDiagonal() * pose.eigenvectors().transpose();
+  std::vector<int> keep;
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Matrix<double, 2, 3> P_fp = g->covariance.block<2, 3>(3 + 2 * k, 0);
+    const Eigen::Matrix2d P = g->covariance.block<2, 2>(3 + 2 * k, 3 + 2 * k) - P_fp * pose_pinv * P_fp.transpose();
+    const double widest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly).eigenvalues()(1);
+    if (std::sqrt(std::max(0.0, widest)) <= max_feature_sigma_m_) keep.push_back(k);
+  }
+  if (static_cast<int>(keep.size()) == n) return;
+  features_too_uncertain_ += n - static_cast<long>(keep.size());
+  // Marginalise the others out: the kept rows and columns of the Gaussian.
+  std::vector<int> rows = {0, 1, 2};
+  for (int k : keep) rows.insert(rows.end(), {3 + 2 * k, 4 + 2 * k});
+  const Eigen::VectorXd mean = g->mean(rows);
+  const Eigen::MatrixXd covariance = g->covariance(rows, rows);
+  g->mean = mean;
+  g->covariance = covariance;
+  const auto select = [&keep](auto* values) {
+    if (values->empty()) return;
+    std::remove_reference_t<decltype(*values)> kept;
+    for (int k : keep) kept.push_back((*values)[k]);
+    *values = std::move(kept);
+  };
+  select(&g->features);
+  select(&g->existence);
+  select(&g->signature);
+  select(&g->truth_id);
+}
+
 std::vector<ClosedLocalMap> LocalMapper::TakeClosed() {
   std::vector<ClosedLocalMap> out;
   out.swap(closed_);
@@ -80,7 +130,8 @@ StageTimes LocalMapper::stage_times() const {
 
 std::map<std::string, double> LocalMapper::Counters() const {
   std::map<std::string, double> out = {{"local_maps_closed", map_id_},
-                                       {"covariance_repairs", repairs_}};
+                                       {"covariance_repairs", repairs_},
+                                       {"features_too_uncertain_to_export", features_too_uncertain_}};
   for (const auto& [reason, count] : closes_by_reason_) out["closed_by_" + reason] = count;
   for (const auto& [name, value] : FilterCounters()) out[name] = value;
   return out;

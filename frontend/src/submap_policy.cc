@@ -9,7 +9,7 @@ namespace subslam::frontend {
 absl::Status SubmapPolicyOptions::Validate() const {
   const auto nonnegative = [](double v) { return std::isfinite(v) && v >= 0.0; };
   if (!nonnegative(min_duration_s) || !nonnegative(max_duration_s) ||
-      !nonnegative(max_pose_sigma_ratio) || !nonnegative(max_delay_s)) {
+      !nonnegative(max_pose_sigma_ratio) || !nonnegative(max_delay_s) || !nonnegative(max_feature_sigma_ratio)) {
     return absl::InvalidArgumentError("submap policy: durations and ratios must be >= 0");
   }
   if (!(min_ess_ratio >= 0.0 && min_ess_ratio <= 1.0) ||

@@ -68,6 +68,9 @@ class LocalMapper {
 
  private:
   void Close(CloseReason reason);
+  // Removes (marginalises out) the features wider than max_feature_sigma_m_ given the
+  // end pose (see SubmapPolicyOptions::max_feature_sigma_ratio).
+  void DropUncertainFeatures(MomentMatchedGaussian* g);
 
   SubmapPolicy policy_;
   double t_ = 0.0, t_map_start_ = 0.0;
@@ -77,6 +80,8 @@ class LocalMapper {
   std::vector<ClosedLocalMap> closed_;
   std::map<std::string, long> closes_by_reason_;
   int repairs_ = 0;
+  double max_feature_sigma_m_ = 0.0;  // 0: export every feature (see max_feature_sigma_ratio)
+  long features_too_uncertain_ = 0;   // not exported by that rule
   double export_seconds_ = 0.0;
 };
 

@@ -44,6 +44,16 @@ struct SubmapPolicyOptions {
   bool delay_while_ambiguous = false;
   double ambiguity_threshold = 0.2;
   double max_delay_s = 5.0;
+  // What a closed map exports (both mappers): not a feature that, relative to the map's
+  // end pose (its covariance conditioned on the end pose), along its widest axis, is more
+  // uncertain than this many times one detection at the sensor's maximum range
+  // (max(σ_r, σ_b · max range)). Such a feature carries less than one detection's
+  // information, and in an RBPF map it is usually one the particles place apart (two
+  // trees the sensor cannot separate, say); its wide gate lets the back-end join it to a
+  // landmark metres away (bench/RESULTS.md, tenth session). Conditioning on the end pose
+  // keeps the features that are uncertain only through the drift they share with it.
+  // 0: export all.
+  double max_feature_sigma_ratio = 1.0;
 
   absl::Status Validate() const;
 };
