@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "absl/strings/str_cat.h"
 #include "subslam/graph/internal/check.h"
 
 namespace subslam::frontend {
@@ -9,8 +10,13 @@ namespace subslam::frontend {
 absl::Status SubmapPolicyOptions::Validate() const {
   const auto nonnegative = [](double v) { return std::isfinite(v) && v >= 0.0; };
   if (!nonnegative(min_duration_s) || !nonnegative(max_duration_s) ||
-      !nonnegative(max_pose_sigma_ratio) || !nonnegative(max_delay_s) || !nonnegative(max_feature_sigma_ratio)) {
+      !nonnegative(max_pose_sigma_ratio) || !nonnegative(max_delay_s)) {
     return absl::InvalidArgumentError("submap policy: durations and ratios must be >= 0");
+  }
+  if (!nonnegative(max_feature_sigma_ratio)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("submap policy: max_feature_sigma_ratio must be >= 0 (0: export every feature), got ",
+                     max_feature_sigma_ratio));
   }
   if (!(min_ess_ratio >= 0.0 && min_ess_ratio <= 1.0) ||
       !(min_lineage_diversity >= 0.0 && min_lineage_diversity <= 1.0) ||

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 namespace subslam::frontend {
 namespace {
 
@@ -88,6 +90,11 @@ TEST(SubmapPolicyOptions, ValidationRejectsNonsense) {
   o = {};
   o.density_min_visible = 0;
   EXPECT_FALSE(o.Validate().ok());
+  for (const double bad : {-1.0, static_cast<double>(NAN), static_cast<double>(INFINITY)}) {
+    o = {};
+    o.max_feature_sigma_ratio = bad;
+    EXPECT_FALSE(o.Validate().ok()) << bad;
+  }
 }
 
 }  // namespace
