@@ -62,8 +62,13 @@ TEST(SubmapsJsonl, RoundTripIsBitIdentical) {
 
 // Each malformed line is reported with the file, the line and the field.
 TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
+  // A line whose one landmark is `landmark` (a JSON object), all else valid.
+  const auto OneLandmark = [](const std::string& landmark) {
+    return R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[)" +
+           landmark + "]}";
+  };
   const std::string good =
-      R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"signature":null,"existence":0.99,"truth_id":null}]})";
+      OneLandmark(R"({"local_id":3,"signature":null,"existence":0.99,"truth_id":null})");
   ASSERT_TRUE(ReadSubmapsJsonl(Write("good.jsonl", good + "\n")).ok());
   struct Case {
     std::string text;
@@ -79,23 +84,23 @@ TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
       {R"({"id":0,"t_start":2,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})", "field 't_end'"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[],"extra":1})", "field 'extra': unknown key"},
       {good + "\n" + good + "\n", ":2: field 'id': ids must increase"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"signature":null,"existence":0.99,"truth_id":2,"truth_landmarks":-1}]})",
+      {OneLandmark(R"({"local_id":3,"signature":null,"existence":0.99,"truth_id":2,"truth_landmarks":-1})"),
        "field 'landmarks[0].truth_landmarks': must be >= 0"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[4,-2]}]})",
+      {OneLandmark(R"({"local_id":3,"existence":0.99,"truth_ids":[4,-2]})"),
        "field 'landmarks[0].truth_ids[1]': expected an integer id in [0, 2147483647], got -2"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[4,3000000000]}]})",
+      {OneLandmark(R"({"local_id":3,"existence":0.99,"truth_ids":[4,3000000000]})"),
        "field 'landmarks[0].truth_ids[1]': expected an integer id in [0, 2147483647], got 3000000000"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[1.5]}]})",
+      {OneLandmark(R"({"local_id":3,"existence":0.99,"truth_ids":[1.5]})"),
        "field 'landmarks[0].truth_ids[0]': expected an integer id in [0, 2147483647], got 1.5"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_id":5,"truth_ids":[4,6]}]})",
+      {OneLandmark(R"({"local_id":3,"existence":0.99,"truth_id":5,"truth_ids":[4,6]})"),
        "field 'landmarks[0].truth_ids': does not contain truth_id 5"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_id":4,"truth_landmarks":1,"truth_ids":[4,6]}]})",
+      {OneLandmark(R"({"local_id":3,"existence":0.99,"truth_id":4,"truth_landmarks":1,"truth_ids":[4,6]})"),
        "field 'landmarks[0].truth_ids': lists 2 ids but truth_landmarks is 1"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":[4,4]}]})",
+      {OneLandmark(R"({"local_id":3,"existence":0.99,"truth_ids":[4,4]})"),
        "field 'landmarks[0].truth_ids[1]': ids must be ascending and distinct"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":0.99,"truth_ids":7}]})",
+      {OneLandmark(R"({"local_id":3,"existence":0.99,"truth_ids":7})"),
        "field 'landmarks[0].truth_ids': expected an array of true ids, got 7"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[{"local_id":3,"existence":1.5}]})", "landmarks[0].existence"},
+      {OneLandmark(R"({"local_id":3,"existence":1.5})"), "landmarks[0].existence"},
   };
   for (size_t k = 0; k < cases.size(); ++k) {
     const std::string path = Write("bad" + std::to_string(k) + ".jsonl", cases[k].text);
