@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <future>
+#include <optional>
 #include <system_error>
 
 #include "absl/strings/str_cat.h"
@@ -97,6 +98,16 @@ class TruthVotes {
  private:
   std::map<std::pair<int, int>, std::map<int, int>> votes_;
 };
+
+// Runs `write` on another thread, or — if none can be had — when its result is asked for.
+template <typename Write>
+std::future<absl::Status> WriteInBackground(Write write) {
+  try {
+    return std::async(std::launch::async, write);  // a copy: `write` stays whole if this throws
+  } catch (const std::system_error&) {
+    return std::async(std::launch::deferred, std::move(write));
+  }
+}
 
 }  // namespace
 
@@ -231,6 +242,17 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
       if (absl::Status st = chain->Finish(); !st.ok()) return st;
     }
     r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  }
+  // The online trajectory is complete: it is written on another thread while the final
+  // one, the map and the metrics are computed (Victoria Park: 69,000 rows).
+  std::optional<std::filesystem::path> out_dir;
+  std::future<absl::Status> online_written;
+  if (!options.out_dir.empty()) {
+    absl::StatusOr<std::filesystem::path> dir = CreateOutputDirectory(options.out_dir);
+    if (!dir.ok()) return dir.status();
+    out_dir = *dir;
+    online_written = WriteInBackground(
+        [&r, path = (*out_dir / "trajectory_online.csv").string()] { return io::WriteTrajectoryCsv(path, r.online); });
   }
   if (chain != nullptr) {
     for (const frontend::ClosedLocalMap& c : chain->local_maps()) {
@@ -377,31 +399,24 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"iterated_exact_recoveries", seif.iterated.exact_recoveries}};
   }
 
-  if (!options.out_dir.empty()) {
-    absl::StatusOr<std::filesystem::path> dir = CreateOutputDirectory(options.out_dir);
-    if (!dir.ok()) return dir.status();
-    const std::filesystem::path& out = *dir;
-    // The files are independent, and formatting the trajectories is most of the time
-    // (Victoria Park: 69,000 rows each): half of it goes to a second thread. The report
-    // is serialised first (nlohmann's serialiser reads the C locale, not to be shared).
+  if (out_dir.has_value()) {
+    const std::filesystem::path& out = *out_dir;
+    // The files are independent, and formatting the trajectories is most of the time:
+    // the final trajectory and the local maps go to another thread too. The report is
+    // serialised first (nlohmann's serialiser reads the C locale, not to be shared).
     const std::string report_text = r.report.dump(2) + "\n";
-    const auto write_second = [&r, &out, chain] {
+    std::future<absl::Status> final_written = WriteInBackground([&r, &out, chain] {
       absl::Status s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory);
       if (s.ok() && chain != nullptr) s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps);
       return s;
-    };
-    std::future<absl::Status> second;
-    try {
-      second = std::async(std::launch::async, write_second);
-    } catch (const std::system_error&) {  // no thread to be had: write them here, after the rest
-      second = std::async(std::launch::deferred, write_second);
+    });
+    absl::Status here = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks);
+    if (here.ok()) here = io::WriteTextFile((out / "report.json").string(), report_text);
+    const absl::Status online_status = online_written.get();
+    const absl::Status final_status = final_written.get();
+    for (const absl::Status& st : {online_status, final_status, here}) {
+      if (!st.ok()) return st;
     }
-    absl::Status first = io::WriteTrajectoryCsv((out / "trajectory_online.csv").string(), r.online);
-    if (first.ok()) first = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks);
-    if (first.ok()) first = io::WriteTextFile((out / "report.json").string(), report_text);
-    const absl::Status second_status = second.get();
-    if (!first.ok()) return first;
-    if (!second_status.ok()) return second_status;
   }
   return r;
 }
