@@ -179,8 +179,9 @@ ABSL_FLAG(double, submap_min_diversity, kPolicyDefaults.min_lineage_diversity,
 ABSL_FLAG(double, submap_max_pose_sigma, kPolicyDefaults.max_pose_sigma_ratio,
           "rbpf: close when the local pose sigma exceeds this many sensor sigmas (0: off)");
 ABSL_FLAG(double, submap_max_feature_sigma, kPolicyDefaults.max_feature_sigma_ratio,
-          "rbpf, ekf: do not export a feature more uncertain (widest axis) than this many "
-          "times one detection at the sensor's maximum range (0: export all)");
+          "rbpf, ekf: do not export a feature more uncertain relative to the map's end pose "
+          "(widest axis) than this many times one detection at the sensor's maximum range "
+          "(0: export all)");
 ABSL_FLAG(int, submap_density_features, kPolicyDefaults.density_min_features,
           "rbpf: landmark-density rule: close once the map holds this many features and "
           "--submap_density_visible of them are in range (0: off)");

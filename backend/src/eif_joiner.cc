@@ -584,7 +584,7 @@ std::vector<Eigen::Matrix3d> EifJoiner::AnchorCovariances() const {
   if (groups.empty()) return out;
   SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
   const std::vector<Eigen::MatrixXd> blocks = solver_->factor.DiagonalInverseBlocks(groups);
-  for (size_t g = 0; g < free.size(); ++g) out[free[g]] = 0.5 * (blocks[g] + blocks[g].transpose());
+  for (size_t g = 0; g < free.size(); ++g) out[free[g]] = blocks[g];
   return out;
 }
 
@@ -594,7 +594,7 @@ std::vector<Eigen::Matrix2d> EifJoiner::LandmarkCovariances() const {
   std::vector<Eigen::Matrix2d> out;
   if (groups.empty()) return out;
   SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
-  for (const Eigen::MatrixXd& b : solver_->factor.DiagonalInverseBlocks(groups)) out.push_back(0.5 * (b + b.transpose()));
+  for (const Eigen::MatrixXd& b : solver_->factor.DiagonalInverseBlocks(groups)) out.push_back(b);
   return out;
 }
 

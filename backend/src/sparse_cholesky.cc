@@ -293,12 +293,11 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
   const int* Lp = static_cast<const int*>(factor_->p);
   const int* Li = static_cast<const int*>(factor_->i);
   const int* Lnz = static_cast<const int*>(factor_->nz);
-  const auto parent = [this](int j) { return Parent(j); };
   // S: the elimination-tree path from the lowest pending variable to the root. Every
   // other path meets it (one root), and from there on the walks would all run through
   // the same — near the root dense — columns: those are solved together, densely.
   std::vector<int> path;
-  for (int j = position_[pending[0]]; j >= 0; j = parent(j)) {
+  for (int j = position_[pending[0]]; j >= 0; j = Parent(j)) {
     path.push_back(j);
     if (static_cast<int>(path.size()) > kSharedPathMaxLength) return false;  // dense block too big
   }

@@ -28,6 +28,10 @@ absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
   std::vector<TextRow> rows;
   std::vector<absl::string_view> fields;
   const auto separator = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
+  // A field's name, for an error message only.
+  const auto name = [&column_names](int i) {
+    return i < static_cast<int>(column_names.size()) ? column_names[i] : absl::StrCat("column ", i + 1);
+  };
   int line_number = 0;
   for (absl::string_view line : absl::StrSplit(*text, '\n')) {
     ++line_number;
@@ -55,10 +59,6 @@ absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
     TextRow row;
     row.line = line_number;
     row.values.resize(n);
-    // The field's name, for an error message only.
-    const auto name = [&column_names](int i) {
-      return i < static_cast<int>(column_names.size()) ? column_names[i] : absl::StrCat("column ", i + 1);
-    };
     for (int i = 0; i < n; ++i) {
       double value = 0.0;
       if (!absl::SimpleAtod(fields[i], &value)) {
