@@ -126,6 +126,9 @@ ABSL_FLAG(double, relinearize_tolerance, kEifDefaults.relinearize_tolerance,
 ABSL_FLAG(double, relinearize_step_chi2, kEifDefaults.relinearize_step_chi2,
           "eif: ... or until the step's squared Mahalanobis length (dx' Lambda dx, chi-square "
           "units) falls below this (0: off)");
+ABSL_FLAG(bool, relinearize_predict, kEifDefaults.predict_convergence,
+          "eif: stop a relinearisation when the next Gauss-Newton step, solved with the last "
+          "factor, is already below the thresholds (saves the confirming factorisation)");
 ABSL_FLAG(int, max_relinearizations, kEifDefaults.max_relinearizations,
           "eif: at most this many iterations per relinearisation");
 ABSL_FLAG(int, relinearize_max_rises, kEifDefaults.divergence_rises,
@@ -263,6 +266,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.relinearize_tolerance = absl::GetFlag(FLAGS_relinearize_tolerance);
   o.relinearize_step_chi2 = absl::GetFlag(FLAGS_relinearize_step_chi2);
   o.max_relinearizations = absl::GetFlag(FLAGS_max_relinearizations);
+  o.predict_convergence = absl::GetFlag(FLAGS_relinearize_predict);
   o.divergence_rises = absl::GetFlag(FLAGS_relinearize_max_rises);
   o.relinearize_heading_change = absl::GetFlag(FLAGS_relinearize_heading_change);
   o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);

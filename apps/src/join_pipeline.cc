@@ -158,6 +158,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"rejected_joins", joiner->counters().rejected_joins},
                 {"relinearizations", joiner->counters().relinearizations},
                 {"relinearizations_diverged", joiner->counters().relinearizations_diverged},
+                {"relinearizations_predicted_converged", joiner->counters().relinearizations_predicted_converged},
                 {"jcbb_truncated", joiner->counters().jcbb_truncated},
                 {"loop_closures_thin", joiner->counters().loop_closures_thin},
                 {"loop_closures_ambiguous", joiner->counters().loop_closures_ambiguous},

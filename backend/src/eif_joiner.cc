@@ -489,6 +489,38 @@ double EifJoiner::Cost() const {
   return cost;
 }
 
+void EifJoiner::SwapLinearization(Factor* f, Linearization* l) {
+  f->H.swap(l->H);
+  f->b.swap(l->b);
+  std::swap(f->start_theta, l->start_theta);
+  std::swap(f->end_theta, l->end_theta);
+}
+
+bool EifJoiner::PredictedStepConverged(const Eigen::VectorXd& x) {
+  // The factors are linearised at x: Σ_f (H_f x_f − b_f) = Σ_f J_fᵀ Q_f⁻¹ r_f(x) is the
+  // gradient g of Cost()/2 at x, and the Gauss-Newton step is −Λ(x)⁻¹ g. The factor at
+  // hand is of Λ at the previous linearisation point, a step away, whose headings differ
+  // by that step's (the factor is nonlinear in headings only): δ = −Λ_prev⁻¹ g.
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(dim_), eta = Eigen::VectorXd::Zero(dim_);
+  for (const Factor& f : factors_) {
+    AddInformationTimes(f, x, &g);
+    AddToEta(f, &eta);
+  }
+  g -= eta;
+  Eigen::VectorXd step;
+  {
+    StageTimer timer(&times_, "recovery");
+    step = -solver_->factor.Solve(g);
+  }
+  if (!step.allFinite()) return false;
+  // With each step at most half the last (linear convergence), the steps still to come sum
+  // to less than twice this one: it is held to half the tolerance and a quarter of the χ²
+  // bound, so that the stopped estimate is as close to the converged one as when a step
+  // taken is below them.
+  if (step.cwiseAbs().maxCoeff() < 0.5 * options_.relinearize_tolerance) return true;
+  return options_.relinearize_step_chi2 > 0.0 && -g.dot(step) < 0.25 * options_.relinearize_step_chi2;
+}
+
 absl::Status EifJoiner::Relinearize() {
   if (absl::Status st = GaussNewton(); !st.ok()) return st;
   // Every factor moved, so the landmarks' marginal bounds were forgotten: today's exact
@@ -512,11 +544,26 @@ absl::Status EifJoiner::GaussNewton() {
   std::vector<Factor> best_factors;  // their solution is the best iterate so far
   if (watch) best_factors = factors_;
   int rises = 0;
+  // The linearisation the factor and the estimate belong to, while the factors hold the
+  // next one (swapped, not copied).
+  std::vector<Linearization> previous;
   for (int it = 0; it < options_.max_relinearizations; ++it) {
     const Eigen::VectorXd before = StateVector();
+    const bool check = it > 0 && options_.predict_convergence;
+    if (check) {
+      previous.resize(factors_.size());
+      for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &previous[k]);
+    }
     {
       StageTimer timer(&times_, "update");
       for (Factor& f : factors_) Linearize(&f);
+    }
+    if (check && PredictedStepConverged(before)) {
+      // The estimate solves the previous linearisation and the step from it is already
+      // small: that linearisation stays, without another factorisation.
+      for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &previous[k]);
+      ++counters_.relinearizations_predicted_converged;
+      break;
     }
     if (absl::Status s = Rebuild(/*only_last_factor=*/false); !s.ok()) return s;
     ++counters_.relinearizations;
@@ -743,6 +790,7 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   // confirmations count everything done.
   counters_.relinearizations = work.relinearizations;
   counters_.relinearizations_diverged = work.relinearizations_diverged;
+  counters_.relinearizations_predicted_converged = work.relinearizations_predicted_converged;
   counters_.loop_closures_confirmed = work.loop_closures_confirmed;
   counters_.loop_closures_unconfirmed = work.loop_closures_unconfirmed + 1;
   counters_.incremental_updates = work.incremental_updates;

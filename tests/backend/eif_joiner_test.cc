@@ -594,6 +594,48 @@ TEST(EifJoiner, GaussNewtonStopsWhenTheStepIsSmallInTheInformationMetric) {
   EXPECT_LT(distance2, kStepChi2);
 }
 
+// predict_convergence: before another Gauss-Newton iteration, its step is solved with the
+// factor at hand (of the previous linearisation). Stopping there, when that step is below
+// a quarter of the χ² bound, leaves the estimate as close to the converged one as the step
+// test does, with fewer factorisations; the previous linearisation is kept, whose solution
+// the estimate is, so the joins that follow still update the factor incrementally.
+TEST(EifJoiner, GaussNewtonStopsOnThePredictedStepWithoutAnotherFactorisation) {
+  const SyntheticRun run = MakeRun(8, 12, 3.0);
+  constexpr double kStepChi2 = 1e-3;
+  EifJoinerOptions converged_options = ConvergingKnownAssociation();
+  converged_options.relinearize_heading_change = 0.02;  // Gauss-Newton during the run too
+  converged_options.predict_convergence = false;        // the reference iterates to 1e-12
+  EifJoinerOptions confirmed_options = converged_options;
+  confirmed_options.relinearize_step_chi2 = kStepChi2;
+  confirmed_options.relinearize_tolerance = 1e-3;
+  confirmed_options.predict_convergence = false;
+  EifJoinerOptions predicted_options = confirmed_options;
+  predicted_options.predict_convergence = true;
+  EifJoiner converged(run.anchors[0], converged_options), confirmed(run.anchors[0], confirmed_options),
+      predicted(run.anchors[0], predicted_options);
+  long predicted_during_run = 0;
+  for (const LocalSubmap& s : run.submaps) {
+    for (EifJoiner* j : {&converged, &confirmed, &predicted}) ASSERT_TRUE(j->Join(s).ok());
+    predicted_during_run = predicted.counters().relinearizations_predicted_converged;
+  }
+  for (EifJoiner* j : {&converged, &confirmed, &predicted}) ASSERT_TRUE(j->Finish().ok());
+  EXPECT_GT(predicted_during_run, 0);
+  EXPECT_GT(predicted.counters().relinearizations_predicted_converged, predicted_during_run);  // and at the end
+  EXPECT_EQ(confirmed.counters().relinearizations_predicted_converged, 0);
+  EXPECT_LT(predicted.counters().full_factorizations, confirmed.counters().full_factorizations);
+  // The joins after a predicted stop found the factor and η of the kept linearisation.
+  EXPECT_EQ(predicted.counters().failed_updates, 0);
+  std::vector<int> anchors, landmarks;
+  for (int k = 1; k < converged.num_anchors(); ++k) anchors.push_back(k);
+  for (int j = 0; j < converged.num_landmarks(); ++j) landmarks.push_back(j);
+  const Eigen::MatrixXd covariance = converged.JointCovariance(anchors, landmarks);
+  Eigen::VectorXd difference = StackedEstimate(predicted) - StackedEstimate(converged);
+  for (size_t k = 0; k < anchors.size(); ++k) difference[3 * k + 2] = WrapAngle(difference[3 * k + 2]);
+  const double distance2 = difference.dot(covariance.ldlt().solve(difference));
+  EXPECT_GT(distance2, 0.0);  // it did stop short
+  EXPECT_LT(distance2, kStepChi2);
+}
+
 // loop_confirmation_maps: after a long loop the start anchor is lost (3σ ≈ 100 m). The
 // closing map's four features fit four of map 0's trees, in both runs below: in one they
 // are those trees, in the other four new ones in the same layout elsewhere. Where the

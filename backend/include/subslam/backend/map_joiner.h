@@ -27,6 +27,8 @@ struct JoinerCounters {
   long new_landmarks = 0;
   long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
   long relinearizations_diverged = 0;  // stopped at their best iterate (cost rises in a row)
+  // Gauss-Newton runs stopped by a predicted step, before another factorisation.
+  long relinearizations_predicted_converged = 0;
   long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
   // Loop closures dropped under an uncertain start anchor: too few pairings, or ambiguous.
   long loop_closures_thin = 0;
@@ -56,6 +58,7 @@ struct JoinerCounters {
     new_landmarks += o.new_landmarks;
     relinearizations += o.relinearizations;
     relinearizations_diverged += o.relinearizations_diverged;
+    relinearizations_predicted_converged += o.relinearizations_predicted_converged;
     jcbb_truncated += o.jcbb_truncated;
     loop_closures_thin += o.loop_closures_thin;
     loop_closures_ambiguous += o.loop_closures_ambiguous;
