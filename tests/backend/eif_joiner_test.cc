@@ -564,6 +564,22 @@ TEST(EifJoiner, RejectsInvalidInput) {
 
 }  // namespace
 
+namespace {
+
+// (x̂_stopped − x̂_converged)ᵀ Σ⁻¹ (…), Σ the converged joiner's covariance of every anchor
+// and landmark (headings wrapped).
+double SquaredDistanceInCovariance(const EifJoiner& stopped, const EifJoiner& converged) {
+  std::vector<int> anchors, landmarks;
+  for (int k = 1; k < converged.num_anchors(); ++k) anchors.push_back(k);
+  for (int j = 0; j < converged.num_landmarks(); ++j) landmarks.push_back(j);
+  const Eigen::MatrixXd covariance = converged.JointCovariance(anchors, landmarks);
+  Eigen::VectorXd difference = StackedEstimate(stopped) - StackedEstimate(converged);
+  for (size_t k = 0; k < anchors.size(); ++k) difference[3 * k + 2] = WrapAngle(difference[3 * k + 2]);
+  return difference.dot(covariance.ldlt().solve(difference));
+}
+
+}  // namespace
+
 // relinearize_step_chi2, ISEIF's adaptive stop with the Mahalanobis length of the step:
 // Gauss-Newton stops once a step is a small fraction of the estimate's uncertainty. While
 // each step shrinks by at least half (linear convergence), the steps still to come sum to
@@ -583,13 +599,7 @@ TEST(EifJoiner, GaussNewtonStopsWhenTheStepIsSmallInTheInformationMetric) {
   ASSERT_TRUE(converged.Finish().ok());
   ASSERT_TRUE(stopped.Finish().ok());
   EXPECT_LT(stopped.counters().relinearizations, converged.counters().relinearizations);
-  std::vector<int> anchors, landmarks;
-  for (int k = 1; k < converged.num_anchors(); ++k) anchors.push_back(k);
-  for (int j = 0; j < converged.num_landmarks(); ++j) landmarks.push_back(j);
-  const Eigen::MatrixXd covariance = converged.JointCovariance(anchors, landmarks);
-  Eigen::VectorXd difference = StackedEstimate(stopped) - StackedEstimate(converged);
-  for (size_t k = 0; k < anchors.size(); ++k) difference[3 * k + 2] = WrapAngle(difference[3 * k + 2]);
-  const double distance2 = difference.dot(covariance.ldlt().solve(difference));
+  const double distance2 = SquaredDistanceInCovariance(stopped, converged);
   EXPECT_GT(distance2, 0.0);  // it did stop short
   EXPECT_LT(distance2, kStepChi2);
 }
@@ -625,13 +635,7 @@ TEST(EifJoiner, GaussNewtonStopsOnThePredictedStepWithoutAnotherFactorisation) {
   EXPECT_LT(predicted.counters().full_factorizations, confirmed.counters().full_factorizations);
   // The joins after a predicted stop found the factor and η of the kept linearisation.
   EXPECT_EQ(predicted.counters().failed_updates, 0);
-  std::vector<int> anchors, landmarks;
-  for (int k = 1; k < converged.num_anchors(); ++k) anchors.push_back(k);
-  for (int j = 0; j < converged.num_landmarks(); ++j) landmarks.push_back(j);
-  const Eigen::MatrixXd covariance = converged.JointCovariance(anchors, landmarks);
-  Eigen::VectorXd difference = StackedEstimate(predicted) - StackedEstimate(converged);
-  for (size_t k = 0; k < anchors.size(); ++k) difference[3 * k + 2] = WrapAngle(difference[3 * k + 2]);
-  const double distance2 = difference.dot(covariance.ldlt().solve(difference));
+  const double distance2 = SquaredDistanceInCovariance(predicted, converged);
   EXPECT_GT(distance2, 0.0);  // it did stop short
   EXPECT_LT(distance2, kStepChi2);
 }
