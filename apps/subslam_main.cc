@@ -128,7 +128,8 @@ ABSL_FLAG(double, relinearize_step_chi2, kEifDefaults.relinearize_step_chi2,
           "units) falls below this (0: off)");
 ABSL_FLAG(bool, relinearize_predict, kEifDefaults.predict_convergence,
           "eif: stop a relinearisation when the next Gauss-Newton step, solved with the last "
-          "factor, is already below the thresholds (saves the confirming factorisation)");
+          "factor, is below half --relinearize_tolerance or a quarter of "
+          "--relinearize_step_chi2 (saves the confirming factorisation)");
 ABSL_FLAG(int, max_relinearizations, kEifDefaults.max_relinearizations,
           "eif: at most this many iterations per relinearisation");
 ABSL_FLAG(int, relinearize_max_rises, kEifDefaults.divergence_rises,

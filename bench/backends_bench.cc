@@ -51,6 +51,9 @@ ABSL_FLAG(double, eif_relinearize_heading, subslam::backend::EifJoinerOptions{}.
           "SLAM's Table 1)");
 ABSL_FLAG(double, eif_relinearize_step_chi2, subslam::backend::EifJoinerOptions{}.relinearize_step_chi2,
           "eif: Gauss-Newton also stops when the step's dx' Lambda dx falls below this (0: off)");
+ABSL_FLAG(bool, eif_relinearize_predict, subslam::backend::EifJoinerOptions{}.predict_convergence,
+          "eif: Gauss-Newton stops when its next step, solved with the factor at hand, is below "
+          "the thresholds (without the confirming factorisation)");
 ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {
@@ -85,6 +88,7 @@ subslam::app::BackendOptions Options(Backend kind) {
   o.eif.association.known_association = absl::GetFlag(FLAGS_known_association);
   o.eif.relinearize_heading_change = absl::GetFlag(FLAGS_eif_relinearize_heading);
   o.eif.relinearize_step_chi2 = absl::GetFlag(FLAGS_eif_relinearize_step_chi2);
+  o.eif.predict_convergence = absl::GetFlag(FLAGS_eif_relinearize_predict);
   o.ekf.association = o.eif.association;
   return o;
 }

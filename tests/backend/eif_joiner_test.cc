@@ -614,18 +614,18 @@ TEST(EifJoiner, GaussNewtonStopsOnThePredictedStepWithoutAnotherFactorisation) {
   constexpr double kStepChi2 = 1e-3;
   EifJoinerOptions converged_options = ConvergingKnownAssociation();
   converged_options.relinearize_heading_change = 0.02;  // Gauss-Newton during the run too
-  converged_options.predict_convergence = false;        // the reference iterates to 1e-12
   EifJoinerOptions confirmed_options = converged_options;
   confirmed_options.relinearize_step_chi2 = kStepChi2;
   confirmed_options.relinearize_tolerance = 1e-3;
-  confirmed_options.predict_convergence = false;
   EifJoinerOptions predicted_options = confirmed_options;
   predicted_options.predict_convergence = true;
   EifJoiner converged(run.anchors[0], converged_options), confirmed(run.anchors[0], confirmed_options),
       predicted(run.anchors[0], predicted_options);
-  long predicted_during_run = 0;
+  long predicted_during_run = 0, updates_after_a_stop = 0;
   for (const LocalSubmap& s : run.submaps) {
+    const long updates_before = predicted.counters().incremental_updates;
     for (EifJoiner* j : {&converged, &confirmed, &predicted}) ASSERT_TRUE(j->Join(s).ok());
+    if (predicted_during_run > 0) updates_after_a_stop += predicted.counters().incremental_updates - updates_before;
     predicted_during_run = predicted.counters().relinearizations_predicted_converged;
   }
   for (EifJoiner* j : {&converged, &confirmed, &predicted}) ASSERT_TRUE(j->Finish().ok());
@@ -633,8 +633,24 @@ TEST(EifJoiner, GaussNewtonStopsOnThePredictedStepWithoutAnotherFactorisation) {
   EXPECT_GT(predicted.counters().relinearizations_predicted_converged, predicted_during_run);  // and at the end
   EXPECT_EQ(confirmed.counters().relinearizations_predicted_converged, 0);
   EXPECT_LT(predicted.counters().full_factorizations, confirmed.counters().full_factorizations);
-  // The joins after a predicted stop found the factor and η of the kept linearisation.
+  // The joins after a predicted stop updated the factor of the kept linearisation: the
+  // update's check (Λx = η over the factors' H) would fail on the trial one.
+  EXPECT_GT(updates_after_a_stop, 0);
   EXPECT_EQ(predicted.counters().failed_updates, 0);
+  // After the stop at the end, the factor is still that of Λ.
+  {
+    std::vector<int> anchors, landmarks, rows;
+    for (int k = 1; k < predicted.num_anchors(); ++k) {
+      anchors.push_back(k);
+      for (int i = 0; i < 3; ++i) rows.push_back(predicted.anchor_offset(k) + i);
+    }
+    for (int j = 0; j < predicted.num_landmarks(); ++j) {
+      landmarks.push_back(j);
+      for (int i = 0; i < 2; ++i) rows.push_back(predicted.landmark_offset(j) + i);
+    }
+    const Eigen::MatrixXd dense_inverse = Eigen::MatrixXd(predicted.information()).inverse();
+    EXPECT_TRUE(MatricesNear(dense_inverse(rows, rows), predicted.JointCovariance(anchors, landmarks), 1e-9));
+  }
   const double distance2 = SquaredDistanceInCovariance(predicted, converged);
   EXPECT_GT(distance2, 0.0);  // it did stop short
   EXPECT_LT(distance2, kStepChi2);

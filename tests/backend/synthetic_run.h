@@ -92,6 +92,7 @@ inline EifJoinerOptions ConvergingKnownAssociation() {
   o.relinearize_at_end = true;
   o.relinearize_tolerance = 1e-12;
   o.relinearize_step_chi2 = 0.0;  // the step test would stop about 1e-5 m short
+  o.predict_convergence = false;  // every iteration taken
   o.max_relinearizations = 50;
   return o;
 }

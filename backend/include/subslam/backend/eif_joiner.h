@@ -26,11 +26,12 @@
 //  3. the information update above;
 //  4. state recovery by one solve.
 // Relinearisation (ISEIF's adaptive stop, paper 004 §2.3): rebuild every factor at the
-// current estimate and re-solve while the largest state change exceeds
-// `relinearize_tolerance` — after a join that moved an anchor's heading
-// `relinearize_heading_change` from a factor's linearisation (on by default), every
-// `relinearize_every` joins and/or at Finish(); iterated to convergence this is
-// Gauss-Newton over the submap graph.
+// current estimate and re-solve while the step exceeds `relinearize_tolerance` or its χ²
+// length exceeds `relinearize_step_chi2` (or, with `predict_convergence`, until the next
+// step, solved with the factor at hand, is below them) — after a join that moved an
+// anchor's heading `relinearize_heading_change` from a factor's linearisation (on by
+// default), every `relinearize_every` joins and/or at Finish(); iterated to convergence
+// this is Gauss-Newton over the submap graph.
 // Time per stage (association, covariance recovery — association's, plus the marginal
 // bounds recomputed after a relinearisation —, update, factorisation — of which
 // full_factorization —, recovery, recovery_check) is accumulated as in Table 1 of paper 000.
@@ -109,19 +110,22 @@ struct EifJoinerOptions {
   int max_relinearizations = 20;
   // Before each Gauss-Newton iteration after the first, predict its step without
   // factorising: relinearise, and solve for the step with the factor of the previous
-  // linearisation (a step away in heading, the only nonlinear direction). When that step
-  // is below half `relinearize_tolerance` or a quarter of `relinearize_step_chi2` (the
-  // steps still to come sum to less than twice it), Gauss-Newton stops there and keeps the
-  // previous linearisation, whose solution the estimate is; counter
+  // linearisation, a step away (the factor is nonlinear only through the headings, which
+  // that step moved by a few mrad). When that step is below half
+  // `relinearize_tolerance` or a quarter of `relinearize_step_chi2` (the steps still to
+  // come sum to less than twice it), Gauss-Newton stops there and keeps the previous
+  // linearisation, whose solution the estimate is; counter
   // relinearizations_predicted_converged. It saves the last, confirming iteration's
-  // factorisation (about 1 of 3 on combined-2km).
+  // factorisation (1 of 3 on combined-2km) for one solve and two passes over the factors
+  // per iteration; a prediction that does not stop costs only those.
   bool predict_convergence = true;
   // Also relinearise after a join when an anchor's heading has moved this far [rad] from
   // where one of its factors was linearised (the submap factor is nonlinear in the
   // headings only); 0: off. At 0.05 (≈ 3°) combined-2km's loop closes with unknown
   // association on ten seeds of ten (at 0.1, six), and Victoria Park spends 8
   // Gauss-Newton iterations on it over 320 joins (bench/RESULTS.md, seventh session).
-  // After a relinearisation stopped at its best iterate or at max_relinearizations the
+  // After a relinearisation stopped at its best iterate or at max_relinearizations (or
+  // on a predicted step after its first iteration, keeping the first linearisation) the
   // drift can stay above the threshold, and the next joins relinearise again — which
   // carries Gauss-Newton on (measuring the drift from the stopping point instead cost
   // accuracy with max_relinearizations = 1: bench/RESULTS.md, seventh session).
@@ -253,9 +257,10 @@ class EifJoiner final : public MapJoiner {
   void BuildLambdaPattern() const;
   // The variable offsets of every factor, concatenated (what Λ's pattern depends on).
   std::vector<int> FactorOffsets() const;
-  // Gauss-Newton over every factor from the current estimate, to relinearize_tolerance or
-  // max_relinearizations; stopped at the best iterate after divergence_rises cost rises in
-  // a row.
+  // Gauss-Newton over every factor from the current estimate, until a step (taken, or
+  // predicted with predict_convergence) is below relinearize_tolerance or
+  // relinearize_step_chi2, or max_relinearizations; stopped at the best iterate after
+  // divergence_rises cost rises in a row.
   // Gauss-Newton to convergence (GaussNewton), then the marginal bounds from the new
   // factor for the joins that follow.
   absl::Status Relinearize();
