@@ -315,30 +315,37 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
 
 void EifJoiner::BuildLambdaPattern() const {
   // Each variable block by its first row: its size and the sorted first rows of the
-  // blocks it shares a factor with (itself included).
-  std::vector<int> size_of(dim_, 0);
-  std::vector<std::vector<int>> neighbours(dim_);
+  // blocks it shares a factor with (itself included), all lists in one flat array
+  // (block o's from first[o], unique ones first, length unique[o]).
+  std::vector<int> size_of(dim_, 0), first(dim_ + 1, 0), unique(dim_, 0);
   size_t count = 0;
   for (const Factor& f : factors_) {
     count += static_cast<size_t>(f.H.size());
     for (size_t b = 0; b < f.offsets.size(); ++b) {
       size_of[f.offsets[b]] = f.sizes[b];
-      for (size_t a = 0; a < f.offsets.size(); ++a) neighbours[f.offsets[b]].push_back(f.offsets[a]);
+      first[f.offsets[b] + 1] += static_cast<int>(f.offsets.size());
     }
   }
-  // Rows above each neighbour within a column of block b, in neighbours[b]'s order.
-  std::vector<std::vector<int>> above(dim_);
+  for (int o = 0; o < dim_; ++o) first[o + 1] += first[o];
+  std::vector<int> neighbour(static_cast<size_t>(first[dim_]));
+  std::vector<int> fill(first.begin(), first.end() - 1);
+  for (const Factor& f : factors_) {
+    for (int b : f.offsets) {
+      for (int a : f.offsets) neighbour[fill[b]++] = a;
+    }
+  }
+  // Rows above each neighbour within a column of block o, in its list's order.
+  std::vector<int> above(neighbour.size());
   std::vector<int> column_rows(dim_, 0);
   for (int o = 0; o < dim_; ++o) {
     if (size_of[o] == 0) continue;
-    std::vector<int>& list = neighbours[o];
-    std::sort(list.begin(), list.end());
-    list.erase(std::unique(list.begin(), list.end()), list.end());
+    int* begin = neighbour.data() + first[o];
+    std::sort(begin, neighbour.data() + first[o + 1]);
+    unique[o] = static_cast<int>(std::unique(begin, neighbour.data() + first[o + 1]) - begin);
     int rows = 0;
-    above[o].reserve(list.size());
-    for (int u : list) {
-      above[o].push_back(rows);
-      rows += size_of[u];
+    for (int k = 0; k < unique[o]; ++k) {
+      above[first[o] + k] = rows;
+      rows += size_of[begin[k]];
     }
     for (int j = 0; j < size_of[o]; ++j) column_rows[o + j] = rows;
   }
@@ -353,8 +360,8 @@ void EifJoiner::BuildLambdaPattern() const {
   for (int o = 0; o < dim_; ++o) {
     for (int j = 0; j < size_of[o]; ++j) {
       int* row = inner + outer[o + j];
-      for (int u : neighbours[o]) {
-        for (int i = 0; i < size_of[u]; ++i) *row++ = u + i;
+      for (int k = first[o]; k < first[o] + unique[o]; ++k) {
+        for (int i = 0; i < size_of[neighbour[k]]; ++i) *row++ = neighbour[k] + i;
       }
     }
   }
@@ -368,9 +375,9 @@ void EifJoiner::BuildLambdaPattern() const {
       const int size_a = f.sizes[a];
       for (size_t b = 0; b < f.offsets.size(); ++b) {
         const int size_b = f.sizes[b];
-        const std::vector<int>& list = neighbours[f.offsets[b]];
-        const int rank = static_cast<int>(std::lower_bound(list.begin(), list.end(), f.offsets[a]) - list.begin());
-        const int base = above[f.offsets[b]][rank];
+        const int* list = neighbour.data() + first[f.offsets[b]];
+        const int rank = static_cast<int>(std::lower_bound(list, list + unique[f.offsets[b]], f.offsets[a]) - list);
+        const int base = above[first[f.offsets[b]] + rank];
         for (int i = 0; i < size_a; ++i) {
           for (int j = 0; j < size_b; ++j) {
             lambda_slots_[next + static_cast<size_t>(i * size_b + j)] = outer[f.offsets[b] + j] + base + i;
