@@ -90,6 +90,10 @@ ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | do
 ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
 ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
 ABSL_FLAG(int, ceres_every, 0, "ceres: also solve the graph every K joins during the run (0: at the end only)");
+ABSL_FLAG(bool, join_in_background, false,
+          "run: join each closed local map on a thread of its own while the front-end builds the "
+          "next (the online pose one join behind; rbpf with --threads 0 then keeps one core "
+          "for the joins)");
 ABSL_FLAG(double, join_anchor_radius, kEifDefaults.association.anchor_search_radius_m,
           "eif: earlier local maps with an anchor within this of the start anchor give "
           "association candidates [m] (2·TH1)");
@@ -335,6 +339,7 @@ absl::StatusOr<subslam::app::BackendOptions> BackendOptionsFromFlags() {
   if (!ceres.ok()) return ceres.status();
   o.ceres = *ceres;
   o.ceres_every = absl::GetFlag(FLAGS_ceres_every);
+  o.background = absl::GetFlag(FLAGS_join_in_background);
   if (absl::Status st = o.Validate(); !st.ok()) return st;
   return o;
 }

@@ -69,6 +69,38 @@ SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
   if (backend_ == Backend::kEif || backend_ == Backend::kCeres) eif_ = static_cast<backend::EifJoiner*>(joiner_.get());
+  background_ = backend.background && joiner_ != nullptr;
+  if (background_) join_thread_ = std::thread([this] { JoinWorker(); });
+}
+
+SubmapSlam::~SubmapSlam() {
+  if (!join_thread_.joinable()) return;
+  {
+    std::lock_guard<std::mutex> lock(join_mutex_);
+    join_stop_ = true;
+  }
+  join_wanted_.notify_one();
+  join_thread_.join();
+}
+
+void SubmapSlam::JoinWorker() {
+  std::unique_lock<std::mutex> lock(join_mutex_);
+  while (true) {
+    join_wanted_.wait(lock, [this] { return join_stop_ || joining_.has_value(); });
+    if (!joining_.has_value()) return;  // stopped, nothing pending
+    lock.unlock();
+    JoinOne(*joining_);  // joining_ is not touched by anyone else while it is set
+    lock.lock();
+    joining_.reset();
+    join_busy_.store(false, std::memory_order_relaxed);
+    join_done_.notify_all();
+  }
+}
+
+void SubmapSlam::WaitForJoins() const {
+  if (!background_) return;
+  std::unique_lock<std::mutex> lock(join_mutex_);
+  join_done_.wait(lock, [this] { return !joining_.has_value(); });
 }
 
 std::string SubmapSlam::Name() const {
@@ -76,6 +108,8 @@ std::string SubmapSlam::Name() const {
 }
 
 void SubmapSlam::Update(const io::Scan& scan) {
+  // While a join runs, its thread has a core of its own.
+  if (background_) mapper_->SetSpareCores(join_busy_.load(std::memory_order_relaxed) ? 1 : 0);
   last_scan_map_id_ = mapper_->current_map_id();
   mapper_->Update(scan);
   JoinClosed();
@@ -86,24 +120,24 @@ void SubmapSlam::JoinClosed() {
   if (newly_closed.empty()) return;  // the anchor changes only when a map closes
   for (frontend::ClosedLocalMap& c : newly_closed) {
     const LocalSubmap& s = c.submap;
-    if (joiner_) {
-      // After a failed join the joiner is left as it was (or without a factor): nothing
-      // more is joined or asked of it, and Finish() reports the error.
-      if (!status_.ok()) {
-        closed_.push_back(std::move(c));
-        continue;
+    if (joiner_ && background_) {
+      WaitForJoins();  // the previous map's join
+      if (status_.ok()) {
+        // One join behind: s's start anchor as joined so far, through s's end pose.
+        Eigen::Matrix3d J_a, J_e;
+        const Eigen::Matrix3d start_covariance = joiner_->LastAnchorCovariance();
+        anchor_ = Compose(joiner_->LastAnchor(), s.end_pose(), &J_a, &J_e);
+        anchor_covariance_ = J_a * start_covariance * J_a.transpose() +
+                             J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose();
+        {
+          std::lock_guard<std::mutex> lock(join_mutex_);
+          joining_ = s;
+          join_busy_.store(true, std::memory_order_relaxed);
+        }
+        join_wanted_.notify_one();
       }
-      if (absl::Status st = joiner_->Join(s); !st.ok()) {
-        // Name the map unless the message does (LocalSubmap::Validate's do).
-        const std::string map = absl::StrCat("local map ", s.id);
-        status_ = absl::StrContains(st.message(), map)
-                      ? st
-                      : absl::Status(st.code(), absl::StrCat("joining ", map, ": ", st.message()));
-      }
-      ++joins_;
-      if (backend_ == Backend::kCeres && ceres_every_ > 0 && joins_ % ceres_every_ == 0 && status_.ok()) {
-        status_ = SolveAndAdopt();
-      }
+    } else if (joiner_) {
+      JoinOne(s);
     } else {
       Eigen::Matrix3d J_a, J_e;
       const Pose2 next = Compose(chain_.back(), s.end_pose(), &J_a, &J_e);
@@ -114,12 +148,29 @@ void SubmapSlam::JoinClosed() {
     closed_.push_back(std::move(c));
   }
   if (joiner_) {
-    if (!status_.ok()) return;  // the anchor stays the last one joined
+    if (background_ || !status_.ok()) return;  // set above, or the last one joined stays
     anchor_ = joiner_->LastAnchor();  // the tree joiner answers without folding its nodes
     anchor_covariance_ = joiner_->LastAnchorCovariance();
   } else {
     anchor_ = chain_.back();
     anchor_covariance_ = chain_covariance_.back();
+  }
+}
+
+void SubmapSlam::JoinOne(const LocalSubmap& s) {
+  // After a failed join the joiner is left as it was (or without a factor): nothing
+  // more is joined or asked of it, and Finish() reports the error.
+  if (!status_.ok()) return;
+  if (absl::Status st = joiner_->Join(s); !st.ok()) {
+    // Name the map unless the message does (LocalSubmap::Validate's do).
+    const std::string map = absl::StrCat("local map ", s.id);
+    status_ = absl::StrContains(st.message(), map)
+                  ? st
+                  : absl::Status(st.code(), absl::StrCat("joining ", map, ": ", st.message()));
+  }
+  ++joins_;
+  if (backend_ == Backend::kCeres && ceres_every_ > 0 && joins_ % ceres_every_ == 0 && status_.ok()) {
+    status_ = SolveAndAdopt();
   }
 }
 
@@ -161,6 +212,7 @@ void SubmapSlam::RecordStep(double t) {
 absl::Status SubmapSlam::Finish() {
   mapper_->Finish();
   JoinClosed();
+  WaitForJoins();
   if (joiner_ && status_.ok()) status_ = joiner_->Finish();
   if (backend_ == Backend::kCeres && status_.ok()) status_ = SolveAndAdopt();
   if (joiner_ && status_.ok()) {  // the online pose after the run: on the final estimate
@@ -171,6 +223,7 @@ absl::Status SubmapSlam::Finish() {
 }
 
 Trajectory SubmapSlam::FinalTrajectory() const {
+  WaitForJoins();
   Trajectory out;
   out.reserve(steps_.size());
   if (steps_.empty()) return out;
@@ -193,6 +246,7 @@ Trajectory SubmapSlam::FinalTrajectory() const {
 }
 
 std::vector<LandmarkEstimate> SubmapSlam::Map() const {
+  WaitForJoins();
   std::vector<LandmarkEstimate> out;
   if (joiner_) {
     const std::vector<Eigen::Matrix2d> covariances = joiner_->LandmarkCovariances();
@@ -214,6 +268,7 @@ std::vector<LandmarkEstimate> SubmapSlam::Map() const {
 }
 
 frontend::StageTimes SubmapSlam::stage_times() const {
+  WaitForJoins();
   frontend::StageTimes times = mapper_->stage_times();
   if (joiner_) {
     for (const auto& [stage, seconds] : joiner_->stage_times()) times["join_" + stage] = seconds;
@@ -223,6 +278,7 @@ frontend::StageTimes SubmapSlam::stage_times() const {
 }
 
 std::map<std::string, double> SubmapSlam::Counters() const {
+  WaitForJoins();
   std::map<std::string, double> out = mapper_->Counters();
   if (joiner_) {
     out["join_associated_features"] = joiner_->counters().associated;

@@ -570,6 +570,9 @@ void FastSlam::Update(const io::Scan& scan) {
   }
   decisions_.assign(static_cast<size_t>(P) * m, kIgnore);
   decision_label_.assign(static_cast<size_t>(P) * m, kIgnore);
+  // Both runs below use the same threads: the second updates the particles each thread
+  // associated in the first.
+  const int threads = thread_limit_;
   {
     StageTimer timer(&times_, "associate");
     // Particles are handed out in small chunks as threads become free (the threads do
@@ -591,7 +594,7 @@ void FastSlam::Update(const io::Scan& scan) {
           }
         }
       }
-    });
+    }, threads);
     for (Scratch& scratch : scratch_) {
       counters_.associated += scratch.associated;
       counters_.ignored += scratch.ignored;
@@ -616,7 +619,7 @@ void FastSlam::Update(const io::Scan& scan) {
         ApplyDecisions(&particles_[p], z_, signature_, decisions_.data() + static_cast<size_t>(p) * m,
                        &scratch_[t]);
       }
-    });
+    }, threads);
     for (Scratch& scratch : scratch_) {
       counters_.landmark_copies += scratch.landmark_copies;
       counters_.landmarks_created += scratch.landmarks_created;
@@ -628,6 +631,8 @@ void FastSlam::Update(const io::Scan& scan) {
   // local map closed now see the weighted particles rather than resampled duplicates.
   resample_pending_ = last_ess_ratio_ < options_.resample_ess_ratio;
 }
+
+int FastSlam::threads() const { return pool_->threads(); }
 
 void FastSlam::Normalise() {
   double max_log = -INFINITY;

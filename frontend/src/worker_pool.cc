@@ -1,5 +1,7 @@
 #include "subslam/frontend/internal/worker_pool.h"
 
+#include <algorithm>
+
 #include "subslam/graph/internal/check.h"
 
 namespace subslam::frontend {
@@ -29,12 +31,14 @@ bool WorkerPool::SpinUntil(Done done) const {
   return true;
 }
 
-void WorkerPool::Run(const std::function<void(int)>& body) {
-  if (workers_.empty()) {
+void WorkerPool::Run(const std::function<void(int)>& body, int active) {
+  active = active > 0 ? std::min(active, threads()) : threads();
+  if (active == 1) {
     body(0);
     return;
   }
   body_ = &body;
+  active_ = active;
   pending_.store(static_cast<int>(workers_.size()), std::memory_order_relaxed);
   {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -63,7 +67,7 @@ void WorkerPool::Work(int t) {
       std::lock_guard<std::mutex> lock(mutex_);
       if (stop_) return;
     }
-    (*body_)(t);
+    if (t < active_) (*body_)(t);
     if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
       std::lock_guard<std::mutex> lock(mutex_);  // the caller may be between test and wait
       finished_.notify_one();

@@ -94,6 +94,57 @@ TEST(SubmapPipeline, EkfLocalMapsJoinedByEifBeatChaining) {
   }
 }
 
+// Background joins (BackendOptions::background): the final trajectory and the map are
+// those of the synchronous run, to the bit; the online pose is one join behind — the
+// same while maps 0 and 1 are built (map 0's join changes nothing before map 1 closes),
+// different later — and the same from run to run whatever the RBPF's thread count (it
+// gives the join a core while one runs).
+TEST(SubmapPipeline, BackgroundJoinsGiveTheSynchronousEstimatesWithTheOnlinePoseOneJoinBehind) {
+  sim::ScenarioOptions scenario;
+  scenario.seed = 3;
+  scenario.duration_s = 40.0;
+  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", scenario);
+  ASSERT_TRUE(d.ok()) << d.status();
+  RunOptions options;
+  options.frontend = Frontend::kRbpf;
+  options.backend.kind = Backend::kEif;
+  options.fastslam.num_threads = 2;
+  absl::StatusOr<RunResult> synchronous = RunPipeline(*d, options);
+  ASSERT_TRUE(synchronous.ok()) << synchronous.status();
+  options.backend.background = true;
+  absl::StatusOr<RunResult> background = RunPipeline(*d, options);
+  ASSERT_TRUE(background.ok()) << background.status();
+  options.fastslam.num_threads = 1;
+  absl::StatusOr<RunResult> one_thread = RunPipeline(*d, options);
+  ASSERT_TRUE(one_thread.ok()) << one_thread.status();
+  ASSERT_GE(synchronous->local_maps.size(), 5u);
+
+  ASSERT_EQ(background->final_trajectory.size(), synchronous->final_trajectory.size());
+  for (size_t k = 0; k < synchronous->final_trajectory.size(); ++k) {
+    ASSERT_EQ(background->final_trajectory[k].pose.vector(), synchronous->final_trajectory[k].pose.vector()) << k;
+    ASSERT_EQ(background->final_trajectory[k].covariance, synchronous->final_trajectory[k].covariance) << k;
+  }
+  ASSERT_EQ(background->landmarks.size(), synchronous->landmarks.size());
+  for (size_t j = 0; j < synchronous->landmarks.size(); ++j) {
+    ASSERT_EQ(background->landmarks[j].position, synchronous->landmarks[j].position) << j;
+  }
+  // Online: the same until map 1 closes (map 0's join only solves for the anchor it
+  // initialised, to rounding), then one join behind.
+  const double map1_end = synchronous->local_maps[1].t_end;
+  size_t differing = 0;
+  for (size_t k = 0; k < synchronous->online.size(); ++k) {
+    const double difference =
+        (background->online[k].pose.vector() - synchronous->online[k].pose.vector()).cwiseAbs().maxCoeff();
+    if (synchronous->online[k].t < map1_end) {
+      ASSERT_LT(difference, 1e-9) << "step " << k << " at " << synchronous->online[k].t << " s";
+    }
+    differing += difference > 1e-6 ? 1 : 0;
+    ASSERT_EQ(one_thread->online[k].pose.vector(), background->online[k].pose.vector()) << k;
+  }
+  EXPECT_GT(differing, synchronous->online.size() / 4);
+  EXPECT_FALSE(background->errors_online->failed);
+}
+
 // --backend ceres: the EIF's association, then one Ceres solve of the whole graph; the
 // final trajectory is at least as good as the single-linearisation EIF's on the same run.
 TEST(SubmapPipeline, CeresSolveAfterTheEif) {

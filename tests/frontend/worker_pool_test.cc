@@ -42,5 +42,18 @@ TEST(WorkerPool, SharesWorkThroughACounter) {
   for (int i = 0; i < 1000; ++i) EXPECT_GE(owner[i], 0) << i;
 }
 
+// Run(body, active) calls the body for the first `active` thread indices only (0 or more
+// than threads(): all), so a caller can leave cores to other threads between runs.
+TEST(WorkerPool, RunsOnlyTheActiveThreadIndices) {
+  WorkerPool pool(3);
+  for (int run = 0; run < 300; ++run) {
+    const int active = run % 5;  // 0 (all), 1, 2, 3, 4 (all)
+    std::vector<std::atomic<int>> calls(3);
+    pool.Run([&](int t) { calls[t].fetch_add(1, std::memory_order_relaxed); }, active);
+    const int expected = active == 0 || active > 3 ? 3 : active;
+    for (int t = 0; t < 3; ++t) ASSERT_EQ(calls[t].load(), t < expected ? 1 : 0) << "run " << run << ", thread " << t;
+  }
+}
+
 }  // namespace
 }  // namespace subslam::frontend

@@ -18,15 +18,28 @@
 //
 // pose() is the current start anchor composed with the local map's pose; its covariance
 // adds the anchor's marginal and the local pose's covariance (their correlation is
-// ignored). After Finish(), FinalTrajectory() re-expresses every recorded step with the
+// ignored).
+//
+// Background joins (BackendOptions::background): each closed local map is joined on a
+// thread of its own while the front-end goes on with the next map, so the front-end
+// never waits for association and factorisation. The online pose is then one join
+// behind, and deterministic: while map k + 1 is built, its start anchor is map k's start
+// anchor as joined so far composed with map k's end pose (covariance to first order), and
+// map k's join must be done before map k + 1 closes (the front-end waits for it there).
+// The final trajectory, the map and the marginals are those of the synchronous run. The
+// joiner-backed accessors wait for a pending join. After Finish(), FinalTrajectory() re-expresses every recorded step with the
 // final anchors, and Map() is the global map (kNone: every local map's features through
 // its anchor, id = map · 10⁶ + feature, duplicates included).
 #ifndef SUBSLAM_APP_SUBMAP_SLAM_H_
 #define SUBSLAM_APP_SUBMAP_SLAM_H_
 
+#include <atomic>
+#include <condition_variable>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -51,6 +64,8 @@ struct BackendOptions {
   backend::TreeJoinerOptions tree;  // tree-ekf, tree-eif
   backend::CeresSolveOptions ceres; // ceres
   int ceres_every = 0;              // ceres: also solve every K joins (0: at the end only)
+  // Join on a background thread, the online pose one join behind (see SubmapSlam).
+  bool background = false;
 
   absl::Status Validate() const;
 };
@@ -63,6 +78,9 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   // `backend` must be valid (BackendOptions::Validate).
   SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
              const BackendOptions& backend);
+  ~SubmapSlam() override;
+  SubmapSlam(const SubmapSlam&) = delete;
+  SubmapSlam& operator=(const SubmapSlam&) = delete;
 
   std::string Name() const override;
   void Predict(const Eigen::Vector2d& u, double dt) override { mapper_->Predict(u, dt); }
@@ -84,13 +102,24 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   int last_scan_map_id() const { return last_scan_map_id_; }
   const std::vector<int>& last_scan_features() const { return mapper_->last_scan_features(); }
   // The back-end's joiner (nullptr for kNone).
-  const backend::MapJoiner* joiner() const { return joiner_.get(); }
+  const backend::MapJoiner* joiner() const {
+    WaitForJoins();
+    return joiner_.get();
+  }
   // kCeres, after Finish(): Ceres's summary.
-  const std::optional<backend::CeresSolveReport>& ceres_report() const { return ceres_report_; }
+  const std::optional<backend::CeresSolveReport>& ceres_report() const {
+    WaitForJoins();
+    return ceres_report_;
+  }
   static constexpr int kFeatureIdStride = 1000000;
 
  private:
   void JoinClosed();
+  // Joins one local map (and solves with Ceres on its schedule); records the first error.
+  void JoinOne(const LocalSubmap& s);
+  // Background joins: until the join in progress, if any, is done.
+  void WaitForJoins() const;
+  void JoinWorker();
   // The start anchor of local map k and its marginal covariance.
   Pose2 Anchor(int k) const;
   Eigen::Matrix3d AnchorCovariance(int k) const;
@@ -122,7 +151,18 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   };
   std::vector<StepRecord> steps_;
   int last_scan_map_id_ = 0;
-  absl::Status status_;
+  absl::Status status_;  // written by the joining thread while a join is pending
+  // Background joins: the map being joined (set until its join is done), guarded by
+  // join_mutex_; the joiner, status_ and the Ceres fields belong to the joining thread
+  // while it is set.
+  bool background_ = false;
+  mutable std::mutex join_mutex_;
+  mutable std::condition_variable join_done_;
+  std::condition_variable join_wanted_;
+  std::optional<LocalSubmap> joining_;
+  std::atomic<bool> join_busy_{false};  // joining_ is set (read without the lock)
+  bool join_stop_ = false;
+  std::thread join_thread_;
 };
 
 }  // namespace subslam::app

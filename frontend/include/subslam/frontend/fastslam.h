@@ -155,6 +155,10 @@ class FastSlam final : public OnlineEstimator {
   // Starts over at `start` with zero uncertainty, no landmarks and equal weights (a new
   // local map). Common feature ids keep increasing across resets.
   void Reset(const Pose2& start);
+  // At most this many of its threads for the next scans (0: all), e.g. while another
+  // thread of the process needs a core; the results do not change.
+  void set_thread_limit(int threads) { thread_limit_ = threads; }
+  int threads() const;  // of its pool
   // The particles as Gaussian hypotheses, ready for MomentMatch().
   std::vector<ParticleHypothesis> Hypotheses() const;
   MomentMatchedGaussian MomentMatched() const;
@@ -282,6 +286,7 @@ class FastSlam final : public OnlineEstimator {
   std::mt19937_64 rng_;                         // resampling
   std::vector<std::mt19937_64> particle_rngs_;  // one stream per particle slot
   std::unique_ptr<WorkerPool> pool_;
+  int thread_limit_ = 0;
   std::vector<Scratch> scratch_;                // one per thread
   std::vector<int> owner_;                      // the thread that associated each particle
   static constexpr int kChunk = 4;              // particles a thread takes at a time

@@ -11,6 +11,7 @@
 #ifndef SUBSLAM_FRONTEND_LOCAL_MAPPER_H_
 #define SUBSLAM_FRONTEND_LOCAL_MAPPER_H_
 
+#include <algorithm>
 #include <map>
 #include <memory>
 #include <string>
@@ -51,6 +52,9 @@ class LocalMapper {
   StageTimes stage_times() const;
   // The mapper's counters (local maps, closes by reason, repairs) and the filter's.
   std::map<std::string, double> Counters() const;
+  // Leave this many cores to other threads of the process in the next updates (a mapper
+  // with threads of its own uses fewer; the results do not change). Default: ignored.
+  virtual void SetSpareCores(int /*cores*/) {}
 
  protected:
   LocalMapper(const SubmapPolicyOptions& policy, const models::RangeBearingConfig& sensor,
@@ -98,6 +102,9 @@ class RbpfLocalMapper final : public LocalMapper {
     return filter_.last_scan_features();
   }
   const FastSlam& filter() const { return filter_; }
+  void SetSpareCores(int cores) override {
+    filter_.set_thread_limit(cores > 0 ? std::max(1, filter_.threads() - cores) : 0);
+  }
 
  private:
   void FilterPredict(const Eigen::Vector2d& u, double dt) override { filter_.Predict(u, dt); }

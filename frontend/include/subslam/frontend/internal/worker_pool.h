@@ -30,7 +30,9 @@ class WorkerPool {
   WorkerPool& operator=(const WorkerPool&) = delete;
 
   int threads() const { return static_cast<int>(workers_.size()) + 1; }
-  void Run(const std::function<void(int t)>& body);
+  // body(t) for t in [0, active) (0 or more than threads(): every thread); with one
+  // active thread the workers are not woken.
+  void Run(const std::function<void(int t)>& body, int active = 0);
 
  private:
   void Work(int t);
@@ -43,6 +45,7 @@ class WorkerPool {
   std::mutex mutex_;
   std::condition_variable start_, finished_;
   const std::function<void(int)>* body_ = nullptr;  // written before generation_ moves
+  int active_ = 0;                                   // likewise
   std::atomic<long> generation_{0};                 // changed under mutex_
   std::atomic<int> pending_{0};                     // workers still in the current run
   bool stop_ = false;                               // guarded by mutex_
