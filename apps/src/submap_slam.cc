@@ -6,6 +6,7 @@
 #include "subslam/graph/internal/check.h"
 
 #include <algorithm>
+#include <exception>
 
 namespace subslam::app {
 
@@ -89,7 +90,11 @@ void SubmapSlam::JoinWorker() {
     join_wanted_.wait(lock, [this] { return join_stop_ || joining_.has_value(); });
     if (!joining_.has_value()) return;  // stopped, nothing pending
     lock.unlock();
-    JoinOne(*joining_);  // joining_ is not touched by anyone else while it is set
+    try {
+      JoinOne(*joining_);  // joining_ is not touched by anyone else while it is set
+    } catch (const std::exception& e) {  // e.g. out of memory: reported by Finish()
+      status_ = absl::InternalError(absl::StrCat("joining local map ", joining_->id, ": ", e.what()));
+    }
     lock.lock();
     joining_.reset();
     join_busy_.store(false, std::memory_order_relaxed);

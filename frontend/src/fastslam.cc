@@ -573,6 +573,7 @@ void FastSlam::Update(const io::Scan& scan) {
   // Both runs below use the same threads: the second updates the particles each thread
   // associated in the first.
   const int threads = thread_limit_;
+  if (threads > 0 && threads < pool_->threads()) ++counters_.scans_with_fewer_threads;
   {
     StageTimer timer(&times_, "associate");
     // Particles are handed out in small chunks as threads become free (the threads do
@@ -832,6 +833,7 @@ std::map<std::string, double> FastSlam::Counters() const {
           {"landmarks_culled_all_particles", counters_.landmarks_culled},
           {"landmark_copies", counters_.landmark_copies},
           {"common_features_issued", counters_.features},
+          {"scans_with_fewer_threads", counters_.scans_with_fewer_threads},
           {"mean_landmarks_per_particle", landmarks / num_particles()}};
 }
 

@@ -56,9 +56,10 @@ void WorkerPool::Run(const std::function<void(int)>& body, int active) {
 
 void WorkerPool::Work(int t) {
   long seen = 0;
+  bool spin = true;  // not after a run it sat out: its core is meant for another thread
   while (true) {
     const auto started = [&] { return generation_.load(std::memory_order_acquire) != seen; };
-    if (!SpinUntil(started)) {
+    if (!spin || !SpinUntil(started)) {
       std::unique_lock<std::mutex> lock(mutex_);
       start_.wait(lock, started);
     }
@@ -67,7 +68,8 @@ void WorkerPool::Work(int t) {
       std::lock_guard<std::mutex> lock(mutex_);
       if (stop_) return;
     }
-    if (t < active_) (*body_)(t);
+    spin = t < active_;
+    if (spin) (*body_)(t);
     if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
       std::lock_guard<std::mutex> lock(mutex_);  // the caller may be between test and wait
       finished_.notify_one();

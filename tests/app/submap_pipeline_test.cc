@@ -9,6 +9,8 @@
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/models/gating.h"
 #include "subslam/app/run_pipeline.h"
+#include "subslam/app/submap_slam.h"
+#include "subslam/io/steps.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/sim/simulator.h"
 
@@ -143,6 +145,59 @@ TEST(SubmapPipeline, BackgroundJoinsGiveTheSynchronousEstimatesWithTheOnlinePose
   }
   EXPECT_GT(differing, synchronous->online.size() / 4);
   EXPECT_FALSE(background->errors_online->failed);
+  // Only a background run leaves the joins a core (how many scans depends on timing;
+  // FastSlam.ThreadLimitChangesNothingButTheThreadsUsed tests the limit itself).
+  EXPECT_EQ(synchronous->report["estimator_counters"]["scans_with_fewer_threads"].get<double>(), 0.0);
+}
+
+// The online pose one join behind, exactly: right after the update that closes map k,
+// the pose is the joiner's last anchor before that update (map k's start anchor as
+// joined so far) composed with map k's end pose (the new map's local pose is the
+// identity). A SubmapSlam destroyed while a join runs finishes it first.
+TEST(SubmapSlam, BackgroundOnlinePoseIsTheLastJoinedAnchorThroughTheClosedMapsEndPose) {
+  sim::ScenarioOptions scenario;
+  scenario.seed = 4;
+  scenario.duration_s = 30.0;
+  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", scenario);
+  ASSERT_TRUE(d.ok()) << d.status();
+  const auto make = [&d] {
+    frontend::FastSlamOptions fastslam;
+    fastslam.num_threads = 2;
+    const double t0 = d->controls.empty() ? 0.0 : d->controls.front().t;
+    auto mapper = std::make_unique<frontend::RbpfLocalMapper>(d->motion.MakeModel(), d->sensor.range_bearing,
+                                                              fastslam, frontend::SubmapPolicyOptions{}, t0);
+    BackendOptions backend;
+    backend.kind = Backend::kEif;
+    backend.background = true;
+    return std::make_unique<SubmapSlam>(std::move(mapper), d->initial_pose, backend);
+  };
+  std::unique_ptr<SubmapSlam> slam = make(), abandoned = make();
+  int closes = 0;
+  for (const io::Step& step : io::BuildSteps(*d)) {
+    slam->Predict(step.control, step.dt);
+    if (abandoned) abandoned->Predict(step.control, step.dt);
+    if (step.scan_index < 0) continue;
+    const io::Scan& scan = d->scans[step.scan_index];
+    const Pose2 last_joined = slam->joiner()->LastAnchor();  // waits for the pending join
+    const size_t maps = slam->local_maps().size();
+    slam->Update(scan);
+    if (abandoned) {
+      const size_t abandoned_maps = abandoned->local_maps().size();
+      abandoned->Update(scan);
+      if (abandoned->local_maps().size() > abandoned_maps && abandoned_maps >= 2) abandoned.reset();  // mid-join
+    }
+    if (slam->local_maps().size() == maps) continue;
+    ASSERT_EQ(slam->local_maps().size(), maps + 1);
+    const Pose2 expected = Compose(last_joined, slam->local_maps().back().submap.end_pose());
+    const Eigen::Vector3d difference = slam->pose().vector() - expected.vector();
+    EXPECT_LT(difference.head<2>().norm(), 1e-9) << "map " << maps;
+    EXPECT_LT(std::abs(WrapAngle(difference[2])), 1e-12) << "map " << maps;
+    ++closes;
+  }
+  EXPECT_EQ(abandoned, nullptr);
+  EXPECT_GE(closes, 5);
+  ASSERT_TRUE(slam->Finish().ok());
+  EXPECT_EQ(slam->joiner()->num_anchors(), static_cast<int>(slam->local_maps().size()) + 1);
 }
 
 // --backend ceres: the EIF's association, then one Ceres solve of the whole graph; the

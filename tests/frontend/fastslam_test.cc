@@ -89,6 +89,38 @@ TEST(FastSlam, ThreadCountDoesNotChangeTheRun) {
   }
 }
 
+// set_thread_limit (what a background join asks of the RBPF) changes only how many of
+// the pool's threads a scan uses: a limit that changes from scan to scan gives the
+// one-thread run, and the scans run below the pool's size are counted.
+TEST(FastSlam, ThreadLimitChangesNothingButTheThreadsUsed) {
+  const io::Dataset d = Simulate("hybrid-120m", 5, 30.0);
+  FastSlamOptions options;
+  options.num_particles = 37;
+  options.num_threads = 1;
+  FastSlam one(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  const Trajectory t1 = RunFilter(&one, d);
+  options.num_threads = 3;
+  FastSlam limited(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  ASSERT_EQ(limited.threads(), 3);
+  Trajectory tl;
+  long scans = 0, expected_limited = 0;
+  for (const io::Step& step : io::BuildSteps(d)) {
+    limited.Predict(step.control, step.dt);
+    if (step.scan_index >= 0) {
+      const int limit = static_cast<int>(scans++ % 4);  // 0 (all), 1, 2, 3 (all)
+      expected_limited += limit == 1 || limit == 2 ? 1 : 0;
+      limited.set_thread_limit(limit);
+      limited.Update(d.scans[step.scan_index]);
+    }
+    tl.push_back({step.t, limited.pose(), limited.pose_covariance()});
+  }
+  ASSERT_EQ(t1.size(), tl.size());
+  for (size_t k = 0; k < t1.size(); ++k) ASSERT_EQ(t1[k].pose.vector(), tl[k].pose.vector()) << "step " << k;
+  EXPECT_EQ(limited.counters().scans_with_fewer_threads, expected_limited);
+  EXPECT_GT(expected_limited, 0);
+  EXPECT_EQ(one.counters().scans_with_fewer_threads, 0);
+}
+
 // pose() and pose_covariance() come from per-scan sums in O(1) per step; they equal the
 // weighted moments of the particles' current poses (mean, spread and each particle's
 // motion covariance), computed directly, at every step — between scans too.

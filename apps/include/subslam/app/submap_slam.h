@@ -21,13 +21,14 @@
 // ignored).
 //
 // Background joins (BackendOptions::background): each closed local map is joined on a
-// thread of its own while the front-end goes on with the next map, so the front-end
-// never waits for association and factorisation. The online pose is then one join
-// behind, and deterministic: while map k + 1 is built, its start anchor is map k's start
-// anchor as joined so far composed with map k's end pose (covariance to first order), and
-// map k's join must be done before map k + 1 closes (the front-end waits for it there).
-// The final trajectory, the map and the marginals are those of the synchronous run. The
-// joiner-backed accessors wait for a pending join. After Finish(), FinalTrajectory() re-expresses every recorded step with the
+// thread of its own while the front-end goes on with the next map, and while a join runs
+// the local mapper leaves it a core (LocalMapper::SetSpareCores). The front-end waits
+// only when a join outlasts the next map: map k's join must be done before map k + 1
+// closes. The online pose is one join behind, and deterministic: while map k + 1 is
+// built, its start anchor is map k's start anchor as joined so far composed with map k's
+// end pose (covariance to first order). The final trajectory, the map and the marginals
+// are those of the synchronous run. The joiner-backed accessors wait for a pending join;
+// what joiner() and ceres_report() return is valid until the next Update() or Finish(). After Finish(), FinalTrajectory() re-expresses every recorded step with the
 // final anchors, and Map() is the global map (kNone: every local map's features through
 // its anchor, id = map · 10⁶ + feature, duplicates included).
 #ifndef SUBSLAM_APP_SUBMAP_SLAM_H_

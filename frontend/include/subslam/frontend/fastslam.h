@@ -131,8 +131,9 @@ struct FastSlamCounters {
   long ignored = 0;            // detections left unexplained (between the gates), summed
   long landmarks_created = 0;  // summed over particles
   long landmarks_culled = 0;   // summed over particles
-  long landmark_copies = 0;    // copy-on-write copies
+  long landmark_copies = 0;    // copy-on-write copies (with threads, timing may add a few)
   long features = 0;           // common feature ids issued
+  long scans_with_fewer_threads = 0;  // run below the pool's size (set_thread_limit)
 };
 
 class FastSlam final : public OnlineEstimator {

@@ -31,7 +31,8 @@ class WorkerPool {
 
   int threads() const { return static_cast<int>(workers_.size()) + 1; }
   // body(t) for t in [0, active) (0 or more than threads(): every thread); with one
-  // active thread the workers are not woken.
+  // active thread the workers are not woken, and a worker that sits a run out sleeps
+  // until the next instead of spinning (its core is meant for another thread).
   void Run(const std::function<void(int t)>& body, int active = 0);
 
  private:
