@@ -3,6 +3,7 @@
 
 #include <boost/math/distributions/binomial.hpp>
 #include <cmath>
+#include <optional>
 
 #include "subslam/app/join_pipeline.h"
 #include "subslam/eval/nees.h"
@@ -17,9 +18,11 @@
 namespace subslam::app {
 namespace {
 
-io::Dataset Simulate(uint64_t seed, const std::string& scenario = "hybrid-120m") {
+io::Dataset Simulate(uint64_t seed, const std::string& scenario = "hybrid-120m",
+                     std::optional<double> duration_s = std::nullopt) {
   sim::ScenarioOptions o;
   o.seed = seed;
+  o.duration_s = duration_s;
   absl::StatusOr<io::Dataset> d = sim::SimulateScenario(scenario, o);
   EXPECT_TRUE(d.ok()) << d.status();
   return *std::move(d);
@@ -102,22 +105,18 @@ TEST(SubmapPipeline, EkfLocalMapsJoinedByEifBeatChaining) {
 // different later — and the same from run to run whatever the RBPF's thread count (it
 // gives the join a core while one runs).
 TEST(SubmapPipeline, BackgroundJoinsGiveTheSynchronousEstimatesWithTheOnlinePoseOneJoinBehind) {
-  sim::ScenarioOptions scenario;
-  scenario.seed = 3;
-  scenario.duration_s = 40.0;
-  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", scenario);
-  ASSERT_TRUE(d.ok()) << d.status();
+  const io::Dataset d = Simulate(3, "hybrid-120m", 40.0);
   RunOptions options;
   options.frontend = Frontend::kRbpf;
   options.backend.kind = Backend::kEif;
   options.fastslam.num_threads = 2;
-  absl::StatusOr<RunResult> synchronous = RunPipeline(*d, options);
+  absl::StatusOr<RunResult> synchronous = RunPipeline(d, options);
   ASSERT_TRUE(synchronous.ok()) << synchronous.status();
   options.backend.background = true;
-  absl::StatusOr<RunResult> background = RunPipeline(*d, options);
+  absl::StatusOr<RunResult> background = RunPipeline(d, options);
   ASSERT_TRUE(background.ok()) << background.status();
   options.fastslam.num_threads = 1;
-  absl::StatusOr<RunResult> one_thread = RunPipeline(*d, options);
+  absl::StatusOr<RunResult> one_thread = RunPipeline(d, options);
   ASSERT_TRUE(one_thread.ok()) << one_thread.status();
   ASSERT_GE(synchronous->local_maps.size(), 5u);
 
@@ -155,29 +154,25 @@ TEST(SubmapPipeline, BackgroundJoinsGiveTheSynchronousEstimatesWithTheOnlinePose
 // joined so far) composed with map k's end pose (the new map's local pose is the
 // identity). A SubmapSlam destroyed while a join runs finishes it first.
 TEST(SubmapSlam, BackgroundOnlinePoseIsTheLastJoinedAnchorThroughTheClosedMapsEndPose) {
-  sim::ScenarioOptions scenario;
-  scenario.seed = 4;
-  scenario.duration_s = 30.0;
-  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", scenario);
-  ASSERT_TRUE(d.ok()) << d.status();
+  const io::Dataset d = Simulate(4, "hybrid-120m", 30.0);
   const auto make = [&d] {
     frontend::FastSlamOptions fastslam;
     fastslam.num_threads = 2;
-    const double t0 = d->controls.empty() ? 0.0 : d->controls.front().t;
-    auto mapper = std::make_unique<frontend::RbpfLocalMapper>(d->motion.MakeModel(), d->sensor.range_bearing,
+    const double t0 = d.controls.empty() ? 0.0 : d.controls.front().t;
+    auto mapper = std::make_unique<frontend::RbpfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing,
                                                               fastslam, frontend::SubmapPolicyOptions{}, t0);
     BackendOptions backend;
     backend.kind = Backend::kEif;
     backend.background = true;
-    return std::make_unique<SubmapSlam>(std::move(mapper), d->initial_pose, backend);
+    return std::make_unique<SubmapSlam>(std::move(mapper), d.initial_pose, backend);
   };
   std::unique_ptr<SubmapSlam> slam = make(), abandoned = make();
   int closes = 0;
-  for (const io::Step& step : io::BuildSteps(*d)) {
+  for (const io::Step& step : io::BuildSteps(d)) {
     slam->Predict(step.control, step.dt);
     if (abandoned) abandoned->Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
-    const io::Scan& scan = d->scans[step.scan_index];
+    const io::Scan& scan = d.scans[step.scan_index];
     const Pose2 last_joined = slam->joiner()->LastAnchor();  // waits for the pending join
     const size_t maps = slam->local_maps().size();
     slam->Update(scan);
