@@ -92,8 +92,8 @@ ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened 
 ABSL_FLAG(int, ceres_every, 0, "ceres: also solve the graph every K joins during the run (0: at the end only)");
 ABSL_FLAG(bool, join_in_background, false,
           "run: join each closed local map on a thread of its own while the front-end builds the "
-          "next (the online pose one join behind; rbpf with --threads 0 then keeps one core "
-          "for the joins)");
+          "next (the online pose one join behind; while a join runs, rbpf leaves it a core; the "
+          "final trajectory and map are unchanged)");
 ABSL_FLAG(double, join_anchor_radius, kEifDefaults.association.anchor_search_radius_m,
           "eif: earlier local maps with an anchor within this of the start anchor give "
           "association candidates [m] (2·TH1)");
