@@ -507,7 +507,7 @@ bool EifJoiner::PredictedStepConverged(const Eigen::VectorXd& x) {
   // The factors are linearised at x: Σ_f (H_f x_f − b_f) = Σ_f J_fᵀ Q_f⁻¹ r_f(x) is the
   // gradient g of Cost()/2 at x, and the Gauss-Newton step is −Λ(x)⁻¹ g. The factor at
   // hand is of Λ at the previous linearisation point, a step away, whose headings differ
-  // by that step's (the factor is nonlinear in headings only): δ = −Λ_prev⁻¹ g.
+  // by that step's (the factor is nonlinear only through the headings): δ = −Λ_prev⁻¹ g.
   Eigen::VectorXd g = Eigen::VectorXd::Zero(dim_), eta = Eigen::VectorXd::Zero(dim_);
   for (const Factor& f : factors_) {
     AddInformationTimes(f, x, &g);

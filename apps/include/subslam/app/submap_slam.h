@@ -28,9 +28,11 @@
 // built, its start anchor is map k's start anchor as joined so far composed with map k's
 // end pose (covariance to first order). The final trajectory, the map and the marginals
 // are those of the synchronous run. The joiner-backed accessors wait for a pending join;
-// what joiner() and ceres_report() return is valid until the next Update() or Finish(). After Finish(), FinalTrajectory() re-expresses every recorded step with the
-// final anchors, and Map() is the global map (kNone: every local map's features through
-// its anchor, id = map · 10⁶ + feature, duplicates included).
+// what joiner() and ceres_report() return is valid until the next Update() or Finish().
+//
+// After Finish(), FinalTrajectory() re-expresses every recorded step with the final
+// anchors, and Map() is the global map (kNone: every local map's features through its
+// anchor, id = map · 10⁶ + feature, duplicates included).
 #ifndef SUBSLAM_APP_SUBMAP_SLAM_H_
 #define SUBSLAM_APP_SUBMAP_SLAM_H_
 
