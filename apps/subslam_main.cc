@@ -90,10 +90,11 @@ ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | do
 ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
 ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
 ABSL_FLAG(int, ceres_every, 0, "ceres: also solve the graph every K joins during the run (0: at the end only)");
-ABSL_FLAG(bool, join_in_background, false,
+ABSL_FLAG(bool, join_in_background, subslam::app::BackendOptions{}.background,
           "run: join each closed local map on a thread of its own while the front-end builds the "
           "next (the online pose one join behind; while a join runs, rbpf leaves it a core; the "
-          "final trajectory and map are unchanged)");
+          "final trajectory and map are unchanged); false: join inside the scan that closed the "
+          "map, the online pose using its joined anchor at once");
 ABSL_FLAG(double, join_anchor_radius, kEifDefaults.association.anchor_search_radius_m,
           "eif: earlier local maps with an anchor within this of the start anchor give "
           "association candidates [m] (2·TH1)");

@@ -110,9 +110,10 @@ TEST(SubmapPipeline, BackgroundJoinsGiveTheSynchronousEstimatesWithTheOnlinePose
   options.frontend = Frontend::kRbpf;
   options.backend.kind = Backend::kEif;
   options.fastslam.num_threads = 2;
+  options.backend.background = false;
   absl::StatusOr<RunResult> synchronous = RunPipeline(d, options);
   ASSERT_TRUE(synchronous.ok()) << synchronous.status();
-  options.backend.background = true;
+  options.backend.background = true;  // the default
   absl::StatusOr<RunResult> background = RunPipeline(d, options);
   ASSERT_TRUE(background.ok()) << background.status();
   options.fastslam.num_threads = 1;
@@ -147,6 +148,43 @@ TEST(SubmapPipeline, BackgroundJoinsGiveTheSynchronousEstimatesWithTheOnlinePose
   // Only a background run leaves the joins a core (how many scans depends on timing;
   // FastSlam.ThreadLimitChangesNothingButTheThreadsUsed tests the limit itself).
   EXPECT_EQ(synchronous->report["estimator_counters"]["scans_with_fewer_threads"].get<double>(), 0.0);
+}
+
+// Background joins through every other back-end (EKF local maps): the final trajectory
+// and the map are the synchronous run's, to the bit — Ceres solving on its schedule in
+// the joining thread, the tree joiners folding their nodes there.
+TEST(SubmapPipeline, BackgroundJoinsGiveEveryBackendsSynchronousEstimates) {
+  const io::Dataset d = Simulate(2, "hybrid-120m", 60.0);
+  for (const Backend kind : {Backend::kCeres, Backend::kEkf, Backend::kTreeEkf, Backend::kTreeEif}) {
+    RunOptions options;
+    options.frontend = Frontend::kEkfLocal;
+    options.backend.kind = kind;
+    options.backend.ceres_every = 3;
+    options.backend.background = false;
+    absl::StatusOr<RunResult> synchronous = RunPipeline(d, options);
+    ASSERT_TRUE(synchronous.ok()) << ToString(kind) << ": " << synchronous.status();
+    options.backend.background = true;
+    absl::StatusOr<RunResult> background = RunPipeline(d, options);
+    ASSERT_TRUE(background.ok()) << ToString(kind) << ": " << background.status();
+    ASSERT_GE(synchronous->local_maps.size(), 6u) << ToString(kind);
+    if (kind == Backend::kCeres) {
+      EXPECT_EQ(background->report["estimator_counters"]["ceres_solves"].get<double>(),
+                static_cast<double>(synchronous->local_maps.size() / 3 + 1));
+    }
+    ASSERT_EQ(background->final_trajectory.size(), synchronous->final_trajectory.size()) << ToString(kind);
+    for (size_t k = 0; k < synchronous->final_trajectory.size(); ++k) {
+      ASSERT_EQ(background->final_trajectory[k].pose.vector(), synchronous->final_trajectory[k].pose.vector())
+          << ToString(kind) << " step " << k;
+      ASSERT_EQ(background->final_trajectory[k].covariance, synchronous->final_trajectory[k].covariance)
+          << ToString(kind) << " step " << k;
+    }
+    ASSERT_EQ(background->landmarks.size(), synchronous->landmarks.size()) << ToString(kind);
+    for (size_t j = 0; j < synchronous->landmarks.size(); ++j) {
+      ASSERT_EQ(background->landmarks[j].position, synchronous->landmarks[j].position) << ToString(kind);
+    }
+    // Online one join behind, still a sound estimate.
+    EXPECT_FALSE(background->errors_online->failed) << ToString(kind);
+  }
 }
 
 // The online pose one join behind, exactly: right after the update that closes map k,

@@ -20,9 +20,9 @@
 // adds the anchor's marginal and the local pose's covariance (their correlation is
 // ignored).
 //
-// Background joins (BackendOptions::background): each closed local map is joined on a
-// thread of its own while the front-end goes on with the next map, and while a join runs
-// the local mapper leaves it a core (LocalMapper::SetSpareCores). The front-end waits
+// Background joins (BackendOptions::background, the default): each closed local map is
+// joined on a thread of its own while the front-end goes on with the next map, and while
+// a join runs the local mapper leaves it a core (LocalMapper::SetSpareCores). The front-end waits
 // only when a join outlasts the next map: map k's join must be done before map k + 1
 // closes. The online pose is one join behind, and deterministic: while map k + 1 is
 // built, its start anchor is map k's start anchor as joined so far composed with map k's
@@ -67,8 +67,10 @@ struct BackendOptions {
   backend::TreeJoinerOptions tree;  // tree-ekf, tree-eif
   backend::CeresSolveOptions ceres; // ceres
   int ceres_every = 0;              // ceres: also solve every K joins (0: at the end only)
-  // Join on a background thread, the online pose one join behind (see SubmapSlam).
-  bool background = false;
+  // Join on a background thread, the online pose one join behind (see SubmapSlam);
+  // false: each closed map is joined inside the Update() that closed it, and the online
+  // pose uses its joined anchor at once.
+  bool background = true;
 
   absl::Status Validate() const;
 };
