@@ -11,7 +11,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 BIN="${BUILD_DIR:-$ROOT/build}/apps/subslam"
 OUT="${OUT:-$ROOT/runs/demo}"
 "$BIN" run --scenario hybrid-120m --seed 1 --frontend rbpf --particles 300 --backend eif \
-  --relinearize_at_end --out "$OUT/rbpf_eif"
+  --out "$OUT/rbpf_eif"
 echo
 "$BIN" run --scenario hybrid-120m --seed 1 --frontend ekfslam --out "$OUT/ekfslam"
 echo

@@ -42,8 +42,14 @@ absl::Status BackendOptions::Validate() const {
 std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose) {
   switch (options.kind) {
     case Backend::kNone: return nullptr;
-    case Backend::kEif:
-    case Backend::kCeres: return std::make_unique<backend::EifJoiner>(initial_pose, options.eif);
+    case Backend::kEif: return std::make_unique<backend::EifJoiner>(initial_pose, options.eif);
+    case Backend::kCeres: {
+      // Ceres solves the whole graph after the last join: the EIF's own Gauss-Newton there
+      // would only be done again.
+      backend::EifJoinerOptions eif = options.eif;
+      eif.relinearize_at_end = false;
+      return std::make_unique<backend::EifJoiner>(initial_pose, eif);
+    }
     case Backend::kEkf: return std::make_unique<backend::EkfJoiner>(initial_pose, options.ekf);
     case Backend::kTreeEkf: {
       backend::EkfJoinerOptions ekf = options.ekf;
