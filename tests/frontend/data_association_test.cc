@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <Eigen/LU>
 #include <functional>
+#include <numeric>
 #include <random>
 
 #include "subslam/models/gating.h"
@@ -152,9 +153,10 @@ TEST(JointCompatibility, DetectionsWithoutCandidatesCostNothing) {
 
 // JCBB's search, with its pruning bounds, finds the hypothesis an exhaustive search does:
 // the most pairings, then the smallest joint d², among the one-to-one hypotheses whose
-// every prefix (in detection order) passes the joint χ² gate. Random problems with a
-// shared pose error (strongly correlated innovations), several candidates per detection
-// and candidates shared between detections.
+// every prefix (in the branching order: fewest candidates first, ties in detection
+// order) passes the joint χ² gate. Random problems with a shared pose error (strongly
+// correlated innovations), several candidates per detection and candidates shared
+// between detections.
 TEST(JointCompatibility, EqualsExhaustiveSearch) {
   std::mt19937_64 rng(7);
   std::normal_distribution<double> normal;
@@ -184,14 +186,18 @@ TEST(JointCompatibility, EqualsExhaustiveSearch) {
       std::sort(p.candidates[j].begin(), p.candidates[j].end(),
                 [](const auto& x, const auto& y) { return x.d2 < y.d2; });
     }
-    // Exhaustive search.
+    // Exhaustive search, in the branching order.
+    std::vector<int> order(m);
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return p.candidates[a].size() < p.candidates[b].size(); });
     int best_pairings = 0;
     double best_d2 = 0.0;
     std::vector<int> current(m, -1);
-    const auto joint_d2 = [&](int upto) {  // over the pairings of detections < upto
+    const auto joint_d2 = [&](int upto) {  // over the pairings of the first `upto` detections in order
       std::vector<std::pair<int, int>> pairs;
-      for (int j = 0; j < upto; ++j) {
-        if (current[j] >= 0) pairs.push_back({j, current[j]});
+      for (int t = 0; t < upto; ++t) {
+        if (current[order[t]] >= 0) pairs.push_back({order[t], current[order[t]]});
       }
       const int k = static_cast<int>(pairs.size());
       Eigen::MatrixXd S(2 * k, 2 * k);
@@ -206,8 +212,8 @@ TEST(JointCompatibility, EqualsExhaustiveSearch) {
       }
       return k == 0 ? 0.0 : nu.dot(S.llt().solve(nu));
     };
-    std::function<void(int, int)> search = [&](int j, int k) {
-      if (j == m) {
+    std::function<void(int, int)> search = [&](int t, int k) {
+      if (t == m) {
         const double d2 = joint_d2(m);
         if (k > best_pairings || (k == best_pairings && d2 < best_d2)) {
           best_pairings = k;
@@ -215,11 +221,12 @@ TEST(JointCompatibility, EqualsExhaustiveSearch) {
         }
         return;
       }
-      search(j + 1, k);  // unpaired
+      const int j = order[t];
+      search(t + 1, k);  // unpaired
       for (const AssociationCandidate& c : p.candidates[j]) {
         if (std::find(current.begin(), current.end(), c.landmark) != current.end()) continue;
         current[j] = c.landmark;
-        if (joint_d2(j + 1) <= models::ChiSquareQuantile(0.99, 2 * (k + 1))) search(j + 1, k + 1);
+        if (joint_d2(t + 1) <= models::ChiSquareQuantile(0.99, 2 * (k + 1))) search(t + 1, k + 1);
         current[j] = -1;
       }
     };

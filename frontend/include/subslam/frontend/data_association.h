@@ -8,9 +8,12 @@
 //    takes at most one detection per scan).
 //  * JointCompatibility — branch and bound over hypotheses (Neira & Tardós, IEEE
 //    T-RA 2001, "JCBB"): the hypothesis with the most pairings whose joint innovation
-//    passes the χ²_{2k} gate, ties broken by the smaller joint d². The joint test uses
-//    an incrementally extended Cholesky factor, O(k²) per node; the search stops after
-//    `max_nodes` nodes and returns the best hypothesis found so far (reported).
+//    passes the χ²_{2k} gate, ties broken by the smaller joint d². As in JCBB the gate
+//    applies to every prefix of a hypothesis in the branching order, which here is
+//    the detections with the fewest candidates first (ties in detection order). The
+//    joint test uses an incrementally extended Cholesky factor, O(k²) per node; the
+//    search stops after `max_nodes` nodes and returns the best hypothesis found so far
+//    (reported).
 //
 // Not thread-safe per problem; the functions are re-entrant.
 #ifndef SUBSLAM_FRONTEND_DATA_ASSOCIATION_H_
