@@ -164,6 +164,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"loop_closures_ambiguous", joiner->counters().loop_closures_ambiguous},
                 {"loop_closures_confirmed", joiner->counters().loop_closures_confirmed},
                 {"loop_closures_unconfirmed", joiner->counters().loop_closures_unconfirmed},
+                {"associations_replayed", joiner->counters().associations_replayed},
                 {"incremental_factor_updates", joiner->counters().incremental_updates},
                 {"full_factorizations", joiner->counters().full_factorizations},
                 {"reused_analyses", joiner->counters().reused_analyses},

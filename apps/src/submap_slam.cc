@@ -305,6 +305,7 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_loop_closures_ambiguous"] = joiner_->counters().loop_closures_ambiguous;
     out["join_loop_closures_confirmed"] = joiner_->counters().loop_closures_confirmed;
     out["join_loop_closures_unconfirmed"] = joiner_->counters().loop_closures_unconfirmed;
+    out["join_associations_replayed"] = joiner_->counters().associations_replayed;
     out["join_incremental_updates"] = joiner_->counters().incremental_updates;
     out["join_candidates"] = joiner_->counters().candidates;
     out["join_candidates_bounded_out"] = joiner_->counters().candidates_bounded_out;

@@ -800,6 +800,7 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   counters_.relinearizations_predicted_converged = work.relinearizations_predicted_converged;
   counters_.loop_closures_confirmed = work.loop_closures_confirmed;
   counters_.loop_closures_unconfirmed = work.loop_closures_unconfirmed + 1;
+  counters_.associations_replayed = work.associations_replayed;
   counters_.incremental_updates = work.incremental_updates;
   counters_.full_factorizations = work.full_factorizations;
   counters_.reused_analyses = work.reused_analyses;
@@ -810,8 +811,10 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   counters_.covariance_reach = work.covariance_reach;
   for (size_t m = 0; m < maps.size(); ++m) {
     suppress_loop_closure_ = m == 0;
+    if (m == 0) replayed_association_ = std::move(pending.association);
     const absl::Status st = JoinOne(maps[m]);
     suppress_loop_closure_ = false;
+    replayed_association_.reset();
     if (!st.ok()) return st;
     // A closure made again by a later map waits for its own confirmation; its window
     // cannot end within these maps.
@@ -820,6 +823,12 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
     }
   }
   return absl::OkStatus();
+}
+
+void EifJoiner::CountDecisions(const SubmapAssociation& a) {
+  if (a.jcbb_truncated) ++counters_.jcbb_truncated;
+  if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
+  if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
 }
 
 SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
@@ -844,9 +853,7 @@ SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool a
       anchor_prefilter, pair_covariance,
       options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr);
   times_["covariance_recovery"] += a.covariance_seconds;
-  if (a.jcbb_truncated) ++counters_.jcbb_truncated;
-  if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
-  if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
+  CountDecisions(a);
   counters_.candidates += a.candidates;
   counters_.candidates_bounded_out += a.candidates_bounded_out;
   counters_.covariance_columns += solver_->factor.columns_solved() - columns_before;
@@ -861,18 +868,28 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   Eigen::Matrix3d start_covariance = Eigen::Matrix3d::Constant(NAN);
   if (associate) {
     const JoinerCounters counters_before = counters_;  // a pending closure's snapshot keeps these
-    SubmapAssociation a = AssociateAt(s, start, /*anchor_prefilter=*/true);
-    assoc = std::move(a.landmark_of_feature);
+    SubmapAssociation a;
+    if (replayed_association_) {
+      // Joined again after its loop closure went unconfirmed, from the state it was
+      // first associated in: that association, not a second search to the same result.
+      a = *std::move(replayed_association_);
+      replayed_association_.reset();
+      CountDecisions(a);
+      ++counters_.associations_replayed;
+    } else {
+      a = AssociateAt(s, start, /*anchor_prefilter=*/true);
+    }
+    assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
     if (suppress_loop_closure_) {
-      // Joined again after its loop closure went unconfirmed (from the same state, so
-      // association closes the same loop): without its loop pairings.
+      // The closing map of an unconfirmed loop closure: without its loop pairings.
       for (int i : a.uncertain_loop_features) assoc[i] = -1;
     } else if (!a.uncertain_loop_features.empty() && options_.loop_confirmation_maps > 0 &&
                options_.relinearize_heading_change > 0 && !pending_loop_ &&
                3.0 * a.start_position_sigma_m >= options_.loop_confirmation_min_sigma_radius_m) {
-      pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size()};
-      // Its association is done again on an undo: count it then, not twice.
+      pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
+                                         std::move(a)};
+      // Its decisions are counted again on an undo (its work is not): not twice.
       pending_loop_->before.counters = counters_before;
     }
   }

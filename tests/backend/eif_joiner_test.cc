@@ -768,6 +768,9 @@ TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
   EXPECT_EQ(ClosingPairings(eif), 0);
   EXPECT_EQ(eif.counters().loop_closures_unconfirmed, 1);
   EXPECT_EQ(eif.counters().loop_closures_confirmed, 0);
+  // The closing map joined again with its first association (the joiner restored to the
+  // state it was made in), not a second search.
+  EXPECT_EQ(eif.counters().associations_replayed, 1);
   EXPECT_EQ(eif.counters().joins, 10);
   EXPECT_EQ(eif.num_landmarks(), 8 + 8 + 4 + 2 + 6);  // every tree once
   EXPECT_EQ(eif.num_anchors(), 11);
@@ -780,6 +783,7 @@ TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
   EXPECT_EQ(ClosingPairings(validated), 0);
   EXPECT_EQ(validated.counters().loop_closures_unconfirmed, 1);
   EXPECT_EQ(validated.counters().rejected_joins, 0);
+  EXPECT_EQ(validated.counters().associations_replayed, 1);
   EXPECT_EQ(validated.num_landmarks(), eif.num_landmarks());
   // With a single linearisation there is no confirmation: the closure stays.
   EifJoinerOptions single = options;

@@ -335,14 +335,20 @@ class EifJoiner final : public MapJoiner {
   };
   // A loop closure waiting for confirmation: the joiner before its map was joined (taken
   // after that map's association, with the counters from before it), the index of its
-  // map's factor, and the rejected_ entries then.
+  // map's factor, the rejected_ entries then, and that map's association.
   struct PendingLoopClosure {
     Snapshot before;
     int factor = 0;
     size_t rejected = 0;
+    SubmapAssociation association;
   };
   std::optional<PendingLoopClosure> pending_loop_;
   bool suppress_loop_closure_ = false;  // while joining again a map whose closure was undone
+  // Set while that map is joined again: its association, reused (the joiner is restored to
+  // the state it was found in).
+  std::optional<SubmapAssociation> replayed_association_;
+  // The decision counters of an association (truncated, thin, ambiguous).
+  void CountDecisions(const SubmapAssociation& a);
   // Join() without the confirmation check (validated if validate_joins).
   absl::Status JoinOne(const LocalSubmap& s);
   Snapshot TakeSnapshot() const;

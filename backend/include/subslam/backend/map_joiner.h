@@ -37,6 +37,9 @@ struct JoinerCounters {
   // did not confirm (the EIF's loop_confirmation_maps); unconfirmed ones were undone.
   long loop_closures_confirmed = 0;
   long loop_closures_unconfirmed = 0;
+  // Closing maps of unconfirmed loop closures joined again with their first association
+  // (the joiner restored to the state it was made in), not a second search.
+  long associations_replayed = 0;
   long rejected_joins = 0;    // failed validation: joined again without associations
   // EIF factor maintenance: joins absorbed by an incremental update of the factor, full
   // factorisations (of them, those that reused the last symbolic analysis: the same
@@ -64,6 +67,7 @@ struct JoinerCounters {
     loop_closures_ambiguous += o.loop_closures_ambiguous;
     loop_closures_confirmed += o.loop_closures_confirmed;
     loop_closures_unconfirmed += o.loop_closures_unconfirmed;
+    associations_replayed += o.associations_replayed;
     rejected_joins += o.rejected_joins;
     incremental_updates += o.incremental_updates;
     full_factorizations += o.full_factorizations;
