@@ -144,7 +144,7 @@ ABSL_FLAG(double, relinearize_heading_change, kEifDefaults.relinearize_heading_c
           "eif: also relinearise after a join when an anchor's heading has moved this far [rad] "
           "from where one of its factors was linearised (0: off)");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
-          "eif: relinearise to convergence after the last join");
+          "eif: relinearise to convergence after the last join (ceres: off, Ceres solves there)");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
 ABSL_FLAG(bool, known_association, false,
           "associate by the true ids (simulations; a study option, as Combined SLAM §7): "

@@ -380,6 +380,16 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
       {"peak_rss_kb", r.peak_rss_kb},
       {"metrics", metrics}};
 
+  if (options.backend.kind != Backend::kNone &&
+      (options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal)) {
+    // What the online and final figures depend on.
+    r.report["configuration"]["backend"] = {
+        {"kind", ToString(options.backend.kind)},
+        {"background", options.backend.background},
+        {"relinearize_heading_change", options.backend.eif.relinearize_heading_change},
+        {"relinearize_every", options.backend.eif.relinearize_every},
+        {"relinearize_at_end", options.backend.eif.relinearize_at_end && options.backend.kind != Backend::kCeres}};
+  }
   if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
     r.report["configuration"]["seif"] = {
         {"known_association", seif.known_association},

@@ -216,7 +216,7 @@ class Jcbb {
   std::vector<int> rows_before_;  // at most this many pairings precede detection j's
   std::vector<int> current_;           // landmark per detection in the hypothesis
   std::vector<int> paired_detection_;  // detection of block row a
-  std::vector<int> branching_;         // detections with at least one candidate, in order
+  std::vector<int> branching_;         // detections with a candidate, fewest candidates first
   AssociationResult best_;
 };
 

@@ -75,7 +75,8 @@ struct BackendOptions {
   absl::Status Validate() const;
 };
 
-// The joiner of a back-end (nullptr for kNone; the EIF for kCeres).
+// The joiner of a back-end (nullptr for kNone; for kCeres the EIF, without its Gauss-Newton
+// at Finish(): Ceres solves there).
 std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose);
 
 class SubmapSlam final : public frontend::OnlineEstimator {

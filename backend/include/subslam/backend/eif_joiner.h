@@ -30,8 +30,10 @@
 // length exceeds `relinearize_step_chi2` (or, with `predict_convergence`, until the next
 // step, solved with the factor at hand, is below them) — after a join that moved an
 // anchor's heading `relinearize_heading_change` from a factor's linearisation (on by
-// default), every `relinearize_every` joins and/or at Finish(); iterated to convergence
-// this is Gauss-Newton over the submap graph.
+// default), every `relinearize_every` joins and/or at Finish() (on by default); iterated
+// to convergence this is Gauss-Newton over the submap graph. Without the trigger and the
+// relinearisation at the end (both 0 / false) it is the single-linearisation EIF of
+// paper 000.
 // Time per stage (association, covariance recovery — association's, plus the marginal
 // bounds recomputed after a relinearisation —, update, factorisation — of which
 // full_factorization —, recovery, recovery_check) is accumulated as in Table 1 of paper 000.
@@ -99,9 +101,10 @@ struct EifJoinerOptions {
   // optimum for the associations made. Between the heading trigger's relinearisations
   // the factors stay linearised where each join left them, and over many revisits that
   // costs accuracy and consistency the trigger does not see: on a random 16 km world
-  // (807 joins, no heading moving 0.05 rad) the final anchors' mean NEES is 99 without
-  // it and 4.2 with it, for three Gauss-Newton iterations (bench/RESULTS.md, twelfth
-  // session).
+  // (807 joins, no heading moving 0.05 rad) the final anchors' mean NEES is 102.7 without
+  // it and 4.7 with it, for three Gauss-Newton iterations (`subslam join`,
+  // bench/RESULTS.md, twelfth session). The Ceres back-end turns it off (Ceres solves
+  // there).
   bool relinearize_at_end = true;
   // A relinearisation's Gauss-Newton iterations stop when the last step Δx is small
   // either way: max |Δx| below `relinearize_tolerance` (m, rad), or ΔxᵀΛΔx below
