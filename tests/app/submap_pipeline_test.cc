@@ -307,6 +307,35 @@ TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
   EXPECT_TRUE(RunJoin(*back, options).ok());
 }
 
+// The online anchors of a join (each as the join that made it left it): the last equals
+// the final one when nothing is relinearised after it, the earlier ones were moved by
+// later joins, and the report scores them against the truth.
+TEST(SubmapPipeline, JoinRecordsEachAnchorAsItsJoinLeftIt) {
+  const io::Dataset d = Simulate(3);
+  const std::vector<LocalSubmap> maps = EkfLocalMaps(d);
+  ASSERT_GE(maps.size(), 3u);
+  JoinOptions options;
+  options.initial_pose = d.initial_pose;
+  options.truth_poses = d.truth_poses;
+  options.backend.eif.relinearize_heading_change = 0.0;
+  options.backend.eif.relinearize_at_end = false;
+  absl::StatusOr<JoinResult> j = RunJoin(maps, options);
+  ASSERT_TRUE(j.ok()) << j.status();
+  ASSERT_EQ(j->anchors_online.size(), j->anchors.size());
+  EXPECT_EQ(j->anchors_online.back().pose.vector(), j->anchors.back().pose.vector());
+  // (its marginal recovered another way: the same to rounding)
+  EXPECT_LE((j->anchors_online.back().covariance - j->anchors.back().covariance).norm(),
+            1e-9 * j->anchors.back().covariance.norm());
+  size_t moved = 0;
+  for (size_t k = 0; k < j->anchors.size(); ++k) {
+    EXPECT_EQ(j->anchors_online[k].t, j->anchors[k].t) << k;
+    moved += (j->anchors_online[k].pose.vector() - j->anchors[k].pose.vector()).norm() > 1e-6;
+  }
+  EXPECT_GT(moved, j->anchors.size() / 2);  // the loop closure moved them
+  EXPECT_TRUE(j->report["metrics"].contains("anchors_online"));
+  EXPECT_EQ(j->report["metrics"]["anchors_online"]["steps"], j->report["metrics"]["anchors"]["steps"]);
+}
+
 // Every back-end on the same recorded local maps, with the same (JCBB) association
 // options: none merges two true landmarks, each closes the loop, and the anchors pass the
 // 10σ test; run online, the EKF and tree back-ends' trajectories do too.

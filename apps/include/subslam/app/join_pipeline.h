@@ -78,8 +78,11 @@ struct JoinResult {
   int local_maps = 0;
   std::vector<double> anchor_times;  // s
   Trajectory anchors;                // with marginal covariances
+  // Each anchor as the join that made it left it, with its marginal then (the anchor an
+  // online pose composes with until the next join; row 0: the initial pose).
+  Trajectory anchors_online;
   std::vector<LandmarkEstimate> landmarks;
-  double wall_seconds = 0.0;
+  double wall_seconds = 0.0;  // joining (Finish and a Ceres solve included), not the online records
   AssociationVsTruth association;  // against the local maps' truth ids
   std::optional<backend::CeresSolveReport> ceres;
   nlohmann::json report;
