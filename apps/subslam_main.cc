@@ -109,6 +109,9 @@ ABSL_FLAG(int, join_min_loop_pairings, kEifDefaults.association.min_loop_pairing
 ABSL_FLAG(bool, join_loop_ambiguity, kEifDefaults.association.loop_ambiguity_test,
           "eif: drop a loop closure when another jointly compatible hypothesis, without its loop "
           "pairings, pairs as many features with old landmarks (JCBB)");
+ABSL_FLAG(bool, join_keep_certain_loop_pairings, kEifDefaults.association.keep_certain_loop_pairings,
+          "when the loop tests drop a closure, keep the pairings whose landmark is known relative to "
+          "the start anchor to 3 sigma below --join_loop_test_sigma (no chance fit)");
 ABSL_FLAG(double, join_loop_test_sigma, kEifDefaults.association.loop_test_min_sigma_radius_m,
           "apply --join_min_loop_pairings only when 3 sigma of the start anchor's position is at "
           "least this [m]");
@@ -264,6 +267,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.joint_compatibility = absl::GetFlag(FLAGS_join_jcbb);
   o.association.min_loop_pairings = absl::GetFlag(FLAGS_join_min_loop_pairings);
   o.association.loop_ambiguity_test = absl::GetFlag(FLAGS_join_loop_ambiguity);
+  o.association.keep_certain_loop_pairings = absl::GetFlag(FLAGS_join_keep_certain_loop_pairings);
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
   o.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);

@@ -97,6 +97,42 @@ TEST(SubmapAssociator, DropsThinLoopClosuresUnderLargeUncertainty) {
   EXPECT_EQ(OldPairings(kept), 2);
 }
 
+// keep_certain_loop_pairings: old landmark 0 is known relative to the start anchor (its
+// cross-covariance with the anchor's position carries the anchor's 3 m σ, leaving 0.1 m
+// between them), landmark 1 is not. The thin closure still counts both, but only
+// landmark 1's pairing is dropped; with the option off, both are.
+TEST(SubmapAssociator, KeepsTheCertainPairingsOfADroppedLoopClosure) {
+  const LoopFixture f;
+  constexpr double kSigma = 3.0;
+  const SubmapAssociator::JointCovarianceFn correlated = [](const std::vector<int>& anchors,
+                                                            const std::vector<int>& landmarks) {
+    Eigen::MatrixXd m = Covariance(kSigma)(anchors, landmarks);
+    const int n_a = 3 * static_cast<int>(anchors.size());
+    for (size_t l = 0; l < landmarks.size(); ++l) {
+      if (landmarks[l] != 0) continue;
+      const int o = n_a + 2 * static_cast<int>(l);
+      m.block<2, 2>(o, o) += kSigma * kSigma * Eigen::Matrix2d::Identity();
+      for (size_t a = 0; a < anchors.size(); ++a) {
+        m.block<2, 2>(o, 3 * a) = kSigma * kSigma * Eigen::Matrix2d::Identity();
+        m.block<2, 2>(3 * a, o) = kSigma * kSigma * Eigen::Matrix2d::Identity();
+      }
+    }
+    return m;
+  };
+  const SubmapAssociator associator{SubmapAssociationOptions{}};
+  ASSERT_TRUE(associator.options().keep_certain_loop_pairings);
+  const SubmapAssociation kept = associator.Associate(f.NewMap(2), 4, f.graph, correlated);
+  EXPECT_EQ(kept.loop_pairings_dropped, 2);  // both counted: a thin closure
+  EXPECT_EQ(kept.landmark_of_feature[2], 0);   // old landmark 0: certain, kept
+  EXPECT_EQ(kept.landmark_of_feature[3], -1);  // old landmark 1: dropped
+  EXPECT_EQ(kept.landmark_of_feature[0], 5);
+  SubmapAssociationOptions off;
+  off.keep_certain_loop_pairings = false;
+  const SubmapAssociation dropped = SubmapAssociator(off).Associate(f.NewMap(2), 4, f.graph, correlated);
+  EXPECT_EQ(dropped.loop_pairings_dropped, 2);
+  EXPECT_EQ(OldPairings(dropped), 0);
+}
+
 // loop_ambiguity_test: old landmarks on a row 12 m apart and a new local map that sees
 // four of them. With the start anchor's σ at 6 m, the row shifted by one landmark is as
 // compatible as the truth (joint d² ≈ (12 / 6)²): the test drops the loop closure. At
