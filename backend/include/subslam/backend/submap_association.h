@@ -58,7 +58,8 @@ struct SubmapAssociationOptions {
   double sigma_signature = 0.0;
   bool known_association = false;  // associate by truth_id instead
   // Loop closures: pairings with landmarks that none of the last `recent_maps` local maps
-  // saw are kept only if there are at least `min_loop_pairings` of them (≤ 1: no test),
+  // saw are kept only if there are at least `min_loop_pairings` of them (≤ 1: no test;
+  // but see keep_certain_loop_pairings),
   // when 3σ of the start anchor's position is at least `loop_test_min_sigma_radius_m`
   // (the drift is large against the landmark spacing, and a hypothesis with one or two
   // old landmarks fits by chance). Defaults chosen on combined-2km seeds 1-10 and checked
@@ -91,7 +92,9 @@ struct SubmapAssociationOptions {
 struct SubmapAssociation {
   std::vector<int> landmark_of_feature;  // −1: a new landmark
   bool jcbb_truncated = false;           // JCBB hit its node budget
-  int loop_pairings_dropped = 0;         // a loop closure with too few pairings
+  // A loop closure with too few pairings: how many it had (those kept as certain, see
+  // keep_certain_loop_pairings, included).
+  int loop_pairings_dropped = 0;
   bool loop_ambiguous = false;           // a loop closure dropped by loop_ambiguity_test
   // A loop closure kept under an uncertain start anchor (the regime of the loop tests):
   // the features paired with landmarks no recent map saw (empty: none kept, or the anchor
