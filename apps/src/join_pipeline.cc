@@ -155,8 +155,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"landmark_search_radius_m", options.backend.eif.association.landmark_search_radius_m},
                 {"gate_probability", options.backend.eif.association.gate_probability},
                 {"relinearize_every", options.backend.eif.relinearize_every},
-                {"relinearize_at_end",  // as used: the Ceres back-end solves there instead
-                 options.backend.eif.relinearize_at_end && options.backend.kind != Backend::kCeres}}},
+                {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}}},
               {"counts",
                {{"local_maps", r.local_maps},
                 {"anchors", joiner->num_anchors()},

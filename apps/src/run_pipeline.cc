@@ -388,7 +388,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"background", options.backend.background},
         {"relinearize_heading_change", options.backend.eif.relinearize_heading_change},
         {"relinearize_every", options.backend.eif.relinearize_every},
-        {"relinearize_at_end", options.backend.eif.relinearize_at_end && options.backend.kind != Backend::kCeres}};
+        {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}};
   }
   if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
     r.report["configuration"]["seif"] = {

@@ -39,6 +39,10 @@ absl::Status BackendOptions::Validate() const {
   return absl::OkStatus();
 }
 
+bool EifRelinearizesAtEnd(const BackendOptions& options) {
+  return options.eif.relinearize_at_end && options.kind != Backend::kCeres;
+}
+
 std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose) {
   switch (options.kind) {
     case Backend::kNone: return nullptr;
@@ -47,7 +51,7 @@ std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, co
       // Ceres solves the whole graph after the last join: the EIF's own Gauss-Newton there
       // would only be done again.
       backend::EifJoinerOptions eif = options.eif;
-      eif.relinearize_at_end = false;
+      eif.relinearize_at_end = EifRelinearizesAtEnd(options);
       return std::make_unique<backend::EifJoiner>(initial_pose, eif);
     }
     case Backend::kEkf: return std::make_unique<backend::EkfJoiner>(initial_pose, options.ekf);

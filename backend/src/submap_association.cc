@@ -189,10 +189,15 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   for (int c = 0; c < c_count; ++c) {
     predicted[c] = TransformTo(P_s, graph.landmarks()[candidates[c]], &J_frame[c], &J_point[c]);
   }
-  const auto individual = [&](int i, int c) -> Eigen::Matrix2d {
+  // Candidate c's covariance in the start anchor's frame (through [P_s, L_c]'s marginal),
+  // and a pairing's innovation covariance: that plus the feature's.
+  const auto relative = [&](int c) -> Eigen::Matrix2d {
     Eigen::Matrix<double, 2, 5> J;
     J << J_frame[c], J_point[c];
-    return J * pair[c] * J.transpose() + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+    return J * pair[c] * J.transpose();
+  };
+  const auto individual = [&](int i, int c) -> Eigen::Matrix2d {
+    return relative(c) + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
   };
   frontend::AssociationProblem problem;
   problem.candidates.resize(n);
@@ -214,31 +219,24 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   // tests apply while the start anchor is uncertain.
   const bool loop_regime =
       options_.min_loop_pairings > 1 && 3.0 * sigma_xy >= options_.loop_test_min_sigma_radius_m;
-  std::vector<char> recent;
-  // Candidates whose position relative to the start anchor is known to 3σ below the
-  // test's radius (keep_certain_loop_pairings): kept when the tests drop a closure.
-  std::vector<char> certain(c_count, 0);
+  // By landmark: seen by a recent map; and (keep_certain_loop_pairings) a candidate whose
+  // position relative to the start anchor is known to 3σ below the test's radius, kept
+  // when the tests drop a closure.
+  std::vector<char> recent, certain;
   if (loop_regime) {
     recent.assign(graph.num_landmarks(), 0);
+    certain.assign(graph.num_landmarks(), 0);
     const int first_recent = static_cast<int>(graph.factors().size()) - options_.recent_maps;
     for (int f = std::max(0, first_recent); f < static_cast<int>(graph.factors().size()); ++f) {
       for (int j : graph.factors()[f].landmark_of_feature) recent[j] = 1;
     }
+    const double radius = options_.loop_test_min_sigma_radius_m / 3.0;
     for (int c = 0; c < c_count && options_.keep_certain_loop_pairings; ++c) {
-      Eigen::Matrix<double, 2, 5> J;
-      J << J_frame[c], J_point[c];
-      const Eigen::Matrix2d relative = J * pair[c] * J.transpose();
+      const Eigen::Matrix2d r = relative(c);
       // The larger eigenvalue of the symmetric 2 × 2 block.
-      const double mean = 0.5 * (relative(0, 0) + relative(1, 1));
-      const double half_gap = std::hypot(0.5 * (relative(0, 0) - relative(1, 1)), relative(0, 1));
-      const double radius = options_.loop_test_min_sigma_radius_m / 3.0;
-      certain[c] = mean + half_gap < radius * radius ? 1 : 0;
+      const double largest = 0.5 * (r(0, 0) + r(1, 1)) + std::hypot(0.5 * (r(0, 0) - r(1, 1)), r(0, 1));
+      certain[candidates[c]] = largest < radius * radius ? 1 : 0;
     }
-  }
-  std::vector<char> certain_landmark;  // by landmark, for the pairings chosen
-  if (loop_regime) {
-    certain_landmark.assign(graph.num_landmarks(), 0);
-    for (int c = 0; c < c_count; ++c) certain_landmark[candidates[c]] = certain[c];
   }
   frontend::AssociationResult result;
   if (options_.joint_compatibility) {
@@ -302,7 +300,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
           frontend::JointCompatibility(alternative, options_.gate_probability, options_.jcbb_max_nodes);
       if (loop_pairings_of(other) >= options_.min_loop_pairings) {
         for (int& c : result.landmark_of_detection) {
-          if (closes_loop(c) && !certain[c]) c = -1;
+          if (closes_loop(c) && !certain[candidates[c]]) c = -1;
         }
         out.loop_ambiguous = true;
       }
@@ -322,7 +320,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
     for (int j : out.landmark_of_feature) loop_pairings += (j >= 0 && !recent[j]) ? 1 : 0;
     if (loop_pairings > 0 && loop_pairings < options_.min_loop_pairings) {
       for (int& j : out.landmark_of_feature) {
-        if (j >= 0 && !recent[j] && !certain_landmark[j]) j = -1;
+        if (j >= 0 && !recent[j] && !certain[j]) j = -1;
       }
       out.loop_pairings_dropped = loop_pairings;
     } else {

@@ -75,6 +75,10 @@ struct BackendOptions {
   absl::Status Validate() const;
 };
 
+// Whether the back-end's EIF runs Gauss-Newton at Finish(): eif.relinearize_at_end, except
+// for kCeres, where Ceres solves there instead.
+bool EifRelinearizesAtEnd(const BackendOptions& options);
+
 // The joiner of a back-end (nullptr for kNone; for kCeres the EIF, without its Gauss-Newton
 // at Finish(): Ceres solves there).
 std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose);
