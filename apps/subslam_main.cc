@@ -70,6 +70,9 @@ ABSL_FLAG(int, landmark_iterations, kFastSlamDefaults.landmark_update_iterations
           "fastslam / rbpf: landmark update iterations (1: EKF, more: iterated EKF)");
 ABSL_FLAG(double, resample_ess, kFastSlamDefaults.resample_ess_ratio,
           "fastslam / rbpf: resample when N_eff / N falls below this");
+ABSL_FLAG(bool, correct_shared_ancestry, kFastSlamDefaults.correct_shared_ancestry,
+          "fastslam / rbpf: divide the particles' spread in the moment matching by 1 - R, R the "
+          "weighted share of pose noise that pairs of particles hold through common ancestors");
 ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
           "fastslam / rbpf: sigma of the signature cue (0: cue off)");
 ABSL_FLAG(std::string, backend, "none",
@@ -427,6 +430,7 @@ int Run() {
   options.fastslam.resample_ess_ratio = absl::GetFlag(FLAGS_resample_ess);
   options.fastslam.landmark_update_iterations = absl::GetFlag(FLAGS_landmark_iterations);
   options.fastslam.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
+  options.fastslam.correct_shared_ancestry = absl::GetFlag(FLAGS_correct_shared_ancestry);
   options.fastslam.gate_probability = options.ekf.gate_probability;
   options.fastslam.new_landmark_probability = options.ekf.new_landmark_probability;
   options.fastslam.existence = options.ekf.existence;

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "subslam/frontend/internal/genealogy.h"
 #include "subslam/frontend/internal/stage_timer.h"
 #include "subslam/frontend/internal/worker_pool.h"
 #include "subslam/graph/internal/check.h"
@@ -105,6 +106,7 @@ void FastSlam::Reset(const Pose2& start) {
   resample_pending_ = false;
   motion_since_scan_ = Pose2();
   motion_covariance_.setZero();
+  genealogy_.Reset();
 }
 
 void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
@@ -545,6 +547,7 @@ void FastSlam::Update(const io::Scan& scan) {
     Resample();
   }
   ++counters_.scans;
+  genealogy_.AddScan();
   const models::RangeBearingConfig& rb = sensor_.config();
   z_.clear();
   signature_.clear();
@@ -658,6 +661,14 @@ double FastSlam::LineageDiversity() const {
   return static_cast<double>(distinct) / num_particles();
 }
 
+double FastSlam::SharedAncestry() const {
+  ancestry_weights_.resize(particles_.size());
+  for (size_t p = 0; p < particles_.size(); ++p) ancestry_weights_[p] = std::exp(particles_[p].log_weight);
+  const double R = genealogy_.SharedAncestry(ancestry_weights_);
+  // R = 1: every particle is a copy of one, so the spread is zero and needs no scaling.
+  return R < 1.0 - 1e-12 ? R : 0.0;
+}
+
 double FastSlam::EffectiveSampleSizeRatio() const {
   double sum_sq = 0.0;
   for (const Particle& p : particles_) sum_sq += std::exp(2.0 * p.log_weight);
@@ -669,14 +680,17 @@ void FastSlam::Resample() {
   std::uniform_real_distribution<double> uniform(0.0, 1.0 / P);
   const double u0 = uniform(rng_);
   resampled_.resize(P);
+  parent_.resize(P);
   double cumulative = std::exp(particles_[0].log_weight);
   int source = 0;
   for (int i = 0; i < P; ++i) {
     const double u = u0 + static_cast<double>(i) / P;
     while (u > cumulative && source + 1 < P) cumulative += std::exp(particles_[++source].log_weight);
     resampled_[i] = particles_[source];  // copies landmark pointers, not landmarks
+    parent_[i] = source;
   }
   particles_.swap(resampled_);
+  genealogy_.AddResampling(parent_);
   resample_pending_ = false;
   pose_cache_valid_ = moments_valid_ = false;
   const double log_w = -std::log(static_cast<double>(P));
@@ -710,6 +724,7 @@ void FastSlam::UpdateMoments() const {
     m.ac += w * c * a;
     m.as += w * s * a;
   }
+  if (options_.correct_shared_ancestry) m.spread_scale = 1.0 / (1.0 - SharedAncestry());
   moments_valid_ = true;
 }
 
@@ -734,14 +749,17 @@ void FastSlam::UpdatePoseCache() const {
   K2(1, 0) = 1.0;
   K3(2, 2) = 1.0;
   const Eigen::Matrix3d& Q = motion_covariance_;
+  // The particles' spread (corrected for their shared ancestry), then their own
+  // covariances J_p Σ_r J_pᵀ.
+  cached_pose_covariance_ = m.spread_scale * (second / m.w - mean * mean.transpose());
+  second.setZero();
   second += m.cc * K1 * Q * K1.transpose() + m.ss * K2 * Q * K2.transpose() +
             m.cs * (K1 * Q * K2.transpose() + K2 * Q * K1.transpose()) +
             m.c * (K1 * Q * K3.transpose() + K3 * Q * K1.transpose()) +
             m.s * (K2 * Q * K3.transpose() + K3 * Q * K2.transpose()) + m.w * K3 * Q * K3.transpose();
-  second /= m.w;
+  cached_pose_covariance_ += second / m.w;
   // Back to the world: the origin's position, and its heading moved by r_θ.
   cached_pose_ = Pose2(m.origin.x + mean.x(), m.origin.y + mean.y(), WrapAngle(m.origin.theta + r.theta + mean.z()));
-  cached_pose_covariance_ = second - mean * mean.transpose();
   cached_pose_covariance_ = 0.5 * (cached_pose_covariance_ + cached_pose_covariance_.transpose()).eval();
   pose_cache_valid_ = true;
 }
@@ -776,7 +794,8 @@ std::vector<ParticleHypothesis> FastSlam::Hypotheses() const {
 
 MomentMatchedGaussian FastSlam::MomentMatched() const {
   const std::vector<ParticleHypothesis> h = Hypotheses();
-  MomentMatchedGaussian g = MomentMatch(h, options_.moment_matching);
+  MomentMatchedGaussian g =
+      MomentMatch(h, options_.moment_matching, options_.correct_shared_ancestry ? SharedAncestry() : 0.0);
   if (options_.known_association) {
     g.truth_id.reserve(g.features.size());
     for (int f : g.features) {

@@ -75,7 +75,9 @@ bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor) {
 }
 
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
-                                  const MomentMatchingOptions& options) {
+                                  const MomentMatchingOptions& options, double shared_ancestry) {
+  SUBSLAM_CHECK(shared_ancestry >= 0.0 && shared_ancestry < 1.0) << "shared ancestry " << shared_ancestry;
+  const double spread_scale = 1.0 / (1.0 - shared_ancestry);
   double total = 0.0;
   size_t heaviest = 0;
   for (size_t p = 0; p < particles.size(); ++p) {
@@ -193,7 +195,7 @@ MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
     for (size_t p = 0; p < particles.size(); ++p) {
       if (w[p] == 0.0) continue;
       const Pose2& pose = particles[p].pose;
-      const double sw = std::sqrt(w[p]);
+      const double sw = std::sqrt(w[p] * spread_scale);
       D(0, c) = sw * (pose.x - out.mean[0]);
       D(1, c) = sw * (pose.y - out.mean[1]);
       D(2, c) = sw * WrapAngle(pose.theta - out.mean[2]);
@@ -233,7 +235,7 @@ MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
           if (!has[b]) continue;
           pair_weight(a, b) += w[p];
           out.covariance.block(offset(a), offset(b), size(a), size(b)) +=
-              w[p] * d.segment(offset(a), size(a)) * d.segment(offset(b), size(b)).transpose();
+              w[p] * spread_scale * d.segment(offset(a), size(a)) * d.segment(offset(b), size(b)).transpose();
         }
         out.covariance.block(offset(a), offset(a), size(a), size(a)) +=
             w[p] * (a == 0 ? Eigen::MatrixXd(particles[p].pose_covariance)

@@ -122,14 +122,19 @@ TEST(FastSlam, ThreadLimitChangesNothingButTheThreadsUsed) {
 }
 
 // pose() and pose_covariance() come from per-scan sums in O(1) per step; they equal the
-// weighted moments of the particles' current poses (mean, spread and each particle's
-// motion covariance), computed directly, at every step — between scans too.
-TEST(FastSlam, PoseMomentsEqualTheParticlesMoments) {
+// weighted moments of the particles' current poses (mean, spread — divided by
+// 1 − SharedAncestry() when corrected — and each particle's motion covariance),
+// computed directly, at every step — between scans too — and MomentMatched()'s pose.
+class PoseMoments : public ::testing::TestWithParam<bool> {};
+
+TEST_P(PoseMoments, EqualTheParticlesMoments) {
   const io::Dataset d = Simulate("hybrid-120m", 5, 20.0);
   FastSlamOptions options;
   options.num_particles = 40;
+  options.correct_shared_ancestry = GetParam();
   FastSlam f(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   int checked = 0;
+  double largest_scale = 1.0;
   std::vector<io::Step> steps = io::BuildSteps(d);
   // Then a long stretch without scans, so that the motion since the last scan (r, Σ_r)
   // is large.
@@ -158,15 +163,54 @@ TEST(FastSlam, PoseMomentsEqualTheParticlesMoments) {
       total += p.weight;
     }
     mean /= total;
-    const Eigen::Matrix3d covariance = second / total - mean * mean.transpose();
+    Eigen::Matrix3d own = Eigen::Matrix3d::Zero();
+    for (const ParticleHypothesis& p : h) own += p.weight / total * p.pose_covariance;
+    const double scale = GetParam() ? 1.0 / (1.0 - f.SharedAncestry()) : 1.0;
+    largest_scale = std::max(largest_scale, scale);
+    const Eigen::Matrix3d covariance = scale * (second / total - own - mean * mean.transpose()) + own;
     const Pose2 pose = f.pose();
     EXPECT_NEAR(pose.x, mean.x(), 1e-9);
     EXPECT_NEAR(pose.y, mean.y(), 1e-9);
     EXPECT_NEAR(WrapAngle(pose.theta - (mean.z() + reference)), 0.0, 1e-12);
     EXPECT_LE((f.pose_covariance() - covariance).norm(), 1e-9 * covariance.norm() + 1e-11) << "step at t " << step.t;
+    if (step.scan_index >= 0) {  // MomentMatched() takes the pose at the scan
+      const MomentMatchedGaussian g = f.MomentMatched();
+      EXPECT_LE((g.covariance.topLeftCorner<3, 3>() - covariance).norm(), 1e-9 * covariance.norm() + 1e-11)
+          << "step at t " << step.t;
+    }
     ++checked;
   }
   EXPECT_GT(checked, 100);
+  if (GetParam()) {
+    EXPECT_GT(largest_scale, 1.01);  // the correction did something
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(FastSlam, PoseMoments, ::testing::Bool(),
+                         [](const auto& info) { return info.param ? "Corrected" : "Uncorrected"; });
+
+// Without resampling the particles share nothing but the start: R = Σ_p w_p², the
+// correction of a weighted sample covariance.
+TEST(FastSlam, SharedAncestryWithoutResamplingIsTheSumOfSquaredWeights) {
+  const io::Dataset d = Simulate("hybrid-120m", 5, 10.0);
+  FastSlamOptions options;
+  options.num_particles = 30;
+  options.resample_ess_ratio = 0.0;
+  FastSlam f(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  EXPECT_EQ(f.SharedAncestry(), 0.0);
+  int scans = 0;
+  for (const io::Step& step : io::BuildSteps(d)) {
+    f.Predict(step.control, step.dt);
+    if (step.scan_index < 0) continue;
+    f.Update(d.scans[step.scan_index]);
+    ++scans;
+    double sum_sq = 0.0;
+    for (const ParticleHypothesis& p : f.Hypotheses()) sum_sq += p.weight * p.weight;
+    EXPECT_NEAR(f.SharedAncestry(), sum_sq, 1e-12);
+    EXPECT_NEAR(f.SharedAncestry(), 1.0 / (options.num_particles * f.EffectiveSampleSizeRatio()), 1e-12);
+  }
+  EXPECT_GT(scans, 50);
+  EXPECT_EQ(f.counters().resamples, 0);
 }
 
 // With no motion noise the pose is known: every particle equals the one sample, and each

@@ -49,6 +49,49 @@ TEST(MomentMatch, TwoParticlesMatchTheClosedForm) {
   EXPECT_EQ(g.particles_used, 2);
 }
 
+// The shared-ancestry correction divides the spread term, and only it, by 1 − R: on the
+// fast path (every particle holds every feature) and on the per-block one.
+TEST(MomentMatch, SharedAncestryScalesTheSpreadOnly) {
+  ParticleHypothesis a, b, c;
+  a.weight = 0.2;
+  a.pose = Pose2(1.0, 0.0, 0.1);
+  a.pose_covariance = 0.5 * Eigen::Matrix3d::Identity();
+  a.features = {Feature(3, 10.0, 2.0, 1.0), Feature(5, 0.0, 7.0, 1.1)};
+  b.weight = 0.5;
+  b.pose = Pose2(2.0, 1.0, -0.1);
+  b.pose_covariance = 0.6 * Eigen::Matrix3d::Identity();
+  b.features = {Feature(3, 11.0, 4.0, 1.2), Feature(5, 1.0, 6.0, 1.3)};
+  c.weight = 0.3;
+  c.pose = Pose2(1.5, -1.0, 0.05);
+  c.pose_covariance = 0.7 * Eigen::Matrix3d::Identity();
+  c.features = {Feature(3, 9.0, 3.0, 1.4), Feature(5, -1.0, 8.0, 1.5)};
+  const double R = 0.3;
+  for (const bool complete : {true, false}) {
+    std::vector<ParticleHypothesis> particles = {a, b, c};
+    if (!complete) particles[2].features.pop_back();  // feature 5 held by a and b only
+    MomentMatchingOptions options;
+    options.min_existence = 0.5;
+    const MomentMatchedGaussian plain = MomentMatch(particles, options);
+    const MomentMatchedGaussian corrected = MomentMatch(particles, options, R);
+    // Each block's own part: the weighted mean of the holders' covariances.
+    Eigen::MatrixXd own = Eigen::MatrixXd::Zero(7, 7);
+    double w5 = 0.0;
+    for (const ParticleHypothesis& p : particles) {
+      own.topLeftCorner<3, 3>() += p.weight * p.pose_covariance;
+      own.block<2, 2>(3, 3) += p.weight * p.features[0].covariance;
+      if (p.features.size() > 1) {
+        own.block<2, 2>(5, 5) += p.weight * p.features[1].covariance;
+        w5 += p.weight;
+      }
+    }
+    own.block<2, 2>(5, 5) /= w5;
+    ASSERT_EQ(plain.covariance_repairs + corrected.covariance_repairs, 0) << (complete ? "complete" : "per block");
+    EXPECT_TRUE(MatricesNear(plain.mean, corrected.mean, 0.0));
+    EXPECT_TRUE(MatricesNear(Eigen::MatrixXd((plain.covariance - own) / (1.0 - R) + own), corrected.covariance, 1e-12))
+        << (complete ? "complete" : "per block");
+  }
+}
+
 // Unnormalised weights give the same Gaussian; a single particle gives its own.
 TEST(MomentMatch, NormalisesWeightsAndReducesToOneParticle) {
   ParticleHypothesis a;

@@ -59,6 +59,7 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "subslam/frontend/existence_model.h"
+#include "subslam/frontend/internal/genealogy.h"
 #include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
@@ -114,6 +115,12 @@ struct FastSlamOptions {
   double sigma_signature = 0.0;
   // Moment matching used by pose(), Map() and the local mapper.
   MomentMatchingOptions moment_matching;
+  // Whether pose_covariance() and MomentMatched() (hence Map() and the local maps)
+  // divide the particles' spread by 1 − SharedAncestry(): after resampling the particles
+  // descend from few ancestors whose pose draws they share, so their spread under-states
+  // the uncertainty (MomentMatch; internal/genealogy.h). false: the mixture's own
+  // moments (HybridSLAM Eqs. 6-7). The particle filter itself runs the same either way.
+  bool correct_shared_ancestry = true;
   // Threads for the per-particle part of a scan (association, the proposal, the pose
   // sample, the landmark updates). The results do not depend on it: each particle slot
   // draws from its own random stream, seeded from `seed` and the slot.
@@ -178,6 +185,13 @@ class FastSlam final : public OnlineEstimator {
   // the landmarks mapped early rest on a few pose hypotheses and the particle set
   // under-represents the local map's uncertainty.
   double LineageDiversity() const;
+  // R = Σ_pq w_p w_q ρ_pq over the current weights, ρ_pq the share of the pose noise
+  // sampled since the last Reset() that particles p and q hold in common: the scans
+  // before their last common ancestor, over all scans (each scan's pose sample is one
+  // independent draw per particle, equal in size — the approximation). Σ_p w_p² when no
+  // resampling happened since Reset(); 1 when every particle is a copy of one; 0 before
+  // the first scan. The argument `shared_ancestry` of MomentMatch().
+  double SharedAncestry() const;
   // N_eff / N after the last scan's weight update, before any resampling.
   double last_scan_ess_ratio() const { return last_ess_ratio_; }
   // The common feature id voted for each detection of the last scan, aligned with the
@@ -311,6 +325,7 @@ class FastSlam final : public OnlineEstimator {
     double w = 0, c = 0, s = 0, cc = 0, ss = 0, cs = 0;
     Eigen::Vector3d a = Eigen::Vector3d::Zero(), ac = Eigen::Vector3d::Zero(), as = Eigen::Vector3d::Zero();
     Eigen::Matrix3d aa = Eigen::Matrix3d::Zero();
+    double spread_scale = 1.0;  // 1 / (1 − SharedAncestry()) when corrected
   };
   mutable bool moments_valid_ = false;
   mutable ParticleMoments moments_;
@@ -324,6 +339,9 @@ class FastSlam final : public OnlineEstimator {
   absl::flat_hash_map<int, int> feature_truth_;  // known association: common id → true id
   mutable std::vector<int> features_scratch_;
   mutable std::vector<char> lineage_seen_;
+  Genealogy genealogy_;               // since Reset()
+  std::vector<int> parent_;           // scratch of Resample
+  mutable std::vector<double> ancestry_weights_;  // scratch of SharedAncestry
   double scan_disagreement_ = 0.0;
   FastSlamCounters counters_;
   StageTimes times_;

@@ -81,8 +81,19 @@ struct MomentMatchedGaussian {
 bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor);
 
 // Requires at least one particle with positive weight.
+//
+// `shared_ancestry` R ∈ [0, 1) corrects the spread term for particles that are not
+// independent samples: with x_p = μ + e_p, Cov(e_p, e_q) = ρ_pq Σ (ρ_pp = 1),
+//   E[Σ_p w_p (x_p − x)(x_p − x)ᵀ] = (1 − Σ_pq w_p w_q ρ_pq) Σ,
+// so the spread Σ_p w_p (x_p − x)(x_p − x)ᵀ is divided by 1 − R, R = Σ_pq w_p w_q ρ_pq.
+// For independent particles R = Σ_p w_p² (the unbiased weighted covariance); a particle
+// filter's particles share their ancestors' noise, and R is larger (FastSlam::
+// SharedAncestry). 0 (the default): the mixture's own moments, Eqs. 6-7. The particles'
+// own covariances P_p are not scaled. One R serves every block, also where a block's
+// weights are renormalised over the particles holding its features.
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
-                                  const MomentMatchingOptions& options = {});
+                                  const MomentMatchingOptions& options = {},
+                                  double shared_ancestry = 0.0);
 
 }  // namespace subslam::frontend
 
