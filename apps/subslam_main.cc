@@ -149,6 +149,9 @@ ABSL_FLAG(int, relinearize_max_rises, kEifDefaults.divergence_rises,
 ABSL_FLAG(double, relinearize_heading_change, kEifDefaults.relinearize_heading_change,
           "eif: also relinearise after a join when an anchor's heading has moved this far [rad] "
           "from where one of its factors was linearised (0: off)");
+ABSL_FLAG(double, relinearize_linearization_chi2, kEifDefaults.relinearize_linearization_chi2,
+          "eif: also relinearise after a join when some factor's linear model is off at the current "
+          "estimate by more than this, whitened by its local map's covariance (chi2 units; 0: off)");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join (ceres: off, Ceres solves there)");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
@@ -282,6 +285,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.predict_convergence = absl::GetFlag(FLAGS_relinearize_predict);
   o.divergence_rises = absl::GetFlag(FLAGS_relinearize_max_rises);
   o.relinearize_heading_change = absl::GetFlag(FLAGS_relinearize_heading_change);
+  o.relinearize_linearization_chi2 = absl::GetFlag(FLAGS_relinearize_linearization_chi2);
   o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);
   o.bound_candidate_marginals = absl::GetFlag(FLAGS_eif_bound_marginals);
   o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);

@@ -387,6 +387,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"kind", ToString(options.backend.kind)},
         {"background", options.backend.background},
         {"relinearize_heading_change", options.backend.eif.relinearize_heading_change},
+        {"relinearize_linearization_chi2", options.backend.eif.relinearize_linearization_chi2},
         {"relinearize_every", options.backend.eif.relinearize_every},
         {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}};
   }

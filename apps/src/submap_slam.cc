@@ -301,6 +301,8 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_relinearizations"] = joiner_->counters().relinearizations;
     out["join_relinearizations_diverged"] = joiner_->counters().relinearizations_diverged;
     out["join_relinearizations_predicted_converged"] = joiner_->counters().relinearizations_predicted_converged;
+    out["join_relinearized_on_heading"] = joiner_->counters().relinearized_on_heading;
+    out["join_relinearized_on_linearization_error"] = joiner_->counters().relinearized_on_linearization_error;
     out["join_rejected"] = joiner_->counters().rejected_joins;
     out["join_full_factorizations"] = joiner_->counters().full_factorizations;
     out["join_reused_analyses"] = joiner_->counters().reused_analyses;

@@ -1,6 +1,7 @@
 #include "subslam/backend/eif_joiner.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 
@@ -50,11 +51,24 @@ absl::Status EifJoinerOptions::Validate() const {
     return absl::InvalidArgumentError(
         absl::StrCat("divergence_rises (--relinearize_max_rises) must be >= 0, got ", divergence_rises));
   }
+  if (!(relinearize_linearization_chi2 >= 0)) {
+    return absl::InvalidArgumentError(absl::StrCat("relinearize_linearization_chi2 must be >= 0, got ",
+                                                   relinearize_linearization_chi2));
+  }
   if (!(relinearize_heading_change >= 0)) {
     return absl::InvalidArgumentError(
         absl::StrCat("relinearize_heading_change must be >= 0 [rad], got ", relinearize_heading_change));
   }
   return absl::OkStatus();
+}
+
+EifJoinerOptions EifJoinerOptions::SingleLinearization() const {
+  EifJoinerOptions o = *this;
+  o.relinearize_heading_change = 0.0;
+  o.relinearize_linearization_chi2 = 0.0;
+  o.relinearize_every = 0;
+  o.relinearize_at_end = false;
+  return o;
 }
 
 EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
@@ -102,6 +116,10 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   const Eigen::LLT<Eigen::MatrixXd> llt(record.submap.covariance);
   SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
   f.covariance_sqrt = std::make_shared<const Eigen::MatrixXd>(llt.matrixL());
+  f.covariance_min_eigenvalue =
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(record.submap.covariance, Eigen::EigenvaluesOnly)
+          .eigenvalues()
+          .minCoeff();
   if (record.start_anchor != 0) {
     f.offsets.push_back(anchor_offset_[record.start_anchor]);
     f.sizes.push_back(3);
@@ -127,6 +145,10 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
   f->start_theta = start.theta;
   f->end_theta = end.theta;
+  f->start_position = Eigen::Vector2d(start.x, start.y);
+  f->levers.resize(landmarks.size() + 1);
+  f->levers[0] = Eigen::Vector2d(end.x, end.y) - f->start_position;
+  for (size_t i = 0; i < landmarks.size(); ++i) f->levers[i + 1] = landmarks[i] - f->start_position;
 
   // Stack the Jacobian over the variable blocks (P0, fixed, has none) and x̂.
   const bool start_fixed = record.start_anchor == 0;
@@ -169,6 +191,12 @@ void EifJoiner::LinearizeStructured(Factor* f) const {
   const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
   f->start_theta = start.theta;
   f->end_theta = end.theta;
+  f->start_position = Eigen::Vector2d(start.x, start.y);
+  f->levers.resize(s.num_landmarks() + 1);
+  f->levers[0] = Eigen::Vector2d(end.x, end.y) - f->start_position;
+  for (int i = 0; i < s.num_landmarks(); ++i) {
+    f->levers[i + 1] = graph_.landmarks()[record.landmark_of_feature[i]] - f->start_position;
+  }
   const int n = s.num_landmarks(), m = 3 + 2 * n;
   const bool start_fixed = record.start_anchor == 0;
   const int na = start_fixed ? 3 : 6;
@@ -798,6 +826,8 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   counters_.relinearizations = work.relinearizations;
   counters_.relinearizations_diverged = work.relinearizations_diverged;
   counters_.relinearizations_predicted_converged = work.relinearizations_predicted_converged;
+  counters_.relinearized_on_heading = work.relinearized_on_heading;
+  counters_.relinearized_on_linearization_error = work.relinearized_on_linearization_error;
   counters_.loop_closures_confirmed = work.loop_closures_confirmed;
   counters_.loop_closures_unconfirmed = work.loop_closures_unconfirmed + 1;
   counters_.associations_replayed = work.associations_replayed;
@@ -936,9 +966,70 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     return Relinearize();
   }
   if (options_.relinearize_heading_change > 0 && MaxHeadingDrift() > options_.relinearize_heading_change) {
+    ++counters_.relinearized_on_heading;
+    return Relinearize();
+  }
+  if (options_.relinearize_linearization_chi2 > 0 && LinearizationErrorAbove(options_.relinearize_linearization_chi2)) {
+    ++counters_.relinearized_on_linearization_error;
     return Relinearize();
   }
   return absl::OkStatus();
+}
+
+double EifJoiner::LinearizationError(const Factor& f) const {
+  // The factor is nonlinear only through the start heading θ: each position row is
+  // Rᵀ(θ) v, v the lever from the start anchor to the end anchor or a landmark. Its linear
+  // model at (θ₀, v₀) is Rᵀ(θ₀) v + Ṙᵀ(θ₀) v₀ (θ − θ₀), so the error is
+  // (Rᵀ(θ) − Rᵀ(θ₀)) v − Ṙᵀ(θ₀) v₀ (θ − θ₀); the heading row is linear.
+  const SubmapFactor& record = graph_.factors()[f.index];
+  const double theta = anchor_theta_[record.start_anchor], dtheta = theta - f.start_theta;
+  const Eigen::Vector2d p_s(graph_.anchors()[record.start_anchor].x, graph_.anchors()[record.start_anchor].y);
+  const Eigen::Matrix2d Rt = Pose2(0, 0, theta).rotation().transpose();
+  const Eigen::Matrix2d Rt0 = Pose2(0, 0, f.start_theta).rotation().transpose();
+  Eigen::Matrix2d dRt0;  // d/dθ Rᵀ(θ) at θ₀
+  const double c = std::cos(f.start_theta), s = std::sin(f.start_theta);
+  dRt0 << -s, c, -c, -s;
+  const int n = static_cast<int>(f.levers.size()) - 1;
+  Eigen::VectorXd e = Eigen::VectorXd::Zero(3 + 2 * n);
+  const auto error = [&](const Eigen::Vector2d& v, const Eigen::Vector2d& v0) {
+    return Eigen::Vector2d((Rt - Rt0) * v - dRt0 * v0 * dtheta);
+  };
+  e.head<2>() = error(Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y) - p_s,
+                      f.levers[0]);
+  for (int i = 0; i < n; ++i) {
+    e.segment<2>(3 + 2 * i) = error(graph_.landmarks()[record.landmark_of_feature[i]] - p_s, f.levers[i + 1]);
+  }
+  f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);
+  return e.squaredNorm();
+}
+
+double EifJoiner::MaxLinearizationError() const {
+  double worst = 0.0;
+  for (const Factor& f : factors_) worst = std::max(worst, LinearizationError(f));
+  return worst;
+}
+
+bool EifJoiner::LinearizationErrorAbove(double chi2) const {
+  for (const Factor& f : factors_) {
+    // A bound first: each position row's error is at most |δθ| (‖v‖ + ‖v₀‖) (‖Rᵀ(θ) −
+    // Rᵀ(θ₀)‖ ≤ |δθ|), and whitening scales a vector by at most 1 / √λ_min(Q).
+    const SubmapFactor& record = graph_.factors()[f.index];
+    const double dtheta = anchor_theta_[record.start_anchor] - f.start_theta;
+    if (dtheta == 0.0) continue;
+    const Eigen::Vector2d p_s(graph_.anchors()[record.start_anchor].x, graph_.anchors()[record.start_anchor].y);
+    const auto lever_sq = [&](const Eigen::Vector2d& point, const Eigen::Vector2d& v0) {
+      const double b = (point - p_s).norm() + v0.norm();
+      return b * b;
+    };
+    double sum = lever_sq(Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y),
+                          f.levers[0]);
+    for (size_t i = 1; i < f.levers.size(); ++i) {
+      sum += lever_sq(graph_.landmarks()[record.landmark_of_feature[i - 1]], f.levers[i]);
+    }
+    if (dtheta * dtheta * sum <= chi2 * f.covariance_min_eigenvalue) continue;
+    if (LinearizationError(f) > chi2) return true;
+  }
+  return false;
 }
 
 double EifJoiner::MaxHeadingDrift() const {

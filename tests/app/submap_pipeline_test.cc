@@ -317,8 +317,7 @@ TEST(SubmapPipeline, JoinRecordsEachAnchorAsItsJoinLeftIt) {
   JoinOptions options;
   options.initial_pose = d.initial_pose;
   options.truth_poses = d.truth_poses;
-  options.backend.eif.relinearize_heading_change = 0.0;
-  options.backend.eif.relinearize_at_end = false;
+  options.backend.eif = options.backend.eif.SingleLinearization();
   absl::StatusOr<JoinResult> j = RunJoin(maps, options);
   ASSERT_TRUE(j.ok()) << j.status();
   ASSERT_EQ(j->anchors_online.size(), j->anchors.size());

@@ -98,6 +98,7 @@ TEST(EifJoiner, InformationIsTheSumOfItsFactorsHoweverAssembled) {
   EifJoinerOptions added_options;
   added_options.association.known_association = true;
   added_options.relinearize_heading_change = 0.0;
+  added_options.relinearize_linearization_chi2 = 0.0;
   added_options.incremental_factorization = false;
   EifJoiner added(run.anchors[0], added_options);
   for (const LocalSubmap& s : run.submaps) {
@@ -194,6 +195,7 @@ TEST(EifJoiner, IncrementalFactorEqualsRefactorizingEveryJoin) {
     SyntheticRun run = MakeRun(seed == 0 ? 5 : seed, 24, 1.0);
     EifJoinerOptions options;
     options.relinearize_heading_change = 0.0;  // one factorisation per join, no more
+    options.relinearize_linearization_chi2 = 0.0;
     if (seed == 0) {
       options.association.known_association = true;
       LocalSubmap& s = run.submaps[13];
@@ -457,6 +459,7 @@ TEST(EifJoiner, RelinearisesWhenAHeadingHasMovedFromItsLinearisation) {
     EifJoinerOptions o = ConvergingKnownAssociation();
     o.relinearize_at_end = false;
     o.relinearize_heading_change = heading_change;
+    o.relinearize_linearization_chi2 = 0.0;  // the heading trigger alone
     return o;
   };
   EifJoiner off(run.anchors[0], options(0.0)), never(run.anchors[0], options(10.0));
@@ -483,6 +486,95 @@ TEST(EifJoiner, RelinearisesWhenAHeadingHasMovedFromItsLinearisation) {
   EXPECT_LT(some.counters().relinearizations, always.counters().relinearizations);
 }
 
+// MaxLinearizationError against its definition: each factor's linearisation point
+// rebuilt from the estimate before its join (the new end anchor and landmarks placed
+// through the start anchor, as the joiner does), its residual and Jacobian there from
+// LinearizeSubmapFactor, the error of that linear model at the final estimate whitened by
+// the local map's covariance. After Gauss-Newton to convergence it is ~0.
+TEST(EifJoiner, MaxLinearizationErrorIsTheWhitenedErrorOfTheLinearModels) {
+  const SyntheticRun run = MakeRun(7, 12, 3.0);
+  EifJoinerOptions options = ConvergingKnownAssociation().SingleLinearization();
+  EifJoiner eif(run.anchors[0], options);
+  std::vector<SubmapGraph> before;  // the estimate before each join
+  for (const LocalSubmap& s : run.submaps) {
+    before.push_back(eif.graph());
+    ASSERT_TRUE(eif.Join(s).ok());
+  }
+  const SubmapGraph& now = eif.graph();
+  double expected = 0.0;
+  for (size_t k = 0; k < now.factors().size(); ++k) {
+    const SubmapFactor& f = now.factors()[k];
+    const LocalSubmap& s = f.submap;
+    const SubmapGraph& b = before[k];
+    const Pose2 start0 = b.anchors()[f.start_anchor];
+    const Pose2 end0 = Compose(start0, s.end_pose());
+    std::vector<Eigen::Vector2d> landmarks0, landmarks;
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      const int j = f.landmark_of_feature[i];
+      landmarks0.push_back(j < b.num_landmarks() ? b.landmarks()[j] : TransformFrom(start0, s.landmark(i)));
+      landmarks.push_back(now.landmarks()[j]);
+    }
+    const SubmapFactorLinearization lin0 = LinearizeSubmapFactor(s, start0, end0, landmarks0);
+    const Pose2 start = now.anchors()[f.start_anchor], end = now.anchors()[f.end_anchor];
+    const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
+    Eigen::Vector3d d_start = start.vector() - start0.vector(), d_end = end.vector() - end0.vector();
+    d_start[2] = WrapAngle(d_start[2]);
+    d_end[2] = WrapAngle(d_end[2]);
+    Eigen::VectorXd d_landmarks(2 * s.num_landmarks());
+    for (int i = 0; i < s.num_landmarks(); ++i) d_landmarks.segment<2>(2 * i) = landmarks[i] - landmarks0[i];
+    Eigen::VectorXd e = lin.residual - lin0.residual - lin0.J_end * d_end - lin0.J_landmarks * d_landmarks;
+    if (f.start_anchor != 0) e -= lin0.J_start * d_start;  // P0 is fixed
+    e[2] = WrapAngle(e[2]);
+    const Eigen::LLT<Eigen::MatrixXd> llt(s.covariance);
+    llt.matrixL().solveInPlace(e);
+    expected = std::max(expected, e.squaredNorm());
+  }
+  EXPECT_GT(expected, 1e-3);  // the estimate has moved from the linearisation points
+  EXPECT_NEAR(eif.MaxLinearizationError(), expected, 1e-9 * expected);
+
+  EifJoiner converged(run.anchors[0], ConvergingKnownAssociation());
+  for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(converged.Join(s).ok());
+  ASSERT_TRUE(converged.Finish().ok());
+  EXPECT_LT(converged.MaxLinearizationError(), 1e-12);
+}
+
+// relinearize_linearization_chi2: as the heading trigger, but on the factors' whitened
+// linearisation error. A threshold no error reaches never relinearises (the single
+// linearisation); a zero-width one relinearises after every join (the batch Gauss-Newton
+// solution of the graph so far); one between does some of that work.
+TEST(EifJoiner, RelinearisesWhenAFactorsLinearModelIsOffByMoreThanItsNoise) {
+  const SyntheticRun run = MakeRun(7, 12, 3.0);
+  const auto options = [](double chi2) {
+    EifJoinerOptions o = ConvergingKnownAssociation();
+    o.relinearize_at_end = false;
+    o.relinearize_heading_change = 0.0;  // this trigger alone
+    o.relinearize_linearization_chi2 = chi2;
+    return o;
+  };
+  EifJoiner off(run.anchors[0], options(0.0)), never(run.anchors[0], options(1e12));
+  const double between = 0.01;  // the synthetic run's single linearisation ends at 0.06
+  EifJoiner always(run.anchors[0], options(1e-15)), some(run.anchors[0], options(between));
+  for (const LocalSubmap& s : run.submaps) {
+    for (EifJoiner* j : {&off, &never, &always, &some}) ASSERT_TRUE(j->Join(s).ok());
+    EXPECT_LE(some.MaxLinearizationError(), between) << "map " << s.id;
+    if (s.id == 0) continue;
+    const Eigen::VectorXd gn = DenseGaussNewton(always.graph(), 50);
+    for (int k = 1; k < always.num_anchors(); ++k) {
+      Eigen::Vector3d e = always.anchor(k).vector() - gn.segment<3>(3 * (k - 1));
+      e[2] = WrapAngle(e[2]);
+      EXPECT_LT(e.cwiseAbs().maxCoeff(), 1e-8) << "map " << s.id << ", anchor " << k;
+    }
+  }
+  EXPECT_EQ(never.counters().relinearizations, 0);
+  for (int k = 0; k < off.num_anchors(); ++k) {
+    EXPECT_EQ(never.anchor(k).vector(), off.anchor(k).vector()) << "anchor " << k;
+  }
+  EXPECT_GT(off.MaxLinearizationError(), between);  // so `some` had something to do
+  EXPECT_GT(some.counters().relinearized_on_linearization_error, 0);
+  EXPECT_EQ(some.counters().relinearized_on_heading, 0);
+  EXPECT_LT(some.counters().relinearizations, always.counters().relinearizations);
+}
+
 // The divergence stop of relinearisation (divergence_rises), on local maps whose end
 // headings were corrupted by ±1.5 rad: a case where the first Gauss-Newton step raises
 // the cost before later ones lower it. With one rise allowed (the default: two in a row
@@ -496,6 +588,7 @@ TEST(EifJoiner, RelinearisationStopsAtItsBestIterateAfterTooManyCostRises) {
     options.association.known_association = true;
     options.relinearize_at_end = relinearize;
     options.relinearize_heading_change = 0.0;  // relinearised only at the end, if at all
+    options.relinearize_linearization_chi2 = 0.0;
     options.divergence_rises = rises;
     auto eif = std::make_unique<EifJoiner>(run.anchors[0], options);
     for (const LocalSubmap& s : run.submaps) EXPECT_TRUE(eif->Join(s).ok());
@@ -788,6 +881,7 @@ TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
   // With a single linearisation there is no confirmation: the closure stays.
   EifJoinerOptions single = options;
   single.relinearize_heading_change = 0.0;
+  single.relinearize_linearization_chi2 = 0.0;
   EifJoiner single_linearisation(Pose2(0, 0, 0), single);
   for (const LocalSubmap& s : wrong) ASSERT_TRUE(single_linearisation.Join(s).ok());
   EXPECT_EQ(ClosingPairings(single_linearisation), 4);

@@ -29,11 +29,12 @@
 // current estimate and re-solve while the step exceeds `relinearize_tolerance` or its χ²
 // length exceeds `relinearize_step_chi2` (or, with `predict_convergence`, until the next
 // step, solved with the factor at hand, is below them) — after a join that moved an
-// anchor's heading `relinearize_heading_change` from a factor's linearisation (on by
-// default), every `relinearize_every` joins and/or at Finish() (on by default); iterated
-// to convergence this is Gauss-Newton over the submap graph. Without the trigger and the
-// relinearisation at the end (both 0 / false) it is the single-linearisation EIF of
-// paper 000.
+// anchor's heading `relinearize_heading_change` from a factor's linearisation or left a
+// factor's linear model more than its noise off (`relinearize_linearization_chi2`; both on
+// by default), every `relinearize_every` joins and/or at Finish() (on by default);
+// iterated to convergence this is Gauss-Newton over the submap graph. Without the
+// triggers and the relinearisation at the end (all 0 / false: SingleLinearization()) it
+// is the single-linearisation EIF of paper 000.
 // Time per stage (association, covariance recovery — association's, plus the marginal
 // bounds recomputed after a relinearisation —, update, factorisation — of which
 // full_factorization —, recovery, recovery_check) is accumulated as in Table 1 of paper 000.
@@ -140,6 +141,16 @@ struct EifJoinerOptions {
   // carries Gauss-Newton on (measuring the drift from the stopping point instead cost
   // accuracy with max_relinearizations = 1: bench/RESULTS.md, seventh session).
   double relinearize_heading_change = 0.05;
+  // Also relinearise after a join when some factor's linear model is off, at the current
+  // estimate, by more than its own noise: ‖L_Q⁻¹ (h(x) − h(x₀) − J(x₀)(x − x₀))‖² above
+  // this (χ² units; x₀ the factor's linearisation point, Q = L Lᵀ its local map's
+  // covariance); 0: off. The heading trigger misses a small turn under long levers: on a
+  // 16 km random world a loop closure turned headings by 0.04 rad but put one factor's
+  // linear model 148 χ² units off (12-15 for the rest of the run), and the online
+  // estimate ended at NEES 63; with this trigger one more relinearisation there brings
+  // it to 3.6. On combined-2km, where the heading trigger fires 32 times, it adds 0-4
+  // (bench/RESULTS.md, thirteenth session).
+  double relinearize_linearization_chi2 = 1.0;
   // Gauss-Newton may raise the cost once on its way to a lower minimum, but this many
   // rises in a row end a relinearisation at its best iterate (counter
   // relinearizations_diverged); 1 is monotone Gauss-Newton, 0 never stops on the cost.
@@ -165,6 +176,9 @@ struct EifJoinerOptions {
   bool bound_candidate_marginals = true;
 
   absl::Status Validate() const;
+  // These options with every relinearisation off (both triggers, the schedule and the
+  // one at the end): the single-linearisation EIF of paper 000.
+  EifJoinerOptions SingleLinearization() const;
 };
 
 class EifJoiner final : public MapJoiner {
@@ -182,6 +196,13 @@ class EifJoiner final : public MapJoiner {
   // e.g. by Ceres) as the estimate, relinearises every factor there and re-solves, so the
   // information form and the marginals follow the better estimate.
   absl::Status AdoptEstimate(const SubmapGraph& solved);
+
+  // The largest whitened linearisation error of a factor at the current estimate,
+  // ‖L_Q⁻¹ (r(x) − r(x₀) − J(x₀)(x − x₀))‖² over the factors, x₀ a factor's
+  // linearisation point and Q = L Lᵀ its local map's covariance: how far the information
+  // form's linear model is from the estimate it holds (what
+  // relinearize_linearization_chi2 tests; 0 right after relinearising there).
+  double MaxLinearizationError() const;
 
   const SubmapGraph& graph() const override { return graph_; }
   // Marginal covariances by sparse solves with the factor.
@@ -233,6 +254,11 @@ class EifJoiner final : public MapJoiner {
     Eigen::MatrixXd H;              // Jᵀ Q⁻¹ J over the stacked variable blocks
     Eigen::VectorXd b;              // Jᵀ Q⁻¹ (J x̂ − r)
     double start_theta = 0.0, end_theta = 0.0;  // the anchors' headings at the linearisation
+    // The start anchor's position and its levers to the end anchor and to each landmark
+    // at the linearisation (what LinearizationError needs).
+    Eigen::Vector2d start_position = Eigen::Vector2d::Zero();
+    std::vector<Eigen::Vector2d> levers;
+    double covariance_min_eigenvalue = 0.0;  // of Q
     // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
     // factor; computed once, shared by copies.
     std::shared_ptr<const Eigen::MatrixXd> covariance_sqrt;
@@ -244,6 +270,11 @@ class EifJoiner final : public MapJoiner {
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
   // The factor record of graph factor `index`: its variables' offsets and sizes.
   Factor MakeFactor(int index) const;
+  // The factor's linearisation error at the current estimate, whitened (see
+  // MaxLinearizationError).
+  double LinearizationError(const Factor& f) const;
+  // Whether some factor's is above chi2 (most factors settled by a bound, without it).
+  bool LinearizationErrorAbove(double chi2) const;
   // H and b of the factor at the current estimate, and (if asked) its whitened Jacobian
   // L_Q⁻¹ J, the newest factor's rank update of the incremental factor.
   void Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian = nullptr) const;

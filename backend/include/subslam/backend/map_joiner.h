@@ -29,6 +29,10 @@ struct JoinerCounters {
   long relinearizations_diverged = 0;  // stopped at their best iterate (cost rises in a row)
   // Gauss-Newton runs stopped by a predicted step, before another factorisation.
   long relinearizations_predicted_converged = 0;
+  // Relinearisations set off after a join by each trigger (the EIF's
+  // relinearize_heading_change and relinearize_linearization_chi2).
+  long relinearized_on_heading = 0;
+  long relinearized_on_linearization_error = 0;
   long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
   // Loop closures dropped under an uncertain start anchor: too few pairings, or ambiguous.
   long loop_closures_thin = 0;
@@ -62,6 +66,8 @@ struct JoinerCounters {
     relinearizations += o.relinearizations;
     relinearizations_diverged += o.relinearizations_diverged;
     relinearizations_predicted_converged += o.relinearizations_predicted_converged;
+    relinearized_on_heading += o.relinearized_on_heading;
+    relinearized_on_linearization_error += o.relinearized_on_linearization_error;
     jcbb_truncated += o.jcbb_truncated;
     loop_closures_thin += o.loop_closures_thin;
     loop_closures_ambiguous += o.loop_closures_ambiguous;
