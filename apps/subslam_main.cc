@@ -152,6 +152,9 @@ ABSL_FLAG(double, relinearize_heading_change, kEifDefaults.relinearize_heading_c
 ABSL_FLAG(double, relinearize_linearization_chi2, kEifDefaults.relinearize_linearization_chi2,
           "eif: also relinearise after a join when some factor's linear model is off at the current "
           "estimate by more than this, whitened by its local map's covariance (chi2 units; 0: off)");
+ABSL_FLAG(bool, single_linearization, false,
+          "eif: the single-linearisation EIF of Combined SLAM (paper 000): no relinearisation at "
+          "all, whatever the relinearize_* flags say");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join (ceres: off, Ceres solves there)");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
@@ -290,6 +293,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.bound_candidate_marginals = absl::GetFlag(FLAGS_eif_bound_marginals);
   o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   o.association.known_association = absl::GetFlag(FLAGS_known_association);
+  if (absl::GetFlag(FLAGS_single_linearization)) o = o.SingleLinearization();
   return o;
 }
 

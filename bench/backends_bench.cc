@@ -5,6 +5,7 @@
 //   build/bench/backends_bench [--scenario combined-2km --seed 1 | --dataset DIR]
 //       [--frontend ekf|rbpf] [--known_association] [--backends eif,ceres,ekf,tree-ekf,tree-eif]
 //       [--growth_km 1,2,4,8,16] [--eif_relinearize_heading RAD] [--eif_relinearize_at_end=false]
+//       [--eif_relinearize_linearization_chi2 X] [--eif_single_linearization]
 //       [--out results.json]
 //
 // Side by side: the local maps are built once (front-end, no back-end), then each
@@ -48,8 +49,14 @@ ABSL_FLAG(double, growth_dense_max_km, 4.0,
           "growth table: dense back-ends (ekf, tree-ekf) only up to this path length (their covariance is O(N^2))");
 ABSL_FLAG(double, eif_relinearize_heading, subslam::backend::EifJoinerOptions{}.relinearize_heading_change,
           "eif (and the EIF that associates for ceres and tree-eif): relinearise when an "
-          "anchor's heading moved this far [rad] (0 with --eif_relinearize_at_end=false: eif "
-          "is single-linearised, as Combined SLAM's Table 1)");
+          "anchor's heading moved this far [rad] (0: off; --eif_single_linearization for "
+          "the single linearisation)");
+ABSL_FLAG(double, eif_relinearize_linearization_chi2,
+          subslam::backend::EifJoinerOptions{}.relinearize_linearization_chi2,
+          "eif: relinearise when some factor's whitened linearisation error exceeds this (0: off)");
+ABSL_FLAG(bool, eif_single_linearization, false,
+          "eif: no relinearisation at all (overrides the other eif_relinearize flags), as "
+          "Combined SLAM's Table 1");
 ABSL_FLAG(bool, eif_relinearize_at_end, subslam::backend::EifJoinerOptions{}.relinearize_at_end,
           "eif: Gauss-Newton to convergence after the last join");
 ABSL_FLAG(double, eif_relinearize_step_chi2, subslam::backend::EifJoinerOptions{}.relinearize_step_chi2,
@@ -93,6 +100,8 @@ subslam::app::BackendOptions Options(Backend kind) {
   o.eif.relinearize_at_end = absl::GetFlag(FLAGS_eif_relinearize_at_end);
   o.eif.relinearize_step_chi2 = absl::GetFlag(FLAGS_eif_relinearize_step_chi2);
   o.eif.predict_convergence = absl::GetFlag(FLAGS_eif_relinearize_predict);
+  o.eif.relinearize_linearization_chi2 = absl::GetFlag(FLAGS_eif_relinearize_linearization_chi2);
+  if (absl::GetFlag(FLAGS_eif_single_linearization)) o.eif = o.eif.SingleLinearization();
   o.ekf.association = o.eif.association;
   return o;
 }
