@@ -148,9 +148,9 @@ ABSL_FLAG(int, relinearize_max_rises, kEifDefaults.divergence_rises,
           "(1: monotone Gauss-Newton, 0: never)");
 ABSL_FLAG(double, relinearize_heading_change, kEifDefaults.relinearize_heading_change,
           "eif: also relinearise after a join when an anchor's heading has moved this far [rad] "
-          "from where one of its factors was linearised (0: off)");
+          "from where one of its factors was linearised (0: off, the default)");
 ABSL_FLAG(double, relinearize_linearization_chi2, kEifDefaults.relinearize_linearization_chi2,
-          "eif: also relinearise after a join when some factor's linear model is off at the current "
+          "eif: relinearise after a join when some factor's linear model is off at the current "
           "estimate by more than this, whitened by its local map's covariance (chi2 units; 0: off)");
 ABSL_FLAG(bool, single_linearization, false,
           "eif: the single-linearisation EIF of Combined SLAM (paper 000): no relinearisation at "

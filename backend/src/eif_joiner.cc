@@ -915,7 +915,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
       // The closing map of an unconfirmed loop closure: without its loop pairings.
       for (int i : a.uncertain_loop_features) assoc[i] = -1;
     } else if (!a.uncertain_loop_features.empty() && options_.loop_confirmation_maps > 0 &&
-               options_.relinearize_heading_change > 0 && !pending_loop_ &&
+               (options_.relinearize_heading_change > 0 || options_.relinearize_linearization_chi2 > 0) && !pending_loop_ &&
                3.0 * a.start_position_sigma_m >= options_.loop_confirmation_min_sigma_radius_m) {
       pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
                                          std::move(a)};

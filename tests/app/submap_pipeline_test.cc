@@ -496,6 +496,11 @@ TEST(BackendOptions, RejectsBadInput) {
   EXPECT_FALSE(o.Validate().ok());
   o.eif.relinearize_heading_change = NAN;
   EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.eif.relinearize_linearization_chi2 = -1.0;  // --relinearize_linearization_chi2
+  EXPECT_FALSE(o.Validate().ok());
+  o.eif.relinearize_linearization_chi2 = NAN;
+  EXPECT_FALSE(o.Validate().ok());
 
   const io::Dataset d = Simulate(1);
   JoinOptions join;

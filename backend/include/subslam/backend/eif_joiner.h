@@ -29,9 +29,10 @@
 // current estimate and re-solve while the step exceeds `relinearize_tolerance` or its χ²
 // length exceeds `relinearize_step_chi2` (or, with `predict_convergence`, until the next
 // step, solved with the factor at hand, is below them) — after a join that moved an
-// anchor's heading `relinearize_heading_change` from a factor's linearisation or left a
-// factor's linear model more than its noise off (`relinearize_linearization_chi2`; both on
-// by default), every `relinearize_every` joins and/or at Finish() (on by default);
+// factor's linear model more than its noise off (`relinearize_linearization_chi2`, on by
+// default) or moved an anchor's heading `relinearize_heading_change` from a factor's
+// linearisation (off by default), every `relinearize_every` joins and/or at Finish() (on
+// by default);
 // iterated to convergence this is Gauss-Newton over the submap graph. Without the
 // triggers and the relinearisation at the end (all 0 / false: SingleLinearization()) it
 // is the single-linearisation EIF of paper 000.
@@ -86,8 +87,8 @@ struct EifJoinerOptions {
   //    join stands.
   //  - Scope: it rides on association's loop regime (min_loop_pairings > 1, estimated
   //    association), and needs the estimate after the closure to be right, so it applies
-  //    only while the joiner relinearises when headings move (relinearize_heading_change
-  //    > 0). With a single linearisation the estimate after a correction of a hundred
+  //    only while the joiner relinearises after joins (relinearize_linearization_chi2 or
+  //    relinearize_heading_change > 0). With a single linearisation the estimate after a correction of a hundred
   //    metres is too far off for the next maps to find the old map: combined-2km's
   //    correct closures were all undone. 0 maps: off.
   //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
@@ -99,11 +100,10 @@ struct EifJoinerOptions {
   // Relinearisation.
   int relinearize_every = 0;       // every K joins (0: not on a schedule)
   // At Finish(): Gauss-Newton to convergence, so that the final anchors and map are the
-  // optimum for the associations made. Between the heading trigger's relinearisations
-  // the factors stay linearised where each join left them, and over many revisits that
-  // costs accuracy and consistency the trigger does not see: on a random 16 km world
-  // (807 joins, no heading moving 0.05 rad) the final anchors' mean NEES is 102.7 without
-  // it and 4.7 with it, for three Gauss-Newton iterations (`subslam join`,
+  // optimum for the associations made. Between relinearisations the factors stay
+  // linearised where each join left them: with the heading trigger alone, on a random
+  // 16 km world (807 joins, no heading moving 0.05 rad) the final anchors' mean NEES was
+  // 102.7 without it and 4.7 with it, for three Gauss-Newton iterations (`subslam join`,
   // bench/RESULTS.md, twelfth session). The Ceres back-end turns it off (Ceres solves
   // there).
   bool relinearize_at_end = true;
@@ -130,27 +130,28 @@ struct EifJoinerOptions {
   // factorisation (1 of 3 on combined-2km) for one solve and two passes over the factors
   // per iteration; a prediction that does not stop costs only those.
   bool predict_convergence = true;
-  // Also relinearise after a join when an anchor's heading has moved this far [rad] from
-  // where one of its factors was linearised (the submap factor is nonlinear in the
-  // headings only); 0: off. At 0.05 (≈ 3°) combined-2km's loop closes with unknown
-  // association on ten seeds of ten (at 0.1, six), and Victoria Park spends 8
-  // Gauss-Newton iterations on it over 320 joins (bench/RESULTS.md, seventh session).
-  // After a relinearisation stopped at its best iterate or at max_relinearizations (or
-  // on a predicted step after its first iteration, keeping the first linearisation) the
-  // drift can stay above the threshold, and the next joins relinearise again — which
-  // carries Gauss-Newton on (measuring the drift from the stopping point instead cost
-  // accuracy with max_relinearizations = 1: bench/RESULTS.md, seventh session).
-  double relinearize_heading_change = 0.05;
-  // Also relinearise after a join when some factor's linear model is off, at the current
+  // Relinearise after a join when some factor's linear model is off, at the current
   // estimate, by more than its own noise: ‖L_Q⁻¹ (h(x) − h(x₀) − J(x₀)(x − x₀))‖² above
   // this (χ² units; x₀ the factor's linearisation point, Q = L Lᵀ its local map's
-  // covariance); 0: off. The heading trigger misses a small turn under long levers: on a
-  // 16 km random world a loop closure turned headings by 0.04 rad but put one factor's
-  // linear model 148 χ² units off (12-15 for the rest of the run), and the online
-  // estimate ended at NEES 63; with this trigger one more relinearisation there brings
-  // it to 3.6. On combined-2km, where the heading trigger fires 32 times, it adds 0-4
+  // covariance; MaxLinearizationError()); 0: off. After a relinearisation stopped at its
+  // best iterate or at max_relinearizations (or on a predicted step) the error can stay
+  // above the threshold, and the next joins relinearise again, which carries
+  // Gauss-Newton on. It replaced the heading trigger below as the default (thirteenth
+  // session): a small turn under long levers can leave a linear model far off — on a
+  // 16 km random world a loop closure turned no heading by 0.05 rad but put one
+  // factor's linear model 148 χ² units off, and the online estimate ended at NEES 58
+  // without a relinearisation there, 3.6 with it. On combined-2km's recorded maps,
+  // seeds 1-20, it spends 560 / 704 Gauss-Newton iterations (EKF / RBPF maps) against
+  // the heading trigger's 635 / 803, for the same associations or better
   // (bench/RESULTS.md, thirteenth session).
   double relinearize_linearization_chi2 = 1.0;
+  // Also relinearise after a join when an anchor's heading has moved this far [rad] from
+  // where one of its factors was linearised (the submap factor is nonlinear in the
+  // headings only); 0: off (the default since the thirteenth session). At 0.05 (≈ 3°),
+  // the default before, combined-2km's loop closes with unknown association on ten seeds
+  // of ten (at 0.1, six; bench/RESULTS.md, seventh session) — as it does with the
+  // linearisation-error trigger alone.
+  double relinearize_heading_change = 0.0;
   // Gauss-Newton may raise the cost once on its way to a lower minimum, but this many
   // rises in a row end a relinearisation at its best iterate (counter
   // relinearizations_diverged); 1 is monotone Gauss-Newton, 0 never stops on the cost.
