@@ -145,10 +145,10 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
   f->start_theta = start.theta;
   f->end_theta = end.theta;
-  f->start_position = Eigen::Vector2d(start.x, start.y);
+  const Eigen::Vector2d p_s(start.x, start.y);
   f->levers.resize(landmarks.size() + 1);
-  f->levers[0] = Eigen::Vector2d(end.x, end.y) - f->start_position;
-  for (size_t i = 0; i < landmarks.size(); ++i) f->levers[i + 1] = landmarks[i] - f->start_position;
+  f->levers[0] = Eigen::Vector2d(end.x, end.y) - p_s;
+  for (size_t i = 0; i < landmarks.size(); ++i) f->levers[i + 1] = landmarks[i] - p_s;
 
   // Stack the Jacobian over the variable blocks (P0, fixed, has none) and x̂.
   const bool start_fixed = record.start_anchor == 0;
@@ -191,12 +191,10 @@ void EifJoiner::LinearizeStructured(Factor* f) const {
   const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
   f->start_theta = start.theta;
   f->end_theta = end.theta;
-  f->start_position = Eigen::Vector2d(start.x, start.y);
+  const Eigen::Vector2d p_s(start.x, start.y);
   f->levers.resize(s.num_landmarks() + 1);
-  f->levers[0] = Eigen::Vector2d(end.x, end.y) - f->start_position;
-  for (int i = 0; i < s.num_landmarks(); ++i) {
-    f->levers[i + 1] = graph_.landmarks()[record.landmark_of_feature[i]] - f->start_position;
-  }
+  f->levers[0] = Eigen::Vector2d(end.x, end.y) - p_s;
+  for (int i = 0; i < s.num_landmarks(); ++i) f->levers[i + 1] = graph_.landmarks()[record.landmark_of_feature[i]] - p_s;
   const int n = s.num_landmarks(), m = 3 + 2 * n;
   const bool start_fixed = record.start_anchor == 0;
   const int na = start_fixed ? 3 : 6;
@@ -529,6 +527,7 @@ void EifJoiner::SwapLinearization(Factor* f, Linearization* l) {
   f->b.swap(l->b);
   std::swap(f->start_theta, l->start_theta);
   std::swap(f->end_theta, l->end_theta);
+  f->levers.swap(l->levers);
 }
 
 bool EifJoiner::PredictedStepConverged(const Eigen::VectorXd& x) {

@@ -398,8 +398,8 @@ TEST(SubmapPipeline, JoinedAnchorsAreNotOverconfident) {
 }
 
 // issue 4's "done when": combined-2km with unknown association in the front-end and the
-// back-end, at the defaults. The EIF relinearises whenever an anchor's heading has moved
-// 0.05 rad from a factor's linearisation; without that (single linearisation) this
+// back-end, at the defaults. The EIF relinearises during the run (whenever a factor's
+// linear model is off by more than its noise); without that (single linearisation) this
 // seed's loop closes wrongly and ends at 257 m, worse than chaining the local maps
 // (172 m). With it the final pose is many times closer to the truth than the chained
 // local maps, consistent with its covariance, and the trajectory passes the 10σ test.

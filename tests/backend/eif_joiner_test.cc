@@ -6,6 +6,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <random>
 #include <set>
@@ -486,11 +487,44 @@ TEST(EifJoiner, RelinearisesWhenAHeadingHasMovedFromItsLinearisation) {
   EXPECT_LT(some.counters().relinearizations, always.counters().relinearizations);
 }
 
+// The largest whitened error, at the estimate `now`, of the factors' linear models, each
+// taken at the linearisation point lin_point(k) = (start anchor, end anchor, landmarks in
+// the factor's order): residual and Jacobian from LinearizeSubmapFactor.
+struct LinearizationPoint {
+  Pose2 start, end;
+  std::vector<Eigen::Vector2d> landmarks;
+};
+double DefinedMaxLinearizationError(const SubmapGraph& now,
+                                    const std::function<LinearizationPoint(size_t)>& lin_point) {
+  double worst = 0.0;
+  for (size_t k = 0; k < now.factors().size(); ++k) {
+    const SubmapFactor& f = now.factors()[k];
+    const LocalSubmap& s = f.submap;
+    const LinearizationPoint x0 = lin_point(k);
+    std::vector<Eigen::Vector2d> landmarks;
+    for (int i = 0; i < s.num_landmarks(); ++i) landmarks.push_back(now.landmarks()[f.landmark_of_feature[i]]);
+    const SubmapFactorLinearization lin0 = LinearizeSubmapFactor(s, x0.start, x0.end, x0.landmarks);
+    const Pose2 start = now.anchors()[f.start_anchor], end = now.anchors()[f.end_anchor];
+    const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
+    Eigen::Vector3d d_start = start.vector() - x0.start.vector(), d_end = end.vector() - x0.end.vector();
+    d_start[2] = WrapAngle(d_start[2]);
+    d_end[2] = WrapAngle(d_end[2]);
+    Eigen::VectorXd d_landmarks(2 * s.num_landmarks());
+    for (int i = 0; i < s.num_landmarks(); ++i) d_landmarks.segment<2>(2 * i) = landmarks[i] - x0.landmarks[i];
+    Eigen::VectorXd e = lin.residual - lin0.residual - lin0.J_end * d_end - lin0.J_landmarks * d_landmarks;
+    if (f.start_anchor != 0) e -= lin0.J_start * d_start;  // P0 is fixed
+    e[2] = WrapAngle(e[2]);
+    const Eigen::LLT<Eigen::MatrixXd> llt(s.covariance);
+    llt.matrixL().solveInPlace(e);
+    worst = std::max(worst, e.squaredNorm());
+  }
+  return worst;
+}
+
 // MaxLinearizationError against its definition: each factor's linearisation point
 // rebuilt from the estimate before its join (the new end anchor and landmarks placed
-// through the start anchor, as the joiner does), its residual and Jacobian there from
-// LinearizeSubmapFactor, the error of that linear model at the final estimate whitened by
-// the local map's covariance. After Gauss-Newton to convergence it is ~0.
+// through the start anchor, as the joiner does), the error of that linear model at the
+// final estimate. After Gauss-Newton to convergence it is ~0.
 TEST(EifJoiner, MaxLinearizationErrorIsTheWhitenedErrorOfTheLinearModels) {
   const SyntheticRun run = MakeRun(7, 12, 3.0);
   EifJoinerOptions options = ConvergingKnownAssociation().SingleLinearization();
@@ -500,35 +534,18 @@ TEST(EifJoiner, MaxLinearizationErrorIsTheWhitenedErrorOfTheLinearModels) {
     before.push_back(eif.graph());
     ASSERT_TRUE(eif.Join(s).ok());
   }
-  const SubmapGraph& now = eif.graph();
-  double expected = 0.0;
-  for (size_t k = 0; k < now.factors().size(); ++k) {
-    const SubmapFactor& f = now.factors()[k];
-    const LocalSubmap& s = f.submap;
+  const double expected = DefinedMaxLinearizationError(eif.graph(), [&](size_t k) {
+    const SubmapFactor& f = eif.graph().factors()[k];
     const SubmapGraph& b = before[k];
-    const Pose2 start0 = b.anchors()[f.start_anchor];
-    const Pose2 end0 = Compose(start0, s.end_pose());
-    std::vector<Eigen::Vector2d> landmarks0, landmarks;
-    for (int i = 0; i < s.num_landmarks(); ++i) {
+    LinearizationPoint x0;
+    x0.start = b.anchors()[f.start_anchor];
+    x0.end = Compose(x0.start, f.submap.end_pose());
+    for (int i = 0; i < f.submap.num_landmarks(); ++i) {
       const int j = f.landmark_of_feature[i];
-      landmarks0.push_back(j < b.num_landmarks() ? b.landmarks()[j] : TransformFrom(start0, s.landmark(i)));
-      landmarks.push_back(now.landmarks()[j]);
+      x0.landmarks.push_back(j < b.num_landmarks() ? b.landmarks()[j] : TransformFrom(x0.start, f.submap.landmark(i)));
     }
-    const SubmapFactorLinearization lin0 = LinearizeSubmapFactor(s, start0, end0, landmarks0);
-    const Pose2 start = now.anchors()[f.start_anchor], end = now.anchors()[f.end_anchor];
-    const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
-    Eigen::Vector3d d_start = start.vector() - start0.vector(), d_end = end.vector() - end0.vector();
-    d_start[2] = WrapAngle(d_start[2]);
-    d_end[2] = WrapAngle(d_end[2]);
-    Eigen::VectorXd d_landmarks(2 * s.num_landmarks());
-    for (int i = 0; i < s.num_landmarks(); ++i) d_landmarks.segment<2>(2 * i) = landmarks[i] - landmarks0[i];
-    Eigen::VectorXd e = lin.residual - lin0.residual - lin0.J_end * d_end - lin0.J_landmarks * d_landmarks;
-    if (f.start_anchor != 0) e -= lin0.J_start * d_start;  // P0 is fixed
-    e[2] = WrapAngle(e[2]);
-    const Eigen::LLT<Eigen::MatrixXd> llt(s.covariance);
-    llt.matrixL().solveInPlace(e);
-    expected = std::max(expected, e.squaredNorm());
-  }
+    return x0;
+  });
   EXPECT_GT(expected, 1e-3);  // the estimate has moved from the linearisation points
   EXPECT_NEAR(eif.MaxLinearizationError(), expected, 1e-9 * expected);
 
@@ -536,6 +553,38 @@ TEST(EifJoiner, MaxLinearizationErrorIsTheWhitenedErrorOfTheLinearModels) {
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(converged.Join(s).ok());
   ASSERT_TRUE(converged.Finish().ok());
   EXPECT_LT(converged.MaxLinearizationError(), 1e-12);
+}
+
+// After Gauss-Newton stopped on a predicted step (predict_convergence) the factors are
+// back at the previous iterate's linearisation — headings and levers — while the
+// estimate is that linearisation's solution. Two iterations at most, from the single
+// linearisation's estimate x: the first relinearises every factor at x and steps to x₁;
+// the second's predicted step stops it, so the linear models are x's, evaluated at x₁.
+TEST(EifJoiner, LinearizationErrorAfterAPredictedStopIsThePreviousLinearisations) {
+  const SyntheticRun run = MakeRun(7, 12, 3.0);
+  bool seen = false;
+  for (double tolerance : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4}) {
+    EifJoinerOptions options = ConvergingKnownAssociation().SingleLinearization();
+    options.relinearize_at_end = true;
+    options.predict_convergence = true;
+    options.max_relinearizations = 2;
+    options.relinearize_tolerance = tolerance;
+    EifJoiner eif(run.anchors[0], options);
+    for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
+    const SubmapGraph x = eif.graph();
+    ASSERT_TRUE(eif.Finish().ok());
+    if (eif.counters().relinearizations_predicted_converged != 1) continue;
+    seen = true;
+    const double expected = DefinedMaxLinearizationError(eif.graph(), [&](size_t k) {
+      const SubmapFactor& f = x.factors()[k];
+      LinearizationPoint x0{x.anchors()[f.start_anchor], x.anchors()[f.end_anchor], {}};
+      for (int j : f.landmark_of_feature) x0.landmarks.push_back(x.landmarks()[j]);
+      return x0;
+    });
+    EXPECT_GT(expected, 1e-12) << "tolerance " << tolerance;
+    EXPECT_NEAR(eif.MaxLinearizationError(), expected, 1e-6 * expected) << "tolerance " << tolerance;
+  }
+  EXPECT_TRUE(seen) << "no tolerance gave a predicted stop on the second iteration";
 }
 
 // relinearize_linearization_chi2: as the heading trigger, but on the factors' whitened

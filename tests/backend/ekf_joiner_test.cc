@@ -45,7 +45,7 @@ TEST(EkfJoiner, ConditionalUpdateEqualsTheEifOnOneLinearization) {
   const SyntheticRun run = MakeRun(5, 12, 2.0);
   EifJoinerOptions eif_options;
   eif_options.association.known_association = true;
-  EifJoiner eif(run.anchors[0], eif_options);
+  EifJoiner eif(run.anchors[0], eif_options.SingleLinearization());
   EkfJoiner ekf(run.anchors[0], KnownAssociation(EkfFusion::kConditionalUpdate));
   for (const LocalSubmap& s : run.submaps) {
     ASSERT_TRUE(eif.Join(s).ok());
@@ -65,7 +65,7 @@ TEST(EkfJoiner, ZeroNoiseConstraintEqualsTheEifWhenMatchedFeaturesAgree) {
   const SyntheticRun run = MakeRun(9, 4);
   EifJoinerOptions eif_options;
   eif_options.association.known_association = true;
-  EifJoiner eif(run.anchors[0], eif_options);
+  EifJoiner eif(run.anchors[0], eif_options.SingleLinearization());
   EkfJoiner ekf(run.anchors[0], KnownAssociation(EkfFusion::kZeroNoiseConstraint));
   for (size_t k = 0; k < run.submaps.size(); ++k) {
     LocalSubmap s = run.submaps[k];

@@ -28,12 +28,11 @@
 // Relinearisation (ISEIF's adaptive stop, paper 004 §2.3): rebuild every factor at the
 // current estimate and re-solve while the step exceeds `relinearize_tolerance` or its χ²
 // length exceeds `relinearize_step_chi2` (or, with `predict_convergence`, until the next
-// step, solved with the factor at hand, is below them) — after a join that moved an
+// step, solved with the factor at hand, is below them) — after a join that left a
 // factor's linear model more than its noise off (`relinearize_linearization_chi2`, on by
 // default) or moved an anchor's heading `relinearize_heading_change` from a factor's
 // linearisation (off by default), every `relinearize_every` joins and/or at Finish() (on
-// by default);
-// iterated to convergence this is Gauss-Newton over the submap graph. Without the
+// by default); iterated to convergence this is Gauss-Newton over the submap graph. Without the
 // triggers and the relinearisation at the end (all 0 / false: SingleLinearization()) it
 // is the single-linearisation EIF of paper 000.
 // Time per stage (association, covariance recovery — association's, plus the marginal
@@ -142,8 +141,8 @@ struct EifJoinerOptions {
   // factor's linear model 148 χ² units off, and the online estimate ended at NEES 58
   // without a relinearisation there, 3.6 with it. On combined-2km's recorded maps,
   // seeds 1-20, it spends 560 / 704 Gauss-Newton iterations (EKF / RBPF maps) against
-  // the heading trigger's 635 / 803, for the same associations or better
-  // (bench/RESULTS.md, thirteenth session).
+  // the heading trigger's 635 / 803, merging as many loop re-observations or more with
+  // fewer duplicates and the same wrong merges (bench/RESULTS.md, thirteenth session).
   double relinearize_linearization_chi2 = 1.0;
   // Also relinearise after a join when an anchor's heading has moved this far [rad] from
   // where one of its factors was linearised (the submap factor is nonlinear in the
@@ -202,7 +201,8 @@ class EifJoiner final : public MapJoiner {
   // ‖L_Q⁻¹ (r(x) − r(x₀) − J(x₀)(x − x₀))‖² over the factors, x₀ a factor's
   // linearisation point and Q = L Lᵀ its local map's covariance: how far the information
   // form's linear model is from the estimate it holds (what
-  // relinearize_linearization_chi2 tests; 0 right after relinearising there).
+  // relinearize_linearization_chi2 tests; after Gauss-Newton, the error of its last
+  // linearisation at the final iterate: small once it has converged).
   double MaxLinearizationError() const;
 
   const SubmapGraph& graph() const override { return graph_; }
@@ -255,9 +255,8 @@ class EifJoiner final : public MapJoiner {
     Eigen::MatrixXd H;              // Jᵀ Q⁻¹ J over the stacked variable blocks
     Eigen::VectorXd b;              // Jᵀ Q⁻¹ (J x̂ − r)
     double start_theta = 0.0, end_theta = 0.0;  // the anchors' headings at the linearisation
-    // The start anchor's position and its levers to the end anchor and to each landmark
-    // at the linearisation (what LinearizationError needs).
-    Eigen::Vector2d start_position = Eigen::Vector2d::Zero();
+    // The levers from the start anchor to the end anchor and to each landmark at the
+    // linearisation (what LinearizationError needs).
     std::vector<Eigen::Vector2d> levers;
     double covariance_min_eigenvalue = 0.0;  // of Q
     // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
@@ -307,12 +306,13 @@ class EifJoiner final : public MapJoiner {
   // factor for the joins that follow.
   absl::Status Relinearize();
   absl::Status GaussNewton();
-  // A factor's linearisation (H, b and the headings it was taken at), set aside while
-  // Gauss-Newton tries the next one.
+  // A factor's linearisation (H, b, the headings and levers it was taken at: every
+  // Factor field Linearize sets), set aside while Gauss-Newton tries the next one.
   struct Linearization {
     Eigen::MatrixXd H;
     Eigen::VectorXd b;
     double start_theta = 0.0, end_theta = 0.0;
+    std::vector<Eigen::Vector2d> levers;
   };
   static void SwapLinearization(Factor* f, Linearization* l);
   // With the factors linearised at the estimate x, and the factor (and x) still of the

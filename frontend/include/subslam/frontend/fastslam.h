@@ -119,7 +119,9 @@ struct FastSlamOptions {
   // divide the particles' spread by 1 − SharedAncestry(): after resampling the particles
   // descend from few ancestors whose pose draws they share, so their spread under-states
   // the uncertainty (MomentMatch; internal/genealogy.h). false: the mixture's own
-  // moments (HybridSLAM Eqs. 6-7). The particle filter itself runs the same either way.
+  // moments (HybridSLAM Eqs. 6-7). The particle filter itself runs the same either way;
+  // the local maps differ in their covariance, and so in which features the mapper's
+  // max_feature_sigma_ratio rule leaves out.
   bool correct_shared_ancestry = true;
   // Threads for the per-particle part of a scan (association, the proposal, the pose
   // sample, the landmark updates). The results do not depend on it: each particle slot
@@ -189,8 +191,14 @@ class FastSlam final : public OnlineEstimator {
   // sampled since the last Reset() that particles p and q hold in common: the scans
   // before their last common ancestor, over all scans (each scan's pose sample is one
   // independent draw per particle, equal in size — the approximation). Σ_p w_p² when no
-  // resampling happened since Reset(); 1 when every particle is a copy of one; 0 before
-  // the first scan. The argument `shared_ancestry` of MomentMatch().
+  // resampling happened since Reset(); 0 before the first scan, and 0 (no correction:
+  // the spread is zero) when every particle is a copy of one (R within 1e-12 of 1).
+  // The argument `shared_ancestry` of MomentMatch(). The derivation takes the weights as
+  // independent of the particles' deviations, which importance weights are not; when the
+  // weights are degenerate (N_eff near 1) the spread carries little information either
+  // way and the corrected one can be large. Measured at the closes of hybrid-120m,
+  // combined-2km and Victoria Park local maps: median R 0.02-0.04, 99 % quantile
+  // 0.22-0.81 (maps whose particles all descend from one late ancestor).
   double SharedAncestry() const;
   // N_eff / N after the last scan's weight update, before any resampling.
   double last_scan_ess_ratio() const { return last_ess_ratio_; }

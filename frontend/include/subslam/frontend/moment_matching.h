@@ -90,7 +90,9 @@ bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor);
 // filter's particles share their ancestors' noise, and R is larger (FastSlam::
 // SharedAncestry). 0 (the default): the mixture's own moments, Eqs. 6-7. The particles'
 // own covariances P_p are not scaled. One R serves every block, also where a block's
-// weights are renormalised over the particles holding its features.
+// weights are renormalised over the particles holding its features — an approximation
+// that matters little for exported features, which hold min_existence (0.95) of the
+// weight.
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
                                   const MomentMatchingOptions& options = {},
                                   double shared_ancestry = 0.0);
