@@ -449,6 +449,16 @@ TEST(EifJoiner, ValidationCatchesAnInjectedWrongAssociation) {
   EXPECT_TRUE(clean.rejected().empty());
 }
 
+// The joiner's anchors equal batch Gauss-Newton's solution of its graph, to 1e-8.
+void ExpectAnchorsAtGaussNewtonsSolution(const EifJoiner& joiner, int map_id) {
+  const Eigen::VectorXd gn = DenseGaussNewton(joiner.graph(), 50);
+  for (int k = 1; k < joiner.num_anchors(); ++k) {
+    Eigen::Vector3d e = joiner.anchor(k).vector() - gn.segment<3>(3 * (k - 1));
+    e[2] = WrapAngle(e[2]);
+    EXPECT_LT(e.cwiseAbs().maxCoeff(), 1e-8) << "map " << map_id << ", anchor " << k;
+  }
+}
+
 // relinearize_heading_change: a join is followed by a relinearisation exactly when an
 // anchor's heading has moved that far from one of its factors' linearisation. With a
 // threshold no move reaches, the joiner never relinearises and equals the single
@@ -468,12 +478,7 @@ TEST(EifJoiner, RelinearisesWhenAHeadingHasMovedFromItsLinearisation) {
   for (const LocalSubmap& s : run.submaps) {
     for (EifJoiner* j : {&off, &never, &always, &some}) ASSERT_TRUE(j->Join(s).ok());
     if (s.id == 0) continue;  // nothing moved yet
-    const Eigen::VectorXd gn = DenseGaussNewton(always.graph(), 50);
-    for (int k = 1; k < always.num_anchors(); ++k) {
-      Eigen::Vector3d e = always.anchor(k).vector() - gn.segment<3>(3 * (k - 1));
-      e[2] = WrapAngle(e[2]);
-      EXPECT_LT(e.cwiseAbs().maxCoeff(), 1e-8) << "map " << s.id << ", anchor " << k;
-    }
+    ExpectAnchorsAtGaussNewtonsSolution(always, s.id);
   }
   EXPECT_EQ(never.counters().relinearizations, 0);
   // Gauss-Newton iterations after the first refactorise the same pattern: its analysis is reused.
@@ -607,12 +612,7 @@ TEST(EifJoiner, RelinearisesWhenAFactorsLinearModelIsOffByMoreThanItsNoise) {
     for (EifJoiner* j : {&off, &never, &always, &some}) ASSERT_TRUE(j->Join(s).ok());
     EXPECT_LE(some.MaxLinearizationError(), between) << "map " << s.id;
     if (s.id == 0) continue;
-    const Eigen::VectorXd gn = DenseGaussNewton(always.graph(), 50);
-    for (int k = 1; k < always.num_anchors(); ++k) {
-      Eigen::Vector3d e = always.anchor(k).vector() - gn.segment<3>(3 * (k - 1));
-      e[2] = WrapAngle(e[2]);
-      EXPECT_LT(e.cwiseAbs().maxCoeff(), 1e-8) << "map " << s.id << ", anchor " << k;
-    }
+    ExpectAnchorsAtGaussNewtonsSolution(always, s.id);
   }
   EXPECT_EQ(never.counters().relinearizations, 0);
   for (int k = 0; k < off.num_anchors(); ++k) {
