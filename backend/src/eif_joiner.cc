@@ -968,14 +968,19 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     ++counters_.relinearized_on_heading;
     return Relinearize();
   }
-  if (options_.relinearize_linearization_chi2 > 0 && LinearizationErrorAbove(options_.relinearize_linearization_chi2)) {
+  bool linear_model_off = false;
+  if (options_.relinearize_linearization_chi2 > 0) {
+    StageTimer timer(&times_, "linearization_check");
+    linear_model_off = LinearizationErrorAbove(options_.relinearize_linearization_chi2);
+  }
+  if (linear_model_off) {
     ++counters_.relinearized_on_linearization_error;
     return Relinearize();
   }
   return absl::OkStatus();
 }
 
-double EifJoiner::LinearizationError(const Factor& f) const {
+void EifJoiner::UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const {
   // The factor is nonlinear only through the start heading θ: each position row is
   // Rᵀ(θ) v, v the lever from the start anchor to the end anchor or a landmark. Its linear
   // model at (θ₀, v₀) is Rᵀ(θ₀) v + Ṙᵀ(θ₀) v₀ (θ − θ₀), so the error is
@@ -989,15 +994,20 @@ double EifJoiner::LinearizationError(const Factor& f) const {
   const double c = std::cos(f.start_theta), s = std::sin(f.start_theta);
   dRt0 << -s, c, -c, -s;
   const int n = static_cast<int>(f.levers.size()) - 1;
-  Eigen::VectorXd e = Eigen::VectorXd::Zero(3 + 2 * n);
+  e->setZero(3 + 2 * n);
   const auto error = [&](const Eigen::Vector2d& v, const Eigen::Vector2d& v0) {
     return Eigen::Vector2d((Rt - Rt0) * v - dRt0 * v0 * dtheta);
   };
-  e.head<2>() = error(Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y) - p_s,
-                      f.levers[0]);
+  e->head<2>() = error(Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y) - p_s,
+                       f.levers[0]);
   for (int i = 0; i < n; ++i) {
-    e.segment<2>(3 + 2 * i) = error(graph_.landmarks()[record.landmark_of_feature[i]] - p_s, f.levers[i + 1]);
+    e->segment<2>(3 + 2 * i) = error(graph_.landmarks()[record.landmark_of_feature[i]] - p_s, f.levers[i + 1]);
   }
+}
+
+double EifJoiner::LinearizationError(const Factor& f) const {
+  Eigen::VectorXd e;
+  UnwhitenedLinearizationError(f, &e);
   f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);
   return e.squaredNorm();
 }
@@ -1009,24 +1019,16 @@ double EifJoiner::MaxLinearizationError() const {
 }
 
 bool EifJoiner::LinearizationErrorAbove(double chi2) const {
+  Eigen::VectorXd e;
   for (const Factor& f : factors_) {
-    // A bound first: each position row's error is at most |δθ| (‖v‖ + ‖v₀‖) (‖Rᵀ(θ) −
-    // Rᵀ(θ₀)‖ ≤ |δθ|), and whitening scales a vector by at most 1 / √λ_min(Q).
     const SubmapFactor& record = graph_.factors()[f.index];
-    const double dtheta = anchor_theta_[record.start_anchor] - f.start_theta;
-    if (dtheta == 0.0) continue;
-    const Eigen::Vector2d p_s(graph_.anchors()[record.start_anchor].x, graph_.anchors()[record.start_anchor].y);
-    const auto lever_sq = [&](const Eigen::Vector2d& point, const Eigen::Vector2d& v0) {
-      const double b = (point - p_s).norm() + v0.norm();
-      return b * b;
-    };
-    double sum = lever_sq(Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y),
-                          f.levers[0]);
-    for (size_t i = 1; i < f.levers.size(); ++i) {
-      sum += lever_sq(graph_.landmarks()[record.landmark_of_feature[i - 1]], f.levers[i]);
-    }
-    if (dtheta * dtheta * sum <= chi2 * f.covariance_min_eigenvalue) continue;
-    if (LinearizationError(f) > chi2) return true;
+    if (anchor_theta_[record.start_anchor] == f.start_theta) continue;  // no error at all
+    // Whitening scales a vector by at most 1 / √λ_min(Q): the unwhitened error (O(n))
+    // settles most factors without the triangular solve (O(n²)).
+    UnwhitenedLinearizationError(f, &e);
+    if (e.squaredNorm() <= chi2 * f.covariance_min_eigenvalue) continue;
+    f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);
+    if (e.squaredNorm() > chi2) return true;
   }
   return false;
 }

@@ -37,7 +37,8 @@
 // is the single-linearisation EIF of paper 000.
 // Time per stage (association, covariance recovery — association's, plus the marginal
 // bounds recomputed after a relinearisation —, update, factorisation — of which
-// full_factorization —, recovery, recovery_check) is accumulated as in Table 1 of paper 000.
+// full_factorization —, recovery, recovery_check, and linearization_check, the
+// relinearisation trigger's test) is accumulated as in Table 1 of paper 000.
 // Not thread-safe.
 #ifndef SUBSLAM_BACKEND_EIF_JOINER_H_
 #define SUBSLAM_BACKEND_EIF_JOINER_H_
@@ -273,6 +274,8 @@ class EifJoiner final : public MapJoiner {
   // The factor's linearisation error at the current estimate, whitened (see
   // MaxLinearizationError).
   double LinearizationError(const Factor& f) const;
+  // Its error before whitening, e (3 + 2n; the heading row 0).
+  void UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const;
   // Whether some factor's is above chi2 (most factors settled by a bound, without it).
   bool LinearizationErrorAbove(double chi2) const;
   // H and b of the factor at the current estimate, and (if asked) its whitened Jacobian
