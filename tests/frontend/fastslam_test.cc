@@ -122,8 +122,9 @@ TEST(FastSlam, ThreadLimitChangesNothingButTheThreadsUsed) {
 }
 
 // pose() and pose_covariance() come from per-scan sums in O(1) per step; they equal the
-// weighted moments of the particles' current poses (mean, spread — divided by
-// 1 − SharedAncestry() when corrected — and each particle's motion covariance),
+// weighted moments of the particles' current poses (mean, spread — scaled by
+// (1 + R) / (1 − R), R = SharedAncestry(), when corrected — and each particle's motion
+// covariance),
 // computed directly, at every step — between scans too — and MomentMatched()'s pose.
 class PoseMoments : public ::testing::TestWithParam<bool> {};
 
@@ -165,7 +166,8 @@ TEST_P(PoseMoments, EqualTheParticlesMoments) {
     mean /= total;
     Eigen::Matrix3d own = Eigen::Matrix3d::Zero();
     for (const ParticleHypothesis& p : h) own += p.weight / total * p.pose_covariance;
-    const double scale = GetParam() ? 1.0 / (1.0 - f.SharedAncestry()) : 1.0;
+    const double R = f.SharedAncestry();
+    const double scale = GetParam() ? (1.0 + R) / (1.0 - R) : 1.0;
     double sum_sq = 0.0;
     for (const ParticleHypothesis& p : h) sum_sq += (p.weight / total) * (p.weight / total);
     if (f.counters().scans > 0) {  // (0 before: no draw yet)

@@ -76,16 +76,18 @@ TEST(Genealogy, SharedAncestryEqualsThePairwiseDefinition) {
   EXPECT_GT(pruned, 10);
 }
 
-// The claim behind the correction: particles that each add an independent N(0, 1) draw
+// The claims behind the correction: particles that each add an independent N(0, 1) draw
 // per scan, resampled now and then with weights independent of their values, have a
-// weighted spread S = Σ w_p (x_p − x̄)² with E[S] = (1 − R) T. Over 20,000 runs the mean
-// of S / ((1 − R) T) lies within 4 standard errors of 1; the uncorrected S / T does not.
-TEST(Genealogy, CorrectedSpreadIsUnbiasedForIndependentDraws) {
+// weighted spread S = Σ w_p (x_p − x̄)² with E[S] = (1 − R) T, and a weighted mean with
+// E[x̄²] = R T (the centre is 0). Over 20,000 runs the means of S / ((1 − R) T) and of
+// x̄² / (R T) lie within 4 standard errors of 1; the uncorrected S / T does not.
+TEST(Genealogy, CorrectedSpreadAndTheMeansErrorMatchIndependentDraws) {
   std::mt19937_64 rng(11);
   std::normal_distribution<double> normal(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   const int n = 10, scans = 12, runs = 20000;
   double sum_corrected = 0.0, sum_sq_corrected = 0.0, sum_plain = 0.0, sum_sq_plain = 0.0;
+  double sum_mean = 0.0, sum_sq_mean = 0.0;
   for (int run = 0; run < runs; ++run) {
     Genealogy genealogy;
     genealogy.Reset();
@@ -112,6 +114,9 @@ TEST(Genealogy, CorrectedSpreadIsUnbiasedForIndependentDraws) {
     sum_sq_corrected += corrected * corrected;
     sum_plain += plain;
     sum_sq_plain += plain * plain;
+    const double mean_error = mean * mean / (R * scans);
+    sum_mean += mean_error;
+    sum_sq_mean += mean_error * mean_error;
   }
   const auto z = [runs](double sum, double sum_sq) {
     const double mean = sum / runs;
@@ -120,6 +125,7 @@ TEST(Genealogy, CorrectedSpreadIsUnbiasedForIndependentDraws) {
   };
   EXPECT_LT(std::abs(z(sum_corrected, sum_sq_corrected)), 4.0) << "mean " << sum_corrected / runs;
   EXPECT_LT(z(sum_plain, sum_sq_plain), -4.0) << "mean " << sum_plain / runs;
+  EXPECT_LT(std::abs(z(sum_mean, sum_sq_mean)), 4.0) << "mean " << sum_mean / runs;
 }
 
 }  // namespace

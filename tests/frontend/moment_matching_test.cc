@@ -49,7 +49,7 @@ TEST(MomentMatch, TwoParticlesMatchTheClosedForm) {
   EXPECT_EQ(g.particles_used, 2);
 }
 
-// The shared-ancestry correction divides the spread term, and only it, by 1 − R: on the
+// The shared-ancestry correction scales the spread term, and only it, by (1 + R) / (1 − R): on the
 // fast path (every particle holds every feature) and on the per-block one.
 TEST(MomentMatch, SharedAncestryScalesTheSpreadOnly) {
   ParticleHypothesis a, b, c;
@@ -87,7 +87,7 @@ TEST(MomentMatch, SharedAncestryScalesTheSpreadOnly) {
     own.block<2, 2>(5, 5) /= w5;
     ASSERT_EQ(plain.covariance_repairs + corrected.covariance_repairs, 0) << (complete ? "complete" : "per block");
     EXPECT_TRUE(MatricesNear(plain.mean, corrected.mean, 0.0));
-    EXPECT_TRUE(MatricesNear(Eigen::MatrixXd((plain.covariance - own) / (1.0 - R) + own), corrected.covariance, 1e-12))
+    EXPECT_TRUE(MatricesNear(Eigen::MatrixXd((plain.covariance - own) * (1.0 + R) / (1.0 - R) + own), corrected.covariance, 1e-12))
         << (complete ? "complete" : "per block");
   }
 }

@@ -115,10 +115,11 @@ struct FastSlamOptions {
   double sigma_signature = 0.0;
   // Moment matching used by pose(), Map() and the local mapper.
   MomentMatchingOptions moment_matching;
-  // Whether pose_covariance() and MomentMatched() (hence Map() and the local maps)
-  // divide the particles' spread by 1 − SharedAncestry(): after resampling the particles
-  // descend from few ancestors whose pose draws they share, so their spread under-states
-  // the uncertainty (MomentMatch; internal/genealogy.h). false: the mixture's own
+  // Whether pose_covariance() and MomentMatched() (hence Map() and the local maps) scale
+  // the particles' spread by (1 + R) / (1 − R), R = SharedAncestry(): after resampling
+  // the particles descend from few ancestors whose pose draws they share, so their
+  // spread under-states the uncertainty, and their weighted mean carries a Monte Carlo
+  // error of its own (MomentMatch; internal/genealogy.h). false: the mixture's own
   // moments (HybridSLAM Eqs. 6-7). The particle filter itself runs the same either way;
   // the local maps differ in their covariance, and so in which features the mapper's
   // max_feature_sigma_ratio rule leaves out.
@@ -333,7 +334,7 @@ class FastSlam final : public OnlineEstimator {
     double w = 0, c = 0, s = 0, cc = 0, ss = 0, cs = 0;
     Eigen::Vector3d a = Eigen::Vector3d::Zero(), ac = Eigen::Vector3d::Zero(), as = Eigen::Vector3d::Zero();
     Eigen::Matrix3d aa = Eigen::Matrix3d::Zero();
-    double spread_scale = 1.0;  // 1 / (1 − SharedAncestry()) when corrected
+    double spread_scale = 1.0;  // (1 + R) / (1 − R), R = SharedAncestry(), when corrected
   };
   mutable bool moments_valid_ = false;
   mutable ParticleMoments moments_;

@@ -82,14 +82,17 @@ bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor);
 
 // Requires at least one particle with positive weight.
 //
-// `shared_ancestry` R ∈ [0, 1) corrects the spread term for particles that are not
-// independent samples: with x_p = μ + e_p, Cov(e_p, e_q) = ρ_pq Σ (ρ_pp = 1),
-//   E[Σ_p w_p (x_p − x)(x_p − x)ᵀ] = (1 − Σ_pq w_p w_q ρ_pq) Σ,
-// so the spread Σ_p w_p (x_p − x)(x_p − x)ᵀ is divided by 1 − R, R = Σ_pq w_p w_q ρ_pq.
-// For independent particles R = Σ_p w_p² (the unbiased weighted covariance); a particle
-// filter's particles share their ancestors' noise, and R is larger (FastSlam::
-// SharedAncestry). 0 (the default): the mixture's own moments, Eqs. 6-7. The particles'
-// own covariances P_p are not scaled. One R serves every block, also where a block's
+// `shared_ancestry` R ∈ [0, 1) accounts for particles that are not independent
+// samples: with x_p = μ + e_p, Cov(e_p, e_q) = ρ_pq Σ (ρ_pp = 1) and R = Σ_pq w_p w_q ρ_pq,
+//   E[Σ_p w_p (x_p − x)(x_p − x)ᵀ] = (1 − R) Σ   and   Cov(x − μ) = R Σ:
+// the spread S = Σ_p w_p (x_p − x)(x_p − x)ᵀ under-states Σ, and the mean x, the
+// Gaussian's centre, is itself off by a Monte Carlo error. The Gaussian's covariance
+// must cover both the posterior's spread Σ and that error, so the spread term is
+// S (1 + R) / (1 − R). For independent particles R = Σ_p w_p² (the unbiased weighted
+// covariance, and the variance of a weighted mean); a particle filter's particles share
+// their ancestors' noise, and R is larger (FastSlam::SharedAncestry). 0 (the default):
+// the mixture's own moments, Eqs. 6-7. The particles' own covariances P_p are not
+// scaled. One R serves every block, also where a block's
 // weights are renormalised over the particles holding its features — an approximation
 // that matters little for exported features, which hold min_existence (0.95) of the
 // weight.

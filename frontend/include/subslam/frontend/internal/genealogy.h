@@ -10,8 +10,9 @@
 // spread. With weights w (summing to 1), SharedAncestry returns
 //   R = Σ_pq w_p w_q ρ_pq,
 // and the particles' weighted spread S = Σ_p w_p (x_p − x̄)(x_p − x̄)ᵀ has expectation
-// (1 − R) Σ, Σ the spread of one particle's deviation (moment_matching.h). Without
-// resampling R = Σ_p w_p², the familiar correction of a weighted sample covariance.
+// (1 − R) Σ, Σ the spread of one particle's deviation, while their weighted mean x̄ has
+// covariance R Σ about the centre (moment_matching.h). Without resampling R = Σ_p w_p²,
+// the familiar correction of a weighted sample covariance.
 //
 // Cost: AddResampling is O(N · d) and SharedAncestry O(N · d), d the resamplings since
 // the latest one from which every particle descends (older ones are dropped: all
