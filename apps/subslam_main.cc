@@ -71,8 +71,10 @@ ABSL_FLAG(int, landmark_iterations, kFastSlamDefaults.landmark_update_iterations
 ABSL_FLAG(double, resample_ess, kFastSlamDefaults.resample_ess_ratio,
           "fastslam / rbpf: resample when N_eff / N falls below this");
 ABSL_FLAG(bool, correct_shared_ancestry, kFastSlamDefaults.correct_shared_ancestry,
-          "fastslam / rbpf: divide the particles' spread in the moment matching by 1 - R, R the "
-          "weighted share of pose noise that pairs of particles hold through common ancestors");
+          "fastslam / rbpf: scale the particles' spread in the moment matching by (1 + R) / (1 - R), "
+          "R the weighted share of pose noise that pairs of particles hold through common "
+          "ancestors (the spread's bias and the mean's Monte Carlo error); false: the mixture's "
+          "own moments");
 ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
           "fastslam / rbpf: sigma of the signature cue (0: cue off)");
 ABSL_FLAG(std::string, backend, "none",
