@@ -87,7 +87,8 @@ TEST(MomentMatch, SharedAncestryScalesTheSpreadOnly) {
     own.block<2, 2>(5, 5) /= w5;
     ASSERT_EQ(plain.covariance_repairs + corrected.covariance_repairs, 0) << (complete ? "complete" : "per block");
     EXPECT_TRUE(MatricesNear(plain.mean, corrected.mean, 0.0));
-    EXPECT_TRUE(MatricesNear(Eigen::MatrixXd((plain.covariance - own) * (1.0 + R) / (1.0 - R) + own), corrected.covariance, 1e-12))
+    const Eigen::MatrixXd expected = (plain.covariance - own) * (1.0 + R) / (1.0 - R) + own;
+    EXPECT_TRUE(MatricesNear(expected, corrected.covariance, 1e-12))
         << (complete ? "complete" : "per block");
   }
 }

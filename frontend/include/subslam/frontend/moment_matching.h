@@ -92,10 +92,12 @@ bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor);
 // covariance, and the variance of a weighted mean); a particle filter's particles share
 // their ancestors' noise, and R is larger (FastSlam::SharedAncestry). 0 (the default):
 // the mixture's own moments, Eqs. 6-7. The particles' own covariances P_p are not
-// scaled. One R serves every block, also where a block's
-// weights are renormalised over the particles holding its features — an approximation
-// that matters little for exported features, which hold min_existence (0.95) of the
-// weight.
+// scaled. One R serves every block — two approximations: where a block's weights are
+// renormalised over the particles holding its features (it matters little for exported
+// features, which hold min_existence (0.95) of the weight), and for landmarks, which
+// depend only on the pose draws up to their observations, so that their share of
+// common ancestry (their R) is larger than the end pose's: their blocks are
+// under-corrected.
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
                                   const MomentMatchingOptions& options = {},
                                   double shared_ancestry = 0.0);
