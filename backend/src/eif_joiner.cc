@@ -62,6 +62,10 @@ absl::Status EifJoinerOptions::Validate() const {
   return absl::OkStatus();
 }
 
+bool EifJoinerOptions::RelinearizesAfterJoins() const {
+  return relinearize_linearization_chi2 > 0 || relinearize_heading_change > 0;
+}
+
 EifJoinerOptions EifJoinerOptions::SingleLinearization() const {
   EifJoinerOptions o = *this;
   o.relinearize_heading_change = 0.0;
@@ -116,10 +120,12 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   const Eigen::LLT<Eigen::MatrixXd> llt(record.submap.covariance);
   SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
   f.covariance_sqrt = std::make_shared<const Eigen::MatrixXd>(llt.matrixL());
-  f.covariance_min_eigenvalue =
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(record.submap.covariance, Eigen::EigenvaluesOnly)
-          .eigenvalues()
-          .minCoeff();
+  if (options_.relinearize_linearization_chi2 > 0) {  // LinearizationErrorAbove's screen
+    f.covariance_min_eigenvalue =
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(record.submap.covariance, Eigen::EigenvaluesOnly)
+            .eigenvalues()
+            .minCoeff();
+  }
   if (record.start_anchor != 0) {
     f.offsets.push_back(anchor_offset_[record.start_anchor]);
     f.sizes.push_back(3);
@@ -133,6 +139,18 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   return f;
 }
 
+void EifJoiner::RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const {
+  const SubmapFactor& record = graph_.factors()[f->index];
+  f->start_theta = start.theta;
+  f->end_theta = end.theta;
+  const Eigen::Vector2d p_s(start.x, start.y);
+  f->levers.resize(record.landmark_of_feature.size() + 1);
+  f->levers[0] = Eigen::Vector2d(end.x, end.y) - p_s;
+  for (size_t i = 0; i < record.landmark_of_feature.size(); ++i) {
+    f->levers[i + 1] = graph_.landmarks()[record.landmark_of_feature[i]] - p_s;
+  }
+}
+
 void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   if (whitened_jacobian == nullptr) {
     LinearizeStructured(f);
@@ -143,12 +161,7 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
   const std::vector<Eigen::Vector2d> landmarks = FactorLandmarks(record);
   const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
-  f->start_theta = start.theta;
-  f->end_theta = end.theta;
-  const Eigen::Vector2d p_s(start.x, start.y);
-  f->levers.resize(landmarks.size() + 1);
-  f->levers[0] = Eigen::Vector2d(end.x, end.y) - p_s;
-  for (size_t i = 0; i < landmarks.size(); ++i) f->levers[i + 1] = landmarks[i] - p_s;
+  RecordLinearizationPoint(f, start, end);
 
   // Stack the Jacobian over the variable blocks (P0, fixed, has none) and x̂.
   const bool start_fixed = record.start_anchor == 0;
@@ -189,12 +202,7 @@ void EifJoiner::LinearizeStructured(Factor* f) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   const LocalSubmap& s = record.submap;
   const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
-  f->start_theta = start.theta;
-  f->end_theta = end.theta;
-  const Eigen::Vector2d p_s(start.x, start.y);
-  f->levers.resize(s.num_landmarks() + 1);
-  f->levers[0] = Eigen::Vector2d(end.x, end.y) - p_s;
-  for (int i = 0; i < s.num_landmarks(); ++i) f->levers[i + 1] = graph_.landmarks()[record.landmark_of_feature[i]] - p_s;
+  RecordLinearizationPoint(f, start, end);
   const int n = s.num_landmarks(), m = 3 + 2 * n;
   const bool start_fixed = record.start_anchor == 0;
   const int na = start_fixed ? 3 : 6;
@@ -914,7 +922,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
       // The closing map of an unconfirmed loop closure: without its loop pairings.
       for (int i : a.uncertain_loop_features) assoc[i] = -1;
     } else if (!a.uncertain_loop_features.empty() && options_.loop_confirmation_maps > 0 &&
-               (options_.relinearize_heading_change > 0 || options_.relinearize_linearization_chi2 > 0) && !pending_loop_ &&
+               options_.RelinearizesAfterJoins() && !pending_loop_ &&
                3.0 * a.start_position_sigma_m >= options_.loop_confirmation_min_sigma_radius_m) {
       pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
                                          std::move(a)};

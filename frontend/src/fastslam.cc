@@ -724,10 +724,7 @@ void FastSlam::UpdateMoments() const {
     m.ac += w * c * a;
     m.as += w * s * a;
   }
-  if (options_.correct_shared_ancestry) {
-    const double R = SharedAncestry();
-    m.spread_scale = (1.0 + R) / (1.0 - R);  // as MomentMatch()
-  }
+  if (options_.correct_shared_ancestry) m.spread_scale = SharedAncestrySpreadScale(SharedAncestry());
   moments_valid_ = true;
 }
 

@@ -74,11 +74,15 @@ bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor) {
   return true;
 }
 
+double SharedAncestrySpreadScale(double shared_ancestry) {
+  // S / (1 − R) estimates Σ; the mean's own Monte Carlo error adds R Σ.
+  return (1.0 + shared_ancestry) / (1.0 - shared_ancestry);
+}
+
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
                                   const MomentMatchingOptions& options, double shared_ancestry) {
   SUBSLAM_CHECK(shared_ancestry >= 0.0 && shared_ancestry < 1.0) << "shared ancestry " << shared_ancestry;
-  // S / (1 − R) estimates Σ; the mean's own Monte Carlo error adds R Σ.
-  const double spread_scale = (1.0 + shared_ancestry) / (1.0 - shared_ancestry);
+  const double spread_scale = SharedAncestrySpreadScale(shared_ancestry);
   double total = 0.0;
   size_t heaviest = 0;
   for (size_t p = 0; p < particles.size(); ++p) {

@@ -87,8 +87,8 @@ struct EifJoinerOptions {
   //    join stands.
   //  - Scope: it rides on association's loop regime (min_loop_pairings > 1, estimated
   //    association), and needs the estimate after the closure to be right, so it applies
-  //    only while the joiner relinearises after joins (relinearize_linearization_chi2 or
-  //    relinearize_heading_change > 0). With a single linearisation the estimate after a correction of a hundred
+  //    only while the joiner relinearises after joins (RelinearizesAfterJoins()). With a
+  //    single linearisation the estimate after a correction of a hundred
   //    metres is too far off for the next maps to find the old map: combined-2km's
   //    correct closures were all undone. 0 maps: off.
   //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
@@ -177,6 +177,9 @@ struct EifJoinerOptions {
   bool bound_candidate_marginals = true;
 
   absl::Status Validate() const;
+  // Whether a trigger relinearises after joins (relinearize_linearization_chi2 or
+  // relinearize_heading_change > 0).
+  bool RelinearizesAfterJoins() const;
   // These options with every relinearisation off (both triggers, the schedule and the
   // one at the end): the single-linearisation EIF of paper 000.
   EifJoinerOptions SingleLinearization() const;
@@ -259,7 +262,7 @@ class EifJoiner final : public MapJoiner {
     // The levers from the start anchor to the end anchor and to each landmark at the
     // linearisation (what LinearizationError needs).
     std::vector<Eigen::Vector2d> levers;
-    double covariance_min_eigenvalue = 0.0;  // of Q
+    double covariance_min_eigenvalue = 0.0;  // of Q (set while relinearize_linearization_chi2 > 0)
     // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
     // factor; computed once, shared by copies.
     std::shared_ptr<const Eigen::MatrixXd> covariance_sqrt;
@@ -278,6 +281,9 @@ class EifJoiner final : public MapJoiner {
   void UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const;
   // Whether some factor's is above chi2 (most factors settled by a bound, without it).
   bool LinearizationErrorAbove(double chi2) const;
+  // The headings and levers of the factor's linearisation at (start, end) and the
+  // current landmarks.
+  void RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const;
   // H and b of the factor at the current estimate, and (if asked) its whitened Jacobian
   // L_Q⁻¹ J, the newest factor's rank update of the incremental factor.
   void Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian = nullptr) const;

@@ -98,6 +98,10 @@ bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor);
 // depend only on the pose draws up to their observations, so that their share of
 // common ancestry (their R) is larger than the end pose's: their blocks are
 // under-corrected.
+// The factor on the spread that shared_ancestry R stands for (see MomentMatch):
+// (1 + R) / (1 − R).
+double SharedAncestrySpreadScale(double shared_ancestry);
+
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
                                   const MomentMatchingOptions& options = {},
                                   double shared_ancestry = 0.0);
