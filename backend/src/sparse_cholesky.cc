@@ -295,34 +295,22 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
   const int* Lnz = static_cast<const int*>(factor_->nz);
   // S: the elimination-tree path from the lowest pending variable to the root. Every
   // other path meets it (one root), and from there on the walks would all run through
-  // the same — near the root dense — columns: those are solved together, densely.
+  // the same — near the root dense — columns: those are solved together.
   std::vector<int> path;
   for (int j = position_[pending[0]]; j >= 0; j = Parent(j)) {
     path.push_back(j);
-    if (static_cast<int>(path.size()) > kSharedPathMaxLength) return false;  // dense block too big
+    if (static_cast<int>(path.size()) > kSharedPathMaxLength) return false;  // too many rows for B
   }
   const int s = static_cast<int>(path.size());
   if (s < kSharedPathMinLength) return false;  // short paths: the walks are cheap
   std::vector<int>& index = path_index_;  // position → index in S (−1: not in S)
   if (static_cast<int>(index.size()) != capacity_) index.assign(capacity_, -1);
   for (int q = 0; q < s; ++q) index[path[q]] = q;
-  // L_SS, unit lower triangular: the rows of a column of S are its ancestors, all in S.
-  Eigen::MatrixXd L_SS = Eigen::MatrixXd::Zero(s, s);
-  bool closed = true;
-  for (int q = 0; q < s && closed; ++q) {
-    const int j = path[q];
-    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
-      if (index[Li[p]] < 0) {
-        closed = false;
-        break;
-      }
-      L_SS(index[Li[p]], q) = Lx[p];
-    }
-  }
-  SUBSLAM_CHECK(closed) << "factor pattern is not closed along its elimination tree";
   // Each variable's walk up to S (sparse), its values at S gathered into B.
   const int R = static_cast<int>(pending.size());
-  Eigen::MatrixXd B = Eigen::MatrixXd::Zero(s, R);
+  // Row-major: the shared solve below updates whole rows (all right-hand sides at once).
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> B =
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(s, R);
   std::vector<SparseColumn> columns(R);
   std::vector<int> entry(R);  // index in S where the walk met S
   std::vector<double>& y = ForwardWorkspace();  // its first capacity entries, one right-hand side
@@ -372,8 +360,18 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
       y[row] = 0.0;
     }
   }
-  // The shared part for every variable at once: L_SS Z = B (dense, unit lower).
-  const Eigen::MatrixXd Z = L_SS.triangularView<Eigen::UnitLower>().solve(B);
+  // The shared part for every variable at once: L_SS Z = B (unit lower), in place, by
+  // columns of S — the rows of a column of S are its ancestors, all in S — so the work is
+  // O(nnz(L_SS) · R), with no dense s × s matrix.
+  for (int q = 0; q < s; ++q) {
+    const int j = path[q];
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
+      const int row = index[Li[p]];
+      SUBSLAM_CHECK(row > q) << "factor pattern is not closed along its elimination tree";
+      B.row(row) -= Lx[p] * B.row(q);
+    }
+  }
+  const auto& Z = B;
   for (int r = 0; r < R; ++r) {
     for (int q = entry[r]; q < s; ++q) {
       columns[r].rows.push_back(path[q]);

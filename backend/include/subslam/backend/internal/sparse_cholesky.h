@@ -107,9 +107,10 @@ class SparseCholesky {
   void SolveColumns(const std::vector<int>& variables) const;
   // For many columns at once (`pending`, sorted by position, none cached): each walks its
   // path only until it meets the path S of the first one to the root; the part in S is
-  // solved for all of them together as one dense unit-lower triangular solve (S is where
-  // the paths merge, and near the root L is dense). False (nothing done) if S is shorter
-  // than kSharedPathMinLength or longer than kSharedPathMaxLength.
+  // solved for all of them together, one sweep over S's columns updating every
+  // right-hand side at once (S is where the paths merge; near the root L is dense). False
+  // (nothing done) if S is shorter than kSharedPathMinLength or longer than
+  // kSharedPathMaxLength (the |S| × R block of right-hand sides).
   bool SolveThroughSharedPath(const std::vector<int>& pending) const;
   static constexpr int kSharedPathMinColumns = 6;
   // InverseBlock() on at least this many variables forms YᵀY as one dense product.
