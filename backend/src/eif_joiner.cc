@@ -309,42 +309,75 @@ std::vector<int> EifJoiner::FactorOffsets() const {
 }
 
 const Eigen::SparseMatrix<double>& EifJoiner::information() const {
-  if (lambda_factors_ == factors_.size() && Lambda_.rows() == dim_) return Lambda_;
-  if (lambda_factors_ == 0 && Lambda_.rows() == dim_ && !lambda_slots_.empty() &&
+  const SparseCholesky::LowerTriangle& lower = LowerInformation();
+  if (lambda_full_valid_ && Lambda_.rows() == dim_) return Lambda_;
+  // Both triangles from the lower one.
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(2 * lower.x.size());
+  for (int c = 0; c < lower.n; ++c) {
+    for (int k = lower.p[c]; k < lower.p[c + 1]; ++k) {
+      triplets.emplace_back(lower.i[k], c, lower.x[k]);
+      if (lower.i[k] != c) triplets.emplace_back(c, lower.i[k], lower.x[k]);
+    }
+  }
+  Lambda_.resize(dim_, dim_);
+  Lambda_.setFromTriplets(triplets.begin(), triplets.end());
+  lambda_full_valid_ = true;
+  return Lambda_;
+}
+
+void EifJoiner::FillLambdaValues(size_t first_factor, std::vector<double>* values) const {
+  values->assign(lambda_lower_.i.size(), 0.0);
+  double* x = values->data();
+  size_t entries = 0;
+  for (size_t k = 0; k < first_factor; ++k) entries += static_cast<size_t>(factors_[k].H.size());
+  const int* slot = lambda_slots_.data() + entries;
+  for (size_t k = first_factor; k < factors_.size(); ++k) {
+    ForEachEntry(factors_[k], [&](int, int, double h) {
+      if (*slot >= 0) x[*slot] += h;
+      ++slot;
+    });
+  }
+}
+
+const SparseCholesky::LowerTriangle& EifJoiner::LowerInformation() const {
+  if (lambda_factors_ == factors_.size() && lambda_lower_.n == dim_) return lambda_lower_;
+  lambda_full_valid_ = false;
+  if (lambda_factors_ == 0 && lambda_lower_.n == dim_ && !lambda_slots_.empty() &&
       FactorOffsets() == lambda_slot_offsets_) {
     // The same factors over the same variables (relinearised): refill Λ's values.
-    double* values = Lambda_.valuePtr();
-    std::fill(values, values + Lambda_.nonZeros(), 0.0);
-    const int* slot = lambda_slots_.data();
-    for (const Factor& f : factors_) ForEachEntry(f, [&](int, int, double h) { values[*slot++] += h; });
+    FillLambdaValues(0, &lambda_lower_.x);
     lambda_factors_ = factors_.size();
-    return Lambda_;
+    return lambda_lower_;
   }
-  if (lambda_factors_ > 0 && Lambda_.rows() <= dim_) {
-    // Joins since the last assembly, the older factors unchanged: add the new ones.
-    std::vector<Eigen::Triplet<double>> triplets;
-    for (size_t k = lambda_factors_; k < factors_.size(); ++k) {
-      ForEachEntry(factors_[k], [&](int row, int col, double h) { triplets.emplace_back(row, col, h); });
+  if (lambda_factors_ > 0 && lambda_lower_.n <= dim_) {
+    // Joins since the last assembly, the older factors unchanged: the new pattern, the
+    // old sums carried over and the new factors' sum added to them (Λ_old + ΔΛ, as
+    // assembling ΔΛ on its own and adding it would).
+    const SparseCholesky::LowerTriangle old = std::move(lambda_lower_);
+    BuildLambdaPattern();
+    std::vector<double> added;
+    FillLambdaValues(lambda_factors_, &added);
+    std::vector<double>& x = lambda_lower_.x;
+    x.assign(lambda_lower_.i.size(), 0.0);
+    for (int c = 0; c < old.n; ++c) {  // the old pattern lies within the new one, columns sorted
+      int k = lambda_lower_.p[c];
+      for (int q = old.p[c]; q < old.p[c + 1]; ++q) {
+        while (lambda_lower_.i[k] != old.i[q]) ++k;
+        x[k] = old.x[q];
+      }
     }
-    Eigen::SparseMatrix<double> added(dim_, dim_);
-    added.setFromTriplets(triplets.begin(), triplets.end());
-    Lambda_.conservativeResize(dim_, dim_);
-    Lambda_ += added;
+    for (size_t k = 0; k < x.size(); ++k) x[k] += added[k];
     lambda_factors_ = factors_.size();
-    lambda_slot_offsets_.clear();  // the slots are not this pattern's
-    return Lambda_;
+    return lambda_lower_;
   }
-  // Relinearised factors over a new pattern: Λ's structure
-  // is built from the factors' variable blocks — the rows of a column are those of every
-  // variable sharing a factor with its variable, whole blocks in order — and each H
-  // entry's place in Λ's values is recorded for the refill below and the next ones.
+  // Relinearised factors over a new pattern: Λ's structure is built from the factors'
+  // variable blocks, and each H entry's place in Λ's values is recorded for the refill
+  // above and the next ones.
   BuildLambdaPattern();
-  double* values = Lambda_.valuePtr();
-  std::fill(values, values + Lambda_.nonZeros(), 0.0);
-  const int* slot = lambda_slots_.data();
-  for (const Factor& f : factors_) ForEachEntry(f, [&](int, int, double h) { values[*slot++] += h; });
+  FillLambdaValues(0, &lambda_lower_.x);
   lambda_factors_ = factors_.size();
-  return Lambda_;
+  return lambda_lower_;
 }
 
 void EifJoiner::BuildLambdaPattern() const {
@@ -368,9 +401,11 @@ void EifJoiner::BuildLambdaPattern() const {
       for (int a : f.offsets) neighbour[fill[b]++] = a;
     }
   }
-  // Rows above each neighbour within a column of block o, in its list's order.
-  std::vector<int> above(neighbour.size());
-  std::vector<int> column_rows(dim_, 0);
+  // The lower triangle: column j of block o holds rows j … of block o itself, then every
+  // row of the neighbours after o. below[first[o] + k]: the rows of the neighbours after o
+  // that come before neighbour k (k after o) in each of o's columns.
+  std::vector<int> below(neighbour.size(), 0);
+  std::vector<int> later_rows(dim_, 0);  // rows of the neighbours after block o
   for (int o = 0; o < dim_; ++o) {
     if (size_of[o] == 0) continue;
     int* begin = neighbour.data() + first[o];
@@ -378,46 +413,61 @@ void EifJoiner::BuildLambdaPattern() const {
     unique[o] = static_cast<int>(std::unique(begin, neighbour.data() + first[o + 1]) - begin);
     int rows = 0;
     for (int k = 0; k < unique[o]; ++k) {
-      above[first[o] + k] = rows;
+      if (begin[k] <= o) continue;
+      below[first[o] + k] = rows;
       rows += size_of[begin[k]];
     }
-    for (int j = 0; j < size_of[o]; ++j) column_rows[o + j] = rows;
+    later_rows[o] = rows;
   }
-  Lambda_.resize(dim_, dim_);
-  long nonzeros = 0;
-  for (int c = 0; c < dim_; ++c) nonzeros += column_rows[c];
-  Lambda_.resizeNonZeros(nonzeros);
-  int* outer = Lambda_.outerIndexPtr();
-  int* inner = Lambda_.innerIndexPtr();
-  outer[0] = 0;
-  for (int c = 0; c < dim_; ++c) outer[c + 1] = outer[c] + column_rows[c];
+  SparseCholesky::LowerTriangle& lower = lambda_lower_;
+  lower.n = dim_;
+  lower.p.assign(dim_ + 1, 0);
+  for (int o = 0; o < dim_; ++o) {
+    for (int j = 0; j < size_of[o]; ++j) lower.p[o + j + 1] = size_of[o] - j + later_rows[o];
+  }
+  for (int c = 0; c < dim_; ++c) lower.p[c + 1] += lower.p[c];
+  const int nonzeros = lower.p[dim_];
+  lower.i.resize(static_cast<size_t>(nonzeros));
   for (int o = 0; o < dim_; ++o) {
     for (int j = 0; j < size_of[o]; ++j) {
-      int* row = inner + outer[o + j];
+      int* row = lower.i.data() + lower.p[o + j];
+      for (int i = j; i < size_of[o]; ++i) *row++ = o + i;
       for (int k = first[o]; k < first[o] + unique[o]; ++k) {
+        if (neighbour[k] <= o) continue;
         for (int i = 0; i < size_of[neighbour[k]]; ++i) *row++ = neighbour[k] + i;
       }
+      SUBSLAM_CHECK(row == lower.i.data() + lower.p[o + j + 1]) << "Λ's pattern, column " << o + j;
     }
   }
-  SUBSLAM_CHECK(outer[dim_] == nonzeros) << "Λ's pattern: " << outer[dim_] << " of " << nonzeros;
-  // Each H entry's slot, in ForEachEntry's order (block pairs (a, b), rows i outer,
-  // columns j inner): row block a sits at above[b][rank of a] in every column of b.
+  // Each H entry's slot in the lower triangle's values, in ForEachEntry's order (block
+  // pairs (a, b), rows i outer, columns j inner); −1 above the diagonal.
   lambda_slots_.resize(count);
   size_t next = 0;
   for (const Factor& f : factors_) {
     for (size_t a = 0; a < f.offsets.size(); ++a) {
-      const int size_a = f.sizes[a];
+      const int size_a = f.sizes[a], row_block = f.offsets[a];
       for (size_t b = 0; b < f.offsets.size(); ++b) {
-        const int size_b = f.sizes[b];
-        const int* list = neighbour.data() + first[f.offsets[b]];
-        const int rank = static_cast<int>(std::lower_bound(list, list + unique[f.offsets[b]], f.offsets[a]) - list);
-        const int base = above[first[f.offsets[b]] + rank];
+        const int size_b = f.sizes[b], col_block = f.offsets[b];
+        int* slot = lambda_slots_.data() + next;
+        next += static_cast<size_t>(size_a * size_b);
+        if (row_block < col_block) {
+          std::fill(slot, slot + size_a * size_b, -1);
+          continue;
+        }
         for (int i = 0; i < size_a; ++i) {
           for (int j = 0; j < size_b; ++j) {
-            lambda_slots_[next + static_cast<size_t>(i * size_b + j)] = outer[f.offsets[b] + j] + base + i;
+            const int column = col_block + j;
+            int position;
+            if (row_block == col_block) {
+              position = i >= j ? i - j : -1;
+            } else {
+              const int* list = neighbour.data() + first[col_block];
+              const int rank = static_cast<int>(std::lower_bound(list, list + unique[col_block], row_block) - list);
+              position = size_of[col_block] - j + below[first[col_block] + rank] + i;
+            }
+            slot[i * size_b + j] = position < 0 ? -1 : lower.p[column] + position;
           }
         }
-        next += static_cast<size_t>(size_a * size_b);
       }
     }
   }
@@ -431,7 +481,7 @@ absl::Status EifJoiner::FullFactorization() {
   SparseCholesky& L = solver_->factor;
   const long reuses = L.symbolic_reuses();
   // Spare slots for the next joins' new variables (about 15 % of the state).
-  if (absl::Status st = L.Factorize(information(), 64 + dim_ / 6); !st.ok()) {
+  if (absl::Status st = L.Factorize(LowerInformation(), 64 + dim_ / 6); !st.ok()) {
     return absl::InternalError(absl::StrCat("EIF: ", st.message()));
   }
   ++counters_.full_factorizations;
@@ -1094,7 +1144,7 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       counters_(other.counters_),
       last_t_end_(other.last_t_end_) {
   if (other.solver_->factor.ready()) {
-    SUBSLAM_CHECK(solver_->factor.Factorize(information(), 64 + dim_ / 6).ok()) << "refactorising a copy failed";
+    SUBSLAM_CHECK(solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6).ok()) << "refactorising a copy failed";
   }
 }
 

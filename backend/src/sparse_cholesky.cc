@@ -8,6 +8,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "absl/strings/str_cat.h"
 #include "subslam/graph/internal/check.h"
 
 namespace subslam::backend {
@@ -54,30 +55,48 @@ SparseCholesky::~SparseCholesky() {
 }
 
 absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int spare) {
+  // The lower triangle of A, column by column (Eigen keeps each column's rows sorted).
+  LowerTriangle lower;
+  lower.n = static_cast<int>(A.rows());
+  lower.i.reserve(static_cast<size_t>(A.nonZeros()) / 2 + static_cast<size_t>(lower.n));
+  lower.x.reserve(lower.i.capacity());
+  for (int c = 0; c < lower.n; ++c) {
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, c); it; ++it) {
+      if (it.row() < c) continue;
+      lower.i.push_back(static_cast<int>(it.row()));
+      lower.x.push_back(it.value());
+    }
+    lower.p.push_back(static_cast<int>(lower.i.size()));
+  }
+  return Factorize(lower, spare);
+}
+
+absl::Status SparseCholesky::Factorize(const LowerTriangle& A, int spare) {
+  const int n = A.n;
+  if (static_cast<int>(A.p.size()) != n + 1 || A.p[0] != 0 || static_cast<size_t>(A.p[n]) != A.i.size() ||
+      A.i.size() != A.x.size()) {
+    return absl::InvalidArgumentError("Factorize: malformed lower triangle");
+  }
+  for (int c = 0; c < n; ++c) {
+    for (int k = A.p[c]; k < A.p[c + 1]; ++k) {
+      if (A.i[k] < c || A.i[k] >= n || (k > A.p[c] && A.i[k] <= A.i[k - 1])) {
+        return absl::InvalidArgumentError(absl::StrCat("Factorize: column ", c, " is not a sorted lower-triangle column"));
+      }
+    }
+  }
   if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
-  const int n = static_cast<int>(A.rows());
   const int capacity = n + std::max(0, spare);
   InvalidateCaches(capacity);
-  // The lower triangle of A, column by column (Eigen keeps each column's rows sorted), then
-  // the spare slots' identity: their columns come after A's, so the first n columns alone
-  // are A.
+  // A's lower triangle, then the spare slots' identity: their columns come after A's, so
+  // the first n columns alone are A.
   std::vector<int>& p = lower_p_;
   std::vector<int>& i = lower_i_;
   std::vector<double>& x = lower_x_;
-  p.assign(1, 0);
-  i.clear();
-  x.clear();
-  i.reserve(static_cast<size_t>(A.nonZeros()) / 2 + static_cast<size_t>(capacity));
+  p.assign(A.p.begin(), A.p.end());
+  i.reserve(A.i.size() + static_cast<size_t>(capacity - n));
   x.reserve(i.capacity());
-  for (int c = 0; c < n; ++c) {
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A, c); it; ++it) {
-      if (it.row() < c) continue;
-      SUBSLAM_CHECK(static_cast<int>(i.size()) == p.back() || it.row() > i.back()) << "unsorted sparse column " << c;
-      i.push_back(static_cast<int>(it.row()));
-      x.push_back(it.value());
-    }
-    p.push_back(static_cast<int>(i.size()));
-  }
+  i.assign(A.i.begin(), A.i.end());
+  x.assign(A.x.begin(), A.x.end());
   for (int s = n; s < capacity; ++s) {
     i.push_back(s);
     x.push_back(1.0);

@@ -281,6 +281,55 @@ TEST(SparseCholesky, RefactorizingTheSamePatternReusesTheAnalysis) {
   EXPECT_EQ(M.symbolic_reuses(), 0);
 }
 
+// A's lower triangle in compressed columns, as SparseCholesky::LowerTriangle holds it.
+SparseCholesky::LowerTriangle LowerOf(const Eigen::MatrixXd& A) {
+  SparseCholesky::LowerTriangle lower;
+  lower.n = static_cast<int>(A.rows());
+  for (int c = 0; c < lower.n; ++c) {
+    for (int r = c; r < lower.n; ++r) {
+      if (A(r, c) == 0.0) continue;
+      lower.i.push_back(r);
+      lower.x.push_back(A(r, c));
+    }
+    lower.p.push_back(static_cast<int>(lower.i.size()));
+  }
+  return lower;
+}
+
+TEST(SparseCholesky, LowerTriangleInputEqualsTheMatrixInput) {
+  std::mt19937_64 rng(4);
+  const Eigen::MatrixXd A = RandomSpd(25, &rng);
+  SparseCholesky from_matrix, from_lower;
+  ASSERT_TRUE(from_matrix.Factorize(Sparse(A), 6).ok());
+  ASSERT_TRUE(from_lower.Factorize(LowerOf(A), 6).ok());
+  EXPECT_EQ(from_lower.capacity(), 31);
+  EXPECT_EQ(from_lower.nonzeros(), from_matrix.nonzeros());
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(25, 2);
+  EXPECT_EQ(from_lower.Solve(B), from_matrix.Solve(B));  // the same input, to the bit
+  EXPECT_TRUE(MatricesNear(A.ldlt().solve(B), from_lower.Solve(B), 1e-10));
+}
+
+TEST(SparseCholesky, RejectsAMalformedLowerTriangle) {
+  std::mt19937_64 rng(5);
+  const SparseCholesky::LowerTriangle good = LowerOf(RandomSpd(6, &rng));
+  SparseCholesky L;
+  SparseCholesky::LowerTriangle above = good;  // a row above the diagonal
+  above.i[above.p[2]] = 1;
+  SparseCholesky::LowerTriangle unsorted = good;  // a column's rows out of order
+  ASSERT_GT(good.p[1] - good.p[0], 1);
+  std::swap(unsorted.i[0], unsorted.i[1]);
+  SparseCholesky::LowerTriangle short_p = good;  // p without its last entry
+  short_p.p.pop_back();
+  SparseCholesky::LowerTriangle out_of_range = good;
+  out_of_range.i[out_of_range.p[6] - 1] = 6;
+  for (const SparseCholesky::LowerTriangle* bad : {&above, &unsorted, &short_p, &out_of_range}) {
+    const absl::Status st = L.Factorize(*bad, 2);
+    EXPECT_EQ(st.code(), absl::StatusCode::kInvalidArgument) << st;
+    EXPECT_FALSE(L.ready());
+  }
+  EXPECT_TRUE(L.Factorize(good, 2).ok());
+}
+
 TEST(SparseCholesky, RejectsWhatItCannotDo) {
   std::mt19937_64 rng(3);
   const Eigen::MatrixXd A = RandomSpd(10, &rng);

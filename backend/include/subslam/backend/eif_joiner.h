@@ -52,6 +52,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/map_joiner.h"
 #include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
@@ -303,8 +304,15 @@ class EifJoiner final : public MapJoiner {
   // Factorises Λ afresh (the symbolic analysis reused while Λ's pattern is unchanged),
   // with spare slots for the next joins' new variables.
   absl::Status FullFactorization();
-  // Λ's pattern (values left unset) and lambda_slots_ from the factors' variable blocks.
+  // Λ's lower triangle (its pattern, values left unset) and lambda_slots_ from the
+  // factors' variable blocks.
   void BuildLambdaPattern() const;
+  // Λ's lower triangle, assembled from the factors as needed (what a full factorisation
+  // takes).
+  const SparseCholesky::LowerTriangle& LowerInformation() const;
+  // values = Σ over factors from first_factor on of their H entries in the lower
+  // triangle, at their slots (lambda_slots_ must be this pattern's).
+  void FillLambdaValues(size_t first_factor, std::vector<double>* values) const;
   // The variable offsets of every factor, concatenated (what Λ's pattern depends on).
   std::vector<int> FactorOffsets() const;
   // Gauss-Newton over every factor from the current estimate, until a step (taken, or
@@ -348,13 +356,17 @@ class EifJoiner final : public MapJoiner {
   std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
   int dim_ = 0;
   std::vector<Factor> factors_;
-  // Λ as the sum of the first `lambda_factors_` factors' H (0: none, or relinearised since):
-  // information() adds the newer factors, or refills or assembles it again.
-  mutable Eigen::SparseMatrix<double> Lambda_;
+  // Λ's lower triangle as the sum of the first `lambda_factors_` factors' H (0: none, or
+  // relinearised since): LowerInformation() adds the newer factors, or refills or
+  // assembles it again. Lambda_: both triangles, built from it for information().
+  mutable SparseCholesky::LowerTriangle lambda_lower_;
   mutable size_t lambda_factors_ = 0;
-  // Where each factor's H entries (in ForEachEntry's order, factors in order) sit in Λ's
-  // values, and the factors' variable offsets they were found for: while those are the
-  // same, a relinearised Λ is only refilled (same pattern), not assembled again.
+  mutable Eigen::SparseMatrix<double> Lambda_;
+  mutable bool lambda_full_valid_ = false;
+  // Where each factor's H entries (in ForEachEntry's order, factors in order) sit in the
+  // lower triangle's values (−1: above the diagonal), and the factors' variable offsets
+  // they were found for: while those are the same, a relinearised Λ is only refilled
+  // (same pattern), not assembled again.
   mutable std::vector<int> lambda_slots_;
   mutable std::vector<int> lambda_slot_offsets_;
   Eigen::VectorXd eta_;
