@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "subslam/app/join_pipeline.h"
+#include "subslam/app/process_memory.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/io/dataset_reader.h"
@@ -513,6 +514,7 @@ int main(int argc, char** argv) {
       "[--dataset DIR | --scenario NAME --seed S] --out DIR\n"
       "  subslam scenarios");
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);
+  subslam::app::ApplyKeepFreedMemoryFlag();
   if (args.size() != 2) {
     std::fprintf(stderr, "%s\n", absl::ProgramUsageMessage().data());
     return 2;

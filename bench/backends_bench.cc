@@ -30,6 +30,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "subslam/app/join_pipeline.h"
+#include "subslam/app/process_memory.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/eval/gps_alignment.h"
@@ -290,6 +291,7 @@ bool ParseBackends(const std::string& list, std::vector<Backend>* out) {
 
 int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
+  subslam::app::ApplyKeepFreedMemoryFlag();
   std::vector<Backend> kinds, growth_kinds;
   if (!ParseBackends(absl::GetFlag(FLAGS_backends), &kinds) ||
       !ParseBackends(absl::GetFlag(FLAGS_growth_backends), &growth_kinds)) {

@@ -25,6 +25,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
+#include "subslam/app/process_memory.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/eval/nees.h"
 #include "subslam/sim/simulator.h"
@@ -108,6 +109,7 @@ json RowJson(const MonteCarloRow& r) {
 
 int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
+  subslam::app::ApplyKeepFreedMemoryFlag();
   const int runs = absl::GetFlag(FLAGS_runs);
   const std::string scenario = absl::GetFlag(FLAGS_scenario);
   json out = json::object();

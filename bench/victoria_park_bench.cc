@@ -22,6 +22,7 @@
 #include "absl/flags/parse.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
+#include "subslam/app/process_memory.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/io/dataset_reader.h"
 
@@ -100,6 +101,7 @@ bool Measure(subslam::app::Frontend frontend, Measurement* m) {
 
 int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
+  subslam::app::ApplyKeepFreedMemoryFlag();
   const int repeats = std::max(1, absl::GetFlag(FLAGS_repeats));
   nlohmann::json results = nlohmann::json::array();
   std::printf("%-9s %7s %11s %10s %8s %11s %8s %10s %9s %10s\n", "frontend", "read_s",

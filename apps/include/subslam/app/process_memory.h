@@ -1,0 +1,32 @@
+// Process-wide allocator settings for subslam's executables (the CLI and the benches);
+// the libraries never change them, so a program that embeds subslam keeps its own.
+//
+// glibc hands a freed block of at least 128 KiB (a threshold it raises as it goes) back
+// to the kernel at once, and gives the memory at the top of its heap back once more than
+// twice that is free there; the next allocation of that size then faults in fresh,
+// zero-filled pages. The joiners allocate and free blocks of that size on every join
+// (the dense EKF its n × n covariance as it grows, the EIF its sparse factor at every
+// full factorisation). On a virtual machine where a page fault costs microseconds this
+// dominated the dense EKF joiner (combined-2km seed 1: 5.7 s, 325,000 page faults,
+// against 0.34 s and 15,000 faults with the memory kept; bench/RESULTS.md, fourteenth
+// session).
+#ifndef SUBSLAM_APP_PROCESS_MEMORY_H_
+#define SUBSLAM_APP_PROCESS_MEMORY_H_
+
+namespace subslam::app {
+
+// Keeps freed memory in the process for reuse: blocks up to 32 MiB (glibc's largest
+// mmap threshold on 64-bit) come from the heap, and the heap's top is given back to the
+// kernel only beyond 512 MiB free. The peak footprint is what it was; what the process
+// holds between peaks can stay near it. Returns false where the allocator is not glibc's
+// or refused a setting (nothing is then changed for that setting).
+bool KeepFreedMemoryInProcess();
+
+// The executables' flag --keep_freed_memory (default true): calls
+// KeepFreedMemoryInProcess() when it is set, with a note on stderr if that failed. Call
+// it after absl::ParseCommandLine.
+void ApplyKeepFreedMemoryFlag();
+
+}  // namespace subslam::app
+
+#endif  // SUBSLAM_APP_PROCESS_MEMORY_H_
