@@ -440,35 +440,58 @@ void EifJoiner::BuildLambdaPattern() const {
     }
   }
   // Each H entry's slot in the lower triangle's values, in ForEachEntry's order (block
-  // pairs (a, b), rows i outer, columns j inner); −1 above the diagonal.
+  // pairs (a, b), rows i outer, columns j inner: entry (a, b, i, j) of a factor sits at
+  // start[a]·cols + size_a·start[b] + i·size_b + j, start the blocks' first rows in H);
+  // −1 above the diagonal. By column block: with `where` holding, for the blocks after
+  // it, their first row's place in its columns, every factor touching the block fills
+  // the entries of its column (one pass over the entries, no search).
+  std::vector<size_t> entry_start(factors_.size() + 1, 0);
+  std::vector<int> touching_count(dim_ + 1, 0);
+  for (size_t k = 0; k < factors_.size(); ++k) {
+    entry_start[k + 1] = entry_start[k] + static_cast<size_t>(factors_[k].H.size());
+    for (int o : factors_[k].offsets) ++touching_count[o + 1];
+  }
+  for (int o = 0; o < dim_; ++o) touching_count[o + 1] += touching_count[o];
+  std::vector<std::pair<int, int>> touching(static_cast<size_t>(touching_count[dim_]));  // (factor, block)
+  std::vector<int> touching_fill(touching_count.begin(), touching_count.end() - 1);
+  for (size_t k = 0; k < factors_.size(); ++k) {
+    for (size_t v = 0; v < factors_[k].offsets.size(); ++v) {
+      touching[touching_fill[factors_[k].offsets[v]]++] = {static_cast<int>(k), static_cast<int>(v)};
+    }
+  }
   lambda_slots_.resize(count);
-  size_t next = 0;
-  for (const Factor& f : factors_) {
-    for (size_t a = 0; a < f.offsets.size(); ++a) {
-      const int size_a = f.sizes[a], row_block = f.offsets[a];
-      for (size_t b = 0; b < f.offsets.size(); ++b) {
-        const int size_b = f.sizes[b], col_block = f.offsets[b];
-        int* slot = lambda_slots_.data() + next;
-        next += static_cast<size_t>(size_a * size_b);
-        if (row_block < col_block) {
-          std::fill(slot, slot + size_a * size_b, -1);
-          continue;
-        }
+  std::vector<int> where(dim_, -1), block_start;
+  for (int o = 0; o < dim_; ++o) {
+    if (size_of[o] == 0) continue;
+    const int size_o = size_of[o];
+    for (int k = first[o]; k < first[o] + unique[o]; ++k) {
+      if (neighbour[k] > o) where[neighbour[k]] = below[k];
+    }
+    for (int t = touching_count[o]; t < touching_count[o + 1]; ++t) {
+      const Factor& f = factors_[touching[t].first];
+      const int b = touching[t].second, blocks = static_cast<int>(f.offsets.size());
+      const int cols = static_cast<int>(f.H.cols());
+      block_start.assign(blocks + 1, 0);
+      for (int v = 0; v < blocks; ++v) block_start[v + 1] = block_start[v] + f.sizes[v];
+      int* base = lambda_slots_.data() + entry_start[touching[t].first];
+      for (int a = 0; a < blocks; ++a) {
+        const int size_a = f.sizes[a], row_block = f.offsets[a];
+        int* slot = base + block_start[a] * cols + size_a * block_start[b];
         for (int i = 0; i < size_a; ++i) {
-          for (int j = 0; j < size_b; ++j) {
-            const int column = col_block + j;
-            int position;
-            if (row_block == col_block) {
-              position = i >= j ? i - j : -1;
-            } else {
-              const int* list = neighbour.data() + first[col_block];
-              const int rank = static_cast<int>(std::lower_bound(list, list + unique[col_block], row_block) - list);
-              position = size_of[col_block] - j + below[first[col_block] + rank] + i;
+          for (int j = 0; j < size_o; ++j) {
+            int position = -1;
+            if (row_block == o) {
+              if (i >= j) position = i - j;
+            } else if (row_block > o) {
+              position = size_o - j + where[row_block] + i;
             }
-            slot[i * size_b + j] = position < 0 ? -1 : lower.p[column] + position;
+            slot[i * size_o + j] = position < 0 ? -1 : lower.p[o + j] + position;
           }
         }
       }
+    }
+    for (int k = first[o]; k < first[o] + unique[o]; ++k) {
+      if (neighbour[k] > o) where[neighbour[k]] = -1;
     }
   }
   lambda_slot_offsets_ = FactorOffsets();
