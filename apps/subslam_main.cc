@@ -18,7 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "subslam/app/join_pipeline.h"
-#include "subslam/app/process_memory.h"
+#include "keep_freed_memory_flag.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/io/dataset_reader.h"

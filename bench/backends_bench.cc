@@ -30,7 +30,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "subslam/app/join_pipeline.h"
-#include "subslam/app/process_memory.h"
+#include "keep_freed_memory_flag.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/eval/gps_alignment.h"

@@ -25,7 +25,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
-#include "subslam/app/process_memory.h"
+#include "keep_freed_memory_flag.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/eval/nees.h"
 #include "subslam/sim/simulator.h"

@@ -22,7 +22,7 @@
 #include "absl/flags/parse.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
-#include "subslam/app/process_memory.h"
+#include "keep_freed_memory_flag.h"
 #include "subslam/app/run_pipeline.h"
 #include "subslam/io/dataset_reader.h"
 

@@ -1,17 +1,10 @@
 #include "subslam/app/process_memory.h"
 
-#include <cstdio>
-
-#include "absl/flags/flag.h"
+#include <cstdlib>  // defines __GLIBC__ (through <features.h>) where the C library is glibc
 
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
-
-ABSL_FLAG(bool, keep_freed_memory, true,
-          "keep freed memory in the process for reuse (glibc: mmap threshold 32 MiB, trim "
-          "threshold 512 MiB; see subslam/app/process_memory.h) instead of returning it to "
-          "the kernel and faulting it in again");
 
 namespace subslam::app {
 
@@ -25,12 +18,6 @@ bool KeepFreedMemoryInProcess() {
 #else
   return false;
 #endif
-}
-
-void ApplyKeepFreedMemoryFlag() {
-  if (absl::GetFlag(FLAGS_keep_freed_memory) && !KeepFreedMemoryInProcess()) {
-    std::fprintf(stderr, "note: the allocator settings of --keep_freed_memory are not available here\n");
-  }
 }
 
 }  // namespace subslam::app

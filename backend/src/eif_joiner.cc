@@ -19,6 +19,7 @@ using frontend::StageTimer;
 
 struct EifJoiner::Solver {
   SparseCholesky factor;
+  SparseLowerTriangle lambda_lower;  // Λ's lower triangle (see lambda_factors_)
   Eigen::MatrixXd last_whitened_jacobian;  // of the newest factor, for the incremental update
   bool stale = false;  // the factor no longer matches Λ (a rejected join was undone)
 };
@@ -309,7 +310,7 @@ std::vector<int> EifJoiner::FactorOffsets() const {
 }
 
 const Eigen::SparseMatrix<double>& EifJoiner::information() const {
-  const SparseCholesky::LowerTriangle& lower = LowerInformation();
+  const SparseLowerTriangle& lower = LowerInformation();
   if (lambda_full_valid_ && Lambda_.rows() == dim_) return Lambda_;
   // Both triangles from the lower one.
   std::vector<Eigen::Triplet<double>> triplets;
@@ -327,7 +328,7 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
 }
 
 void EifJoiner::FillLambdaValues(size_t first_factor, std::vector<double>* values) const {
-  values->assign(lambda_lower_.i.size(), 0.0);
+  values->assign(solver_->lambda_lower.i.size(), 0.0);
   double* x = values->data();
   size_t entries = 0;
   for (size_t k = 0; k < first_factor; ++k) entries += static_cast<size_t>(factors_[k].H.size());
@@ -340,44 +341,45 @@ void EifJoiner::FillLambdaValues(size_t first_factor, std::vector<double>* value
   }
 }
 
-const SparseCholesky::LowerTriangle& EifJoiner::LowerInformation() const {
-  if (lambda_factors_ == factors_.size() && lambda_lower_.n == dim_) return lambda_lower_;
+const SparseLowerTriangle& EifJoiner::LowerInformation() const {
+  if (lambda_factors_ == factors_.size() && solver_->lambda_lower.n == dim_) return solver_->lambda_lower;
   lambda_full_valid_ = false;
-  if (lambda_factors_ == 0 && lambda_lower_.n == dim_ && !lambda_slots_.empty() &&
+  if (lambda_factors_ == 0 && solver_->lambda_lower.n == dim_ && !lambda_slots_.empty() &&
       FactorOffsets() == lambda_slot_offsets_) {
     // The same factors over the same variables (relinearised): refill Λ's values.
-    FillLambdaValues(0, &lambda_lower_.x);
+    FillLambdaValues(0, &solver_->lambda_lower.x);
     lambda_factors_ = factors_.size();
-    return lambda_lower_;
+    return solver_->lambda_lower;
   }
-  if (lambda_factors_ > 0 && lambda_lower_.n <= dim_) {
+  if (lambda_factors_ > 0 && solver_->lambda_lower.n <= dim_) {
     // Joins since the last assembly, the older factors unchanged: the new pattern, the
     // old sums carried over and the new factors' sum added to them (Λ_old + ΔΛ, as
     // assembling ΔΛ on its own and adding it would).
-    const SparseCholesky::LowerTriangle old = std::move(lambda_lower_);
+    const SparseLowerTriangle old = std::move(solver_->lambda_lower);
     BuildLambdaPattern();
     std::vector<double> added;
     FillLambdaValues(lambda_factors_, &added);
-    std::vector<double>& x = lambda_lower_.x;
-    x.assign(lambda_lower_.i.size(), 0.0);
+    std::vector<double>& x = solver_->lambda_lower.x;
+    x.assign(solver_->lambda_lower.i.size(), 0.0);
     for (int c = 0; c < old.n; ++c) {  // the old pattern lies within the new one, columns sorted
-      int k = lambda_lower_.p[c];
+      int k = solver_->lambda_lower.p[c];
       for (int q = old.p[c]; q < old.p[c + 1]; ++q) {
-        while (lambda_lower_.i[k] != old.i[q]) ++k;
+        while (k < solver_->lambda_lower.p[c + 1] && solver_->lambda_lower.i[k] != old.i[q]) ++k;
+        SUBSLAM_CHECK(k < solver_->lambda_lower.p[c + 1]) << "Λ's old pattern is not within the new one, column " << c;
         x[k] = old.x[q];
       }
     }
     for (size_t k = 0; k < x.size(); ++k) x[k] += added[k];
     lambda_factors_ = factors_.size();
-    return lambda_lower_;
+    return solver_->lambda_lower;
   }
   // Relinearised factors over a new pattern: Λ's structure is built from the factors'
   // variable blocks, and each H entry's place in Λ's values is recorded for the refill
   // above and the next ones.
   BuildLambdaPattern();
-  FillLambdaValues(0, &lambda_lower_.x);
+  FillLambdaValues(0, &solver_->lambda_lower.x);
   lambda_factors_ = factors_.size();
-  return lambda_lower_;
+  return solver_->lambda_lower;
 }
 
 void EifJoiner::BuildLambdaPattern() const {
@@ -419,7 +421,7 @@ void EifJoiner::BuildLambdaPattern() const {
     }
     later_rows[o] = rows;
   }
-  SparseCholesky::LowerTriangle& lower = lambda_lower_;
+  SparseLowerTriangle& lower = solver_->lambda_lower;
   lower.n = dim_;
   lower.p.assign(dim_ + 1, 0);
   for (int o = 0; o < dim_; ++o) {

@@ -56,7 +56,7 @@ SparseCholesky::~SparseCholesky() {
 
 absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int spare) {
   // The lower triangle of A, column by column (Eigen keeps each column's rows sorted).
-  LowerTriangle lower;
+  SparseLowerTriangle lower;
   lower.n = static_cast<int>(A.rows());
   lower.i.reserve(static_cast<size_t>(A.nonZeros()) / 2 + static_cast<size_t>(lower.n));
   lower.x.reserve(lower.i.capacity());
@@ -71,11 +71,16 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   return Factorize(lower, spare);
 }
 
-absl::Status SparseCholesky::Factorize(const LowerTriangle& A, int spare) {
+absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare) {
   const int n = A.n;
   if (static_cast<int>(A.p.size()) != n + 1 || A.p[0] != 0 || static_cast<size_t>(A.p[n]) != A.i.size() ||
       A.i.size() != A.x.size()) {
     return absl::InvalidArgumentError("Factorize: malformed lower triangle");
+  }
+  for (int c = 0; c < n; ++c) {
+    if (A.p[c + 1] < A.p[c]) {
+      return absl::InvalidArgumentError(absl::StrCat("Factorize: column ", c, " ends before it starts"));
+    }
   }
   for (int c = 0; c < n; ++c) {
     for (int k = A.p[c]; k < A.p[c + 1]; ++k) {

@@ -281,9 +281,9 @@ TEST(SparseCholesky, RefactorizingTheSamePatternReusesTheAnalysis) {
   EXPECT_EQ(M.symbolic_reuses(), 0);
 }
 
-// A's lower triangle in compressed columns, as SparseCholesky::LowerTriangle holds it.
-SparseCholesky::LowerTriangle LowerOf(const Eigen::MatrixXd& A) {
-  SparseCholesky::LowerTriangle lower;
+// A's lower triangle in compressed columns, as SparseLowerTriangle holds it.
+SparseLowerTriangle LowerOf(const Eigen::MatrixXd& A) {
+  SparseLowerTriangle lower;
   lower.n = static_cast<int>(A.rows());
   for (int c = 0; c < lower.n; ++c) {
     for (int r = c; r < lower.n; ++r) {
@@ -311,23 +311,31 @@ TEST(SparseCholesky, LowerTriangleInputEqualsTheMatrixInput) {
 
 TEST(SparseCholesky, RejectsAMalformedLowerTriangle) {
   std::mt19937_64 rng(5);
-  const SparseCholesky::LowerTriangle good = LowerOf(RandomSpd(6, &rng));
+  const SparseLowerTriangle good = LowerOf(RandomSpd(6, &rng));
   SparseCholesky L;
-  SparseCholesky::LowerTriangle above = good;  // a row above the diagonal
+  ASSERT_TRUE(L.Factorize(good, 2).ok());
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(6, 1);
+  const Eigen::MatrixXd solved = L.Solve(B);
+  SparseLowerTriangle above = good;  // a row above the diagonal
   above.i[above.p[2]] = 1;
-  SparseCholesky::LowerTriangle unsorted = good;  // a column's rows out of order
+  SparseLowerTriangle unsorted = good;  // a column's rows out of order
   ASSERT_GT(good.p[1] - good.p[0], 1);
   std::swap(unsorted.i[0], unsorted.i[1]);
-  SparseCholesky::LowerTriangle short_p = good;  // p without its last entry
+  SparseLowerTriangle short_p = good;  // p without its last entry
   short_p.p.pop_back();
-  SparseCholesky::LowerTriangle out_of_range = good;
+  SparseLowerTriangle out_of_range = good;  // a row beyond n
   out_of_range.i[out_of_range.p[6] - 1] = 6;
-  for (const SparseCholesky::LowerTriangle* bad : {&above, &unsorted, &short_p, &out_of_range}) {
+  SparseLowerTriangle backwards = good;  // a column that ends before it starts
+  backwards.p[1] = backwards.p[2] + 1;
+  SparseLowerTriangle short_x = good;  // fewer values than rows
+  short_x.x.pop_back();
+  for (const SparseLowerTriangle* bad : {&above, &unsorted, &short_p, &out_of_range, &backwards, &short_x}) {
     const absl::Status st = L.Factorize(*bad, 2);
     EXPECT_EQ(st.code(), absl::StatusCode::kInvalidArgument) << st;
-    EXPECT_FALSE(L.ready());
+    // Nothing changed: the previous factor still solves.
+    ASSERT_TRUE(L.ready());
+    EXPECT_EQ(L.Solve(B), solved);
   }
-  EXPECT_TRUE(L.Factorize(good, 2).ok());
 }
 
 TEST(SparseCholesky, RejectsWhatItCannotDo) {

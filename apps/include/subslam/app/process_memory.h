@@ -1,5 +1,6 @@
-// Process-wide allocator settings for subslam's executables (the CLI and the benches);
-// the libraries never change them, so a program that embeds subslam keeps its own.
+// Process-wide allocator settings for subslam's executables (the CLI and the benches,
+// through their flag --keep_freed_memory, apps/executable/); the libraries never change
+// them, so a program that embeds subslam keeps its own unless it calls this itself.
 //
 // glibc hands a freed block of at least 128 KiB (a threshold it raises as it goes) back
 // to the kernel at once, and gives the memory at the top of its heap back once more than
@@ -7,9 +8,9 @@
 // zero-filled pages. The joiners allocate and free blocks of that size on every join
 // (the dense EKF its n × n covariance as it grows, the EIF its sparse factor at every
 // full factorisation). On a virtual machine where a page fault costs microseconds this
-// dominated the dense EKF joiner (combined-2km seed 1: 5.7 s, 325,000 page faults,
-// against 0.34 s and 15,000 faults with the memory kept; bench/RESULTS.md, fourteenth
-// session).
+// dominated the dense EKF joiner (combined-2km seed 1: 4.4-5.9 s and 325,000 page
+// faults, against 0.35-0.45 s and 19,000 faults with these settings; bench/RESULTS.md,
+// fourteenth session). Blocks above 32 MiB are still mmapped.
 #ifndef SUBSLAM_APP_PROCESS_MEMORY_H_
 #define SUBSLAM_APP_PROCESS_MEMORY_H_
 
@@ -22,11 +23,6 @@ namespace subslam::app {
 // maximum resident). Returns false where the allocator is not glibc's or refused a
 // setting (nothing is then changed for that setting).
 bool KeepFreedMemoryInProcess();
-
-// The executables' flag --keep_freed_memory (default true): calls
-// KeepFreedMemoryInProcess() when it is set, with a note on stderr if that failed. Call
-// it after absl::ParseCommandLine.
-void ApplyKeepFreedMemoryFlag();
 
 }  // namespace subslam::app
 

@@ -52,13 +52,14 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/map_joiner.h"
 #include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 
 namespace subslam::backend {
+
+struct SparseLowerTriangle;  // backend/internal/sparse_cholesky.h
 
 struct EifJoinerOptions {
   SubmapAssociationOptions association;
@@ -309,7 +310,7 @@ class EifJoiner final : public MapJoiner {
   void BuildLambdaPattern() const;
   // Λ's lower triangle, assembled from the factors as needed (what a full factorisation
   // takes).
-  const SparseCholesky::LowerTriangle& LowerInformation() const;
+  const SparseLowerTriangle& LowerInformation() const;
   // values = Σ over factors from first_factor on of their H entries in the lower
   // triangle, at their slots (lambda_slots_ must be this pattern's).
   void FillLambdaValues(size_t first_factor, std::vector<double>* values) const;
@@ -356,10 +357,10 @@ class EifJoiner final : public MapJoiner {
   std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
   int dim_ = 0;
   std::vector<Factor> factors_;
-  // Λ's lower triangle as the sum of the first `lambda_factors_` factors' H (0: none, or
-  // relinearised since): LowerInformation() adds the newer factors, or refills or
-  // assembles it again. Lambda_: both triangles, built from it for information().
-  mutable SparseCholesky::LowerTriangle lambda_lower_;
+  // Λ's lower triangle (Solver::lambda_lower) as the sum of the first `lambda_factors_`
+  // factors' H (0: none, or relinearised since): LowerInformation() adds the newer
+  // factors, or refills or assembles it again. Lambda_: both triangles, built from it
+  // for information().
   mutable size_t lambda_factors_ = 0;
   mutable Eigen::SparseMatrix<double> Lambda_;
   mutable bool lambda_full_valid_ = false;

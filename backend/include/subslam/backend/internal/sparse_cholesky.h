@@ -26,6 +26,15 @@ struct cholmod_factor_struct;
 
 namespace subslam::backend {
 
+// The lower triangle (diagonal included) of a symmetric n × n matrix in compressed
+// columns: column c's rows, sorted and all ≥ c, are i[p[c]] … i[p[c + 1] − 1], with
+// values x; p has n + 1 entries.
+struct SparseLowerTriangle {
+  int n = 0;
+  std::vector<int> p = {0}, i;
+  std::vector<double> x;
+};
+
 class SparseCholesky {
  public:
   SparseCholesky();
@@ -33,21 +42,15 @@ class SparseCholesky {
   SparseCholesky(const SparseCholesky&) = delete;
   SparseCholesky& operator=(const SparseCholesky&) = delete;
 
-  // The lower triangle (diagonal included) of a symmetric n × n matrix in compressed
-  // columns: column c's rows, sorted and all ≥ c, are i[p[c]] … i[p[c + 1] − 1], with
-  // values x; p has n + 1 entries.
-  struct LowerTriangle {
-    int n = 0;
-    std::vector<int> p = {0}, i;
-    std::vector<double> x;
-  };
   // Factorises A (n × n, symmetric; both triangles stored or the lower one) with an AMD
   // ordering and `spare` identity slots after it. The symbolic analysis (ordering,
   // elimination tree, column counts) is redone only when A's pattern (or n, or spare)
   // differs from the last analysed one; otherwise it is reused, with the same result.
   absl::Status Factorize(const Eigen::SparseMatrix<double>& A, int spare);
-  // The same from A's lower triangle as it is stored (rows sorted; checked).
-  absl::Status Factorize(const LowerTriangle& A, int spare);
+  // The same from A's lower triangle as it is stored. A malformed A (sizes, columns'
+  // ranges, rows unsorted or above the diagonal) is rejected before anything changes:
+  // the previous factor stays.
+  absl::Status Factorize(const SparseLowerTriangle& A, int spare);
   // A += W Wᵀ, where row r of W belongs to variable rows[r]; variables numbered from dim()
   // up to new_dim − 1 are new and claim spare slots (their identity is removed).
   // Requires new_dim ≤ capacity().
