@@ -387,12 +387,16 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
   // The shared part for every variable at once: L_SS Z = B (unit lower), in place, by
   // columns of S — the rows of a column of S are its ancestors, all in S — so the work is
   // O(nnz(L_SS) · R), with no dense s × s matrix.
+  double* b = B.data();
   for (int q = 0; q < s; ++q) {
     const int j = path[q];
+    const double* b_q = b + static_cast<size_t>(q) * R;
     for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
       const int row = index[Li[p]];
       SUBSLAM_CHECK(row > q) << "factor pattern is not closed along its elimination tree";
-      B.row(row) -= Lx[p] * B.row(q);
+      double* b_row = b + static_cast<size_t>(row) * R;
+      const double l = Lx[p];
+      for (int r = 0; r < R; ++r) b_row[r] -= l * b_q[r];
     }
   }
   const auto& Z = B;
