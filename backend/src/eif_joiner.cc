@@ -313,16 +313,9 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   const SparseLowerTriangle& lower = LowerInformation();
   if (lambda_full_valid_ && Lambda_.rows() == dim_) return Lambda_;
   // Both triangles from the lower one.
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(2 * lower.x.size());
-  for (int c = 0; c < lower.n; ++c) {
-    for (int k = lower.p[c]; k < lower.p[c + 1]; ++k) {
-      triplets.emplace_back(lower.i[k], c, lower.x[k]);
-      if (lower.i[k] != c) triplets.emplace_back(c, lower.i[k], lower.x[k]);
-    }
-  }
-  Lambda_.resize(dim_, dim_);
-  Lambda_.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::Map<const Eigen::SparseMatrix<double>> lower_view(lower.n, lower.n, lower.p[lower.n], lower.p.data(),
+                                                                  lower.i.data(), lower.x.data());
+  Lambda_ = lower_view.selfadjointView<Eigen::Lower>();
   lambda_full_valid_ = true;
   return Lambda_;
 }

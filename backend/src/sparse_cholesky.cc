@@ -384,9 +384,9 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
       y[row] = 0.0;
     }
   }
-  // The shared part for every variable at once: L_SS Z = B (unit lower), in place, by
-  // columns of S — the rows of a column of S are its ancestors, all in S — so the work is
-  // O(nnz(L_SS) · R), with no dense s × s matrix.
+  // The shared part for every variable at once: L_SS Z = B (unit lower), in place (B
+  // becomes Z), by columns of S — the rows of a column of S are its ancestors, all in
+  // S — so the work is O(nnz(L_SS) · R), with no dense s × s matrix.
   double* b = B.data();
   for (int q = 0; q < s; ++q) {
     const int j = path[q];
@@ -399,11 +399,10 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
       for (int r = 0; r < R; ++r) b_row[r] -= l * b_q[r];
     }
   }
-  const auto& Z = B;
   for (int r = 0; r < R; ++r) {
     for (int q = entry[r]; q < s; ++q) {
       columns[r].rows.push_back(path[q]);
-      columns[r].values.push_back(Z(q, r) / std::sqrt(Lx[Lp[path[q]]]));
+      columns[r].values.push_back(B(q, r) / std::sqrt(Lx[Lp[path[q]]]));
     }
     ++columns_solved_;
     reach_solved_ += static_cast<long>(columns[r].rows.size());
