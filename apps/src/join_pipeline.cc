@@ -177,6 +177,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"associations_replayed", joiner->counters().associations_replayed},
                 {"incremental_factor_updates", joiner->counters().incremental_updates},
                 {"full_factorizations", joiner->counters().full_factorizations},
+                {"nested_dissection_factorizations", joiner->counters().nested_dissection_factorizations},
                 {"reused_analyses", joiner->counters().reused_analyses},
                 {"failed_factor_updates", joiner->counters().failed_updates}}},
               {"time_seconds",

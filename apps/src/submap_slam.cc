@@ -305,6 +305,7 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_relinearized_on_linearization_error"] = joiner_->counters().relinearized_on_linearization_error;
     out["join_rejected"] = joiner_->counters().rejected_joins;
     out["join_full_factorizations"] = joiner_->counters().full_factorizations;
+    out["join_nested_dissection_factorizations"] = joiner_->counters().nested_dissection_factorizations;
     out["join_reused_analyses"] = joiner_->counters().reused_analyses;
     out["join_jcbb_truncated"] = joiner_->counters().jcbb_truncated;
     out["join_loop_closures_thin"] = joiner_->counters().loop_closures_thin;

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <numeric>
 
 #include "absl/strings/str_cat.h"
@@ -54,7 +55,8 @@ SparseCholesky::~SparseCholesky() {
   delete common_;
 }
 
-absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int spare) {
+absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int spare,
+                                       FillReducingOrdering ordering) {
   // The lower triangle of A, column by column (Eigen keeps each column's rows sorted).
   SparseLowerTriangle lower;
   lower.n = static_cast<int>(A.rows());
@@ -68,10 +70,31 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
     }
     lower.p.push_back(static_cast<int>(lower.i.size()));
   }
-  return Factorize(lower, spare);
+  return Factorize(lower, spare, ordering);
 }
 
-absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare) {
+absl::Status SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse* a, int* perm) {
+  if (ordering == FillReducingOrdering::kNestedDissection) {
+    int ok = 0;
+    {
+      // METIS keeps its random generator in process-wide state (reseeded at each call, so
+      // each ordering is reproducible): one ordering at a time.
+      static std::mutex metis_mutex;
+      std::lock_guard<std::mutex> lock(metis_mutex);
+      ok = cholmod_metis(a, nullptr, 0, /*postorder=*/1, perm, common_);
+    }
+    if (ok) return absl::OkStatus();
+    if (common_->status != CHOLMOD_NOT_INSTALLED) {
+      return absl::InternalError("CHOLMOD: nested-dissection (METIS) ordering failed");
+    }
+    common_->status = CHOLMOD_OK;
+    nested_dissection_unavailable_ = true;
+  }
+  if (!cholmod_amd(a, nullptr, 0, perm, common_)) return absl::InternalError("CHOLMOD: AMD ordering failed");
+  return absl::OkStatus();
+}
+
+absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, FillReducingOrdering ordering) {
   const int n = A.n;
   if (static_cast<int>(A.p.size()) != n + 1 || A.p[0] != 0 || static_cast<size_t>(A.p[n]) != A.i.size() ||
       A.i.size() != A.x.size()) {
@@ -112,7 +135,8 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare) 
   // counts) depends on the pattern only: while it is the last analysed one — Gauss-Newton
   // iterations relinearise the same factors — a copy of that analysis is factorised again.
   // (p's length is capacity + 1, so equal p means equal spare slots too.)
-  const bool same_pattern = symbolic_ != nullptr && n == analysed_n_ && p == analysed_p_ && i == analysed_i_;
+  const bool same_pattern = symbolic_ != nullptr && n == analysed_n_ && ordering == analysed_ordering_ &&
+                            p == analysed_p_ && i == analysed_i_;
   if (same_pattern) {
     factor_ = cholmod_copy_factor(symbolic_, common_);
     if (factor_ == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
@@ -121,12 +145,16 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare) 
     std::vector<int> perm(capacity);
     if (n > 0) {
       cholmod_sparse a = View(p, i, x, n, n);
-      if (!cholmod_amd(&a, nullptr, 0, perm.data(), common_)) return absl::InternalError("CHOLMOD: AMD ordering failed");
+      if (absl::Status st = Order(ordering, &a, perm.data()); !st.ok()) {
+        analysed_n_ = -1;  // symbolic_ is gone
+        return st;
+      }
     }
     std::iota(perm.begin() + n, perm.end(), n);
     symbolic_ = cholmod_analyze_p(&all, perm.data(), nullptr, 0, common_);
     if (symbolic_ == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
     analysed_n_ = n;
+    analysed_ordering_ = ordering;
     analysed_p_ = p;
     analysed_i_ = i;
     factor_ = cholmod_copy_factor(symbolic_, common_);

@@ -32,6 +32,21 @@ Eigen::MatrixXd RandomSpd(int n, std::mt19937_64* rng) {
 
 Eigen::SparseMatrix<double> Sparse(const Eigen::MatrixXd& A) { return A.sparseView(); }
 
+// A's lower triangle in compressed columns, as SparseLowerTriangle holds it.
+SparseLowerTriangle LowerOf(const Eigen::MatrixXd& A) {
+  SparseLowerTriangle lower;
+  lower.n = static_cast<int>(A.rows());
+  for (int c = 0; c < lower.n; ++c) {
+    for (int r = c; r < lower.n; ++r) {
+      if (A(r, c) == 0.0) continue;
+      lower.i.push_back(r);
+      lower.x.push_back(A(r, c));
+    }
+    lower.p.push_back(static_cast<int>(lower.i.size()));
+  }
+  return lower;
+}
+
 TEST(SparseCholesky, FactorizeSolvesAndRecoversInverseBlocks) {
   std::mt19937_64 rng(1);
   const Eigen::MatrixXd A = RandomSpd(30, &rng);
@@ -228,6 +243,75 @@ TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {
   EXPECT_TRUE(MatricesNear(grown.inverse()(vars, vars), L.InverseBlock(vars), 1e-9));
 }
 
+// A 2-D grid of side × side variables, each linked to its right and lower neighbours
+// with random weights: the graph on which nested dissection and minimum degree differ.
+Eigen::MatrixXd Grid(int side, std::mt19937_64* rng) {
+  const int n = side * side;
+  std::uniform_real_distribution<double> weight(0.5, 2.0);
+  Eigen::MatrixXd A = Eigen::MatrixXd::Identity(n, n);
+  const auto link = [&](int a, int b) {
+    const double w = weight(*rng);
+    A(a, a) += w;
+    A(b, b) += w;
+    A(a, b) -= w;
+    A(b, a) -= w;
+  };
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      if (c + 1 < side) link(r * side + c, r * side + c + 1);
+      if (r + 1 < side) link(r * side + c, (r + 1) * side + c);
+    }
+  }
+  return A;
+}
+
+// A factor ordered by METIS nested dissection is another factor of the same matrix:
+// solves, inverse blocks and rank updates with new variables agree with the dense
+// algebra and with the AMD-ordered factor; the analysis is reused only for the ordering
+// it was made with.
+TEST(SparseCholesky, NestedDissectionOrderingFactorizesTheSameMatrix) {
+  std::mt19937_64 rng(6);
+  const int side = 14, n = side * side, added = 3;
+  const Eigen::MatrixXd A = Grid(side, &rng);
+  SparseCholesky amd, nested;
+  ASSERT_TRUE(amd.Factorize(Sparse(A), 4, FillReducingOrdering::kAmd).ok());
+  ASSERT_TRUE(nested.Factorize(LowerOf(A), 4, FillReducingOrdering::kNestedDissection).ok());
+  // Debian's CHOLMOD links METIS (libmetis5), so the ordering is METIS's: a different
+  // permutation, hence a different fill of L.
+  EXPECT_FALSE(nested.nested_dissection_unavailable());
+  EXPECT_NE(nested.nonzeros(), amd.nonzeros());
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(n, 2);
+  EXPECT_TRUE(MatricesNear(A.ldlt().solve(B), nested.Solve(B), 1e-10));
+  const Eigen::MatrixXd inverse = A.inverse();
+  const std::vector<int> vars = {0, n / 2, n - 1, 17};
+  EXPECT_TRUE(MatricesNear(inverse(vars, vars), nested.InverseBlock(vars), 1e-10));
+  EXPECT_TRUE(MatricesNear(amd.InverseBlock(vars), nested.InverseBlock(vars), 1e-10));
+  const std::vector<Eigen::MatrixXd> diagonal = nested.DiagonalInverseBlocks({{0, 1}, {n - 1}});
+  ASSERT_EQ(diagonal.size(), 2u);
+  EXPECT_TRUE(MatricesNear(inverse({0, 1}, {0, 1}), diagonal[0], 1e-10));
+  EXPECT_TRUE(MatricesNear(inverse({n - 1}, {n - 1}), diagonal[1], 1e-10));
+  // New variables n … n + 2 linked to a corner and the centre.
+  const std::vector<int> rows = {0, n / 2 + side / 2, n, n + 1, n + 2};
+  const Eigen::MatrixXd W = Eigen::MatrixXd::Random(static_cast<int>(rows.size()), 5);
+  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + added, n + added);
+  grown.topLeftCorner(n, n) = A;
+  Eigen::MatrixXd Wfull = Eigen::MatrixXd::Zero(n + added, W.cols());
+  for (size_t r = 0; r < rows.size(); ++r) Wfull.row(rows[r]) += W.row(static_cast<int>(r));
+  grown += Wfull * Wfull.transpose();
+  ASSERT_TRUE(nested.Update(n + added, rows, W).ok());
+  const Eigen::MatrixXd C = Eigen::MatrixXd::Random(n + added, 2);
+  EXPECT_TRUE(MatricesNear(grown.ldlt().solve(C), nested.Solve(C), 1e-9));
+  const std::vector<int> grown_vars = {n, n + 2, 0};
+  EXPECT_TRUE(MatricesNear(grown.inverse()(grown_vars, grown_vars), nested.InverseBlock(grown_vars), 1e-9));
+  // The analysis belongs to its ordering.
+  ASSERT_TRUE(nested.Factorize(Sparse(A), 4, FillReducingOrdering::kNestedDissection).ok());
+  EXPECT_EQ(nested.symbolic_reuses(), 1);
+  ASSERT_TRUE(nested.Factorize(Sparse(A), 4, FillReducingOrdering::kAmd).ok());
+  EXPECT_EQ(nested.symbolic_reuses(), 1);
+  EXPECT_EQ(nested.nonzeros(), amd.nonzeros());
+  EXPECT_EQ(nested.Solve(B), amd.Solve(B));  // the same ordering and arithmetic
+}
+
 // A refactorisation with A's pattern reuses the symbolic analysis — also after rank
 // updates have grown the factor's pattern — and equals a fresh factorisation; a
 // different pattern (an entry more, or more spare slots) is analysed again.
@@ -279,21 +363,6 @@ TEST(SparseCholesky, RefactorizingTheSamePatternReusesTheAnalysis) {
   ASSERT_TRUE(M.Factorize(Sparse(D), 2).ok());
   ASSERT_TRUE(M.Factorize(Sparse(Eigen::MatrixXd(D.topLeftCorner(5, 5))), 3).ok());
   EXPECT_EQ(M.symbolic_reuses(), 0);
-}
-
-// A's lower triangle in compressed columns, as SparseLowerTriangle holds it.
-SparseLowerTriangle LowerOf(const Eigen::MatrixXd& A) {
-  SparseLowerTriangle lower;
-  lower.n = static_cast<int>(A.rows());
-  for (int c = 0; c < lower.n; ++c) {
-    for (int r = c; r < lower.n; ++r) {
-      if (A(r, c) == 0.0) continue;
-      lower.i.push_back(r);
-      lower.x.push_back(A(r, c));
-    }
-    lower.p.push_back(static_cast<int>(lower.i.size()));
-  }
-  return lower;
 }
 
 TEST(SparseCholesky, LowerTriangleInputEqualsTheMatrixInput) {

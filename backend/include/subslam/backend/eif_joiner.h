@@ -165,6 +165,13 @@ struct EifJoinerOptions {
   // since the last one, at every relinearisation, or if an update fails.
   bool incremental_factorization = true;
   double refactorize_fill_ratio = 1.5;
+  // The fill-reducing ordering of a full factorisation: AMD while the state has fewer than
+  // this many entries, METIS nested dissection from there on (0: always nested
+  // dissection). Nested dissection's balanced elimination tree makes the factor sparser
+  // and the joins' updates and covariance solves on old variables cheaper on large
+  // revisited maps; below about 2,000 entries its ordering costs more time than it saves
+  // (measured crossover: bench/RESULTS.md, fifteenth session).
+  int nested_dissection_min_dim = 2000;
   // Association's covariance recovery: drop the candidates that fail individual
   // compatibility even under an upper bound on their [start anchor, landmark] marginal,
   // before recovering theirs (submap_association.h, step 2). The bound keeps the exact

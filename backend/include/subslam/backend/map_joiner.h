@@ -47,9 +47,11 @@ struct JoinerCounters {
   long rejected_joins = 0;    // failed validation: joined again without associations
   // EIF factor maintenance: joins absorbed by an incremental update of the factor, full
   // factorisations (of them, those that reused the last symbolic analysis: the same
-  // pattern, as in Gauss-Newton iterations), and updates that failed and fell back to one.
+  // pattern, as in Gauss-Newton iterations; those ordered by nested dissection), and
+  // updates that failed and fell back to one.
   long incremental_updates = 0;
   long full_factorizations = 0;
+  long nested_dissection_factorizations = 0;
   long reused_analyses = 0;
   long failed_updates = 0;
   // Association's candidate landmarks, those dropped under the joiner's marginal bound
@@ -77,6 +79,7 @@ struct JoinerCounters {
     rejected_joins += o.rejected_joins;
     incremental_updates += o.incremental_updates;
     full_factorizations += o.full_factorizations;
+    nested_dissection_factorizations += o.nested_dissection_factorizations;
     reused_analyses += o.reused_analyses;
     failed_updates += o.failed_updates;
     candidates += o.candidates;

@@ -1,6 +1,6 @@
 // A sparse LDLᵀ factor of a symmetric positive definite matrix A (CHOLMOD, simplicial)
-// that can grow: besides a full factorisation with a fill-reducing ordering (AMD; the
-// analysis is reused while the pattern is the same),
+// that can grow: besides a full factorisation with a fill-reducing ordering (AMD or
+// METIS nested dissection; the analysis is reused while the pattern is the same),
 // it takes rank-k updates A += W Wᵀ (cholmod_updown) and new variables, which occupy
 // spare slots kept as identity rows at the end of the ordering until claimed. This is the
 // incremental factor of the EIF joiner (internal: not part of the API).
@@ -23,6 +23,7 @@
 
 struct cholmod_common_struct;
 struct cholmod_factor_struct;
+struct cholmod_sparse_struct;
 
 namespace subslam::backend {
 
@@ -35,6 +36,17 @@ struct SparseLowerTriangle {
   std::vector<double> x;
 };
 
+// The fill-reducing ordering of a full factorisation.
+//  - kAmd: approximate minimum degree. Cheap to compute (about 0.1 ms at 1,400
+//    variables), but on a map revisited at random its elimination tree is deep: a rank
+//    update from an old variable walks a path holding half of L.
+//  - kNestedDissection: METIS nested dissection, through CHOLMOD (cholmod_metis, with
+//    the elimination tree postordered). About three times AMD's time to compute, but its
+//    tree is balanced: on the 16 km random world L has 40 % fewer entries and an update's
+//    path 60 % fewer (bench/RESULTS.md, fifteenth session). Where CHOLMOD was built
+//    without METIS, AMD is used instead (nested_dissection_unavailable()).
+enum class FillReducingOrdering { kAmd, kNestedDissection };
+
 class SparseCholesky {
  public:
   SparseCholesky();
@@ -42,15 +54,18 @@ class SparseCholesky {
   SparseCholesky(const SparseCholesky&) = delete;
   SparseCholesky& operator=(const SparseCholesky&) = delete;
 
-  // Factorises A (n × n, symmetric; both triangles stored or the lower one) with an AMD
-  // ordering and `spare` identity slots after it. The symbolic analysis (ordering,
-  // elimination tree, column counts) is redone only when A's pattern (or n, or spare)
-  // differs from the last analysed one; otherwise it is reused, with the same result.
-  absl::Status Factorize(const Eigen::SparseMatrix<double>& A, int spare);
+  // Factorises A (n × n, symmetric; both triangles stored or the lower one) with the
+  // given fill-reducing ordering of A and `spare` identity slots after it. The symbolic
+  // analysis (ordering, elimination tree, column counts) is redone only when A's pattern
+  // (or n, or spare, or the ordering asked for) differs from the last analysed one;
+  // otherwise it is reused, with the same result.
+  absl::Status Factorize(const Eigen::SparseMatrix<double>& A, int spare,
+                         FillReducingOrdering ordering = FillReducingOrdering::kAmd);
   // The same from A's lower triangle as it is stored. A malformed A (sizes, columns'
   // ranges, rows unsorted or above the diagonal) is rejected before anything changes:
   // the previous factor stays.
-  absl::Status Factorize(const SparseLowerTriangle& A, int spare);
+  absl::Status Factorize(const SparseLowerTriangle& A, int spare,
+                         FillReducingOrdering ordering = FillReducingOrdering::kAmd);
   // A += W Wᵀ, where row r of W belongs to variable rows[r]; variables numbered from dim()
   // up to new_dim − 1 are new and claim spare slots (their identity is removed).
   // Requires new_dim ≤ capacity().
@@ -98,6 +113,9 @@ class SparseCholesky {
   long reach_solved() const { return reach_solved_; }
   // Successful Factorize() calls that reused the previous symbolic analysis.
   long symbolic_reuses() const { return symbolic_reuses_; }
+  // Whether a nested-dissection ordering was asked for and AMD used instead, because this
+  // CHOLMOD has no METIS.
+  bool nested_dissection_unavailable() const { return nested_dissection_unavailable_; }
 
  private:
   cholmod_common_struct* common_;
@@ -106,7 +124,11 @@ class SparseCholesky {
   // columns) it was made for; lower_*: Factorize()'s matrix, kept to reuse its storage.
   cholmod_factor_struct* symbolic_ = nullptr;
   int analysed_n_ = -1;
+  FillReducingOrdering analysed_ordering_ = FillReducingOrdering::kAmd;
   std::vector<int> analysed_p_, analysed_i_;
+  bool nested_dissection_unavailable_ = false;
+  // The fill-reducing permutation of A's n × n lower triangle `a` into perm[0, n).
+  absl::Status Order(FillReducingOrdering ordering, cholmod_sparse_struct* a, int* perm);
   std::vector<int> lower_p_, lower_i_;
   std::vector<double> lower_x_;
   long symbolic_reuses_ = 0;
