@@ -132,9 +132,9 @@ ABSL_FLAG(int, relinearize_every, kEifDefaults.relinearize_every,
 ABSL_FLAG(bool, eif_incremental, kEifDefaults.incremental_factorization,
           "eif: update the factor of the information matrix by each join's rank update "
           "(false: refactorise it at every join)");
-ABSL_FLAG(int, eif_nested_dissection_min_dim, kEifDefaults.nested_dissection_min_dim,
-          "eif: order a full factorisation by METIS nested dissection once the state has this "
-          "many entries, by AMD below (0: always nested dissection)");
+ABSL_FLAG(subslam::backend::FillReducingOrdering, eif_ordering, kEifDefaults.ordering,
+          "eif: fill-reducing ordering of a full factorisation: amd | nested_dissection (METIS) | "
+          "auto (nested dissection too where AMD's factor is costly, kept unless costlier)");
 ABSL_FLAG(bool, eif_bound_marginals, kEifDefaults.bound_candidate_marginals,
           "eif: skip the covariance recovery of association candidates that fail the gate "
           "even under an upper bound on their marginal (same decisions, less work)");
@@ -297,7 +297,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.relinearize_linearization_chi2 = absl::GetFlag(FLAGS_relinearize_linearization_chi2);
   o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);
   o.bound_candidate_marginals = absl::GetFlag(FLAGS_eif_bound_marginals);
-  o.nested_dissection_min_dim = absl::GetFlag(FLAGS_eif_nested_dissection_min_dim);
+  o.ordering = absl::GetFlag(FLAGS_eif_ordering);
   o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   o.association.known_association = absl::GetFlag(FLAGS_known_association);
   if (absl::GetFlag(FLAGS_single_linearization)) o = o.SingleLinearization();

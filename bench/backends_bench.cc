@@ -65,9 +65,9 @@ ABSL_FLAG(double, eif_relinearize_step_chi2, subslam::backend::EifJoinerOptions{
 ABSL_FLAG(bool, eif_relinearize_predict, subslam::backend::EifJoinerOptions{}.predict_convergence,
           "eif: Gauss-Newton stops when its next step, solved with the factor at hand, is below "
           "the thresholds (without the confirming factorisation)");
-ABSL_FLAG(int, eif_nested_dissection_min_dim, subslam::backend::EifJoinerOptions{}.nested_dissection_min_dim,
-          "eif: order a full factorisation by METIS nested dissection once the state has this "
-          "many entries, by AMD below (0: always nested dissection)");
+ABSL_FLAG(subslam::backend::FillReducingOrdering, eif_ordering, subslam::backend::EifJoinerOptions{}.ordering,
+          "eif: fill-reducing ordering of a full factorisation: amd | nested_dissection (METIS) | "
+          "auto (nested dissection too where AMD's factor is costly, kept unless costlier)");
 ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {
@@ -105,7 +105,7 @@ subslam::app::BackendOptions Options(Backend kind) {
   o.eif.relinearize_step_chi2 = absl::GetFlag(FLAGS_eif_relinearize_step_chi2);
   o.eif.predict_convergence = absl::GetFlag(FLAGS_eif_relinearize_predict);
   o.eif.relinearize_linearization_chi2 = absl::GetFlag(FLAGS_eif_relinearize_linearization_chi2);
-  o.eif.nested_dissection_min_dim = absl::GetFlag(FLAGS_eif_nested_dissection_min_dim);
+  o.eif.ordering = absl::GetFlag(FLAGS_eif_ordering);
   if (absl::GetFlag(FLAGS_eif_single_linearization)) o.eif = o.eif.SingleLinearization();
   o.ekf.association = o.eif.association;
   return o;

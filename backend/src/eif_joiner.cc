@@ -36,10 +36,6 @@ absl::Status EifJoinerOptions::Validate() const {
     return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_min_sigma_radius_m must be finite and >= 0 [m], got ",
                                                    loop_confirmation_min_sigma_radius_m));
   }
-  if (nested_dissection_min_dim < 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("nested_dissection_min_dim must be >= 0, got ", nested_dissection_min_dim));
-  }
   if (relinearize_every < 0) {
     return absl::InvalidArgumentError(absl::StrCat("relinearize_every must be >= 0, got ", relinearize_every));
   }
@@ -503,16 +499,11 @@ absl::Status EifJoiner::FullFactorization() {
   SparseCholesky& L = solver_->factor;
   const long reuses = L.symbolic_reuses();
   // Spare slots for the next joins' new variables (about 15 % of the state).
-  const FillReducingOrdering ordering = dim_ >= options_.nested_dissection_min_dim
-                                            ? FillReducingOrdering::kNestedDissection
-                                            : FillReducingOrdering::kAmd;
-  if (absl::Status st = L.Factorize(LowerInformation(), 64 + dim_ / 6, ordering); !st.ok()) {
+  if (absl::Status st = L.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering); !st.ok()) {
     return absl::InternalError(absl::StrCat("EIF: ", st.message()));
   }
   ++counters_.full_factorizations;
-  if (ordering == FillReducingOrdering::kNestedDissection && !L.nested_dissection_unavailable()) {
-    ++counters_.nested_dissection_factorizations;
-  }
+  if (L.ordering() == FillReducingOrdering::kNestedDissection) ++counters_.nested_dissection_factorizations;
   counters_.reused_analyses += L.symbolic_reuses() - reuses;
   return absl::OkStatus();
 }

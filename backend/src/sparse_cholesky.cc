@@ -9,6 +9,7 @@
 #include <mutex>
 #include <numeric>
 
+#include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "subslam/graph/internal/check.h"
 
@@ -73,7 +74,26 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
   return Factorize(lower, spare, ordering);
 }
 
-absl::Status SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse* a, int* perm) {
+absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::Analyse(FillReducingOrdering ordering, cholmod_sparse* a,
+                                                                  cholmod_sparse* all) {
+  const int n = static_cast<int>(a->ncol);
+  std::vector<int> perm(all->ncol);
+  Analysis analysis;
+  analysis.ordering = FillReducingOrdering::kAmd;
+  if (n > 0) {
+    absl::StatusOr<FillReducingOrdering> used = Order(ordering, a, perm.data());
+    if (!used.ok()) return used.status();
+    analysis.ordering = *used;
+  }
+  std::iota(perm.begin() + n, perm.end(), n);  // the spare slots last
+  analysis.symbolic = cholmod_analyze_p(all, perm.data(), nullptr, 0, common_);
+  if (analysis.symbolic == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
+  analysis.flops = common_->fl;
+  return analysis;
+}
+
+absl::StatusOr<FillReducingOrdering> SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse* a,
+                                                           int* perm) {
   if (ordering == FillReducingOrdering::kNestedDissection) {
     int ok = 0;
     {
@@ -83,7 +103,7 @@ absl::Status SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse
       std::lock_guard<std::mutex> lock(metis_mutex);
       ok = cholmod_metis(a, nullptr, 0, /*postorder=*/1, perm, common_);
     }
-    if (ok) return absl::OkStatus();
+    if (ok) return FillReducingOrdering::kNestedDissection;
     if (common_->status != CHOLMOD_NOT_INSTALLED) {
       return absl::InternalError("CHOLMOD: nested-dissection (METIS) ordering failed");
     }
@@ -91,7 +111,7 @@ absl::Status SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse
     nested_dissection_unavailable_ = true;
   }
   if (!cholmod_amd(a, nullptr, 0, perm, common_)) return absl::InternalError("CHOLMOD: AMD ordering failed");
-  return absl::OkStatus();
+  return FillReducingOrdering::kAmd;
 }
 
 absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, FillReducingOrdering ordering) {
@@ -142,17 +162,28 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
     if (factor_ == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
   } else {
     if (symbolic_ != nullptr) cholmod_free_factor(&symbolic_, common_);
-    std::vector<int> perm(capacity);
-    if (n > 0) {
-      cholmod_sparse a = View(p, i, x, n, n);
-      if (absl::Status st = Order(ordering, &a, perm.data()); !st.ok()) {
-        analysed_n_ = -1;  // symbolic_ is gone
-        return st;
+    analysed_n_ = -1;  // until the new analysis exists
+    cholmod_sparse a = View(p, i, x, n, n);
+    const FillReducingOrdering first =
+        ordering == FillReducingOrdering::kNestedDissection ? ordering : FillReducingOrdering::kAmd;
+    absl::StatusOr<Analysis> analysis = Analyse(first, &a, &all);
+    if (!analysis.ok()) return analysis.status();
+    // Nested dissection as well when AMD's factor is costly (its numeric factorisation's
+    // flops against A's entries); kept unless its own factor costs more. (If METIS
+    // fails, AMD's analysis stands.)
+    if (ordering == FillReducingOrdering::kAmdOrNestedDissection &&
+        analysis->flops >= kNestedDissectionMinFlopsPerEntry * static_cast<double>(p[n])) {
+      absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, &a, &all);
+      if (nested.ok() && nested->ordering == FillReducingOrdering::kNestedDissection &&
+          nested->flops <= analysis->flops) {
+        std::swap(*analysis, *nested);
       }
+      if (nested.ok()) cholmod_free_factor(&nested->symbolic, common_);
+      common_->status = CHOLMOD_OK;
     }
-    std::iota(perm.begin() + n, perm.end(), n);
-    symbolic_ = cholmod_analyze_p(&all, perm.data(), nullptr, 0, common_);
-    if (symbolic_ == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
+    symbolic_ = analysis->symbolic;
+    analysed_with_ = analysis->ordering;
+    symbolic_flops_ = analysis->flops;
     analysed_n_ = n;
     analysed_ordering_ = ordering;
     analysed_p_ = p;

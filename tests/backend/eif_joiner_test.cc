@@ -7,7 +7,6 @@
 #include <Eigen/LU>
 #include <fstream>
 #include <functional>
-#include <limits>
 #include <map>
 #include <random>
 #include <set>
@@ -247,9 +246,9 @@ TEST(EifJoiner, NestedDissectionOrderingGivesTheJoinsOfAmd) {
     EifJoinerOptions options;
     options.relinearize_heading_change = 0.0;  // the same linearisation in both
     options.relinearize_linearization_chi2 = 0.0;
-    options.nested_dissection_min_dim = std::numeric_limits<int>::max();
+    options.ordering = FillReducingOrdering::kAmd;
     EifJoiner amd(run.anchors[0], options);
-    options.nested_dissection_min_dim = 0;
+    options.ordering = FillReducingOrdering::kNestedDissection;
     EifJoiner nested(run.anchors[0], options);
     for (const LocalSubmap& s : run.submaps) {
       ASSERT_TRUE(amd.Join(s).ok());

@@ -265,6 +265,30 @@ Eigen::MatrixXd Grid(int side, std::mt19937_64* rng) {
   return A;
 }
 
+// The same grid stored sparse only, for grids too large for dense checks.
+Eigen::SparseMatrix<double> SparseGrid(int side, std::mt19937_64* rng) {
+  const int n = side * side;
+  std::uniform_real_distribution<double> weight(0.5, 2.0);
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int k = 0; k < n; ++k) entries.emplace_back(k, k, 1.0);
+  const auto link = [&](int a, int b) {
+    const double w = weight(*rng);
+    entries.emplace_back(a, a, w);
+    entries.emplace_back(b, b, w);
+    entries.emplace_back(a, b, -w);
+    entries.emplace_back(b, a, -w);
+  };
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      if (c + 1 < side) link(r * side + c, r * side + c + 1);
+      if (r + 1 < side) link(r * side + c, (r + 1) * side + c);
+    }
+  }
+  Eigen::SparseMatrix<double> A(n, n);
+  A.setFromTriplets(entries.begin(), entries.end());
+  return A;
+}
+
 // A factor ordered by METIS nested dissection is another factor of the same matrix:
 // solves, inverse blocks and rank updates with new variables agree with the dense
 // algebra and with the AMD-ordered factor; the analysis is reused only for the ordering
@@ -310,6 +334,42 @@ TEST(SparseCholesky, NestedDissectionOrderingFactorizesTheSameMatrix) {
   EXPECT_EQ(nested.symbolic_reuses(), 1);
   EXPECT_EQ(nested.nonzeros(), amd.nonzeros());
   EXPECT_EQ(nested.Solve(B), amd.Solve(B));  // the same ordering and arithmetic
+}
+
+// kAmdOrNestedDissection: on a chain AMD's factor costs a few flops per entry and stays;
+// on a 60 × 60 grid it costs more than kNestedDissectionMinFlopsPerEntry, and nested
+// dissection, whose factor costs fewer there (on smaller grids AMD's is cheaper), is
+// taken. Either way the factor is the one the chosen ordering gives alone.
+TEST(SparseCholesky, AutomaticOrderingTakesNestedDissectionWhereAmdsFactorIsCostly) {
+  std::mt19937_64 rng(7);
+  const auto flops_per_entry = [](const SparseCholesky& L, const Eigen::SparseMatrix<double>& A) {
+    return L.factorization_flops() / (0.5 * (static_cast<double>(A.nonZeros()) + static_cast<double>(A.rows())));
+  };
+  {
+    const Eigen::SparseMatrix<double> chain = Sparse(TwoChains(300, 0, &rng));
+    SparseCholesky automatic, amd;
+    ASSERT_TRUE(automatic.Factorize(chain, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
+    ASSERT_TRUE(amd.Factorize(chain, 4, FillReducingOrdering::kAmd).ok());
+    EXPECT_LT(flops_per_entry(amd, chain), SparseCholesky::kNestedDissectionMinFlopsPerEntry);
+    EXPECT_EQ(automatic.ordering(), FillReducingOrdering::kAmd);
+    EXPECT_EQ(automatic.nonzeros(), amd.nonzeros());
+  }
+  const Eigen::SparseMatrix<double> grid = SparseGrid(60, &rng);
+  SparseCholesky automatic, amd, nested;
+  ASSERT_TRUE(automatic.Factorize(grid, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
+  ASSERT_TRUE(amd.Factorize(grid, 4, FillReducingOrdering::kAmd).ok());
+  ASSERT_TRUE(nested.Factorize(grid, 4, FillReducingOrdering::kNestedDissection).ok());
+  EXPECT_GE(flops_per_entry(amd, grid), SparseCholesky::kNestedDissectionMinFlopsPerEntry);
+  EXPECT_LT(nested.factorization_flops(), amd.factorization_flops());
+  EXPECT_EQ(automatic.ordering(), FillReducingOrdering::kNestedDissection);
+  EXPECT_EQ(automatic.factorization_flops(), nested.factorization_flops());
+  EXPECT_EQ(automatic.nonzeros(), nested.nonzeros());
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(grid.rows(), 2);
+  EXPECT_LT((grid * automatic.Solve(B) - B).norm(), 1e-10 * B.norm());
+  // Refactorising the same pattern reuses the chosen analysis.
+  ASSERT_TRUE(automatic.Factorize(grid, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
+  EXPECT_EQ(automatic.symbolic_reuses(), 1);
+  EXPECT_EQ(automatic.ordering(), FillReducingOrdering::kNestedDissection);
 }
 
 // A refactorisation with A's pattern reuses the symbolic analysis — also after rank

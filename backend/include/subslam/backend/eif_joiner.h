@@ -52,6 +52,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/backend/fill_reducing_ordering.h"
 #include "subslam/backend/map_joiner.h"
 #include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
@@ -165,13 +166,11 @@ struct EifJoinerOptions {
   // since the last one, at every relinearisation, or if an update fails.
   bool incremental_factorization = true;
   double refactorize_fill_ratio = 1.5;
-  // The fill-reducing ordering of a full factorisation: AMD while the state has fewer than
-  // this many entries, METIS nested dissection from there on (0: always nested
-  // dissection). Nested dissection's balanced elimination tree makes the factor sparser
-  // and the joins' updates and covariance solves on old variables cheaper on large
-  // revisited maps; below about 2,000 entries its ordering costs more time than it saves
-  // (measured crossover: bench/RESULTS.md, fifteenth session).
-  int nested_dissection_min_dim = 2000;
+  // The fill-reducing ordering of a full factorisation (fill_reducing_ordering.h). The
+  // default takes METIS nested dissection where AMD's factor is costly: on maps revisited
+  // at random its balanced elimination tree makes the factor sparser and the joins'
+  // updates cheaper; on combined-2km AMD's factor is cheap and stays.
+  FillReducingOrdering ordering = FillReducingOrdering::kAmdOrNestedDissection;
   // Association's covariance recovery: drop the candidates that fail individual
   // compatibility even under an upper bound on their [start anchor, landmark] marginal,
   // before recovering theirs (submap_association.h, step 2). The bound keeps the exact

@@ -20,6 +20,8 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "subslam/backend/fill_reducing_ordering.h"
 
 struct cholmod_common_struct;
 struct cholmod_factor_struct;
@@ -35,17 +37,6 @@ struct SparseLowerTriangle {
   std::vector<int> p = {0}, i;
   std::vector<double> x;
 };
-
-// The fill-reducing ordering of a full factorisation.
-//  - kAmd: approximate minimum degree. Cheap to compute (about 0.1 ms at 1,400
-//    variables), but on a map revisited at random its elimination tree is deep: a rank
-//    update from an old variable walks a path holding half of L.
-//  - kNestedDissection: METIS nested dissection, through CHOLMOD (cholmod_metis, with
-//    the elimination tree postordered). About three times AMD's time to compute, but its
-//    tree is balanced: on the 16 km random world L has 40 % fewer entries and an update's
-//    path 60 % fewer (bench/RESULTS.md, fifteenth session). Where CHOLMOD was built
-//    without METIS, AMD is used instead (nested_dissection_unavailable()).
-enum class FillReducingOrdering { kAmd, kNestedDissection };
 
 class SparseCholesky {
  public:
@@ -113,6 +104,16 @@ class SparseCholesky {
   long reach_solved() const { return reach_solved_; }
   // Successful Factorize() calls that reused the previous symbolic analysis.
   long symbolic_reuses() const { return symbolic_reuses_; }
+  // The ordering of the factor (kAmd or kNestedDissection) and the flops of its numeric
+  // factorisation, as CHOLMOD's analysis predicts them (fill-reducing_ordering.h).
+  FillReducingOrdering ordering() const { return analysed_with_; }
+  double factorization_flops() const { return symbolic_flops_; }
+  // kAmdOrNestedDissection tries nested dissection from this many flops per entry of A's
+  // lower triangle: METIS's ordering costs about as much time as 25-50 flops per entry
+  // here (0.37 ms at 20,000 entries, 3.5 ms at 144,000), and an ordering serves a
+  // numeric factorisation and the rank updates until the next one, so below this AMD's
+  // factor leaves METIS little to win (bench/RESULTS.md, fifteenth session).
+  static constexpr double kNestedDissectionMinFlopsPerEntry = 100.0;
   // Whether a nested-dissection ordering was asked for and AMD used instead, because this
   // CHOLMOD has no METIS.
   bool nested_dissection_unavailable() const { return nested_dissection_unavailable_; }
@@ -124,11 +125,24 @@ class SparseCholesky {
   // columns) it was made for; lower_*: Factorize()'s matrix, kept to reuse its storage.
   cholmod_factor_struct* symbolic_ = nullptr;
   int analysed_n_ = -1;
-  FillReducingOrdering analysed_ordering_ = FillReducingOrdering::kAmd;
+  FillReducingOrdering analysed_ordering_ = FillReducingOrdering::kAmd;  // asked for
+  FillReducingOrdering analysed_with_ = FillReducingOrdering::kAmd;      // used
+  double symbolic_flops_ = 0.0;
   std::vector<int> analysed_p_, analysed_i_;
   bool nested_dissection_unavailable_ = false;
   // The fill-reducing permutation of A's n × n lower triangle `a` into perm[0, n).
-  absl::Status Order(FillReducingOrdering ordering, cholmod_sparse_struct* a, int* perm);
+  // (kAmd or kNestedDissection only.) Returns the ordering used: AMD where METIS is not
+  // installed.
+  absl::StatusOr<FillReducingOrdering> Order(FillReducingOrdering ordering, cholmod_sparse_struct* a, int* perm);
+  // The symbolic analysis of `all` (A's lower triangle `a`, then the spare slots) with
+  // A ordered by `ordering` (kAmd or kNestedDissection) and the spare slots last.
+  struct Analysis {
+    cholmod_factor_struct* symbolic = nullptr;  // owned by the caller
+    FillReducingOrdering ordering = FillReducingOrdering::kAmd;  // used
+    double flops = 0.0;                         // of a numeric factorisation
+  };
+  absl::StatusOr<Analysis> Analyse(FillReducingOrdering ordering, cholmod_sparse_struct* a,
+                                   cholmod_sparse_struct* all);
   std::vector<int> lower_p_, lower_i_;
   std::vector<double> lower_x_;
   long symbolic_reuses_ = 0;
