@@ -134,7 +134,7 @@ ABSL_FLAG(bool, eif_incremental, kEifDefaults.incremental_factorization,
           "(false: refactorise it at every join)");
 ABSL_FLAG(subslam::backend::FillReducingOrdering, eif_ordering, kEifDefaults.ordering,
           "eif: fill-reducing ordering of a full factorisation: amd | nested_dissection (METIS) | "
-          "auto (nested dissection too where AMD's factor is costly, kept unless costlier)");
+          "auto (nested dissection where AMD's factor would cost >= 50 flops per entry)");
 ABSL_FLAG(bool, eif_bound_marginals, kEifDefaults.bound_candidate_marginals,
           "eif: skip the covariance recovery of association candidates that fail the gate "
           "even under an upper bound on their marginal (same decisions, less work)");

@@ -67,7 +67,7 @@ ABSL_FLAG(bool, eif_relinearize_predict, subslam::backend::EifJoinerOptions{}.pr
           "the thresholds (without the confirming factorisation)");
 ABSL_FLAG(subslam::backend::FillReducingOrdering, eif_ordering, subslam::backend::EifJoinerOptions{}.ordering,
           "eif: fill-reducing ordering of a full factorisation: amd | nested_dissection (METIS) | "
-          "auto (nested dissection too where AMD's factor is costly, kept unless costlier)");
+          "auto (nested dissection where AMD's factor would cost >= 50 flops per entry)");
 ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {

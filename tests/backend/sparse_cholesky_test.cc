@@ -338,8 +338,8 @@ TEST(SparseCholesky, NestedDissectionOrderingFactorizesTheSameMatrix) {
 
 // kAmdOrNestedDissection: on a chain AMD's factor costs a few flops per entry and stays;
 // on a 60 × 60 grid it costs more than kNestedDissectionMinFlopsPerEntry, and nested
-// dissection, whose factor costs fewer there (on smaller grids AMD's is cheaper), is
-// taken. Either way the factor is the one the chosen ordering gives alone.
+// dissection is taken (whose factor costs fewer flops there). Either way the factor is
+// the one the chosen ordering gives alone.
 TEST(SparseCholesky, AutomaticOrderingTakesNestedDissectionWhereAmdsFactorIsCostly) {
   std::mt19937_64 rng(7);
   const auto flops_per_entry = [](const SparseCholesky& L, const Eigen::SparseMatrix<double>& A) {

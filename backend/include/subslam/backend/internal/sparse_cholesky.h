@@ -109,11 +109,12 @@ class SparseCholesky {
   FillReducingOrdering ordering() const { return analysed_with_; }
   double factorization_flops() const { return symbolic_flops_; }
   // kAmdOrNestedDissection tries nested dissection from this many flops per entry of A's
-  // lower triangle: METIS's ordering costs about as much time as 25-50 flops per entry
-  // here (0.37 ms at 20,000 entries, 3.5 ms at 144,000), and an ordering serves a
-  // numeric factorisation and the rank updates until the next one, so below this AMD's
-  // factor leaves METIS little to win (bench/RESULTS.md, fifteenth session).
-  static constexpr double kNestedDissectionMinFlopsPerEntry = 100.0;
+  // lower triangle. METIS's ordering takes about as long as 40-70 flops of numeric
+  // factorisation per entry (measured: 40-70 ns per entry, 0.5-1.7 GFlop/s), so below
+  // this AMD's whole factorisation costs less than METIS would. The EIF's matrices lie
+  // on both sides: 29 flops per entry on combined-2km (one loop), 100-780 on the random
+  // worlds (bench/RESULTS.md, fifteenth session).
+  static constexpr double kNestedDissectionMinFlopsPerEntry = 50.0;
   // Whether a nested-dissection ordering was asked for and AMD used instead, because this
   // CHOLMOD has no METIS.
   bool nested_dissection_unavailable() const { return nested_dissection_unavailable_; }
