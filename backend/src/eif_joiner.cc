@@ -1164,7 +1164,8 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       counters_(other.counters_),
       last_t_end_(other.last_t_end_) {
   if (other.solver_->factor.ready()) {
-    SUBSLAM_CHECK(solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6).ok()) << "refactorising a copy failed";
+    SUBSLAM_CHECK(solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering).ok())
+        << "refactorising a copy failed";
   }
 }
 

@@ -164,18 +164,22 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
     if (symbolic_ != nullptr) cholmod_free_factor(&symbolic_, common_);
     analysed_n_ = -1;  // until the new analysis exists
     cholmod_sparse a = View(p, i, x, n, n);
-    const FillReducingOrdering first =
-        ordering == FillReducingOrdering::kNestedDissection ? ordering : FillReducingOrdering::kAmd;
-    absl::StatusOr<Analysis> analysis = Analyse(first, &a, &all);
+    const bool nested_first = ordering == FillReducingOrdering::kNestedDissection ||
+                              (ordering == FillReducingOrdering::kAmdOrNestedDissection && automatic_chose_nested_);
+    absl::StatusOr<Analysis> analysis =
+        Analyse(nested_first ? FillReducingOrdering::kNestedDissection : FillReducingOrdering::kAmd, &a, &all);
     if (!analysis.ok()) return analysis.status();
     // Nested dissection instead where AMD's factor is costly (its numeric
-    // factorisation's flops against A's entries). Its own flops are not compared: where
-    // they are a little higher, its balanced tree still shortens the updates' paths. (If
-    // METIS fails, AMD's analysis stands.)
-    if (ordering == FillReducingOrdering::kAmdOrNestedDissection &&
+    // factorisation's flops against A's entries), and from then on. Its own flops are not
+    // compared: where they are a little higher, its balanced tree still shortens the
+    // updates' paths. (If METIS fails, AMD's analysis stands.)
+    if (ordering == FillReducingOrdering::kAmdOrNestedDissection && !nested_first &&
         analysis->flops >= kNestedDissectionMinFlopsPerEntry * static_cast<double>(p[n])) {
       absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, &a, &all);
-      if (nested.ok() && nested->ordering == FillReducingOrdering::kNestedDissection) std::swap(*analysis, *nested);
+      if (nested.ok() && nested->ordering == FillReducingOrdering::kNestedDissection) {
+        std::swap(*analysis, *nested);
+        automatic_chose_nested_ = true;
+      }
       if (nested.ok()) cholmod_free_factor(&nested->symbolic, common_);
       common_->status = CHOLMOD_OK;
     }

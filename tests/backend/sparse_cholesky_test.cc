@@ -370,6 +370,12 @@ TEST(SparseCholesky, AutomaticOrderingTakesNestedDissectionWhereAmdsFactorIsCost
   ASSERT_TRUE(automatic.Factorize(grid, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
   EXPECT_EQ(automatic.symbolic_reuses(), 1);
   EXPECT_EQ(automatic.ordering(), FillReducingOrdering::kNestedDissection);
+  // Once switched, nested dissection stays, even for a matrix AMD would factorise cheaply.
+  const Eigen::SparseMatrix<double> chain = Sparse(TwoChains(300, 0, &rng));
+  ASSERT_TRUE(automatic.Factorize(chain, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
+  EXPECT_EQ(automatic.ordering(), FillReducingOrdering::kNestedDissection);
+  const Eigen::VectorXd b = Eigen::VectorXd::Random(chain.rows());
+  EXPECT_LT((chain * automatic.Solve(b) - b).norm(), 1e-10 * b.norm());
 }
 
 // A refactorisation with A's pattern reuses the symbolic analysis — also after rank

@@ -19,13 +19,15 @@ namespace subslam::backend {
 //    compute, but its tree is balanced: on the 16 km random world L has 40 % fewer
 //    entries and an update's path 60 % fewer (bench/RESULTS.md, fifteenth session).
 //    Where CHOLMOD was built without METIS, AMD is used instead.
-//  - kAmdOrNestedDissection ("auto"): AMD, or nested dissection instead when AMD's
-//    factor would cost at least SparseCholesky::kNestedDissectionMinFlopsPerEntry flops
-//    per entry of the matrix's lower triangle. On a map whose graph is close to a chain
-//    (few revisits) AMD's factor is cheap and METIS's time would be wasted; on one
-//    revisited at random it is not. (Nested dissection's own flops are not compared:
-//    where they are a little higher, its balanced tree still shortens the rank updates'
-//    paths, which cost more than the factorisations.)
+//  - kAmdOrNestedDissection ("auto"): AMD until AMD's factor would cost at least
+//    SparseCholesky::kNestedDissectionMinFlopsPerEntry flops per entry of the matrix's
+//    lower triangle, nested dissection from that factorisation on (the EIF's information
+//    matrix only grows, and AMD's cost per entry with it; so the test, a second analysis,
+//    is paid until the switch only). On a map whose graph is close to a chain (few
+//    revisits) AMD's factor stays cheap and METIS's time would be wasted; on one revisited
+//    at random it does not. (Nested dissection's own flops are not compared: where they
+//    are a little higher, its balanced tree still shortens the rank updates' paths, which
+//    cost more than the factorisations.)
 enum class FillReducingOrdering { kAmd, kNestedDissection, kAmdOrNestedDissection };
 
 inline std::string_view ToString(FillReducingOrdering o) {

@@ -129,6 +129,8 @@ class SparseCholesky {
   FillReducingOrdering analysed_ordering_ = FillReducingOrdering::kAmd;  // asked for
   FillReducingOrdering analysed_with_ = FillReducingOrdering::kAmd;      // used
   double symbolic_flops_ = 0.0;
+  // kAmdOrNestedDissection has switched to nested dissection (for good).
+  bool automatic_chose_nested_ = false;
   std::vector<int> analysed_p_, analysed_i_;
   bool nested_dissection_unavailable_ = false;
   // The fill-reducing permutation of A's n × n lower triangle `a` into perm[0, n).
