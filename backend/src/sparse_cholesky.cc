@@ -151,7 +151,7 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
     p.push_back(static_cast<int>(i.size()));
   }
   cholmod_sparse all = View(p, i, x, capacity, capacity);
-  // The symbolic analysis (AMD on A alone, the spare slots last; elimination tree; column
+  // The symbolic analysis (the ordering of A alone, the spare slots last; elimination tree; column
   // counts) depends on the pattern only: while it is the last analysed one — Gauss-Newton
   // iterations relinearise the same factors — a copy of that analysis is factorised again.
   // (p's length is capacity + 1, so equal p means equal spare slots too.)

@@ -8,7 +8,8 @@
 // so Λ stays exactly sparse (a factor touches its two anchors and its landmarks; nothing
 // is marginalised). Λ's sparse LDLᵀ factor (CHOLMOD, simplicial) is kept up to date
 // incrementally: each join is a rank-(3+2n) update of the factor (cholmod_updown), its
-// new variables taking spare slots kept last in the fill-reducing (AMD) ordering; a full
+// new variables taking spare slots kept last in the fill-reducing ordering (AMD, or METIS
+// nested dissection where AMD's factor gets costly: `ordering`); a full
 // factorisation with a fresh ordering happens when the slots run out or the fill has
 // grown, and at every relinearisation (whose Gauss-Newton iterations after the first
 // refactorise the same pattern: the symbolic analysis and Λ's pattern are reused). The
@@ -161,7 +162,7 @@ struct EifJoinerOptions {
   int divergence_rises = 2;
   // Factorisation: each join updates the sparse LDLᵀ factor of Λ by the new factor's
   // rank-(3+2n) update (CHOLMOD update/downdate; new variables last in the ordering)
-  // instead of refactorising Λ; a full factorisation (AMD ordering) is done
+  // instead of refactorising Λ; a full factorisation (with a fresh ordering) is done
   // when the spare slots run out, when L's fill has grown by `refactorize_fill_ratio`
   // since the last one, at every relinearisation, or if an update fails.
   bool incremental_factorization = true;

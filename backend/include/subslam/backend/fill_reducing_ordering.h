@@ -54,7 +54,8 @@ inline absl::StatusOr<FillReducingOrdering> FillReducingOrderingFromString(std::
 // Abseil flag hooks (found by argument-dependent lookup): a flag of this type accepts
 // the names above and rejects anything else at parse time.
 inline bool AbslParseFlag(absl::string_view text, FillReducingOrdering* o, std::string* error) {
-  absl::StatusOr<FillReducingOrdering> parsed = FillReducingOrderingFromString(std::string_view(text.data(), text.size()));
+  absl::StatusOr<FillReducingOrdering> parsed =
+      FillReducingOrderingFromString(std::string_view(text.data(), text.size()));
   if (!parsed.ok()) {
     *error = std::string(parsed.status().message());
     return false;
