@@ -494,6 +494,8 @@ void EifJoiner::BuildLambdaPattern() const {
 
 long EifJoiner::factor_nonzeros() const { return solver_->factor.nonzeros(); }
 
+FillReducingOrdering EifJoiner::factor_ordering() const { return solver_->factor.ordering(); }
+
 absl::Status EifJoiner::FullFactorization() {
   StageTimer full(&times_, "full_factorization");
   SparseCholesky& L = solver_->factor;
@@ -895,6 +897,7 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   rejected_.resize(pending.rejected);
   // The closing map is associated again before any join refactorises: the factor must be
   // the restored Λ's (the restored estimate is already its solution).
+  const JoinerCounters restored = counters_;
   if (absl::Status st = FullFactorization(); !st.ok()) return st;
   solver_->stale = false;
   // Decisions (thin, ambiguous, truncated) count those of the joins that stand; work and
@@ -908,9 +911,13 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   counters_.loop_closures_unconfirmed = work.loop_closures_unconfirmed + 1;
   counters_.associations_replayed = work.associations_replayed;
   counters_.incremental_updates = work.incremental_updates;
-  counters_.full_factorizations = work.full_factorizations;
-  counters_.nested_dissection_factorizations = work.nested_dissection_factorizations;
-  counters_.reused_analyses = work.reused_analyses;
+  // (and the refactorisation just done)
+  counters_.full_factorizations =
+      work.full_factorizations + counters_.full_factorizations - restored.full_factorizations;
+  counters_.nested_dissection_factorizations = work.nested_dissection_factorizations +
+                                               counters_.nested_dissection_factorizations -
+                                               restored.nested_dissection_factorizations;
+  counters_.reused_analyses = work.reused_analyses + counters_.reused_analyses - restored.reused_analyses;
   counters_.failed_updates = work.failed_updates;
   counters_.candidates = work.candidates;
   counters_.candidates_bounded_out = work.candidates_bounded_out;
@@ -1163,6 +1170,9 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       times_(other.times_),
       counters_(other.counters_),
       last_t_end_(other.last_t_end_) {
+  // The copy's factor is the original's ordering choice refactorised (an automatic
+  // ordering that has switched to nested dissection stays switched).
+  solver_->factor.AdoptOrderingChoice(other.solver_->factor);
   if (other.solver_->factor.ready()) {
     SUBSLAM_CHECK(solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering).ok())
         << "refactorising a copy failed";

@@ -168,13 +168,17 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
                               (ordering == FillReducingOrdering::kAmdOrNestedDissection && automatic_chose_nested_);
     absl::StatusOr<Analysis> analysis =
         Analyse(nested_first ? FillReducingOrdering::kNestedDissection : FillReducingOrdering::kAmd, &a, &all);
+    if (!analysis.ok() && nested_first && ordering == FillReducingOrdering::kAmdOrNestedDissection) {
+      common_->status = CHOLMOD_OK;  // automatic: METIS failed, AMD instead
+      analysis = Analyse(FillReducingOrdering::kAmd, &a, &all);
+    }
     if (!analysis.ok()) return analysis.status();
     // Nested dissection instead where AMD's factor is costly (its numeric
     // factorisation's flops against A's entries), and from then on. Its own flops are not
     // compared: where they are a little higher, its balanced tree still shortens the
     // updates' paths. (If METIS fails, AMD's analysis stands.)
     if (ordering == FillReducingOrdering::kAmdOrNestedDissection && !nested_first &&
-        analysis->flops >= kNestedDissectionMinFlopsPerEntry * static_cast<double>(p[n])) {
+        !nested_dissection_unavailable_ && analysis->flops >= kNestedDissectionMinFlopsPerEntry * static_cast<double>(p[n])) {
       absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, &a, &all);
       if (nested.ok() && nested->ordering == FillReducingOrdering::kNestedDissection) {
         std::swap(*analysis, *nested);

@@ -270,6 +270,48 @@ TEST(EifJoiner, NestedDissectionOrderingGivesTheJoinsOfAmd) {
   }
 }
 
+// The automatic ordering on a square driven round many times (every lap re-observes the
+// same landmarks, as on a world revisited at random): AMD at first, nested dissection
+// once AMD's factor gets costly, with the joins of AMD throughout; a copy made after the
+// switch stays switched and joins on as the original does.
+TEST(EifJoiner, AutomaticOrderingSwitchesOnARevisitedMapAndACopyKeepsTheSwitch) {
+  const SyntheticRun run = MakeRun(5, 60, 1.0);
+  EifJoinerOptions options;
+  options.association.known_association = true;
+  options.relinearize_heading_change = 0.0;  // the same linearisation in both
+  options.relinearize_linearization_chi2 = 0.0;
+  options.ordering = FillReducingOrdering::kAmd;
+  EifJoiner amd(run.anchors[0], options);
+  options.ordering = FillReducingOrdering::kAmdOrNestedDissection;
+  EifJoiner automatic(run.anchors[0], options);
+  const size_t split = run.submaps.size() - 5;
+  for (size_t k = 0; k < split; ++k) {
+    ASSERT_TRUE(amd.Join(run.submaps[k]).ok());
+    ASSERT_TRUE(automatic.Join(run.submaps[k]).ok());
+  }
+  EXPECT_EQ(amd.counters().nested_dissection_factorizations, 0);
+  EXPECT_GT(automatic.counters().nested_dissection_factorizations, 0);
+  EXPECT_LT(automatic.counters().nested_dissection_factorizations, automatic.counters().full_factorizations);
+  EXPECT_EQ(automatic.factor_ordering(), FillReducingOrdering::kNestedDissection);
+  const std::unique_ptr<MapJoiner> copy_base = automatic.Clone();
+  auto* copy = dynamic_cast<EifJoiner*>(copy_base.get());
+  ASSERT_NE(copy, nullptr);
+  EXPECT_EQ(copy->factor_ordering(), FillReducingOrdering::kNestedDissection);
+  for (size_t k = split; k < run.submaps.size(); ++k) {
+    ASSERT_TRUE(amd.Join(run.submaps[k]).ok());
+    ASSERT_TRUE(automatic.Join(run.submaps[k]).ok());
+    ASSERT_TRUE(copy->Join(run.submaps[k]).ok());
+  }
+  EXPECT_EQ(copy->factor_ordering(), FillReducingOrdering::kNestedDissection);
+  for (int k = 1; k < amd.num_anchors(); ++k) {
+    EXPECT_TRUE(MatricesNear(amd.anchor(k).vector(), automatic.anchor(k).vector(), 1e-9)) << "anchor " << k;
+    EXPECT_TRUE(MatricesNear(automatic.anchor(k).vector(), copy->anchor(k).vector(), 1e-9)) << "anchor " << k;
+  }
+  const std::vector<int> landmarks = {0, 3, amd.num_landmarks() - 1};
+  EXPECT_TRUE(MatricesNear(amd.JointCovariance({amd.num_anchors() - 1, 7}, landmarks),
+                           copy->JointCovariance({amd.num_anchors() - 1, 7}, landmarks), 1e-9));
+}
+
 // The candidates' marginal bounds (bound_candidate_marginals) are upper bounds: after
 // every join of loops with unknown association, each [last anchor, landmark] bound minus
 // the exact marginal is positive semi-definite — for landmarks bounded at creation and

@@ -376,6 +376,14 @@ TEST(SparseCholesky, AutomaticOrderingTakesNestedDissectionWhereAmdsFactorIsCost
   EXPECT_EQ(automatic.ordering(), FillReducingOrdering::kNestedDissection);
   const Eigen::VectorXd b = Eigen::VectorXd::Random(chain.rows());
   EXPECT_LT((chain * automatic.Solve(b) - b).norm(), 1e-10 * b.norm());
+  // A fresh factor that adopts the switch (as a copied EIF's does) orders the chain by
+  // nested dissection too; one that does not, by AMD.
+  SparseCholesky adopted, fresh;
+  adopted.AdoptOrderingChoice(automatic);
+  ASSERT_TRUE(adopted.Factorize(chain, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
+  ASSERT_TRUE(fresh.Factorize(chain, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
+  EXPECT_EQ(adopted.ordering(), FillReducingOrdering::kNestedDissection);
+  EXPECT_EQ(fresh.ordering(), FillReducingOrdering::kAmd);
 }
 
 // A refactorisation with A's pattern reuses the symbolic analysis — also after rank

@@ -245,6 +245,8 @@ class EifJoiner final : public MapJoiner {
   int state_dimension() const { return dim_; }
   // Entries of the sparse LDLᵀ factor of Λ (its fill; 0 before the first join).
   long factor_nonzeros() const;
+  // The ordering of that factor's last full factorisation (kAmd or kNestedDissection).
+  FillReducingOrdering factor_ordering() const;
   // Where a variable sits in Λ and η (−1 for the fixed P0).
   int anchor_offset(int k) const { return anchor_offset_[k]; }
   int landmark_offset(int j) const { return landmark_offset_[j]; }

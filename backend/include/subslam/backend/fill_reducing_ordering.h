@@ -18,12 +18,15 @@ namespace subslam::backend {
 //    (cholmod_metis, the elimination tree postordered). About three times AMD's time to
 //    compute, but its tree is balanced: on the 16 km random world L has 40 % fewer
 //    entries and an update's path 60 % fewer (bench/RESULTS.md, fifteenth session).
-//    Where CHOLMOD was built without METIS, AMD is used instead.
+//    subslam builds against a CHOLMOD with its Partition module (Debian's libcholmod3);
+//    where that CHOLMOD reports METIS not installed, AMD is used instead. (cholmod_metis
+//    returns the identity for a nearly dense matrix, which the EIF's Λ is not.)
 //  - kAmdOrNestedDissection ("auto"): AMD until AMD's factor would cost at least
 //    SparseCholesky::kNestedDissectionMinFlopsPerEntry flops per entry of the matrix's
 //    lower triangle, nested dissection from that factorisation on (the EIF's information
-//    matrix only grows, and AMD's cost per entry with it; so the test, a second analysis,
-//    is paid until the switch only). On a map whose graph is close to a chain (few
+//    matrix grows with every join, and AMD's cost per entry with it; the second analysis
+//    is paid once, at the switch, and the switch stays when an undone loop closure
+//    shrinks Λ again). On a map whose graph is close to a chain (few
 //    revisits) AMD's factor stays cheap and METIS's time would be wasted; on one revisited
 //    at random it does not. (Nested dissection's own flops are not compared: where they
 //    are a little higher, its balanced tree still shortens the rank updates' paths, which

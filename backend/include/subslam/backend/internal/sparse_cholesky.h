@@ -104,16 +104,26 @@ class SparseCholesky {
   long reach_solved() const { return reach_solved_; }
   // Successful Factorize() calls that reused the previous symbolic analysis.
   long symbolic_reuses() const { return symbolic_reuses_; }
-  // The ordering of the factor (kAmd or kNestedDissection) and the flops of its numeric
-  // factorisation, as CHOLMOD's analysis predicts them (fill-reducing_ordering.h).
+  // The ordering of the factor (kAmd or kNestedDissection; fill_reducing_ordering.h) and
+  // the flops of its numeric factorisation as CHOLMOD's analysis predicts them
+  // (Common::fl: the LLᵀ count of the whole capacity × capacity matrix, spare slots
+  // included).
   FillReducingOrdering ordering() const { return analysed_with_; }
   double factorization_flops() const { return symbolic_flops_; }
-  // kAmdOrNestedDissection tries nested dissection from this many flops per entry of A's
-  // lower triangle. METIS's ordering takes about as long as 40-70 flops of numeric
-  // factorisation per entry (measured: 40-70 ns per entry, 0.5-1.7 GFlop/s), so below
-  // this AMD's whole factorisation costs less than METIS would. The EIF's matrices lie
-  // on both sides: 29 flops per entry on combined-2km (one loop), 100-780 on the random
-  // worlds (bench/RESULTS.md, fifteenth session).
+  // Takes over another factor's automatic-ordering state (whether kAmdOrNestedDissection
+  // has switched, whether METIS is missing), so that a copy refactorised from scratch
+  // orders as the original would.
+  void AdoptOrderingChoice(const SparseCholesky& other) {
+    automatic_chose_nested_ = other.automatic_chose_nested_;
+    nested_dissection_unavailable_ = other.nested_dissection_unavailable_;
+  }
+  // kAmdOrNestedDissection switches to nested dissection from this many flops per entry
+  // of A's lower triangle (factorization_flops() over the entries stored, explicit zeros
+  // included). METIS's ordering takes about as long as 20-120 flops of numeric
+  // factorisation per entry (measured: 40-70 ns per entry, at 0.5-1.7 GFlop/s), so below
+  // about this AMD's whole factorisation costs less than METIS would. The EIF's matrices
+  // lie far on either side: 29 flops per entry on combined-2km (one loop), 100-780 on
+  // the random worlds (bench/RESULTS.md, fifteenth session).
   static constexpr double kNestedDissectionMinFlopsPerEntry = 50.0;
   // Whether a nested-dissection ordering was asked for and AMD used instead, because this
   // CHOLMOD has no METIS.
