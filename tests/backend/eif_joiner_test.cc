@@ -187,6 +187,20 @@ TEST(EifJoiner, MarginalsEqualBlocksOfTheDenseInverse) {
   }
 }
 
+// Two joiners of the same local maps agree: every anchor, and the joint marginal of the
+// last anchor, anchor 7 and every landmark, to `tolerance` (absolute, per entry).
+void ExpectSameEstimates(const EifJoiner& a, const EifJoiner& b, double tolerance) {
+  ASSERT_EQ(a.num_anchors(), b.num_anchors());
+  ASSERT_EQ(a.num_landmarks(), b.num_landmarks());
+  for (int k = 1; k < a.num_anchors(); ++k) {
+    EXPECT_TRUE(MatricesNear(a.anchor(k).vector(), b.anchor(k).vector(), tolerance)) << "anchor " << k;
+  }
+  std::vector<int> landmarks(a.num_landmarks());
+  for (int j = 0; j < a.num_landmarks(); ++j) landmarks[j] = j;
+  EXPECT_TRUE(MatricesNear(a.JointCovariance({a.num_anchors() - 1, 7}, landmarks),
+                           b.JointCovariance({a.num_anchors() - 1, 7}, landmarks), tolerance));
+}
+
 // The incremental factor (rank updates of the LDLᵀ factor, new variables in spare slots)
 // gives the estimate and the marginals of a full factorisation per join, through loop
 // closures, with unknown association — and with known association where one local map
@@ -226,13 +240,7 @@ TEST(EifJoiner, IncrementalFactorEqualsRefactorizingEveryJoin) {
       const std::vector<int>& a = incremental.graph().factors()[13].landmark_of_feature;
       EXPECT_EQ(a[0], a[1]);
     }
-    for (int k = 1; k < full.num_anchors(); ++k) {
-      EXPECT_TRUE(MatricesNear(full.anchor(k).vector(), incremental.anchor(k).vector(), 1e-9)) << "anchor " << k;
-    }
-    std::vector<int> landmarks(full.num_landmarks());
-    for (int j = 0; j < full.num_landmarks(); ++j) landmarks[j] = j;
-    EXPECT_TRUE(MatricesNear(full.JointCovariance({full.num_anchors() - 1, 7}, landmarks),
-                             incremental.JointCovariance({full.num_anchors() - 1, 7}, landmarks), 1e-9));
+    ExpectSameEstimates(full, incremental, 1e-9);
   }
 }
 
@@ -260,13 +268,7 @@ TEST(EifJoiner, NestedDissectionOrderingGivesTheJoinsOfAmd) {
     EXPECT_EQ(nested.counters().nested_dissection_factorizations, nested.counters().full_factorizations);
     EXPECT_GT(nested.counters().incremental_updates, 12) << seed;
     EXPECT_GT(nested.counters().associated, 50) << seed;
-    for (int k = 1; k < amd.num_anchors(); ++k) {
-      EXPECT_TRUE(MatricesNear(amd.anchor(k).vector(), nested.anchor(k).vector(), 1e-9)) << "anchor " << k;
-    }
-    std::vector<int> landmarks(amd.num_landmarks());
-    for (int j = 0; j < amd.num_landmarks(); ++j) landmarks[j] = j;
-    EXPECT_TRUE(MatricesNear(amd.JointCovariance({amd.num_anchors() - 1, 7}, landmarks),
-                             nested.JointCovariance({amd.num_anchors() - 1, 7}, landmarks), 1e-9));
+    ExpectSameEstimates(amd, nested, 1e-9);
   }
 }
 
@@ -303,13 +305,8 @@ TEST(EifJoiner, AutomaticOrderingSwitchesOnARevisitedMapAndACopyKeepsTheSwitch) 
     ASSERT_TRUE(copy->Join(run.submaps[k]).ok());
   }
   EXPECT_EQ(copy->factor_ordering(), FillReducingOrdering::kNestedDissection);
-  for (int k = 1; k < amd.num_anchors(); ++k) {
-    EXPECT_TRUE(MatricesNear(amd.anchor(k).vector(), automatic.anchor(k).vector(), 1e-9)) << "anchor " << k;
-    EXPECT_TRUE(MatricesNear(automatic.anchor(k).vector(), copy->anchor(k).vector(), 1e-9)) << "anchor " << k;
-  }
-  const std::vector<int> landmarks = {0, 3, amd.num_landmarks() - 1};
-  EXPECT_TRUE(MatricesNear(amd.JointCovariance({amd.num_anchors() - 1, 7}, landmarks),
-                           copy->JointCovariance({amd.num_anchors() - 1, 7}, landmarks), 1e-9));
+  ExpectSameEstimates(amd, automatic, 1e-9);
+  ExpectSameEstimates(automatic, *copy, 1e-9);
 }
 
 // The candidates' marginal bounds (bound_candidate_marginals) are upper bounds: after

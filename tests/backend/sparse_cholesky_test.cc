@@ -209,6 +209,16 @@ TEST(SparseCholesky, InverseColumnsAtSelectedRowsEqualTheDenseInverse) {
 
 // A += W Wᵀ with new variables claiming spare slots equals factorising the grown matrix,
 // including when a variable is listed twice (its rows add up).
+// A grown by `added` new variables and the update W Wᵀ, row r of W on variable rows[r].
+Eigen::MatrixXd Grown(const Eigen::MatrixXd& A, int added, const std::vector<int>& rows, const Eigen::MatrixXd& W) {
+  const int n = static_cast<int>(A.rows());
+  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + added, n + added);
+  grown.topLeftCorner(n, n) = A;
+  Eigen::MatrixXd Wfull = Eigen::MatrixXd::Zero(n + added, W.cols());
+  for (size_t r = 0; r < rows.size(); ++r) Wfull.row(rows[r]) += W.row(static_cast<int>(r));
+  return grown + Wfull * Wfull.transpose();
+}
+
 TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {
   std::mt19937_64 rng(2);
   const int n = 25, added = 4;
@@ -218,11 +228,7 @@ TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {
   // W over old variables 3, 24, 24 (twice) and the new ones 25 … 28 (full rank on them).
   const std::vector<int> rows = {3, 24, 24, 25, 26, 27, 28};
   Eigen::MatrixXd W = Eigen::MatrixXd::Random(static_cast<int>(rows.size()), 6);
-  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + added, n + added);
-  grown.topLeftCorner(n, n) = A;
-  Eigen::MatrixXd Wfull = Eigen::MatrixXd::Zero(n + added, W.cols());
-  for (size_t r = 0; r < rows.size(); ++r) Wfull.row(rows[r]) += W.row(static_cast<int>(r));
-  grown += Wfull * Wfull.transpose();
+  Eigen::MatrixXd grown = Grown(A, added, rows, W);
   ASSERT_TRUE(L.Update(n + added, rows, W).ok());
   EXPECT_EQ(L.dim(), n + added);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(n + added, 2);
@@ -317,11 +323,7 @@ TEST(SparseCholesky, NestedDissectionOrderingFactorizesTheSameMatrix) {
   // New variables n … n + 2 linked to a corner and the centre.
   const std::vector<int> rows = {0, n / 2 + side / 2, n, n + 1, n + 2};
   const Eigen::MatrixXd W = Eigen::MatrixXd::Random(static_cast<int>(rows.size()), 5);
-  Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(n + added, n + added);
-  grown.topLeftCorner(n, n) = A;
-  Eigen::MatrixXd Wfull = Eigen::MatrixXd::Zero(n + added, W.cols());
-  for (size_t r = 0; r < rows.size(); ++r) Wfull.row(rows[r]) += W.row(static_cast<int>(r));
-  grown += Wfull * Wfull.transpose();
+  const Eigen::MatrixXd grown = Grown(A, added, rows, W);
   ASSERT_TRUE(nested.Update(n + added, rows, W).ok());
   const Eigen::MatrixXd C = Eigen::MatrixXd::Random(n + added, 2);
   EXPECT_TRUE(MatricesNear(grown.ldlt().solve(C), nested.Solve(C), 1e-9));
