@@ -895,11 +895,6 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   const JoinerCounters work = counters_;
   Restore(std::move(pending.before));
   rejected_.resize(pending.rejected);
-  // The closing map is associated again before any join refactorises: the factor must be
-  // the restored Λ's (the restored estimate is already its solution).
-  const JoinerCounters restored = counters_;
-  if (absl::Status st = FullFactorization(); !st.ok()) return st;
-  solver_->stale = false;
   // Decisions (thin, ambiguous, truncated) count those of the joins that stand; work and
   // confirmations count everything done.
   counters_.relinearizations = work.relinearizations;
@@ -911,18 +906,19 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   counters_.loop_closures_unconfirmed = work.loop_closures_unconfirmed + 1;
   counters_.associations_replayed = work.associations_replayed;
   counters_.incremental_updates = work.incremental_updates;
-  // (and the refactorisation just done)
-  counters_.full_factorizations =
-      work.full_factorizations + counters_.full_factorizations - restored.full_factorizations;
-  counters_.nested_dissection_factorizations = work.nested_dissection_factorizations +
-                                               counters_.nested_dissection_factorizations -
-                                               restored.nested_dissection_factorizations;
-  counters_.reused_analyses = work.reused_analyses + counters_.reused_analyses - restored.reused_analyses;
+  counters_.full_factorizations = work.full_factorizations;
+  counters_.nested_dissection_factorizations = work.nested_dissection_factorizations;
+  counters_.reused_analyses = work.reused_analyses;
   counters_.failed_updates = work.failed_updates;
   counters_.candidates = work.candidates;
   counters_.candidates_bounded_out = work.candidates_bounded_out;
   counters_.covariance_columns = work.covariance_columns;
   counters_.covariance_reach = work.covariance_reach;
+  // The closing map is associated again before any join refactorises: the factor must be
+  // the restored Λ's (the restored estimate is already its solution). Counted on top of
+  // the work above.
+  if (absl::Status st = FullFactorization(); !st.ok()) return st;
+  solver_->stale = false;
   for (size_t m = 0; m < maps.size(); ++m) {
     suppress_loop_closure_ = m == 0;
     if (m == 0) replayed_association_ = std::move(pending.association);

@@ -79,7 +79,6 @@ absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::Analyse(FillReducingOrd
   const int n = static_cast<int>(a->ncol);
   std::vector<int> perm(all->ncol);
   Analysis analysis;
-  analysis.ordering = FillReducingOrdering::kAmd;
   if (n > 0) {
     absl::StatusOr<FillReducingOrdering> used = Order(ordering, a, perm.data());
     if (!used.ok()) return used.status();
@@ -90,6 +89,33 @@ absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::Analyse(FillReducingOrd
   if (analysis.symbolic == nullptr) return absl::InternalError("CHOLMOD: symbolic analysis failed");
   analysis.flops = common_->fl;
   return analysis;
+}
+
+absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::AnalyseAutomatically(cholmod_sparse* a, cholmod_sparse* all) {
+  if (automatic_chose_nested_) {
+    absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, a, all);
+    if (nested.ok()) return nested;
+    common_->status = CHOLMOD_OK;  // METIS failed: AMD instead
+    return Analyse(FillReducingOrdering::kAmd, a, all);
+  }
+  absl::StatusOr<Analysis> amd = Analyse(FillReducingOrdering::kAmd, a, all);
+  const double entries = static_cast<double>(static_cast<const int*>(a->p)[a->ncol]);
+  if (!amd.ok() || nested_dissection_unavailable_ || entries == 0 ||
+      amd->flops < kNestedDissectionMinFlopsPerEntry * entries) {
+    return amd;
+  }
+  // AMD's factor is costly: nested dissection from here on. Its own flops are not
+  // compared: where they are a little higher, its balanced tree still shortens the
+  // updates' paths. (If METIS fails, AMD's analysis stands.)
+  absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, a, all);
+  if (!nested.ok() || nested->ordering != FillReducingOrdering::kNestedDissection) {
+    if (nested.ok()) cholmod_free_factor(&nested->symbolic, common_);
+    common_->status = CHOLMOD_OK;
+    return amd;
+  }
+  cholmod_free_factor(&amd->symbolic, common_);
+  automatic_chose_nested_ = true;
+  return nested;
 }
 
 absl::StatusOr<FillReducingOrdering> SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse* a,
@@ -164,29 +190,10 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
     if (symbolic_ != nullptr) cholmod_free_factor(&symbolic_, common_);
     analysed_n_ = -1;  // until the new analysis exists
     cholmod_sparse a = View(p, i, x, n, n);
-    const bool nested_first = ordering == FillReducingOrdering::kNestedDissection ||
-                              (ordering == FillReducingOrdering::kAmdOrNestedDissection && automatic_chose_nested_);
-    absl::StatusOr<Analysis> analysis =
-        Analyse(nested_first ? FillReducingOrdering::kNestedDissection : FillReducingOrdering::kAmd, &a, &all);
-    if (!analysis.ok() && nested_first && ordering == FillReducingOrdering::kAmdOrNestedDissection) {
-      common_->status = CHOLMOD_OK;  // automatic: METIS failed, AMD instead
-      analysis = Analyse(FillReducingOrdering::kAmd, &a, &all);
-    }
+    absl::StatusOr<Analysis> analysis = ordering == FillReducingOrdering::kAmdOrNestedDissection
+                                            ? AnalyseAutomatically(&a, &all)
+                                            : Analyse(ordering, &a, &all);
     if (!analysis.ok()) return analysis.status();
-    // Nested dissection instead where AMD's factor is costly (its numeric
-    // factorisation's flops against A's entries), and from then on. Its own flops are not
-    // compared: where they are a little higher, its balanced tree still shortens the
-    // updates' paths. (If METIS fails, AMD's analysis stands.)
-    if (ordering == FillReducingOrdering::kAmdOrNestedDissection && !nested_first &&
-        !nested_dissection_unavailable_ && analysis->flops >= kNestedDissectionMinFlopsPerEntry * static_cast<double>(p[n])) {
-      absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, &a, &all);
-      if (nested.ok() && nested->ordering == FillReducingOrdering::kNestedDissection) {
-        std::swap(*analysis, *nested);
-        automatic_chose_nested_ = true;
-      }
-      if (nested.ok()) cholmod_free_factor(&nested->symbolic, common_);
-      common_->status = CHOLMOD_OK;
-    }
     symbolic_ = analysis->symbolic;
     analysed_with_ = analysis->ordering;
     symbolic_flops_ = analysis->flops;

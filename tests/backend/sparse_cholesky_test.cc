@@ -388,6 +388,30 @@ TEST(SparseCholesky, AutomaticOrderingTakesNestedDissectionWhereAmdsFactorIsCost
   EXPECT_EQ(fresh.ordering(), FillReducingOrdering::kAmd);
 }
 
+// The ordering's names (flag --eif_ordering) round-trip; anything else is rejected with
+// the accepted names, also through the Abseil flag hook.
+TEST(FillReducingOrdering, NamesRoundTripAndOthersAreRejected) {
+  for (FillReducingOrdering o : {FillReducingOrdering::kAmd, FillReducingOrdering::kNestedDissection,
+                                 FillReducingOrdering::kAmdOrNestedDissection}) {
+    absl::StatusOr<FillReducingOrdering> parsed = FillReducingOrderingFromString(ToString(o));
+    ASSERT_TRUE(parsed.ok());
+    EXPECT_EQ(*parsed, o);
+  }
+  for (const char* bad : {"", "AMD", "metis", "auto "}) {
+    const absl::StatusOr<FillReducingOrdering> parsed = FillReducingOrderingFromString(bad);
+    ASSERT_FALSE(parsed.ok()) << bad;
+    EXPECT_NE(parsed.status().message().find("amd | nested_dissection | auto"), std::string_view::npos);
+  }
+  FillReducingOrdering o = FillReducingOrdering::kAmd;
+  std::string error;
+  EXPECT_TRUE(AbslParseFlag("nested_dissection", &o, &error));
+  EXPECT_EQ(o, FillReducingOrdering::kNestedDissection);
+  EXPECT_FALSE(AbslParseFlag("nested", &o, &error));
+  EXPECT_EQ(o, FillReducingOrdering::kNestedDissection);  // unchanged
+  EXPECT_NE(error.find("unknown fill-reducing ordering 'nested'"), std::string::npos);
+  EXPECT_EQ(AbslUnparseFlag(FillReducingOrdering::kAmdOrNestedDissection), "auto");
+}
+
 // A refactorisation with A's pattern reuses the symbolic analysis — also after rank
 // updates have grown the factor's pattern — and equals a fresh factorisation; a
 // different pattern (an entry more, or more spare slots) is analysed again.

@@ -156,6 +156,10 @@ class SparseCholesky {
   };
   absl::StatusOr<Analysis> Analyse(FillReducingOrdering ordering, cholmod_sparse_struct* a,
                                    cholmod_sparse_struct* all);
+  // kAmdOrNestedDissection's analysis: nested dissection once switched (AMD if METIS
+  // fails); before, AMD's, or nested dissection's when AMD's costs at least
+  // kNestedDissectionMinFlopsPerEntry per entry of `a` (the switch).
+  absl::StatusOr<Analysis> AnalyseAutomatically(cholmod_sparse_struct* a, cholmod_sparse_struct* all);
   std::vector<int> lower_p_, lower_i_;
   std::vector<double> lower_x_;
   long symbolic_reuses_ = 0;
