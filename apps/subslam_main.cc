@@ -121,6 +121,23 @@ ABSL_FLAG(bool, join_keep_certain_loop_pairings, kEifDefaults.association.keep_c
 ABSL_FLAG(double, join_loop_test_sigma, kEifDefaults.association.loop_test_min_sigma_radius_m,
           "apply --join_min_loop_pairings only when 3 sigma of the start anchor's position is at "
           "least this [m]");
+ABSL_FLAG(bool, join_merge, kEifDefaults.revision.merge,
+          "eif / ceres / tree-eif: merge two global landmarks once the estimate shows they are one "
+          "point (chi2 test on their difference with their joint marginal; never two that one "
+          "local map holds apart; each the other's only candidate)");
+ABSL_FLAG(bool, join_merge_unresolved, kEifDefaults.revision.merge_unresolved,
+          "also merge a pair that no single local map could tell apart (the test with each "
+          "landmark's most precise feature covariance)");
+ABSL_FLAG(double, join_merge_gate, kEifDefaults.revision.merge_probability,
+          "merge test: chi2 (2 dof) acceptance probability of 'the same point'");
+ABSL_FLAG(bool, join_split, kEifDefaults.revision.split,
+          "eif / ceres / tree-eif: split a feature whose residual fails its outlier test off to a "
+          "landmark of its own");
+ABSL_FLAG(double, join_split_level, kEifDefaults.revision.split_probability,
+          "split test: family-wise confidence over the features tested in a pass (Bonferroni)");
+ABSL_FLAG(int, join_revise_every, kEifDefaults.revision.every_joins,
+          "also run the merge and split tests every K joins (besides after relinearisations, "
+          "whole-map joins and at the end; 0: not on a schedule)");
 ABSL_FLAG(int, join_loop_confirmation_maps, kEifDefaults.loop_confirmation_maps,
           "eif: undo a loop closure made under an uncertain anchor unless one of this many next "
           "local maps pairs a feature with another old landmark (0: off)");
@@ -285,6 +302,12 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.keep_certain_loop_pairings = absl::GetFlag(FLAGS_join_keep_certain_loop_pairings);
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
   o.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
+  o.revision.merge = absl::GetFlag(FLAGS_join_merge);
+  o.revision.merge_unresolved = absl::GetFlag(FLAGS_join_merge_unresolved);
+  o.revision.merge_probability = absl::GetFlag(FLAGS_join_merge_gate);
+  o.revision.split = absl::GetFlag(FLAGS_join_split);
+  o.revision.split_probability = absl::GetFlag(FLAGS_join_split_level);
+  o.revision.every_joins = absl::GetFlag(FLAGS_join_revise_every);
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);

@@ -313,6 +313,9 @@ std::map<std::string, double> SubmapSlam::Counters() const {
     out["join_loop_closures_confirmed"] = joiner_->counters().loop_closures_confirmed;
     out["join_loop_closures_unconfirmed"] = joiner_->counters().loop_closures_unconfirmed;
     out["join_associations_replayed"] = joiner_->counters().associations_replayed;
+    out["join_revision_passes"] = joiner_->counters().revision_passes;
+    out["join_landmarks_merged"] = joiner_->counters().landmarks_merged;
+    out["join_features_split"] = joiner_->counters().features_split;
     out["join_incremental_updates"] = joiner_->counters().incremental_updates;
     out["join_candidates"] = joiner_->counters().candidates;
     out["join_candidates_bounded_out"] = joiner_->counters().candidates_bounded_out;

@@ -26,6 +26,7 @@ struct EifJoiner::Solver {
 
 absl::Status EifJoinerOptions::Validate() const {
   if (absl::Status s = association.Validate(); !s.ok()) return s;
+  if (absl::Status s = revision.Validate(); !s.ok()) return s;
   if (!(validation_probability > 0 && validation_probability < 1)) {
     return absl::InvalidArgumentError("validation_probability must be in (0, 1)");
   }
@@ -1042,22 +1043,136 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   last_t_end_ = s.t_end;
   ++counters_.joins;
   if (absl::Status st = Rebuild(/*only_last_factor=*/true); !st.ok()) return st;
+  bool relinearize = false;
   if (options_.relinearize_every > 0 && counters_.joins % options_.relinearize_every == 0) {
-    return Relinearize();
-  }
-  if (options_.relinearize_heading_change > 0 && MaxHeadingDrift() > options_.relinearize_heading_change) {
+    relinearize = true;
+  } else if (options_.relinearize_heading_change > 0 && MaxHeadingDrift() > options_.relinearize_heading_change) {
     ++counters_.relinearized_on_heading;
-    return Relinearize();
-  }
-  bool linear_model_off = false;
-  if (options_.relinearize_linearization_chi2 > 0) {
+    relinearize = true;
+  } else if (options_.relinearize_linearization_chi2 > 0) {
     StageTimer timer(&times_, "linearization_check");
-    linear_model_off = LinearizationErrorAbove(options_.relinearize_linearization_chi2);
+    relinearize = LinearizationErrorAbove(options_.relinearize_linearization_chi2);
+    if (relinearize) ++counters_.relinearized_on_linearization_error;
   }
-  if (linear_model_off) {
-    ++counters_.relinearized_on_linearization_error;
-    return Relinearize();
+  if (relinearize) {
+    if (absl::Status st = Relinearize(); !st.ok()) return st;
   }
+  const int every = options_.revision.every_joins;
+  if (associate && (relinearize || (every > 0 && counters_.joins % every == 0))) return ReviseAssociation();
+  return absl::OkStatus();
+}
+
+absl::StatusOr<Eigen::Vector2d> EifJoiner::MergedPosition(int a, int b) const {
+  const Eigen::MatrixXd S = JointCovariance({}, {a, b});
+  const Eigen::Matrix2d C = S.topLeftCorner<2, 2>() + S.bottomRightCorner<2, 2>() - S.topRightCorner<2, 2>() -
+                            S.bottomLeftCorner<2, 2>();
+  const Eigen::LLT<Eigen::Matrix2d> llt(C);
+  if (llt.info() != Eigen::Success) {
+    return absl::InvalidArgumentError(absl::StrCat("merge of landmarks ", a, " and ", b,
+                                                   ": their difference has no positive definite covariance"));
+  }
+  const Eigen::Vector2d delta = graph_.landmarks()[a] - graph_.landmarks()[b];
+  const Eigen::Matrix2d cov_a_delta = S.topLeftCorner<2, 2>() - S.topRightCorner<2, 2>();
+  return Eigen::Vector2d(graph_.landmarks()[a] - cov_a_delta * llt.solve(delta));
+}
+
+absl::Status EifJoiner::ReviseAssociation() {
+  if (!options_.revision.enabled() || options_.association.known_association || pending_loop_ || factors_.empty()) {
+    return absl::OkStatus();
+  }
+  StageTimer timer(&times_, "revision");
+  ++counters_.revision_passes;
+  const std::vector<FeatureSplit> splits = FindFeatureSplits(
+      graph_, [this](int anchor, const std::vector<int>& landmarks) { return AnchorLandmarkCovariances(anchor, landmarks); },
+      options_.revision);
+  std::vector<LandmarkMerge> merges = FindLandmarkMerges(
+      graph_, LandmarkCovariances(),
+      [this](int a, int b) -> Eigen::Matrix4d { return JointCovariance({}, {a, b}); }, options_.revision);
+  // A landmark a split leaves is not merged in the same pass (its estimate will move).
+  std::vector<char> split_from(graph_.num_landmarks(), 0);
+  for (const FeatureSplit& sp : splits) split_from[graph_.factors()[sp.factor].landmark_of_feature[sp.feature]] = 1;
+  std::erase_if(merges, [&](const LandmarkMerge& m) { return split_from[m.keep] || split_from[m.drop]; });
+  if (splits.empty() && merges.empty()) return absl::OkStatus();
+  return ApplyRevisions(splits, merges);
+}
+
+absl::Status EifJoiner::MergeLandmarks(int keep, int drop) {
+  const int n = graph_.num_landmarks();
+  if (keep < 0 || keep >= n || drop < 0 || drop >= n || keep == drop) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("merge of landmarks ", keep, " and ", drop, ": the map has landmarks 0-", n - 1));
+  }
+  if (graph_.CoObserved(keep, drop)) {
+    return absl::InvalidArgumentError(absl::StrCat("merge of landmarks ", keep, " and ", drop,
+                                                   ": one local map holds them as distinct features"));
+  }
+  absl::StatusOr<Eigen::Vector2d> position = MergedPosition(keep, drop);
+  if (!position.ok()) return position.status();
+  LandmarkMerge m{std::min(keep, drop), std::max(keep, drop), NAN, *position};
+  return ApplyRevisions({}, {m});
+}
+
+absl::Status EifJoiner::SplitFeature(int factor, int feature) {
+  if (factor < 0 || factor >= static_cast<int>(graph_.factors().size())) {
+    return absl::InvalidArgumentError(absl::StrCat("split: no factor ", factor));
+  }
+  const std::vector<int>& assoc = graph_.factors()[factor].landmark_of_feature;
+  if (feature < 0 || feature >= static_cast<int>(assoc.size())) {
+    return absl::InvalidArgumentError(absl::StrCat("split: factor ", factor, " has no feature ", feature));
+  }
+  if (graph_.FeatureCounts()[assoc[feature]] < 2) {
+    return absl::InvalidArgumentError(absl::StrCat("split of feature ", feature, " of factor ", factor,
+                                                   ": its landmark ", assoc[feature], " has no other feature"));
+  }
+  return ApplyRevisions({FeatureSplit{factor, feature, NAN}}, {});
+}
+
+absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
+                                       const std::vector<LandmarkMerge>& merges) {
+  for (const FeatureSplit& sp : splits) {
+    const SubmapFactor& record = graph_.factors()[sp.factor];
+    const int from = record.landmark_of_feature[sp.feature];
+    const double signature = record.submap.landmarks[sp.feature].signature;
+    // The split feature's own position, through its start anchor.
+    const Eigen::Vector2d position = TransformFrom(graph_.anchors()[record.start_anchor], record.submap.landmark(sp.feature));
+    absl::StatusOr<int> to = graph_.SplitFeature(sp.factor, sp.feature, position);
+    if (!to.ok()) return to.status();
+    associator_.SplitFeature(from, *to, signature);
+    landmark_offset_.push_back(dim_);
+    dim_ += 2;
+    marginal_bound_.push_back(Eigen::Matrix2d::Constant(NAN));
+    ++counters_.features_split;
+  }
+  for (const LandmarkMerge& m : merges) {
+    if (absl::Status st = graph_.MergeLandmarks(m.keep, m.drop, m.position); !st.ok()) return st;
+    associator_.MergeLandmarks(m.keep, m.drop);
+    const int removed = landmark_offset_[m.drop];
+    landmark_offset_.erase(landmark_offset_.begin() + m.drop);
+    marginal_bound_.erase(marginal_bound_.begin() + m.drop);
+    for (int& o : anchor_offset_) o -= o > removed ? 2 : 0;
+    for (int& o : landmark_offset_) o -= o > removed ? 2 : 0;
+    dim_ -= 2;
+    for (int& j : last_association_) {
+      if (j == m.drop) j = m.keep;
+      if (j > m.drop) --j;
+    }
+    ++counters_.landmarks_merged;
+  }
+  // Every factor's variables where they now sit, linearised at the revised estimate.
+  {
+    StageTimer timer(&times_, "update");
+    for (Factor& f : factors_) {
+      const Factor layout = MakeFactor(f.index);
+      f.offsets = layout.offsets;
+      f.sizes = layout.sizes;
+      Linearize(&f);
+    }
+  }
+  lambda_factors_ = 0;
+  lambda_full_valid_ = false;
+  solver_->stale = true;
+  if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;
+  if (options_.RelinearizesAfterJoins() || options_.relinearize_at_end) return Relinearize();
   return absl::OkStatus();
 }
 
@@ -1144,7 +1259,17 @@ absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) {
 absl::Status EifJoiner::Finish() {
   pending_loop_.reset();  // a closure still waiting at the end stands: no more maps to ask
   // No association follows: the marginal bounds are not refreshed.
-  if (options_.relinearize_at_end && !factors_.empty()) return GaussNewton();
+  if (options_.relinearize_at_end && !factors_.empty()) {
+    if (absl::Status st = GaussNewton(); !st.ok()) return st;
+  }
+  // Revise at the converged estimate until a pass changes nothing (each pass that
+  // changes something solves again); bounded, as merges and splits could alternate.
+  constexpr int kMaxFinalPasses = 50;
+  for (int pass = 0; pass < kMaxFinalPasses; ++pass) {
+    const long before = counters_.landmarks_merged + counters_.features_split;
+    if (absl::Status st = ReviseAssociation(); !st.ok()) return st;
+    if (counters_.landmarks_merged + counters_.features_split == before) break;
+  }
   return absl::OkStatus();
 }
 
@@ -1241,7 +1366,8 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   // Right's factors were linearised at an estimate made without this map's information:
   // after a long right map, one step is far from the joint optimum (on combined-2km the
   // tree's anchors were 74 m off, NEES 3,800), so a tree join is iterated to convergence.
-  return Relinearize();
+  if (absl::Status st = Relinearize(); !st.ok()) return st;
+  return ReviseAssociation();
 }
 
 }  // namespace subslam::backend

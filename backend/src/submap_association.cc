@@ -61,6 +61,37 @@ void SubmapAssociator::Record(const LocalSubmap& s, const std::vector<int>& land
   }
 }
 
+void SubmapAssociator::MergeLandmarks(int keep, int drop) {
+  if (drop < static_cast<int>(signature_sum_.size())) {
+    if (keep >= static_cast<int>(signature_sum_.size())) {
+      signature_sum_.resize(keep + 1, 0.0);
+      signature_count_.resize(keep + 1, 0);
+    }
+    signature_sum_[keep] += signature_sum_[drop];
+    signature_count_[keep] += signature_count_[drop];
+    signature_sum_.erase(signature_sum_.begin() + drop);
+    signature_count_.erase(signature_count_.begin() + drop);
+  }
+  for (auto& [truth, landmark] : landmark_of_truth_) {
+    if (landmark == drop) landmark = keep;
+    if (landmark > drop) --landmark;
+  }
+}
+
+void SubmapAssociator::SplitFeature(int from, int to, double signature) {
+  const int needed = std::max(from, to) + 1;
+  if (needed > static_cast<int>(signature_sum_.size())) {
+    signature_sum_.resize(needed, 0.0);
+    signature_count_.resize(needed, 0);
+  }
+  if (std::isfinite(signature)) {
+    signature_sum_[from] -= signature;
+    --signature_count_[from];
+    signature_sum_[to] += signature;
+    ++signature_count_[to];
+  }
+}
+
 SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_anchor,
                                               const SubmapGraph& graph,
                                               const JointCovarianceFn& joint_covariance,

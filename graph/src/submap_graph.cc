@@ -8,6 +8,67 @@
 
 namespace subslam {
 
+std::vector<int> SubmapGraph::FeatureCounts() const {
+  std::vector<int> counts(landmarks_.size(), 0);
+  for (const SubmapFactor& f : factors_) {
+    for (int j : f.landmark_of_feature) ++counts[j];
+  }
+  return counts;
+}
+
+bool SubmapGraph::CoObserved(int a, int b) const {
+  for (const SubmapFactor& f : factors_) {
+    bool has_a = false, has_b = false;
+    for (int j : f.landmark_of_feature) {
+      has_a = has_a || j == a;
+      has_b = has_b || j == b;
+    }
+    if (has_a && has_b) return true;
+  }
+  return false;
+}
+
+absl::Status SubmapGraph::MergeLandmarks(int keep, int drop, const Eigen::Vector2d& position) {
+  const int n = num_landmarks();
+  if (keep < 0 || keep >= n || drop < 0 || drop >= n) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("merge of landmarks ", keep, " and ", drop, ": the map has landmarks 0-", n - 1));
+  }
+  if (keep == drop) return absl::InvalidArgumentError(absl::StrCat("merge of landmark ", keep, " with itself"));
+  if (CoObserved(keep, drop)) {
+    return absl::InvalidArgumentError(absl::StrCat("merge of landmarks ", keep, " and ", drop,
+                                                   ": one local map holds them as distinct features"));
+  }
+  if (!position.allFinite()) return absl::InvalidArgumentError("merge: non-finite position");
+  landmarks_[keep] = position;
+  for (SubmapFactor& f : factors_) {
+    for (int& j : f.landmark_of_feature) {
+      if (j == drop) j = keep;
+      if (j > drop) --j;
+    }
+  }
+  landmarks_.erase(landmarks_.begin() + drop);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<int> SubmapGraph::SplitFeature(int factor, int feature, const Eigen::Vector2d& position) {
+  if (factor < 0 || factor >= static_cast<int>(factors_.size())) {
+    return absl::InvalidArgumentError(absl::StrCat("split: no factor ", factor));
+  }
+  std::vector<int>& assoc = factors_[factor].landmark_of_feature;
+  if (feature < 0 || feature >= static_cast<int>(assoc.size())) {
+    return absl::InvalidArgumentError(absl::StrCat("split: factor ", factor, " has no feature ", feature));
+  }
+  if (FeatureCounts()[assoc[feature]] < 2) {
+    return absl::InvalidArgumentError(absl::StrCat("split of feature ", feature, " of factor ", factor,
+                                                   ": its landmark ", assoc[feature], " has no other feature"));
+  }
+  if (!position.allFinite()) return absl::InvalidArgumentError("split: non-finite position");
+  landmarks_.push_back(position);
+  assoc[feature] = num_landmarks() - 1;
+  return assoc[feature];
+}
+
 absl::Status SubmapGraph::WriteG2o(const std::string& path) const {
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "w"), &std::fclose);
   if (!f) return absl::UnavailableError(absl::StrCat(path, ": cannot open for writing"));

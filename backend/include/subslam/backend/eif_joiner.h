@@ -53,7 +53,9 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "subslam/backend/fill_reducing_ordering.h"
+#include "subslam/backend/landmark_revision.h"
 #include "subslam/backend/map_joiner.h"
 #include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
@@ -65,6 +67,12 @@ struct SparseLowerTriangle;  // backend/internal/sparse_cholesky.h
 
 struct EifJoinerOptions {
   SubmapAssociationOptions association;
+  // Revisable association: landmark merges and feature splits (landmark_revision.h),
+  // tested after each relinearisation that follows a join, every revision.every_joins
+  // joins, after a whole-map join and at the end; each applied change re-keys the
+  // factors and solves again (Gauss-Newton where the joiner relinearises). Not while a
+  // loop closure waits for confirmation, nor under known association.
+  LandmarkRevisionOptions revision;
   // Join validation (beyond the papers): after the update, the new factor's normalised
   // residual rᵀQ⁻¹r at the new estimate is tested against χ²_{2m}(validation_probability),
   // m the features matched to existing landmarks; a join that fails is undone and the
@@ -210,6 +218,11 @@ class EifJoiner final : public MapJoiner {
   // information form and the marginals follow the better estimate.
   absl::Status AdoptEstimate(const SubmapGraph& solved);
 
+  // Revisable association (MapJoiner, landmark_revision.h).
+  absl::Status ReviseAssociation() override;
+  absl::Status MergeLandmarks(int keep, int drop) override;
+  absl::Status SplitFeature(int factor, int feature) override;
+
   // The largest whitened linearisation error of a factor at the current estimate,
   // ‖L_Q⁻¹ (r(x) − r(x₀) − J(x₀)(x − x₀))‖² over the factors, x₀ a factor's
   // linearisation point and Q = L Lᵀ its local map's covariance: how far the information
@@ -354,6 +367,12 @@ class EifJoiner final : public MapJoiner {
   Pose2 AnchorPose(int k) const;
   std::vector<Eigen::Vector2d> FactorLandmarks(const SubmapFactor& record) const;
   absl::Status JoinWith(const LocalSubmap& submap, bool associate);
+  // Applies splits (landmarks appended) then merges (in `drop` descending order) to the
+  // graph, the associator and the state layout, relinearises every factor at the
+  // current estimate and solves again (to convergence where the joiner relinearises).
+  absl::Status ApplyRevisions(const std::vector<FeatureSplit>& splits, const std::vector<LandmarkMerge>& merges);
+  // The conditional mean of landmarks a and b given that they are one point.
+  absl::StatusOr<Eigen::Vector2d> MergedPosition(int a, int b) const;
   // Association of `s` (starting at anchor `start`) with the map, timed and counted.
   SubmapAssociation AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
   Eigen::VectorXd StateVector() const;

@@ -45,6 +45,11 @@ struct JoinerCounters {
   // (the joiner restored to the state it was made in), not a second search.
   long associations_replayed = 0;
   long rejected_joins = 0;    // failed validation: joined again without associations
+  // Revisions of the association (landmark_revision.h): passes run, landmarks merged into
+  // another, features split off to a landmark of their own.
+  long revision_passes = 0;
+  long landmarks_merged = 0;
+  long features_split = 0;
   // EIF factor maintenance: joins absorbed by an incremental update of the factor, full
   // factorisations (of them, those that reused the last symbolic analysis: the same
   // pattern, as in Gauss-Newton iterations; those ordered by nested dissection), and
@@ -77,6 +82,9 @@ struct JoinerCounters {
     loop_closures_unconfirmed += o.loop_closures_unconfirmed;
     associations_replayed += o.associations_replayed;
     rejected_joins += o.rejected_joins;
+    revision_passes += o.revision_passes;
+    landmarks_merged += o.landmarks_merged;
+    features_split += o.features_split;
     incremental_updates += o.incremental_updates;
     full_factorizations += o.full_factorizations;
     nested_dissection_factorizations += o.nested_dissection_factorizations;
@@ -131,6 +139,21 @@ class MapJoiner {
   virtual const JoinerCounters& counters() const = 0;
   // What association keeps per landmark (signatures, truth ids).
   virtual const SubmapAssociator& associator() const = 0;
+
+  // Revisable association (landmark_revision.h). ReviseAssociation runs one pass: the
+  // merge and split tests on the current estimate, their decisions applied and the
+  // estimate solved again; joiners run it on their own schedule too. MergeLandmarks and
+  // SplitFeature apply one decision asked for from outside (tools, tests): errors for
+  // unknown landmarks, factors or features, for a pair one local map holds as distinct,
+  // and for a landmark with a single feature (nothing to split from). A joiner that
+  // cannot revise (it keeps no factors to re-key) answers Unimplemented.
+  virtual absl::Status ReviseAssociation() { return absl::OkStatus(); }
+  virtual absl::Status MergeLandmarks(int /*keep*/, int /*drop*/) {
+    return absl::UnimplementedError(Name() + " cannot merge landmarks");
+  }
+  virtual absl::Status SplitFeature(int /*factor*/, int /*feature*/) {
+    return absl::UnimplementedError(Name() + " cannot split features");
+  }
 
   // Tree joining (backend/tree_joiner.h). A joiner that supports it returns an empty
   // joiner of its kind and options whose anchor 0 is `initial_pose`, a deep copy, and

@@ -147,6 +147,12 @@ class SubmapAssociator {
   void Record(const LocalSubmap& submap, const std::vector<int>& landmark_of_feature,
               int first_new_landmark, bool define_truth);
 
+  // Follow a revision of the graph's association (landmark_revision.h): landmark `drop`
+  // merged into `keep` (landmarks after `drop` move down by one); or a feature with
+  // `signature` (NaN: none) moved from landmark `from` to the new landmark `to`.
+  void MergeLandmarks(int keep, int drop);
+  void SplitFeature(int from, int to, double signature);
+
   // Mean signature of the features joined to `landmark` (NaN: none had one).
   double MeanSignature(int landmark) const;
   // The truth id each of the first `num_landmarks` landmarks was defined by (−1: none).

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/pose2.h"
 
@@ -37,6 +38,21 @@ class SubmapGraph {
     return static_cast<int>(landmarks_.size()) - 1;
   }
   void AddFactor(SubmapFactor factor) { factors_.push_back(std::move(factor)); }
+
+  // Revision of the association table (backend/landmark_revision.h decides when).
+  // MergeLandmarks: every feature of landmark `drop` becomes a feature of `keep`, whose
+  // position becomes `position`; `drop` is erased and the landmarks after it move down
+  // by one. Errors: an unknown or equal pair, or a pair that one local map holds as two
+  // distinct features (nothing is changed then).
+  absl::Status MergeLandmarks(int keep, int drop, const Eigen::Vector2d& position);
+  // SplitFeature: feature `feature` of factor `factor` leaves its landmark for a new one
+  // at `position` (appended; its index is returned). Errors: an unknown factor or
+  // feature, or a landmark that has no other feature (nothing to split from).
+  absl::StatusOr<int> SplitFeature(int factor, int feature, const Eigen::Vector2d& position);
+  // How many features (over all factors) each landmark has.
+  std::vector<int> FeatureCounts() const;
+  // Whether some factor holds both landmarks as features.
+  bool CoObserved(int a, int b) const;
 
   int num_anchors() const { return static_cast<int>(anchors_.size()); }
   int num_landmarks() const { return static_cast<int>(landmarks_.size()); }

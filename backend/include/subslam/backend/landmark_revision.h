@@ -1,0 +1,97 @@
+// Revisable association: the information form keeps every local map's factor, so an
+// association decided at join time need not be final. Two revisions, decided on the
+// current estimate and its exact marginals, shared by every back-end:
+//
+//  - merge: two global landmarks a, b are one point when the χ² test of their difference
+//    Δ = L_a − L_b against zero, with the difference's covariance from their joint
+//    marginal (Σ_aa + Σ_bb − Σ_ab − Σ_ba), accepts at `merge_probability` (2 dof); no
+//    local map holds both as distinct features (one sensor sweep saw two points); each is
+//    the other's best partner (smallest d²); and the pair is unambiguous: neither has
+//    another partner that a local map holds apart from the first (then it could be
+//    either of two distinct points: a shifted loop closure on a lattice, say). Copies of
+//    one point never held apart collapse pair by pair over passes.
+//    The merged position is the conditional mean of L_a given Δ = 0. (Also, with
+//    merge_unresolved, a pair closer than any one local map could resolve.)
+//  - split: a feature i of a local map leaves its landmark j (for a landmark of its own)
+//    when its residual r = P_s⁻¹·L_j − l_i fails the outlier test: rᵀ C⁻¹ r with
+//    C = Q_ii − J Σ Jᵀ, the residual's covariance in the linear-Gaussian model (Q_ii the
+//    feature's covariance in its local map, Σ the marginal of [P_s, L_j], J the
+//    prediction's Jacobian), above the χ²₂ quantile at a family-wise level: with m
+//    features tested, each at 1 − (1 − split_probability)/m (Bonferroni), so a consistent
+//    map loses no feature by chance in a pass with probability split_probability. Only
+//    landmarks with two or more features are tested. One gross error distorts the whole
+//    estimate, so a pass splits only the worst feature; the next pass tests again on the
+//    estimate solved without it.
+//
+// The split level is stricter than the merge level per test, so a feature split off is
+// not merged back at once on the same evidence (hysteresis).
+#ifndef SUBSLAM_BACKEND_LANDMARK_REVISION_H_
+#define SUBSLAM_BACKEND_LANDMARK_REVISION_H_
+
+#include <Eigen/Core>
+#include <functional>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "subslam/graph/submap_graph.h"
+
+namespace subslam::backend {
+
+struct LandmarkRevisionOptions {
+  bool merge = true;
+  double merge_probability = 0.99;  // χ²₂ acceptance of "the same point"
+  // Also merge a pair that no single local map could tell apart: Δᵀ (Q̃_a + Q̃_b)⁻¹ Δ
+  // below the same gate, Q̃ each landmark's most precise feature covariance (in the world
+  // frame). Each landmark fixed by many local maps has a marginal far tighter than any
+  // one map's feature, and the maps' small shared errors then separate two estimates of
+  // one point statistically (on hybrid-120m, pairs 3-9 cm apart at d² 12-42) although no
+  // sensor sweep ever resolved two points there. The same conditions hold (never in one
+  // local map together, each the other's only partner).
+  bool merge_unresolved = true;
+  bool split = true;
+  double split_probability = 0.99;  // family-wise, over the features tested in a pass
+  // A revision pass runs after every relinearisation that follows a join, at the end,
+  // after a whole-map (tree) join, and every `every_joins` joins (0: not on a schedule).
+  int every_joins = 10;
+
+  bool enabled() const { return merge || split; }
+  absl::Status Validate() const;
+};
+
+struct LandmarkMerge {
+  int keep = 0;  // the lower index
+  int drop = 0;  // the higher index (erased)
+  double d2 = 0.0;
+  Eigen::Vector2d position = Eigen::Vector2d::Zero();  // the merged landmark's
+};
+
+struct FeatureSplit {
+  int factor = 0;   // index into the graph's factors
+  int feature = 0;  // feature of that factor's local map
+  double d2 = 0.0;
+};
+
+// Joint marginal covariance [L_a, L_b] (4 × 4).
+using LandmarkPairCovarianceFn = std::function<Eigen::Matrix4d(int a, int b)>;
+// For each landmark, the 5 × 5 marginal of [anchor, landmark] (a fixed anchor: zero rows).
+using AnchorLandmarkCovarianceFn =
+    std::function<std::vector<Eigen::Matrix<double, 5, 5>>(int anchor, const std::vector<int>& landmarks)>;
+
+// The merges the test accepts on `graph`'s current estimate, disjoint, ordered by `drop`
+// descending (so that applying them in order keeps the later indices valid).
+// `marginals` holds every landmark's marginal covariance (for the pre-filter: a pair
+// farther apart than √gate · (σ_a + σ_b), σ the largest standard deviation, cannot pass).
+std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
+                                              const std::vector<Eigen::Matrix2d>& marginals,
+                                              const LandmarkPairCovarianceFn& pair_covariance,
+                                              const LandmarkRevisionOptions& options);
+
+// The worst feature whose residual fails the outlier test (empty: none fails), of a
+// landmark that keeps at least one other feature.
+std::vector<FeatureSplit> FindFeatureSplits(const SubmapGraph& graph,
+                                            const AnchorLandmarkCovarianceFn& anchor_landmark_covariance,
+                                            const LandmarkRevisionOptions& options);
+
+}  // namespace subslam::backend
+
+#endif  // SUBSLAM_BACKEND_LANDMARK_REVISION_H_

@@ -1,0 +1,195 @@
+#include "subslam/backend/landmark_revision.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "subslam/models/gating.h"
+
+namespace subslam::backend {
+
+absl::Status LandmarkRevisionOptions::Validate() const {
+  if (!(merge_probability > 0 && merge_probability < 1)) {
+    return absl::InvalidArgumentError("merge_probability must be in (0, 1)");
+  }
+  if (!(split_probability > 0 && split_probability < 1)) {
+    return absl::InvalidArgumentError("split_probability must be in (0, 1)");
+  }
+  if (every_joins < 0) return absl::InvalidArgumentError("every_joins must be >= 0");
+  return absl::OkStatus();
+}
+
+namespace {
+
+// For each landmark, the factors holding it as a feature, ascending.
+std::vector<std::vector<int>> FactorsOfLandmarks(const SubmapGraph& graph) {
+  std::vector<std::vector<int>> out(graph.num_landmarks());
+  for (int f = 0; f < static_cast<int>(graph.factors().size()); ++f) {
+    for (int j : graph.factors()[f].landmark_of_feature) {
+      if (out[j].empty() || out[j].back() != f) out[j].push_back(f);
+    }
+  }
+  return out;
+}
+
+bool Intersect(const std::vector<int>& a, const std::vector<int>& b) {
+  size_t i = 0, k = 0;
+  while (i < a.size() && k < b.size()) {
+    if (a[i] == b[k]) return true;
+    if (a[i] < b[k]) ++i; else ++k;
+  }
+  return false;
+}
+
+double LargestSigma(const Eigen::Matrix2d& m) {
+  const double largest = 0.5 * (m(0, 0) + m(1, 1)) + std::hypot(0.5 * (m(0, 0) - m(1, 1)), m(0, 1));
+  return std::sqrt(std::max(0.0, largest));
+}
+
+}  // namespace
+
+std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
+                                              const std::vector<Eigen::Matrix2d>& marginals,
+                                              const LandmarkPairCovarianceFn& pair_covariance,
+                                              const LandmarkRevisionOptions& options) {
+  const int n = graph.num_landmarks();
+  std::vector<LandmarkMerge> out;
+  if (!options.merge || n < 2) return out;
+  const double gate = models::ChiSquareQuantile(options.merge_probability, 2);
+  const double root_gate = std::sqrt(gate);
+  const std::vector<std::vector<int>> factors_of = FactorsOfLandmarks(graph);
+  // Each landmark's most precise single feature, in the world frame (smallest trace).
+  std::vector<Eigen::Matrix2d> finest(n, Eigen::Matrix2d::Constant(INFINITY));
+  for (const SubmapFactor& f : graph.factors()) {
+    const Eigen::Matrix2d R = graph.anchors()[f.start_anchor].rotation();
+    for (int i = 0; i < static_cast<int>(f.landmark_of_feature.size()); ++i) {
+      const int j = f.landmark_of_feature[i];
+      const Eigen::Matrix2d Q = R * f.submap.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i) * R.transpose();
+      if (!(Q.trace() >= finest[j].trace())) finest[j] = Q;
+    }
+  }
+  const bool resolution = options.merge_unresolved;
+  // Per landmark, the largest standard deviation that either test can use (the
+  // marginal's, and the finest feature's for the resolution test).
+  std::vector<double> sigma(n);
+  double sigma_max = 0.0;
+  for (int j = 0; j < n; ++j) {
+    sigma[j] = marginals[j].allFinite() ? LargestSigma(marginals[j]) : INFINITY;
+    if (resolution && finest[j].allFinite()) sigma[j] = std::max(sigma[j], LargestSigma(finest[j]));
+    sigma_max = std::max(sigma_max, sigma[j]);
+  }
+  std::vector<int> by_x(n);
+  std::iota(by_x.begin(), by_x.end(), 0);
+  const auto& L = graph.landmarks();
+  std::sort(by_x.begin(), by_x.end(), [&](int a, int b) { return L[a].x() < L[b].x() || (L[a].x() == L[b].x() && a < b); });
+  // Pairs that pass a test: along any direction u, uᵀ Cov(Δ) u ≤ (σ_a + σ_b)² (and
+  // uᵀ (Q̃_a + Q̃_b) u ≤ σ̃_a² + σ̃_b²), so |Δ|² / (σ_a + σ_b)² bounds d² from below and
+  // the pre-filter loses no such pair.
+  std::vector<LandmarkMerge> passing;
+  for (int p = 0; p < n; ++p) {
+    const int a = by_x[p];
+    for (int q = p + 1; q < n; ++q) {
+      const int b = by_x[q];
+      if (L[b].x() - L[a].x() > root_gate * (sigma[a] + sigma_max)) break;
+      const Eigen::Vector2d delta = L[a] - L[b];
+      if (delta.norm() > root_gate * (sigma[a] + sigma[b])) continue;
+      if (Intersect(factors_of[a], factors_of[b])) continue;
+      const Eigen::Matrix4d S = pair_covariance(a, b);
+      const Eigen::Matrix2d C = S.topLeftCorner<2, 2>() + S.bottomRightCorner<2, 2>() - S.topRightCorner<2, 2>() -
+                                S.bottomLeftCorner<2, 2>();
+      const Eigen::LLT<Eigen::Matrix2d> llt(C);
+      if (llt.info() != Eigen::Success) continue;
+      const double d2 = delta.dot(llt.solve(delta));
+      double d2_res = INFINITY;
+      if (resolution) {
+        const Eigen::LLT<Eigen::Matrix2d> single(finest[a] + finest[b]);
+        if (single.info() == Eigen::Success) d2_res = delta.dot(single.solve(delta));
+      }
+      if (!(d2 < gate) && !(d2_res < gate)) continue;
+      // The conditional mean of L_a given Δ = 0: L_a − Cov(L_a, Δ) C⁻¹ Δ.
+      const Eigen::Matrix2d cov_a_delta = S.topLeftCorner<2, 2>() - S.topRightCorner<2, 2>();
+      LandmarkMerge m{std::min(a, b), std::max(a, b), d2, L[a] - cov_a_delta * llt.solve(delta)};
+      passing.push_back(m);
+    }
+  }
+  // Each landmark's compatible partners; a pair is merged when each is the other's best
+  // (smallest d²) and neither has another partner that one local map holds apart from
+  // the first: then the landmark could be either of two distinct points (ambiguous). A
+  // cluster of copies of one point (never held apart) collapses pair by pair over passes.
+  std::vector<std::vector<int>> partners_of(n);
+  std::vector<int> best(n, -1);
+  for (int p = 0; p < static_cast<int>(passing.size()); ++p) {
+    for (int j : {passing[p].keep, passing[p].drop}) {
+      partners_of[j].push_back(j == passing[p].keep ? passing[p].drop : passing[p].keep);
+      if (best[j] < 0 || passing[p].d2 < passing[best[j]].d2) best[j] = p;
+    }
+  }
+  const auto ambiguous = [&](int j, int other) {
+    for (int c : partners_of[j]) {
+      if (c != other && Intersect(factors_of[c], factors_of[other])) return true;
+    }
+    return false;
+  };
+  for (int p = 0; p < static_cast<int>(passing.size()); ++p) {
+    const LandmarkMerge& m = passing[p];
+    if (best[m.keep] != p || best[m.drop] != p) continue;
+    if (ambiguous(m.keep, m.drop) || ambiguous(m.drop, m.keep)) continue;
+    out.push_back(m);
+  }
+  std::sort(out.begin(), out.end(), [](const LandmarkMerge& x, const LandmarkMerge& y) { return x.drop > y.drop; });
+  return out;
+}
+
+std::vector<FeatureSplit> FindFeatureSplits(const SubmapGraph& graph,
+                                            const AnchorLandmarkCovarianceFn& anchor_landmark_covariance,
+                                            const LandmarkRevisionOptions& options) {
+  std::vector<FeatureSplit> out;
+  if (!options.split) return out;
+  const std::vector<int> counts = graph.FeatureCounts();
+  std::vector<FeatureSplit> tested;
+  for (int f = 0; f < static_cast<int>(graph.factors().size()); ++f) {
+    const SubmapFactor& factor = graph.factors()[f];
+    std::vector<int> features, landmarks;
+    for (int i = 0; i < static_cast<int>(factor.landmark_of_feature.size()); ++i) {
+      const int j = factor.landmark_of_feature[i];
+      if (counts[j] < 2) continue;
+      features.push_back(i);
+      landmarks.push_back(j);
+    }
+    if (features.empty()) continue;
+    const std::vector<Eigen::Matrix<double, 5, 5>> sigma = anchor_landmark_covariance(factor.start_anchor, landmarks);
+    const Pose2& P_s = graph.anchors()[factor.start_anchor];
+    for (size_t c = 0; c < features.size(); ++c) {
+      const int i = features[c];
+      Matrix23d J_frame;
+      Eigen::Matrix2d J_point;
+      const Eigen::Vector2d r = TransformTo(P_s, graph.landmarks()[landmarks[c]], &J_frame, &J_point) -
+                                factor.submap.landmark(i);
+      Eigen::Matrix<double, 2, 5> J;
+      J << J_frame, J_point;
+      const Eigen::Matrix2d C =
+          factor.submap.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i) - J * sigma[c] * J.transpose();
+      const Eigen::LLT<Eigen::Matrix2d> llt(C);
+      // A residual covariance that is not positive definite: the feature alone fixes its
+      // landmark (nothing to test it against).
+      const double d2 = llt.info() == Eigen::Success ? r.dot(llt.solve(r)) : 0.0;
+      tested.push_back({f, i, d2});
+    }
+  }
+  if (tested.empty()) return out;
+  const double level = 1.0 - (1.0 - options.split_probability) / static_cast<double>(tested.size());
+  const double bound = models::ChiSquareQuantile(level, 2);
+  // One gross error pulls the whole estimate and the residuals around it: only the worst
+  // feature is split off in a pass, and the rest tested again after the estimate is
+  // solved without it (iterated outlier removal).
+  int worst = -1;
+  for (int t = 0; t < static_cast<int>(tested.size()); ++t) {
+    if (tested[t].d2 > bound && (worst < 0 || tested[t].d2 > tested[worst].d2)) worst = t;
+  }
+  if (worst >= 0) out.push_back(tested[worst]);
+  return out;
+}
+
+}  // namespace subslam::backend
