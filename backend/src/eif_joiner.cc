@@ -74,6 +74,7 @@ EifJoinerOptions EifJoinerOptions::SingleLinearization() const {
   o.relinearize_linearization_chi2 = 0.0;
   o.relinearize_every = 0;
   o.relinearize_at_end = false;
+  o.revision.merge = o.revision.split = false;  // a revision relinearises every factor
   return o;
 }
 

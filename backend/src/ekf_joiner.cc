@@ -14,7 +14,10 @@
 namespace subslam::backend {
 using frontend::StageTimer;
 
-absl::Status EkfJoinerOptions::Validate() const { return association.Validate(); }
+absl::Status EkfJoinerOptions::Validate() const {
+  if (absl::Status st = association.Validate(); !st.ok()) return st;
+  return revision.Validate();
+}
 
 EkfJoiner::EkfJoiner(const Pose2& initial_pose, const EkfJoinerOptions& options)
     : options_(options), graph_(initial_pose), associator_(options.association) {
@@ -234,8 +237,15 @@ absl::Status EkfJoiner::Join(const LocalSubmap& s) {
                                                    " before the previous one ended (", last_t_end_, ")"));
   }
   const int start = graph_.num_anchors() - 1;
+  if (absl::Status st = JoinAssociated(s, AssociateAt(s, start, /*anchor_prefilter=*/true)); !st.ok()) return st;
+  const int every = options_.revision.every_joins;
+  if (every > 0 && counters_.joins % every == 0) return ReviseAssociation();
+  return absl::OkStatus();
+}
+
+absl::Status EkfJoiner::JoinAssociated(const LocalSubmap& s, std::vector<int> assoc) {
+  const int start = graph_.num_anchors() - 1;
   const int n = s.num_landmarks();
-  std::vector<int> assoc = AssociateAt(s, start, /*anchor_prefilter=*/true);
   std::vector<char> matched(n, 0);
   std::vector<int> features;  // in the order they are augmented
   for (int i = 0; i < n; ++i) {
@@ -298,6 +308,109 @@ absl::Status EkfJoiner::Join(const LocalSubmap& s) {
   last_association_ = assoc;
   last_t_end_ = s.t_end;
   ++counters_.joins;
+  return absl::OkStatus();
+}
+
+absl::Status EkfJoiner::Finish() {
+  constexpr int kMaxFinalPasses = 50;
+  for (int pass = 0; pass < kMaxFinalPasses; ++pass) {
+    const long before = counters_.landmarks_merged + counters_.features_split;
+    if (absl::Status st = ReviseAssociation(); !st.ok()) return st;
+    if (counters_.landmarks_merged + counters_.features_split == before) break;
+  }
+  return absl::OkStatus();
+}
+
+absl::Status EkfJoiner::ReviseAssociation() {
+  if (!options_.revision.enabled() || options_.association.known_association || graph_.factors().empty()) {
+    return absl::OkStatus();
+  }
+  StageTimer timer(&times_, "revision");
+  ++counters_.revision_passes;
+  const std::vector<FeatureSplit> splits = FindFeatureSplits(
+      graph_,
+      [this](int anchor, const std::vector<int>& landmarks) {
+        const Eigen::MatrixXd S = JointCovariance({anchor}, landmarks);
+        std::vector<Matrix5d> out(landmarks.size());
+        for (size_t c = 0; c < landmarks.size(); ++c) {
+          const std::vector<int> rows = {0, 1, 2, 3 + 2 * static_cast<int>(c), 4 + 2 * static_cast<int>(c)};
+          out[c] = S(rows, rows);
+        }
+        return out;
+      },
+      options_.revision);
+  // A split joins everything again: the merges are tested on the next pass.
+  if (!splits.empty()) return SplitFeature(splits[0].factor, splits[0].feature);
+  std::vector<Eigen::Matrix2d> marginals(graph_.num_landmarks());
+  for (int j = 0; j < graph_.num_landmarks(); ++j) marginals[j] = P_.block<2, 2>(landmark_offset_[j], landmark_offset_[j]);
+  const std::vector<LandmarkMerge> merges = FindLandmarkMerges(
+      graph_, marginals, [this](int a, int b) -> Eigen::Matrix4d { return JointCovariance({}, {a, b}); },
+      options_.revision);
+  for (const LandmarkMerge& m : merges) {  // drop descending: later indices stay valid
+    if (absl::Status st = MergeLandmarks(m.keep, m.drop); !st.ok()) return st;
+  }
+  return absl::OkStatus();
+}
+
+absl::Status EkfJoiner::MergeLandmarks(int keep, int drop) {
+  const int n = graph_.num_landmarks();
+  if (keep < 0 || keep >= n || drop < 0 || drop >= n || keep == drop) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("merge of landmarks ", keep, " and ", drop, ": the map has landmarks 0-", n - 1));
+  }
+  if (keep > drop) std::swap(keep, drop);
+  if (graph_.CoObserved(keep, drop)) {
+    return absl::InvalidArgumentError(absl::StrCat("merge of landmarks ", keep, " and ", drop,
+                                                   ": one local map holds them as distinct features"));
+  }
+  // L_drop = L_keep as a zero-noise constraint, then L_drop dropped.
+  const int o_drop = landmark_offset_[drop];
+  FuseZeroNoise({{o_drop, landmark_offset_[keep]}});
+  DropVariable(o_drop, 2);
+  landmark_offset_.erase(landmark_offset_.begin() + drop);
+  if (!x_.allFinite() || !P_.allFinite()) return absl::InternalError("EKF merge produced a non-finite value");
+  if (absl::Status st = graph_.MergeLandmarks(keep, drop, x_.segment<2>(landmark_offset_[keep])); !st.ok()) return st;
+  associator_.MergeLandmarks(keep, drop);
+  for (int& j : last_association_) {
+    if (j == drop) j = keep;
+    if (j > drop) --j;
+  }
+  WriteBack();
+  ++counters_.landmarks_merged;
+  return absl::OkStatus();
+}
+
+absl::Status EkfJoiner::SplitFeature(int factor, int feature) {
+  if (factor < 0 || factor >= static_cast<int>(graph_.factors().size())) {
+    return absl::InvalidArgumentError(absl::StrCat("split: no factor ", factor));
+  }
+  const SubmapFactor& record = graph_.factors()[factor];
+  if (feature < 0 || feature >= record.submap.num_landmarks()) {
+    return absl::InvalidArgumentError(absl::StrCat("split: factor ", factor, " has no feature ", feature));
+  }
+  const Eigen::Vector2d position = TransformFrom(graph_.anchors()[record.start_anchor], record.submap.landmark(feature));
+  if (absl::StatusOr<int> st = graph_.SplitFeature(factor, feature, position); !st.ok()) return st.status();
+  ++counters_.features_split;
+  return Replay();
+}
+
+absl::Status EkfJoiner::Replay() {
+  EkfJoiner fresh(graph_.anchors()[0], options_);
+  std::vector<int> new_of_old(graph_.num_landmarks(), -1);
+  for (const SubmapFactor& f : graph_.factors()) {
+    std::vector<int> assoc;
+    for (int j : f.landmark_of_feature) assoc.push_back(new_of_old[j]);
+    if (absl::Status st = fresh.JoinAssociated(f.submap, assoc); !st.ok()) return st;
+    for (size_t i = 0; i < assoc.size(); ++i) new_of_old[f.landmark_of_feature[i]] = fresh.last_association_[i];
+  }
+  for (int& j : last_association_) j = new_of_old[j];
+  graph_ = std::move(fresh.graph_);
+  associator_ = std::move(fresh.associator_);
+  x_ = std::move(fresh.x_);
+  P_ = std::move(fresh.P_);
+  anchor_offset_ = std::move(fresh.anchor_offset_);
+  landmark_offset_ = std::move(fresh.landmark_offset_);
+  frozen_covariance_ = std::move(fresh.frozen_covariance_);
   return absl::OkStatus();
 }
 
@@ -379,7 +492,7 @@ absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
   counters_.new_landmarks -= matched;
   for (const auto& [stage, seconds] : right.times_) times_[stage] += seconds;
   last_t_end_ = right.last_t_end_;
-  return absl::OkStatus();
+  return ReviseAssociation();
 }
 
 }  // namespace subslam::backend

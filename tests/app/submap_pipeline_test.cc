@@ -262,7 +262,8 @@ TEST(SubmapPipeline, CeresSolveAfterTheEif) {
   EXPECT_GT(ceres->report["estimator_counters"]["ceres_iterations"].get<double>(), 0);
   EXPECT_LE(ceres->report["estimator_counters"]["ceres_final_cost"].get<double>(),
             ceres->report["estimator_counters"]["ceres_initial_cost"].get<double>());
-  EXPECT_LE(ceres->errors->rms_position_m, eif->errors->rms_position_m);
+  // (A revision of the association at the end solves the EIF again, to convergence.)
+  EXPECT_LE(ceres->errors->rms_position_m, eif->errors->rms_position_m * (1.0 + 1e-6));
   EXPECT_NEAR(converged->errors->rms_position_m, ceres->errors->rms_position_m, 1e-3);
   EXPECT_GT(converged->report["estimator_counters"]["join_relinearizations"].get<double>(),
             eif->report["estimator_counters"]["join_relinearizations"].get<double>());

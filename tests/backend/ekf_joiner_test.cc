@@ -135,8 +135,12 @@ TEST(EkfJoiner, DroppingAnchorsKeepsTheMapAndTheCurrentAnchor) {
 TEST(EkfJoiner, AssociatesLikeTheEif) {
   for (uint64_t seed : {11, 12}) {
     const SyntheticRun run = MakeRun(seed);
-    EifJoiner eif(run.anchors[0], {});
+    // The decisions at join time (the joiners revise them on schedules of their own).
+    EifJoinerOptions eif_options;
+    eif_options.revision.merge = eif_options.revision.split = false;
+    EifJoiner eif(run.anchors[0], eif_options);
     EkfJoinerOptions o;
+    o.revision = eif_options.revision;
     o.fusion = EkfFusion::kConditionalUpdate;
     EkfJoiner ekf(run.anchors[0], o);
     for (const LocalSubmap& s : run.submaps) {

@@ -11,6 +11,7 @@
 #include <set>
 
 #include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/ekf_joiner.h"
 #include "subslam/backend/tree_joiner.h"
 #include "synthetic_run.h"
 
@@ -240,6 +241,92 @@ TEST(LandmarkRevision, BadRequestsGetAClearErrorAndChangeNothing) {
   EXPECT_FALSE(g.MergeLandmarks(first[0], first[1], Eigen::Vector2d::Zero()).ok());
   EXPECT_FALSE(g.SplitFeature(0, 0, Eigen::Vector2d(NAN, 0)).ok());
   EXPECT_EQ(g.num_landmarks(), n);
+}
+
+// The dense EKF joiner: a merge is a zero-noise constraint (the same fusion as a join's),
+// a split joins every map again with the revised association.
+EkfJoinerOptions KnownAssociationEkf() {
+  EkfJoinerOptions o;
+  o.association.known_association = true;
+  return o;
+}
+
+void JoinAll(EkfJoiner* ekf, const std::vector<LocalSubmap>& maps) {
+  for (const LocalSubmap& s : maps) ASSERT_TRUE(ekf->Join(s).ok());
+  ASSERT_TRUE(ekf->Finish().ok());
+}
+
+TEST(LandmarkRevision, AnEkfMergeIsTheFusionOfAJoin) {
+  const SyntheticRun run = MakeRun(23);
+  EkfJoiner reference(run.anchors[0], KnownAssociationEkf());
+  JoinAll(&reference, run.submaps);
+  std::vector<LocalSubmap> maps = run.submaps;
+  const int truth = *maps[kMap].landmarks[kFeature].truth_id;
+  maps[kMap].landmarks[kFeature].truth_id = -1;
+  EkfJoiner ekf(run.anchors[0], KnownAssociationEkf());
+  JoinAll(&ekf, maps);
+  ASSERT_EQ(ekf.num_landmarks(), reference.num_landmarks() + 1);
+  const int duplicate = ekf.graph().factors()[kMap].landmark_of_feature[kFeature];
+  int original = -1;
+  const std::vector<int> ids = reference.associator().TruthIds(reference.num_landmarks());
+  for (int j = 0; j < static_cast<int>(ids.size()); ++j) original = ids[j] == truth ? j : original;
+  ASSERT_GE(original, 0);
+  ASSERT_TRUE(ekf.MergeLandmarks(original, duplicate).ok());
+  ASSERT_EQ(ekf.num_landmarks(), reference.num_landmarks());
+  EXPECT_EQ(ekf.graph().factors()[kMap].landmark_of_feature, reference.graph().factors()[kMap].landmark_of_feature);
+  // The same information, fused at another linearisation point: equal to a small
+  // fraction of the estimate's own uncertainty.
+  for (int j = 0; j < reference.num_landmarks(); ++j) {
+    const double sigma = std::sqrt(reference.LandmarkCovariance(j).trace());
+    EXPECT_LT((ekf.landmark(j) - reference.landmark(j)).norm(), 0.05 * sigma) << "landmark " << j;
+  }
+  EXPECT_LT((ekf.LandmarkCovariance(original) - reference.LandmarkCovariance(original)).norm(),
+            0.05 * reference.LandmarkCovariance(original).norm());
+}
+
+TEST(LandmarkRevision, AnEkfSplitIsTheJoinOfANewLandmarkFromTheStart) {
+  const SyntheticRun run = MakeRun(24);
+  std::vector<LocalSubmap> maps = run.submaps;
+  maps[kMap].landmarks[kFeature].truth_id = -1;
+  EkfJoiner reference(run.anchors[0], KnownAssociationEkf());
+  JoinAll(&reference, maps);
+  EkfJoiner ekf(run.anchors[0], KnownAssociationEkf());
+  JoinAll(&ekf, run.submaps);
+  ASSERT_TRUE(ekf.SplitFeature(kMap, kFeature).ok());
+  EXPECT_EQ(ekf.counters().features_split, 1);
+  // Joined again in the same order with the same association: the same state.
+  ASSERT_EQ(ekf.num_landmarks(), reference.num_landmarks());
+  EXPECT_EQ(StackedEstimate(ekf), StackedEstimate(reference));
+  EXPECT_EQ(ekf.covariance(), reference.covariance());
+  EXPECT_EQ(ekf.last_association(), reference.last_association());
+}
+
+TEST(LandmarkRevision, TheEkfJoinerMergesTheDuplicatesOfAStrictJoinGate) {
+  const SyntheticRun run = MakeRun(62, 15);
+  EkfJoinerOptions strict;
+  strict.association.gate_probability = 0.05;
+  EkfJoinerOptions no_revision = strict;
+  no_revision.revision.merge = no_revision.revision.split = false;
+  EkfJoiner before(run.anchors[0], no_revision), ekf(run.anchors[0], strict);
+  JoinAll(&before, run.submaps);
+  JoinAll(&ekf, run.submaps);
+  const TruthCount b = CountByTruth(before.graph()), a = CountByTruth(ekf.graph());
+  EXPECT_EQ(a.mixed, 0);
+  EXPECT_GT(b.landmarks - b.truths, 10);
+  EXPECT_LE(a.landmarks - a.truths, 2);
+}
+
+TEST(LandmarkRevision, BadEkfRequestsGetAClearError) {
+  const SyntheticRun run = MakeRun(72);
+  EkfJoiner ekf(run.anchors[0], KnownAssociationEkf());
+  JoinAll(&ekf, run.submaps);
+  const int n = ekf.num_landmarks();
+  const std::vector<int>& first = ekf.graph().factors()[0].landmark_of_feature;
+  EXPECT_EQ(ekf.MergeLandmarks(0, n).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ekf.MergeLandmarks(first[0], first[1]).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ekf.SplitFeature(99, 0).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ekf.SplitFeature(0, 99).code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(ekf.num_landmarks(), n);
 }
 
 TEST(LandmarkRevision, OptionsAreValidated) {

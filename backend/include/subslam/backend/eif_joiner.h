@@ -198,7 +198,8 @@ struct EifJoinerOptions {
   // relinearize_heading_change > 0).
   bool RelinearizesAfterJoins() const;
   // These options with every relinearisation off (both triggers, the schedule and the
-  // one at the end): the single-linearisation EIF of paper 000.
+  // one at the end) and no association revision (it relinearises every factor): the
+  // single-linearisation EIF of paper 000.
   EifJoinerOptions SingleLinearization() const;
 };
 

@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/backend/landmark_revision.h"
 #include "subslam/backend/map_joiner.h"
 #include "subslam/backend/submap_association.h"
 
@@ -53,6 +54,12 @@ struct EkfJoinerOptions {
   // false: marginalise each start anchor out once its local map is joined (the papers'
   // baseline); true: keep every anchor (the final trajectory then follows loop closures).
   bool keep_anchors = true;
+  // Revisable association (landmark_revision.h): tested every revision.every_joins
+  // joins, after a whole-map join and at the end. A merge is a zero-noise constraint
+  // between the two landmarks (the copy dropped); a split, which the covariance form
+  // cannot undo in place, joins every local map again from the first with the revised
+  // association. Not under known association.
+  LandmarkRevisionOptions revision;
 
   absl::Status Validate() const;
 };
@@ -63,7 +70,11 @@ class EkfJoiner final : public MapJoiner {
 
   std::string Name() const override { return "ekf"; }
   absl::Status Join(const LocalSubmap& submap) override;
-  absl::Status Finish() override { return absl::OkStatus(); }
+  // Revision passes until one changes nothing.
+  absl::Status Finish() override;
+  absl::Status ReviseAssociation() override;
+  absl::Status MergeLandmarks(int keep, int drop) override;
+  absl::Status SplitFeature(int factor, int feature) override;
   const SubmapGraph& graph() const override { return graph_; }
   // Blocks of the dense covariance; an anchor marginalised out (keep_anchors false) has
   // its covariance frozen when it was dropped and zero cross-covariance.
@@ -103,6 +114,11 @@ class EkfJoiner final : public MapJoiner {
                                const std::vector<char>& matched);
   // Association of `s` (starting at anchor `start`) with the map, timed and counted.
   std::vector<int> AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
+  // Join with the given association (−1: a new landmark).
+  absl::Status JoinAssociated(const LocalSubmap& s, std::vector<int> assoc);
+  // Every local map of the graph joined again, from an empty map, with the graph's
+  // association (landmarks renumbered in order of creation); counters and times kept.
+  absl::Status Replay();
   // P −= W Wᵀ, kept symmetric.
   void SubtractOuter(const Eigen::MatrixXd& W);
   void DropVariable(int offset, int size);
