@@ -48,6 +48,7 @@ inline nlohmann::json LabelledMapErrorsJson(const eval::LabelledMapErrors& m) {
 
 inline nlohmann::json GpsJson(const eval::GpsComparison& g) {
   return {{"matched_fixes", g.matched_fixes},
+          {"rejected_fixes", g.rejected_fixes},
           {"aligned_rms_m", g.rms_m},
           {"aligned_rms_x_m", g.rms_x_m},
           {"aligned_rms_y_m", g.rms_y_m},

@@ -462,10 +462,10 @@ std::string SummaryTable(const RunResult& r) {
                         r.map_errors->duplicates, r.map_errors->rms_m));
   }
   if (r.gps_final) {
-    row("aligned RMS vs GPS (final)", absl::StrFormat("%.2f m (x %.2f, y %.2f; %d fixes)",
-                                                      r.gps_final->rms_m, r.gps_final->rms_x_m,
-                                                      r.gps_final->rms_y_m,
-                                                      r.gps_final->matched_fixes));
+    row("aligned RMS vs GPS (final)",
+        absl::StrFormat("%.2f m (x %.2f, y %.2f; %d fixes, %d gross faults dropped)", r.gps_final->rms_m,
+                        r.gps_final->rms_x_m, r.gps_final->rms_y_m, r.gps_final->matched_fixes,
+                        r.gps_final->rejected_fixes));
   }
   if (!r.local_maps.empty()) {
     std::map<std::string, int> reasons;

@@ -1059,7 +1059,9 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     if (absl::Status st = Relinearize(); !st.ok()) return st;
   }
   const int every = options_.revision.every_joins;
-  if (associate && (relinearize || (every > 0 && counters_.joins % every == 0))) return ReviseAssociation();
+  if (associate && (relinearize || (every > 0 && counters_.joins % every == 0))) {
+    return ReviseAssociation(/*with_splits=*/relinearize);
+  }
   return absl::OkStatus();
 }
 
@@ -1077,18 +1079,47 @@ absl::StatusOr<Eigen::Vector2d> EifJoiner::MergedPosition(int a, int b) const {
   return Eigen::Vector2d(graph_.landmarks()[a] - cov_a_delta * llt.solve(delta));
 }
 
-absl::Status EifJoiner::ReviseAssociation() {
+std::vector<Matrix5d> EifJoiner::FactorMarginals(int anchor, const std::vector<int>& landmarks) const {
+  // [anchor, landmark] is coupled in Λ by the factor that holds both, so its block lies on
+  // L's pattern: all of them from one sparse-inverse recursion per factorisation.
+  std::vector<std::vector<int>> groups;
+  const int o = anchor_offset_[anchor];
+  for (int j : landmarks) {
+    std::vector<int> g;
+    if (o >= 0) g = {o, o + 1, o + 2};
+    g.push_back(landmark_offset_[j]);
+    g.push_back(landmark_offset_[j] + 1);
+    groups.push_back(std::move(g));
+  }
+  std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());
+  if (groups.empty()) return out;
+  const std::vector<Eigen::MatrixXd> blocks = solver_->factor.DiagonalInverseBlocks(groups);
+  const int h = o >= 0 ? 3 : 0;  // the fixed P0: zero rows and columns
+  for (size_t c = 0; c < landmarks.size(); ++c) out[c].bottomRightCorner(2 + h, 2 + h) = blocks[c];
+  return out;
+}
+
+absl::Status EifJoiner::ReviseAssociation(bool with_splits) {
   if (!options_.revision.enabled() || options_.association.known_association || pending_loop_ || factors_.empty()) {
     return absl::OkStatus();
   }
   StageTimer timer(&times_, "revision");
   ++counters_.revision_passes;
-  const std::vector<FeatureSplit> splits = FindFeatureSplits(
-      graph_, [this](int anchor, const std::vector<int>& landmarks) { return AnchorLandmarkCovariances(anchor, landmarks); },
-      options_.revision);
+  std::vector<FeatureSplit> splits;
+  if (with_splits) {
+    splits = FindFeatureSplits(
+        graph_, [this](int anchor, const std::vector<int>& landmarks) { return FactorMarginals(anchor, landmarks); },
+        options_.revision);
+  }
+  // The pre-filter's marginals: the bounds association keeps (upper bounds keep it exact),
+  // recovered where there is none.
+  std::vector<Eigen::Matrix2d> marginals = marginal_bound_;
+  for (int j = 0; j < graph_.num_landmarks(); ++j) {
+    if (!marginals[j].allFinite()) marginals[j] = LandmarkCovariance(j);
+  }
   std::vector<LandmarkMerge> merges = FindLandmarkMerges(
-      graph_, LandmarkCovariances(),
-      [this](int a, int b) -> Eigen::Matrix4d { return JointCovariance({}, {a, b}); }, options_.revision);
+      graph_, marginals, [this](int a, int b) -> Eigen::Matrix4d { return JointCovariance({}, {a, b}); },
+      options_.revision);
   // A landmark a split leaves is not merged in the same pass (its estimate will move).
   std::vector<char> split_from(graph_.num_landmarks(), 0);
   for (const FeatureSplit& sp : splits) split_from[graph_.factors()[sp.factor].landmark_of_feature[sp.feature]] = 1;
@@ -1368,7 +1399,7 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   // after a long right map, one step is far from the joint optimum (on combined-2km the
   // tree's anchors were 74 m off, NEES 3,800), so a tree join is iterated to convergence.
   if (absl::Status st = Relinearize(); !st.ok()) return st;
-  return ReviseAssociation();
+  return ReviseAssociation(/*with_splits=*/true);
 }
 
 }  // namespace subslam::backend

@@ -36,13 +36,46 @@ absl::StatusOr<Pose2> RigidAlignment2D(const std::vector<Eigen::Vector2d>& sourc
   return Pose2(t.x(), t.y(), theta);
 }
 
+std::vector<int> GrossGpsFaults(const std::vector<io::TimedPoint>& gps, const GpsFaultRule& rule) {
+  std::vector<int> faults;
+  const int n = static_cast<int>(gps.size());
+  for (int i = 0; i < n; ++i) {
+    std::vector<double> xs, ys;
+    double dt = 0.0;
+    for (int k = std::max(0, i - rule.neighbours); k <= std::min(n - 1, i + rule.neighbours); ++k) {
+      if (k == i) continue;
+      xs.push_back(gps[k].p.x());
+      ys.push_back(gps[k].p.y());
+      dt = std::max(dt, std::abs(gps[k].t - gps[i].t));
+    }
+    if (xs.empty()) continue;
+    const auto median = [](std::vector<double> v) {
+      std::sort(v.begin(), v.end());
+      const size_t m = v.size() / 2;
+      return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+    };
+    const Eigen::Vector2d centre(median(xs), median(ys));
+    if ((gps[i].p - centre).norm() > rule.base_m + rule.speed_mps * dt) faults.push_back(i);
+  }
+  return faults;
+}
+
 absl::StatusOr<GpsComparison> CompareWithGps(const Trajectory& trajectory,
-                                             const std::vector<io::TimedPoint>& gps) {
+                                             const std::vector<io::TimedPoint>& gps,
+                                             const GpsFaultRule& rule) {
   if (trajectory.size() < 2) return absl::InvalidArgumentError("trajectory too short");
+  std::vector<char> fault(gps.size(), 0);
+  for (int i : GrossGpsFaults(gps, rule)) fault[i] = 1;
   std::vector<Eigen::Vector2d> est, fix;
   size_t j = 0;
-  for (const io::TimedPoint& g : gps) {
+  int rejected = 0;
+  for (size_t i = 0; i < gps.size(); ++i) {
+    const io::TimedPoint& g = gps[i];
     if (g.t < trajectory.front().t || g.t > trajectory.back().t) continue;
+    if (fault[i]) {
+      ++rejected;
+      continue;
+    }
     while (j + 1 < trajectory.size() && trajectory[j + 1].t < g.t) ++j;
     const PoseEstimate& a = trajectory[j];
     const PoseEstimate& b = trajectory[std::min(j + 1, trajectory.size() - 1)];
@@ -54,6 +87,7 @@ absl::StatusOr<GpsComparison> CompareWithGps(const Trajectory& trajectory,
   if (!transform.ok()) return transform.status();
   GpsComparison c;
   c.matched_fixes = static_cast<int>(est.size());
+  c.rejected_fixes = rejected;
   c.gps_T_estimate = *transform;
   double sx = 0, sy = 0;
   for (size_t i = 0; i < est.size(); ++i) {

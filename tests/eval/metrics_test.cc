@@ -124,6 +124,34 @@ TEST(GpsAlignment, RecoversRigidTransformAndResidual) {
   EXPECT_FALSE(RigidAlignment2D({{0, 0}}, {{1, 1}}).ok());
 }
 
+// A gross fault (130 m off its neighbours) is dropped and counted; the clean fixes of a
+// vehicle at 5 m/s, one a second, are all kept, and so is a fix 20 m off (within the rule).
+TEST(GpsAlignment, DropsGrossFaultsJudgedFromTheGpsAlone) {
+  Trajectory traj;
+  std::vector<io::TimedPoint> gps;
+  for (int k = 0; k <= 60; ++k) {
+    const double t = k;
+    const Eigen::Vector2d p(5.0 * t, 0.0);
+    traj.push_back({t, Pose2(p.x(), p.y(), 0.0), Eigen::Matrix3d::Identity()});
+    gps.push_back({t, p});
+  }
+  EXPECT_TRUE(GrossGpsFaults(gps).empty());
+  gps[30].p.y() += 20.0;
+  EXPECT_TRUE(GrossGpsFaults(gps).empty());
+  gps[30].p.y() += 110.0;
+  EXPECT_EQ(GrossGpsFaults(gps), std::vector<int>{30});
+  absl::StatusOr<GpsComparison> c = CompareWithGps(traj, gps);
+  ASSERT_TRUE(c.ok()) << c.status();
+  EXPECT_EQ(c->rejected_fixes, 1);
+  EXPECT_EQ(c->matched_fixes, 60);
+  EXPECT_LT(c->rms_m, 1e-9);
+  // The rule's own bound: at 25 m + 6 m/s × 2 s from the median, kept; beyond, dropped.
+  gps[30].p.y() = 36.9;
+  EXPECT_TRUE(GrossGpsFaults(gps).empty());
+  gps[30].p.y() = 37.1;
+  EXPECT_EQ(GrossGpsFaults(gps), std::vector<int>{30});
+}
+
 // The local map is compared with the truth in the TRUE start frame: the end pose is
 // Between(start, end) and each feature the true landmark seen from the start pose.
 TEST(LocalMapNees, KnownValue) {

@@ -219,8 +219,11 @@ class EifJoiner final : public MapJoiner {
   // information form and the marginals follow the better estimate.
   absl::Status AdoptEstimate(const SubmapGraph& solved);
 
-  // Revisable association (MapJoiner, landmark_revision.h).
-  absl::Status ReviseAssociation() override;
+  // Revisable association (MapJoiner, landmark_revision.h). The split test runs on
+  // the passes that follow a relinearisation (and at the end, and when asked for), the
+  // merge test on every pass.
+  absl::Status ReviseAssociation() override { return ReviseAssociation(/*with_splits=*/true); }
+  absl::Status ReviseAssociation(bool with_splits);
   absl::Status MergeLandmarks(int keep, int drop) override;
   absl::Status SplitFeature(int factor, int feature) override;
 
@@ -372,6 +375,9 @@ class EifJoiner final : public MapJoiner {
   // graph, the associator and the state layout, relinearises every factor at the
   // current estimate and solves again (to convergence where the joiner relinearises).
   absl::Status ApplyRevisions(const std::vector<FeatureSplit>& splits, const std::vector<LandmarkMerge>& merges);
+  // For each landmark, the 5 × 5 marginal of [anchor, landmark] where a factor couples
+  // the two (read off the sparse inverse on the factor's pattern).
+  std::vector<Matrix5d> FactorMarginals(int anchor, const std::vector<int>& landmarks) const;
   // The conditional mean of landmarks a and b given that they are one point.
   absl::StatusOr<Eigen::Vector2d> MergedPosition(int a, int b) const;
   // Association of `s` (starting at anchor `start`) with the map, timed and counted.
