@@ -40,6 +40,7 @@ def report(path):
 
 
 def pool(args, jobs):
+    jobs = [j for j in jobs if not (args.reuse and os.path.exists(os.path.join(j[j.index("--out") + 1], "report.json")))]
     with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as ex:
         for f in [ex.submit(run, j) for j in jobs]:
             f.result()
@@ -84,11 +85,12 @@ def combined(args):
                      "--backend", "eif", "--threads", "1", "--progress=false", "--out", out] + args.extra)
         maps.append((s, out))
     pool(args, jobs)
-    variants = {"no revision": ["--join_merge=false", "--join_split=false"], "revision (default)": []}
+    variants = {"no revision": ["--join_merge=false", "--join_split=false"], "merges only": ["--join_split=false"],
+                "merges and splits": ["--join_split=true"]}
     jobs, cells = [], []
     for s, out in maps:
         for name, flags in variants.items():
-            j = out + "_join_" + ("off" if flags else "on")
+            j = out + "_join_" + name.replace(" ", "_")
             jobs.append([args.bin, "join", "--submaps", os.path.join(out, "submaps.jsonl"), "--backend", "eif",
                          "--scenario", "combined-2km", "--seed", str(s), "--progress=false", "--out", j] + flags)
             cells.append((name, s, j))
@@ -123,13 +125,16 @@ def victoria(args):
                 jobs.append(cmd)
                 cells.append((yaw, name, s, out))
     pool(args, jobs)
-    print("| sensor yaw | estimator | aligned RMS vs GPS median (range) [m] | runs |")
-    print("| --- | --- | --- | --- |")
+    print("| sensor yaw | estimator | aligned RMS vs GPS median (range) [m] | gross GPS faults dropped | "
+          "estimator time median [s] | runs |")
+    print("| --- | --- | --- | --- | --- | --- |")
     for yaw in ("", "-0.0182"):
         for name in variants:
             rs = [report(o) for (y, n, s, o) in cells if (y, n) == (yaw, name)]
-            v = [r["metrics"]["gps"]["aligned_rms_m"] for r in rs]
-            print(f"| {yaw or 'none'} | {name} | {statistics.median(v):.2f} ({min(v):.2f}-{max(v):.2f}) | {len(v)} |")
+            v = [r["metrics"]["gps_final"]["aligned_rms_m"] for r in rs]
+            t = [r["time_seconds"]["total"] for r in rs]
+            print(f"| {yaw or 'none'} | {name} | {statistics.median(v):.2f} ({min(v):.2f}-{max(v):.2f}) | "
+                  f"{rs[0]['metrics']['gps_final']['rejected_fixes']} | {statistics.median(t):.2f} | {len(v)} |")
 
 
 def main():
@@ -144,6 +149,7 @@ def main():
     p.add_argument("--bin", default=os.path.join(ROOT, "build", "apps", "subslam"))
     p.add_argument("--out", default="/tmp/subslam_sweep")
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--reuse", action="store_true", help="keep the outputs of runs already in --out")
     args = p.parse_args(argv)
     args.extra = extra
     args.seeds = args.seeds or seeds({"hybrid": "1-20", "combined": "1-20", "victoria": "1-8"}[args.sweep])

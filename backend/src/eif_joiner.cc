@@ -129,17 +129,24 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
             .eigenvalues()
             .minCoeff();
   }
-  if (record.start_anchor != 0) {
-    f.offsets.push_back(anchor_offset_[record.start_anchor]);
-    f.sizes.push_back(3);
-  }
-  f.offsets.push_back(anchor_offset_[record.end_anchor]);
-  f.sizes.push_back(3);
-  for (int j : record.landmark_of_feature) {
-    f.offsets.push_back(landmark_offset_[j]);
-    f.sizes.push_back(2);
-  }
+  SetLayout(&f);
   return f;
+}
+
+void EifJoiner::SetLayout(Factor* f) const {
+  const SubmapFactor& record = graph_.factors()[f->index];
+  f->offsets.clear();
+  f->sizes.clear();
+  if (record.start_anchor != 0) {
+    f->offsets.push_back(anchor_offset_[record.start_anchor]);
+    f->sizes.push_back(3);
+  }
+  f->offsets.push_back(anchor_offset_[record.end_anchor]);
+  f->sizes.push_back(3);
+  for (int j : record.landmark_of_feature) {
+    f->offsets.push_back(landmark_offset_[j]);
+    f->sizes.push_back(2);
+  }
 }
 
 void EifJoiner::RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const {
@@ -839,6 +846,7 @@ void EifJoiner::Restore(Snapshot before) {
   marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
   solver_->stale = true;  // it absorbed the undone factors
   counters_ = before.counters;
+  touched_.assign(graph_.num_landmarks(), 1);
 }
 
 absl::Status EifJoiner::JoinOne(const LocalSubmap& s) {
@@ -1033,6 +1041,8 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   }
   // A rejected map joined again (associate false) must not redefine its landmarks.
   associator_.Record(s, assoc, first_new_landmark, /*define_truth=*/associate);
+  touched_.resize(graph_.num_landmarks(), 1);
+  for (int j : assoc) touched_[j] = 1;
   graph_.AddFactor({s, start, end_anchor, assoc});
   Factor f = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
   {
@@ -1060,7 +1070,8 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   }
   const int every = options_.revision.every_joins;
   if (associate && (relinearize || (every > 0 && counters_.joins % every == 0))) {
-    return ReviseAssociation(/*with_splits=*/relinearize);
+    relinearized_since_revision_ = relinearize;
+    return ReviseAssociation(/*full=*/false);
   }
   return absl::OkStatus();
 }
@@ -1099,12 +1110,17 @@ std::vector<Matrix5d> EifJoiner::FactorMarginals(int anchor, const std::vector<i
   return out;
 }
 
-absl::Status EifJoiner::ReviseAssociation(bool with_splits) {
+absl::Status EifJoiner::ReviseAssociation(bool full) {
+  // In-run passes test the pairs a join touched (and the splits after a relinearisation);
+  // a full pass every pair.
+  const bool with_splits = full || relinearized_since_revision_;
+  const bool all_pairs = full;
+  relinearized_since_revision_ = false;
   if (!options_.revision.enabled() || options_.association.known_association || pending_loop_ || factors_.empty()) {
     return absl::OkStatus();
   }
-  StageTimer timer(&times_, "revision");
   ++counters_.revision_passes;
+  StageTimer timer(&times_, "revision");
   std::vector<FeatureSplit> splits;
   if (with_splits) {
     splits = FindFeatureSplits(
@@ -1114,12 +1130,22 @@ absl::Status EifJoiner::ReviseAssociation(bool with_splits) {
   // The pre-filter's marginals: the bounds association keeps (upper bounds keep it exact),
   // recovered where there is none.
   std::vector<Eigen::Matrix2d> marginals = marginal_bound_;
-  for (int j = 0; j < graph_.num_landmarks(); ++j) {
-    if (!marginals[j].allFinite()) marginals[j] = LandmarkCovariance(j);
+  int missing = 0;
+  for (const Eigen::Matrix2d& m : marginals) missing += m.allFinite() ? 0 : 1;
+  if (missing > 0) {
+    // A few by their own solves, many (a relinearisation forgot them) all at once.
+    constexpr int kBulkFrom = 16;
+    std::vector<Eigen::Matrix2d> exact;
+    if (missing >= kBulkFrom) exact = LandmarkCovariances();
+    for (int j = 0; j < graph_.num_landmarks(); ++j) {
+      if (!marginals[j].allFinite()) marginals[j] = exact.empty() ? LandmarkCovariance(j) : exact[j];
+    }
   }
+  touched_.resize(graph_.num_landmarks(), 1);
   std::vector<LandmarkMerge> merges = FindLandmarkMerges(
       graph_, marginals, [this](int a, int b) -> Eigen::Matrix4d { return JointCovariance({}, {a, b}); },
-      options_.revision);
+      options_.revision, options_.association.loop_test_min_sigma_radius_m, all_pairs ? std::vector<char>() : touched_);
+  touched_.assign(graph_.num_landmarks(), 0);
   // A landmark a split leaves is not merged in the same pass (its estimate will move).
   std::vector<char> split_from(graph_.num_landmarks(), 0);
   for (const FeatureSplit& sp : splits) split_from[graph_.factors()[sp.factor].landmark_of_feature[sp.feature]] = 1;
@@ -1170,6 +1196,8 @@ absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
     absl::StatusOr<int> to = graph_.SplitFeature(sp.factor, sp.feature, position);
     if (!to.ok()) return to.status();
     associator_.SplitFeature(from, *to, signature);
+    touched_.resize(graph_.num_landmarks(), 1);
+    touched_[from] = touched_[*to] = 1;
     landmark_offset_.push_back(dim_);
     dim_ += 2;
     marginal_bound_.push_back(Eigen::Matrix2d::Constant(NAN));
@@ -1178,6 +1206,8 @@ absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
   for (const LandmarkMerge& m : merges) {
     if (absl::Status st = graph_.MergeLandmarks(m.keep, m.drop, m.position); !st.ok()) return st;
     associator_.MergeLandmarks(m.keep, m.drop);
+    if (m.drop < static_cast<int>(touched_.size())) touched_.erase(touched_.begin() + m.drop);
+    if (m.keep < static_cast<int>(touched_.size())) touched_[m.keep] = 1;
     const int removed = landmark_offset_[m.drop];
     landmark_offset_.erase(landmark_offset_.begin() + m.drop);
     marginal_bound_.erase(marginal_bound_.begin() + m.drop);
@@ -1190,16 +1220,11 @@ absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
     }
     ++counters_.landmarks_merged;
   }
-  // Every factor's variables where they now sit, linearised at the revised estimate.
-  {
-    StageTimer timer(&times_, "update");
-    for (Factor& f : factors_) {
-      const Factor layout = MakeFactor(f.index);
-      f.offsets = layout.offsets;
-      f.sizes = layout.sizes;
-      Linearize(&f);
-    }
-  }
+  // Every factor's variables where they now sit. Its linear model stays valid: the factor
+  // is affine in the landmarks (nonlinear only through the start heading), so re-keying a
+  // landmark column is exact, and the re-keyed Λ is the revised problem's at the same
+  // linearisation. Then Gauss-Newton from there where the joiner relinearises.
+  for (Factor& f : factors_) SetLayout(&f);
   lambda_factors_ = 0;
   lambda_full_valid_ = false;
   solver_->stale = true;
@@ -1318,6 +1343,7 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       associator_(other.associator_),
       marginal_bound_(other.marginal_bound_),
       last_association_(other.last_association_),
+      touched_(other.touched_),
       rejected_(other.rejected_),
       pending_loop_(other.pending_loop_),
       times_(other.times_),
@@ -1399,7 +1425,7 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   // after a long right map, one step is far from the joint optimum (on combined-2km the
   // tree's anchors were 74 m off, NEES 3,800), so a tree join is iterated to convergence.
   if (absl::Status st = Relinearize(); !st.ok()) return st;
-  return ReviseAssociation(/*with_splits=*/true);
+  return ReviseAssociation(/*full=*/true);
 }
 
 }  // namespace subslam::backend

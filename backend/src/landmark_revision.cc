@@ -53,31 +53,41 @@ double LargestSigma(const Eigen::Matrix2d& m) {
 std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
                                               const std::vector<Eigen::Matrix2d>& marginals,
                                               const LandmarkPairCovarianceFn& pair_covariance,
-                                              const LandmarkRevisionOptions& options) {
+                                              const LandmarkRevisionOptions& options,
+                                              double loop_sigma_radius_m,
+                                              const std::vector<char>& touched) {
   const int n = graph.num_landmarks();
   std::vector<LandmarkMerge> out;
   if (!options.merge || n < 2) return out;
   const double gate = models::ChiSquareQuantile(options.merge_probability, 2);
   const double root_gate = std::sqrt(gate);
   const std::vector<std::vector<int>> factors_of = FactorsOfLandmarks(graph);
-  // Each landmark's most precise single feature, in the world frame (smallest trace).
-  std::vector<Eigen::Matrix2d> finest(n, Eigen::Matrix2d::Constant(INFINITY));
+  // Each landmark's typical single feature, in the world frame: the one of median
+  // precision (trace) among its features.
+  std::vector<std::vector<Eigen::Matrix2d>> features_of(n);
   for (const SubmapFactor& f : graph.factors()) {
     const Eigen::Matrix2d R = graph.anchors()[f.start_anchor].rotation();
     for (int i = 0; i < static_cast<int>(f.landmark_of_feature.size()); ++i) {
-      const int j = f.landmark_of_feature[i];
-      const Eigen::Matrix2d Q = R * f.submap.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i) * R.transpose();
-      if (!(Q.trace() >= finest[j].trace())) finest[j] = Q;
+      features_of[f.landmark_of_feature[i]].push_back(R * f.submap.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i) *
+                                                      R.transpose());
     }
+  }
+  std::vector<Eigen::Matrix2d> typical(n, Eigen::Matrix2d::Constant(INFINITY));
+  for (int j = 0; j < n; ++j) {
+    std::vector<Eigen::Matrix2d>& q = features_of[j];
+    if (q.empty()) continue;
+    std::nth_element(q.begin(), q.begin() + q.size() / 2, q.end(),
+                     [](const Eigen::Matrix2d& x, const Eigen::Matrix2d& y) { return x.trace() < y.trace(); });
+    typical[j] = q[q.size() / 2];
   }
   const bool resolution = options.merge_unresolved;
   // Per landmark, the largest standard deviation that either test can use (the
-  // marginal's, and the finest feature's for the resolution test).
+  // marginal's, and the typical feature's for the resolution test).
   std::vector<double> sigma(n);
   double sigma_max = 0.0;
   for (int j = 0; j < n; ++j) {
     sigma[j] = marginals[j].allFinite() ? LargestSigma(marginals[j]) : INFINITY;
-    if (resolution && finest[j].allFinite()) sigma[j] = std::max(sigma[j], LargestSigma(finest[j]));
+    if (resolution && typical[j].allFinite()) sigma[j] = std::max(sigma[j], LargestSigma(typical[j]));
     sigma_max = std::max(sigma_max, sigma[j]);
   }
   std::vector<int> by_x(n);
@@ -95,6 +105,7 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
       if (L[b].x() - L[a].x() > root_gate * (sigma[a] + sigma_max)) break;
       const Eigen::Vector2d delta = L[a] - L[b];
       if (delta.norm() > root_gate * (sigma[a] + sigma[b])) continue;
+      if (!touched.empty() && !touched[a] && !touched[b]) continue;
       if (Intersect(factors_of[a], factors_of[b])) continue;
       const Eigen::Matrix4d S = pair_covariance(a, b);
       const Eigen::Matrix2d C = S.topLeftCorner<2, 2>() + S.bottomRightCorner<2, 2>() - S.topRightCorner<2, 2>() -
@@ -104,10 +115,13 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
       const double d2 = delta.dot(llt.solve(delta));
       double d2_res = INFINITY;
       if (resolution) {
-        const Eigen::LLT<Eigen::Matrix2d> single(finest[a] + finest[b]);
+        const Eigen::LLT<Eigen::Matrix2d> single(typical[a] + typical[b]);
         if (single.info() == Eigen::Success) d2_res = delta.dot(single.solve(delta));
       }
       if (!(d2 < gate) && !(d2_res < gate)) continue;
+      // A pair whose relative position is uncertain to 3σ ≥ loop_sigma_radius_m is a loop
+      // closure with one pairing, in the regime where association asks for several.
+      if (3.0 * LargestSigma(C) >= loop_sigma_radius_m) continue;
       // The conditional mean of L_a given Δ = 0: L_a − Cov(L_a, Δ) C⁻¹ Δ.
       const Eigen::Matrix2d cov_a_delta = S.topLeftCorner<2, 2>() - S.topRightCorner<2, 2>();
       LandmarkMerge m{std::min(a, b), std::max(a, b), d2, L[a] - cov_a_delta * llt.solve(delta)};

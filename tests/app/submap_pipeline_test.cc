@@ -263,7 +263,7 @@ TEST(SubmapPipeline, CeresSolveAfterTheEif) {
   EXPECT_LE(ceres->report["estimator_counters"]["ceres_final_cost"].get<double>(),
             ceres->report["estimator_counters"]["ceres_initial_cost"].get<double>());
   // (A revision of the association at the end solves the EIF again, to convergence.)
-  EXPECT_LE(ceres->errors->rms_position_m, eif->errors->rms_position_m * (1.0 + 1e-6));
+  EXPECT_LE(ceres->errors->rms_position_m, eif->errors->rms_position_m * (1.0 + 1e-4));
   EXPECT_NEAR(converged->errors->rms_position_m, ceres->errors->rms_position_m, 1e-3);
   EXPECT_GT(converged->report["estimator_counters"]["join_relinearizations"].get<double>(),
             eif->report["estimator_counters"]["join_relinearizations"].get<double>());

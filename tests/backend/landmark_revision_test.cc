@@ -20,6 +20,13 @@ namespace {
 
 constexpr int kMap = 4, kFeature = 0;  // the feature the tests re-key
 
+// The split test on (it is off by default).
+LandmarkRevisionOptions WithSplits() {
+  LandmarkRevisionOptions o;
+  o.split = true;
+  return o;
+}
+
 EifJoinerOptions ConvergingUnknownAssociation() {
   EifJoinerOptions o = ConvergingKnownAssociation();
   o.association.known_association = false;
@@ -124,7 +131,7 @@ TEST(LandmarkRevision, TheSplitTestFindsAnInjectedWrongAssociationAndNothingAfte
     const std::vector<FeatureSplit> splits = FindFeatureSplits(
         eif.graph(),
         [&](int anchor, const std::vector<int>& landmarks) { return eif.AnchorLandmarkCovariances(anchor, landmarks); },
-        LandmarkRevisionOptions{});
+        WithSplits());
     ASSERT_EQ(splits.size(), 1u) << "seed " << seed;  // the worst of a pass
     EXPECT_EQ(splits[0].factor, kMap);
     EXPECT_EQ(splits[0].feature, kFeature);
@@ -134,7 +141,7 @@ TEST(LandmarkRevision, TheSplitTestFindsAnInjectedWrongAssociationAndNothingAfte
                     [&](int anchor, const std::vector<int>& landmarks) {
                       return eif.AnchorLandmarkCovariances(anchor, landmarks);
                     },
-                    LandmarkRevisionOptions{})
+                    WithSplits())
                     .empty())
         << "seed " << seed;
     // And the correctly associated run: no split.
@@ -145,7 +152,7 @@ TEST(LandmarkRevision, TheSplitTestFindsAnInjectedWrongAssociationAndNothingAfte
                     [&](int anchor, const std::vector<int>& landmarks) {
                       return clean.AnchorLandmarkCovariances(anchor, landmarks);
                     },
-                    LandmarkRevisionOptions{})
+                    WithSplits())
                     .empty())
         << "seed " << seed;
   }

@@ -219,11 +219,13 @@ class EifJoiner final : public MapJoiner {
   // information form and the marginals follow the better estimate.
   absl::Status AdoptEstimate(const SubmapGraph& solved);
 
-  // Revisable association (MapJoiner, landmark_revision.h). The split test runs on
-  // the passes that follow a relinearisation (and at the end, and when asked for), the
-  // merge test on every pass.
-  absl::Status ReviseAssociation() override { return ReviseAssociation(/*with_splits=*/true); }
-  absl::Status ReviseAssociation(bool with_splits);
+  // Revisable association (MapJoiner, landmark_revision.h). A full pass (at the end,
+  // after a whole-map join, and when asked for) runs the split test and the merge test
+  // on every pair; a pass during the run (after a relinearisation, and every
+  // revision.every_joins joins) the merge test on the pairs with a landmark that a join
+  // touched since the last pass, and the split test after a relinearisation.
+  absl::Status ReviseAssociation() override { return ReviseAssociation(/*full=*/true); }
+  absl::Status ReviseAssociation(bool full);
   absl::Status MergeLandmarks(int keep, int drop) override;
   absl::Status SplitFeature(int factor, int feature) override;
 
@@ -302,6 +304,8 @@ class EifJoiner final : public MapJoiner {
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
   // The factor record of graph factor `index`: its variables' offsets and sizes.
   Factor MakeFactor(int index) const;
+  // Its variables' offsets and sizes, from the graph's factor record.
+  void SetLayout(Factor* f) const;
   // The factor's linearisation error at the current estimate, whitened (see
   // MaxLinearizationError).
   double LinearizationError(const Factor& f) const;
@@ -413,6 +417,9 @@ class EifJoiner final : public MapJoiner {
   // bound_candidate_marginals.
   std::vector<Eigen::Matrix2d> marginal_bound_;
   std::vector<int> last_association_;
+  // Per landmark: a join gave it a feature since the last revision pass (or it is new).
+  std::vector<char> touched_;
+  bool relinearized_since_revision_ = false;
   std::vector<int> rejected_;
   struct Snapshot {  // what a rejected join undoes
     SubmapGraph graph;

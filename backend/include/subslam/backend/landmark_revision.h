@@ -9,7 +9,11 @@
 //    the other's best partner (smallest d²); and the pair is unambiguous: neither has
 //    another partner that a local map holds apart from the first (then it could be
 //    either of two distinct points: a shifted loop closure on a lattice, say). Copies of
-//    one point never held apart collapse pair by pair over passes.
+//    one point never held apart collapse pair by pair over passes. And the pair's
+//    relative position is known: 3σ of Cov(Δ) below the association's loop-test radius
+//    (SubmapAssociationOptions::loop_test_min_sigma_radius_m). Two landmarks known
+//    relative to each other only to metres are a loop closure with one pairing, in the
+//    regime where association asks for several (min_loop_pairings): not a merge.
 //    The merged position is the conditional mean of L_a given Δ = 0. (Also, with
 //    merge_unresolved, a pair closer than any one local map could resolve.)
 //  - split: a feature i of a local map leaves its landmark j (for a landmark of its own)
@@ -40,15 +44,15 @@ namespace subslam::backend {
 struct LandmarkRevisionOptions {
   bool merge = true;
   double merge_probability = 0.99;  // χ²₂ acceptance of "the same point"
-  // Also merge a pair that no single local map could tell apart: Δᵀ (Q̃_a + Q̃_b)⁻¹ Δ
-  // below the same gate, Q̃ each landmark's most precise feature covariance (in the world
-  // frame). Each landmark fixed by many local maps has a marginal far tighter than any
+  // Also merge a pair that a single local map could not tell apart: Δᵀ (Q̃_a + Q̃_b)⁻¹ Δ
+  // below the same gate, Q̃ each landmark's typical feature covariance (the median by
+  // trace of its features', in the world frame). Each landmark fixed by many local maps has a marginal far tighter than any
   // one map's feature, and the maps' small shared errors then separate two estimates of
   // one point statistically (on hybrid-120m, pairs 3-9 cm apart at d² 12-42) although no
   // sensor sweep ever resolved two points there. The same conditions hold (never in one
   // local map together, each the other's only partner).
   bool merge_unresolved = true;
-  bool split = true;
+  bool split = false;
   double split_probability = 0.99;  // family-wise, over the features tested in a pass
   // A revision pass runs after every relinearisation that follows a join, at the end,
   // after a whole-map (tree) join, and every `every_joins` joins (0: not on a schedule).
@@ -79,12 +83,17 @@ using AnchorLandmarkCovarianceFn =
 
 // The merges the test accepts on `graph`'s current estimate, disjoint, ordered by `drop`
 // descending (so that applying them in order keeps the later indices valid).
-// `marginals` holds every landmark's marginal covariance (for the pre-filter: a pair
-// farther apart than √gate · (σ_a + σ_b), σ the largest standard deviation, cannot pass).
+// `loop_sigma_radius_m` is the association's loop-test radius (3σ, metres).
+// `marginals` holds every landmark's marginal covariance, or an upper bound on it (for
+// the pre-filter: a pair farther apart than √gate · (σ_a + σ_b), σ the largest standard
+// deviation, cannot pass). With `touched` (one flag per landmark) only pairs with a
+// touched landmark are tested: those whose own evidence changed since the last pass.
 std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
                                               const std::vector<Eigen::Matrix2d>& marginals,
                                               const LandmarkPairCovarianceFn& pair_covariance,
-                                              const LandmarkRevisionOptions& options);
+                                              const LandmarkRevisionOptions& options,
+                                              double loop_sigma_radius_m,
+                                              const std::vector<char>& touched = {});
 
 // The worst feature whose residual fails the outlier test (empty: none fails), of a
 // landmark that keeps at least one other feature.
