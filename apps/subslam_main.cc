@@ -49,6 +49,9 @@ ABSL_FLAG(int, fmj_case, kScenarioDefaults.fmj_case, "fmj-ellipse: case 1 (even 
 ABSL_FLAG(double, world_size, kScenarioDefaults.random_world_size_m, "random scenario: world side [m]");
 ABSL_FLAG(int, landmarks, kScenarioDefaults.random_landmarks, "random scenario: number of landmarks");
 ABSL_FLAG(double, path_length, kScenarioDefaults.random_path_length_m, "random scenario: distance driven [m]");
+ABSL_FLAG(double, lattice_spacing, kScenarioDefaults.random_lattice_spacing_m,
+          "random scenario: landmarks on a square lattice of this spacing [m] instead of "
+          "--landmarks uniform ones (0: off)");
 ABSL_FLAG(double, noise_scale, kScenarioDefaults.random_noise_scale, "random scenario: multiplies every sigma");
 ABSL_FLAG(bool, signature, kScenarioDefaults.with_signature, "simulated detections carry a noisy signature");
 ABSL_FLAG(std::string, out, "", "output directory");
@@ -262,6 +265,7 @@ ScenarioOptions ScenarioOptionsFromFlags() {
   o.random_landmarks = absl::GetFlag(FLAGS_landmarks);
   o.random_path_length_m = absl::GetFlag(FLAGS_path_length);
   o.random_noise_scale = absl::GetFlag(FLAGS_noise_scale);
+  o.random_lattice_spacing_m = absl::GetFlag(FLAGS_lattice_spacing);
   o.with_signature = absl::GetFlag(FLAGS_signature);
   return o;
 }

@@ -85,7 +85,7 @@ def combined(args):
                      "--backend", "eif", "--threads", "1", "--progress=false", "--out", out] + args.extra)
         maps.append((s, out))
     pool(args, jobs)
-    variants = {"no revision": ["--join_merge=false", "--join_split=false"], "merges only": ["--join_split=false"],
+    variants = {"no revision": ["--join_merge=false", "--join_split=false"], "merges (default)": [],
                 "merges and splits": ["--join_split=true"]}
     jobs, cells = [], []
     for s, out in maps:

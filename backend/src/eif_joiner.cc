@@ -1151,6 +1151,7 @@ absl::Status EifJoiner::ReviseAssociation(bool full) {
   for (const FeatureSplit& sp : splits) split_from[graph_.factors()[sp.factor].landmark_of_feature[sp.feature]] = 1;
   std::erase_if(merges, [&](const LandmarkMerge& m) { return split_from[m.keep] || split_from[m.drop]; });
   if (splits.empty() && merges.empty()) return absl::OkStatus();
+  StageTimer solve(&times_, "revision_solve");  // (within "revision")
   return ApplyRevisions(splits, merges);
 }
 

@@ -213,6 +213,14 @@ ScenarioConfig Random(const ScenarioOptions& o, std::mt19937_64& world) {
   }
   c.initial_pose = StartPose(c.waypoints);
   c.follower = {speed, 2.0, false, DegToRad(60.0), 0.0, 1.5};
+  const double spacing = o.random_lattice_spacing_m;
+  if (spacing > 0.0) {
+    int id = 0;
+    for (double x = 0.5 * spacing; x < size; x += spacing) {
+      for (double y = 0.5 * spacing; y < size; y += spacing) c.landmarks.push_back({id++, {x, y}});
+    }
+    return c;
+  }
   std::uniform_real_distribution<double> uniform(0.0, size);
   for (int id = 0; id < o.random_landmarks; ++id) {
     c.landmarks.push_back({id, {uniform(world), uniform(world)}});
@@ -234,6 +242,10 @@ absl::Status ScenarioOptions::Validate() const {
   }
   if (fmj_case != 1 && fmj_case != 2) {
     return absl::InvalidArgumentError(absl::StrCat("fmj_case must be 1 or 2, got ", fmj_case));
+  }
+  if (!(random_lattice_spacing_m >= 0.0 && std::isfinite(random_lattice_spacing_m) &&
+        (random_lattice_spacing_m == 0.0 || random_lattice_spacing_m >= 0.5))) {
+    return absl::InvalidArgumentError("random scenario: lattice spacing must be 0 (off) or >= 0.5 m");
   }
   if (!(random_world_size_m > 10.0 && random_landmarks >= 0 && random_path_length_m > 0.0 &&
         random_noise_scale > 0.0)) {

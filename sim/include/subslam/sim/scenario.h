@@ -41,6 +41,10 @@ struct ScenarioOptions {
   // random scenario knobs.
   double random_world_size_m = 200.0;      // square world side
   int random_landmarks = 300;              // uniformly placed landmarks
+  // > 0: the landmarks on a square lattice of this spacing [m] over the whole world
+  // instead (random_landmarks ignored): a world where a loop closure shifted by one
+  // lattice cell fits almost as well as the right one.
+  double random_lattice_spacing_m = 0.0;
   double random_path_length_m = 1000.0;    // distance driven
   double random_noise_scale = 1.0;         // multiplies every σ
   bool with_signature = false;             // detections carry a noisy landmark signature
