@@ -77,6 +77,29 @@ TEST(ScenarioOptions, RejectsInvalidKnobs) {
   o = {};
   o.random_noise_scale = 0.0;
   EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.random_lattice_spacing_m = 0.1;
+  EXPECT_FALSE(o.Validate().ok());
+  o.random_lattice_spacing_m = -1.0;
+  EXPECT_FALSE(o.Validate().ok());
+}
+
+// The random world's lattice layout: every landmark on the grid, one per cell, the whole
+// world covered.
+TEST(Simulator, RandomWorldOnALattice) {
+  ScenarioOptions o;
+  o.random_world_size_m = 20.0;
+  o.random_lattice_spacing_m = 4.0;
+  absl::StatusOr<ScenarioConfig> c = MakeScenario("random", o);
+  ASSERT_TRUE(c.ok()) << c.status();
+  ASSERT_EQ(c->landmarks.size(), 25u);
+  for (const auto& l : c->landmarks) {
+    for (double v : {l.p.x(), l.p.y()}) {
+      EXPECT_NEAR(std::fmod(v - 2.0, 4.0), 0.0, 1e-12);
+      EXPECT_GT(v, 0.0);
+      EXPECT_LT(v, 20.0);
+    }
+  }
 }
 
 TEST(Simulator, DetectionsMatchTruthWithinNoise) {
