@@ -1320,15 +1320,8 @@ absl::Status EifJoiner::Finish() {
   if (options_.relinearize_at_end && !factors_.empty()) {
     if (absl::Status st = GaussNewton(); !st.ok()) return st;
   }
-  // Revise at the converged estimate until a pass changes nothing (each pass that
-  // changes something solves again); bounded, as merges and splits could alternate.
-  constexpr int kMaxFinalPasses = 50;
-  for (int pass = 0; pass < kMaxFinalPasses; ++pass) {
-    const long before = counters_.landmarks_merged + counters_.features_split;
-    if (absl::Status st = ReviseAssociation(); !st.ok()) return st;
-    if (counters_.landmarks_merged + counters_.features_split == before) break;
-  }
-  return absl::OkStatus();
+  // Revise at the converged estimate (each pass that changes something solves again).
+  return ReviseUntilSettled(*this);
 }
 
 EifJoiner::EifJoiner(const EifJoiner& other)

@@ -311,15 +311,7 @@ absl::Status EkfJoiner::JoinAssociated(const LocalSubmap& s, std::vector<int> as
   return absl::OkStatus();
 }
 
-absl::Status EkfJoiner::Finish() {
-  constexpr int kMaxFinalPasses = 50;
-  for (int pass = 0; pass < kMaxFinalPasses; ++pass) {
-    const long before = counters_.landmarks_merged + counters_.features_split;
-    if (absl::Status st = ReviseAssociation(); !st.ok()) return st;
-    if (counters_.landmarks_merged + counters_.features_split == before) break;
-  }
-  return absl::OkStatus();
-}
+absl::Status EkfJoiner::Finish() { return ReviseUntilSettled(*this); }
 
 absl::Status EkfJoiner::ReviseAssociation() {
   if (!options_.revision.enabled() || options_.association.known_association || graph_.factors().empty()) {

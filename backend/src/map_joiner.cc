@@ -58,4 +58,13 @@ absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left
   return summary;
 }
 
+absl::Status ReviseUntilSettled(MapJoiner& joiner, int max_passes) {
+  for (int pass = 0; pass < max_passes; ++pass) {
+    const long before = joiner.counters().landmarks_merged + joiner.counters().features_split;
+    if (absl::Status st = joiner.ReviseAssociation(); !st.ok()) return st;
+    if (joiner.counters().landmarks_merged + joiner.counters().features_split == before) break;
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace subslam::backend

@@ -57,6 +57,15 @@ TruthCount CountByTruth(const SubmapGraph& g) {
   return c;
 }
 
+// The landmark a joiner made of `truth` (−1: none).
+int LandmarkOfTruth(const MapJoiner& joiner, int truth) {
+  const std::vector<int> ids = joiner.associator().TruthIds(joiner.num_landmarks());
+  for (int j = 0; j < static_cast<int>(ids.size()); ++j) {
+    if (ids[j] == truth) return j;
+  }
+  return -1;
+}
+
 TEST(LandmarkRevision, AMergeGivesTheEstimateOfTheMergedAssociation) {
   const SyntheticRun run = MakeRun(21);
   EifJoiner reference(run.anchors[0], ConvergingKnownAssociation());
@@ -71,9 +80,7 @@ TEST(LandmarkRevision, AMergeGivesTheEstimateOfTheMergedAssociation) {
   const int duplicate = eif.graph().factors()[kMap].landmark_of_feature[kFeature];
   // The landmark the reference made of that truth (landmarks before the copy keep their
   // indices in both).
-  int original = -1;
-  const std::vector<int> ids = reference.associator().TruthIds(reference.num_landmarks());
-  for (int j = 0; j < static_cast<int>(ids.size()); ++j) original = ids[j] == truth ? j : original;
+  const int original = LandmarkOfTruth(reference, truth);
   ASSERT_GE(original, 0);
   ASSERT_NE(original, duplicate);
   ASSERT_TRUE(eif.MergeLandmarks(original, duplicate).ok());
@@ -274,9 +281,7 @@ TEST(LandmarkRevision, AnEkfMergeIsTheFusionOfAJoin) {
   JoinAll(&ekf, maps);
   ASSERT_EQ(ekf.num_landmarks(), reference.num_landmarks() + 1);
   const int duplicate = ekf.graph().factors()[kMap].landmark_of_feature[kFeature];
-  int original = -1;
-  const std::vector<int> ids = reference.associator().TruthIds(reference.num_landmarks());
-  for (int j = 0; j < static_cast<int>(ids.size()); ++j) original = ids[j] == truth ? j : original;
+  const int original = LandmarkOfTruth(reference, truth);
   ASSERT_GE(original, 0);
   ASSERT_TRUE(ekf.MergeLandmarks(original, duplicate).ok());
   ASSERT_EQ(ekf.num_landmarks(), reference.num_landmarks());

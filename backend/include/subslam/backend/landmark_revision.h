@@ -27,8 +27,8 @@
 //    estimate, so a pass splits only the worst feature; the next pass tests again on the
 //    estimate solved without it.
 //
-// The split level is stricter than the merge level per test, so a feature split off is
-// not merged back at once on the same evidence (hysteresis).
+// The split level (Bonferroni over a pass) is stricter than the merge level per test, so
+// a feature split off is not merged back at once on the same evidence (hysteresis).
 #ifndef SUBSLAM_BACKEND_LANDMARK_REVISION_H_
 #define SUBSLAM_BACKEND_LANDMARK_REVISION_H_
 
@@ -46,16 +46,23 @@ struct LandmarkRevisionOptions {
   double merge_probability = 0.99;  // χ²₂ acceptance of "the same point"
   // Also merge a pair that a single local map could not tell apart: Δᵀ (Q̃_a + Q̃_b)⁻¹ Δ
   // below the same gate, Q̃ each landmark's typical feature covariance (the median by
-  // trace of its features', in the world frame). Each landmark fixed by many local maps has a marginal far tighter than any
-  // one map's feature, and the maps' small shared errors then separate two estimates of
-  // one point statistically (on hybrid-120m, pairs 3-9 cm apart at d² 12-42) although no
-  // sensor sweep ever resolved two points there. The same conditions hold (never in one
-  // local map together, each the other's only partner).
+  // trace of its features', in the world frame). A landmark fixed by many local maps has
+  // a marginal far tighter than any one map's feature, and the maps' small shared errors
+  // then separate two estimates of one point statistically (on hybrid-120m, pairs 3-9 cm
+  // apart at d² 12-42) although no sensor sweep ever resolved two points there. The
+  // other conditions of a merge hold as for the first test.
   bool merge_unresolved = true;
+  // Off by default: on hybrid-120m, combined-2km and Victoria Park it changed no figure
+  // while a pass per split doubled Victoria Park's time (bench/RESULTS.md); the wrong
+  // merges seen there are joint loop-closure decisions that the estimate bends to fit,
+  // below a per-feature test.
   bool split = false;
   double split_probability = 0.99;  // family-wise, over the features tested in a pass
   // A revision pass runs after every relinearisation that follows a join, at the end,
   // after a whole-map (tree) join, and every `every_joins` joins (0: not on a schedule).
+  // Passes during the run keep the online estimate tied where copies appear; every 10
+  // joins keeps hybrid-120m's duplicates at 1.5 % (α = 1; 2.2 % at 20, 4.8 % at 0) and
+  // costs Victoria Park's command 0.8 s (bench/RESULTS.md).
   int every_joins = 10;
 
   bool enabled() const { return merge || split; }

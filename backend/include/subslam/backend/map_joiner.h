@@ -167,6 +167,10 @@ class MapJoiner {
   }
 };
 
+// Revision passes on `joiner` until one changes nothing (at most `max_passes`: merges and
+// splits could alternate), what a joiner's Finish() runs.
+absl::Status ReviseUntilSettled(MapJoiner& joiner, int max_passes = 50);
+
 // The map `j` seen as one local map from its anchor 0 (which must be the identity):
 // mean [last anchor, every landmark], their joint marginal covariance, each landmark's
 // mean signature and truth id; id, start and end times from j's first and last local
