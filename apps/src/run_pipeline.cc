@@ -484,6 +484,12 @@ std::string SummaryTable(const RunResult& r) {
     row("local maps: false alarms exported", absl::StrCat(m.false_alarms));
     row("local maps: features mixing landmarks", absl::StrCat(r.impure_features));
   }
+  if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("join_landmarks_merged")) {
+    const nlohmann::json& c = r.report["estimator_counters"];
+    row("back-end association revised", absl::StrFormat("%.0f landmarks merged, %.0f features split",
+                                                         c["join_landmarks_merged"].get<double>(),
+                                                         c["join_features_split"].get<double>()));
+  }
   row("estimator time", absl::StrFormat("%.3f s", r.wall_seconds));
   row("peak memory", absl::StrFormat("%.1f MB", r.peak_rss_kb / 1024.0));
   return s;
