@@ -1140,6 +1140,8 @@ absl::Status EifJoiner::ReviseAssociation(bool full) {
     for (int j = 0; j < graph_.num_landmarks(); ++j) {
       if (!marginals[j].allFinite()) marginals[j] = exact.empty() ? LandmarkCovariance(j) : exact[j];
     }
+    // Today's exact marginals bound every later one until the next relinearisation.
+    if (options_.bound_candidate_marginals) marginal_bound_ = marginals;
   }
   touched_.resize(graph_.num_landmarks(), 1);
   std::vector<LandmarkMerge> merges = FindLandmarkMerges(
@@ -1230,7 +1232,7 @@ absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
   lambda_full_valid_ = false;
   solver_->stale = true;
   if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;
-  if (options_.RelinearizesAfterJoins() || options_.relinearize_at_end) return Relinearize();
+  if (options_.RelinearizesAfterJoins() || options_.relinearize_at_end) return GaussNewton();
   return absl::OkStatus();
 }
 
