@@ -61,8 +61,9 @@ struct LandmarkRevisionOptions {
   // A revision pass runs after every relinearisation that follows a join, at the end,
   // after a whole-map (tree) join, and every `every_joins` joins (0: not on a schedule).
   // Passes during the run keep the online estimate tied where copies appear; every 10
-  // joins keeps hybrid-120m's duplicates at 1.5 % (α = 1; 2.2 % at 20, 4.8 % at 0) and
-  // costs Victoria Park's command 0.8 s (bench/RESULTS.md).
+  // joins keeps hybrid-120m's duplicates at 1.5 % (α = 1; 2.2 % at 20, 4.8 % at 0); with
+  // the Gauss-Newton after each applied merge, Victoria Park's command takes 1.5× as
+  // long as without merges (bench/RESULTS.md).
   int every_joins = 10;
 
   bool enabled() const { return merge || split; }
