@@ -199,7 +199,7 @@ struct EifJoinerOptions {
   bool RelinearizesAfterJoins() const;
   // These options with every relinearisation off (both triggers, the schedule and the
   // one at the end) and no association revision (it relinearises every factor): the
-  // single-linearisation EIF of paper 000.
+  // single-linearisation EIF of Combined SLAM.
   EifJoinerOptions SingleLinearization() const;
 };
 
