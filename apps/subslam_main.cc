@@ -125,17 +125,18 @@ ABSL_FLAG(double, join_loop_test_sigma, kEifDefaults.association.loop_test_min_s
           "apply --join_min_loop_pairings only when 3 sigma of the start anchor's position is at "
           "least this [m]");
 ABSL_FLAG(bool, join_merge, kEifDefaults.revision.merge,
-          "eif / ceres / tree-eif: merge two global landmarks once the estimate shows they are one "
+          "every back-end: merge two global landmarks once the estimate shows they are one "
           "point (chi2 test on their difference with their joint marginal; never two that one "
-          "local map holds apart; each the other's only candidate)");
+          "local map holds apart; mutual best partners, unambiguous, their relative position "
+          "known to 3 sigma below --join_loop_test_sigma)");
 ABSL_FLAG(bool, join_merge_unresolved, kEifDefaults.revision.merge_unresolved,
-          "also merge a pair that no single local map could tell apart (the test with each "
-          "landmark's most precise feature covariance)");
+          "also merge a pair that a single local map could not tell apart (the test with each "
+          "landmark's typical feature covariance)");
 ABSL_FLAG(double, join_merge_gate, kEifDefaults.revision.merge_probability,
           "merge test: chi2 (2 dof) acceptance probability of 'the same point'");
 ABSL_FLAG(bool, join_split, kEifDefaults.revision.split,
-          "eif / ceres / tree-eif: split a feature whose residual fails its outlier test off to a "
-          "landmark of its own");
+          "every back-end: split a feature whose residual fails its outlier test off to a "
+          "landmark of its own (ekf / tree-ekf: by joining every map again)");
 ABSL_FLAG(double, join_split_level, kEifDefaults.revision.split_probability,
           "split test: family-wise confidence over the features tested in a pass (Bonferroni)");
 ABSL_FLAG(int, join_revise_every, kEifDefaults.revision.every_joins,
@@ -295,6 +296,17 @@ int Simulate() {
   return 0;
 }
 
+subslam::backend::LandmarkRevisionOptions RevisionOptionsFromFlags() {
+  subslam::backend::LandmarkRevisionOptions o;
+  o.merge = absl::GetFlag(FLAGS_join_merge);
+  o.merge_unresolved = absl::GetFlag(FLAGS_join_merge_unresolved);
+  o.merge_probability = absl::GetFlag(FLAGS_join_merge_gate);
+  o.split = absl::GetFlag(FLAGS_join_split);
+  o.split_probability = absl::GetFlag(FLAGS_join_split_level);
+  o.every_joins = absl::GetFlag(FLAGS_join_revise_every);
+  return o;
+}
+
 subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   subslam::backend::EifJoinerOptions o;
   o.association.anchor_search_radius_m = absl::GetFlag(FLAGS_join_anchor_radius);
@@ -306,12 +318,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.keep_certain_loop_pairings = absl::GetFlag(FLAGS_join_keep_certain_loop_pairings);
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
   o.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
-  o.revision.merge = absl::GetFlag(FLAGS_join_merge);
-  o.revision.merge_unresolved = absl::GetFlag(FLAGS_join_merge_unresolved);
-  o.revision.merge_probability = absl::GetFlag(FLAGS_join_merge_gate);
-  o.revision.split = absl::GetFlag(FLAGS_join_split);
-  o.revision.split_probability = absl::GetFlag(FLAGS_join_split_level);
-  o.revision.every_joins = absl::GetFlag(FLAGS_join_revise_every);
+  o.revision = RevisionOptionsFromFlags();
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
   o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
@@ -335,6 +342,7 @@ subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
 absl::StatusOr<subslam::backend::EkfJoinerOptions> EkfJoinOptionsFromFlags() {
   subslam::backend::EkfJoinerOptions o;
   o.association = EifOptionsFromFlags().association;
+  o.revision = RevisionOptionsFromFlags();  // (the EIF's single linearisation turns its own off)
   const std::string fusion = absl::GetFlag(FLAGS_ekf_fusion);
   if (fusion == "zero-noise") {
     o.fusion = subslam::backend::EkfFusion::kZeroNoiseConstraint;

@@ -1076,20 +1076,6 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<Eigen::Vector2d> EifJoiner::MergedPosition(int a, int b) const {
-  const Eigen::MatrixXd S = JointCovariance({}, {a, b});
-  const Eigen::Matrix2d C = S.topLeftCorner<2, 2>() + S.bottomRightCorner<2, 2>() - S.topRightCorner<2, 2>() -
-                            S.bottomLeftCorner<2, 2>();
-  const Eigen::LLT<Eigen::Matrix2d> llt(C);
-  if (llt.info() != Eigen::Success) {
-    return absl::InvalidArgumentError(absl::StrCat("merge of landmarks ", a, " and ", b,
-                                                   ": their difference has no positive definite covariance"));
-  }
-  const Eigen::Vector2d delta = graph_.landmarks()[a] - graph_.landmarks()[b];
-  const Eigen::Matrix2d cov_a_delta = S.topLeftCorner<2, 2>() - S.topRightCorner<2, 2>();
-  return Eigen::Vector2d(graph_.landmarks()[a] - cov_a_delta * llt.solve(delta));
-}
-
 std::vector<Matrix5d> EifJoiner::FactorMarginals(int anchor, const std::vector<int>& landmarks) const {
   // [anchor, landmark] is coupled in Λ by the factor that holds both, so its block lies on
   // L's pattern: all of them from one sparse-inverse recursion per factorisation.
@@ -1158,33 +1144,12 @@ absl::Status EifJoiner::ReviseAssociation(bool full) {
 }
 
 absl::Status EifJoiner::MergeLandmarks(int keep, int drop) {
-  const int n = graph_.num_landmarks();
-  if (keep < 0 || keep >= n || drop < 0 || drop >= n || keep == drop) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("merge of landmarks ", keep, " and ", drop, ": the map has landmarks 0-", n - 1));
-  }
-  if (graph_.CoObserved(keep, drop)) {
-    return absl::InvalidArgumentError(absl::StrCat("merge of landmarks ", keep, " and ", drop,
-                                                   ": one local map holds them as distinct features"));
-  }
-  absl::StatusOr<Eigen::Vector2d> position = MergedPosition(keep, drop);
-  if (!position.ok()) return position.status();
-  LandmarkMerge m{std::min(keep, drop), std::max(keep, drop), NAN, *position};
-  return ApplyRevisions({}, {m});
+  if (absl::Status st = graph_.ValidateMerge(keep, drop); !st.ok()) return st;
+  return ApplyRevisions({}, {LandmarkMerge{std::min(keep, drop), std::max(keep, drop), NAN}});
 }
 
 absl::Status EifJoiner::SplitFeature(int factor, int feature) {
-  if (factor < 0 || factor >= static_cast<int>(graph_.factors().size())) {
-    return absl::InvalidArgumentError(absl::StrCat("split: no factor ", factor));
-  }
-  const std::vector<int>& assoc = graph_.factors()[factor].landmark_of_feature;
-  if (feature < 0 || feature >= static_cast<int>(assoc.size())) {
-    return absl::InvalidArgumentError(absl::StrCat("split: factor ", factor, " has no feature ", feature));
-  }
-  if (graph_.FeatureCounts()[assoc[feature]] < 2) {
-    return absl::InvalidArgumentError(absl::StrCat("split of feature ", feature, " of factor ", factor,
-                                                   ": its landmark ", assoc[feature], " has no other feature"));
-  }
+  if (absl::Status st = graph_.ValidateSplit(factor, feature); !st.ok()) return st;
   return ApplyRevisions({FeatureSplit{factor, feature, NAN}}, {});
 }
 
@@ -1194,9 +1159,7 @@ absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
     const SubmapFactor& record = graph_.factors()[sp.factor];
     const int from = record.landmark_of_feature[sp.feature];
     const double signature = record.submap.landmarks[sp.feature].signature;
-    // The split feature's own position, through its start anchor.
-    const Eigen::Vector2d position = TransformFrom(graph_.anchors()[record.start_anchor], record.submap.landmark(sp.feature));
-    absl::StatusOr<int> to = graph_.SplitFeature(sp.factor, sp.feature, position);
+    absl::StatusOr<int> to = graph_.SplitFeature(sp.factor, sp.feature);
     if (!to.ok()) return to.status();
     associator_.SplitFeature(from, *to, signature);
     touched_.resize(graph_.num_landmarks(), 1);
@@ -1207,7 +1170,7 @@ absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
     ++counters_.features_split;
   }
   for (const LandmarkMerge& m : merges) {
-    if (absl::Status st = graph_.MergeLandmarks(m.keep, m.drop, m.position); !st.ok()) return st;
+    if (absl::Status st = graph_.MergeLandmarks(m.keep, m.drop); !st.ok()) return st;
     associator_.MergeLandmarks(m.keep, m.drop);
     if (m.drop < static_cast<int>(touched_.size())) touched_.erase(touched_.begin() + m.drop);
     if (m.keep < static_cast<int>(touched_.size())) touched_[m.keep] = 1;
@@ -1217,10 +1180,7 @@ absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
     for (int& o : anchor_offset_) o -= o > removed ? 2 : 0;
     for (int& o : landmark_offset_) o -= o > removed ? 2 : 0;
     dim_ -= 2;
-    for (int& j : last_association_) {
-      if (j == m.drop) j = m.keep;
-      if (j > m.drop) --j;
-    }
+    for (int& j : last_association_) j = SubmapGraph::RenumberAfterMerge(j, m.keep, m.drop);
     ++counters_.landmarks_merged;
   }
   // Every factor's variables where they now sit. Its linear model stays valid: the factor

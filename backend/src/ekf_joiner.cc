@@ -345,43 +345,24 @@ absl::Status EkfJoiner::ReviseAssociation() {
 }
 
 absl::Status EkfJoiner::MergeLandmarks(int keep, int drop) {
-  const int n = graph_.num_landmarks();
-  if (keep < 0 || keep >= n || drop < 0 || drop >= n || keep == drop) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("merge of landmarks ", keep, " and ", drop, ": the map has landmarks 0-", n - 1));
-  }
+  if (absl::Status st = graph_.ValidateMerge(keep, drop); !st.ok()) return st;
   if (keep > drop) std::swap(keep, drop);
-  if (graph_.CoObserved(keep, drop)) {
-    return absl::InvalidArgumentError(absl::StrCat("merge of landmarks ", keep, " and ", drop,
-                                                   ": one local map holds them as distinct features"));
-  }
   // L_drop = L_keep as a zero-noise constraint, then L_drop dropped.
   const int o_drop = landmark_offset_[drop];
   FuseZeroNoise({{o_drop, landmark_offset_[keep]}});
   DropVariable(o_drop, 2);
   landmark_offset_.erase(landmark_offset_.begin() + drop);
   if (!x_.allFinite() || !P_.allFinite()) return absl::InternalError("EKF merge produced a non-finite value");
-  if (absl::Status st = graph_.MergeLandmarks(keep, drop, x_.segment<2>(landmark_offset_[keep])); !st.ok()) return st;
+  if (absl::Status st = graph_.MergeLandmarks(keep, drop); !st.ok()) return st;
   associator_.MergeLandmarks(keep, drop);
-  for (int& j : last_association_) {
-    if (j == drop) j = keep;
-    if (j > drop) --j;
-  }
+  for (int& j : last_association_) j = SubmapGraph::RenumberAfterMerge(j, keep, drop);
   WriteBack();
   ++counters_.landmarks_merged;
   return absl::OkStatus();
 }
 
 absl::Status EkfJoiner::SplitFeature(int factor, int feature) {
-  if (factor < 0 || factor >= static_cast<int>(graph_.factors().size())) {
-    return absl::InvalidArgumentError(absl::StrCat("split: no factor ", factor));
-  }
-  const SubmapFactor& record = graph_.factors()[factor];
-  if (feature < 0 || feature >= record.submap.num_landmarks()) {
-    return absl::InvalidArgumentError(absl::StrCat("split: factor ", factor, " has no feature ", feature));
-  }
-  const Eigen::Vector2d position = TransformFrom(graph_.anchors()[record.start_anchor], record.submap.landmark(feature));
-  if (absl::StatusOr<int> st = graph_.SplitFeature(factor, feature, position); !st.ok()) return st.status();
+  if (absl::StatusOr<int> st = graph_.SplitFeature(factor, feature); !st.ok()) return st.status();
   ++counters_.features_split;
   return Replay();
 }

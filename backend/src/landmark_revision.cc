@@ -122,10 +122,7 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
       // A pair whose relative position is uncertain to 3σ ≥ loop_sigma_radius_m is a loop
       // closure with one pairing, in the regime where association asks for several.
       if (3.0 * LargestSigma(C) >= loop_sigma_radius_m) continue;
-      // The conditional mean of L_a given Δ = 0: L_a − Cov(L_a, Δ) C⁻¹ Δ.
-      const Eigen::Matrix2d cov_a_delta = S.topLeftCorner<2, 2>() - S.topRightCorner<2, 2>();
-      LandmarkMerge m{std::min(a, b), std::max(a, b), d2, L[a] - cov_a_delta * llt.solve(delta)};
-      passing.push_back(m);
+      passing.push_back({std::min(a, b), std::max(a, b), d2});
     }
   }
   // Each landmark's compatible partners; a pair is merged when each is the other's best

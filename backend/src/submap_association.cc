@@ -72,10 +72,7 @@ void SubmapAssociator::MergeLandmarks(int keep, int drop) {
     signature_sum_.erase(signature_sum_.begin() + drop);
     signature_count_.erase(signature_count_.begin() + drop);
   }
-  for (auto& [truth, landmark] : landmark_of_truth_) {
-    if (landmark == drop) landmark = keep;
-    if (landmark > drop) --landmark;
-  }
+  for (auto& [truth, landmark] : landmark_of_truth_) landmark = SubmapGraph::RenumberAfterMerge(landmark, keep, drop);
 }
 
 void SubmapAssociator::SplitFeature(int from, int to, double signature) {

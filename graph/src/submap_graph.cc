@@ -28,7 +28,7 @@ bool SubmapGraph::CoObserved(int a, int b) const {
   return false;
 }
 
-absl::Status SubmapGraph::MergeLandmarks(int keep, int drop, const Eigen::Vector2d& position) {
+absl::Status SubmapGraph::ValidateMerge(int keep, int drop) const {
   const int n = num_landmarks();
   if (keep < 0 || keep >= n || drop < 0 || drop >= n) {
     return absl::InvalidArgumentError(
@@ -39,23 +39,23 @@ absl::Status SubmapGraph::MergeLandmarks(int keep, int drop, const Eigen::Vector
     return absl::InvalidArgumentError(absl::StrCat("merge of landmarks ", keep, " and ", drop,
                                                    ": one local map holds them as distinct features"));
   }
-  if (!position.allFinite()) return absl::InvalidArgumentError("merge: non-finite position");
-  landmarks_[keep] = position;
+  return absl::OkStatus();
+}
+
+absl::Status SubmapGraph::MergeLandmarks(int keep, int drop) {
+  if (absl::Status st = ValidateMerge(keep, drop); !st.ok()) return st;
   for (SubmapFactor& f : factors_) {
-    for (int& j : f.landmark_of_feature) {
-      if (j == drop) j = keep;
-      if (j > drop) --j;
-    }
+    for (int& j : f.landmark_of_feature) j = RenumberAfterMerge(j, keep, drop);
   }
   landmarks_.erase(landmarks_.begin() + drop);
   return absl::OkStatus();
 }
 
-absl::StatusOr<int> SubmapGraph::SplitFeature(int factor, int feature, const Eigen::Vector2d& position) {
+absl::Status SubmapGraph::ValidateSplit(int factor, int feature) const {
   if (factor < 0 || factor >= static_cast<int>(factors_.size())) {
     return absl::InvalidArgumentError(absl::StrCat("split: no factor ", factor));
   }
-  std::vector<int>& assoc = factors_[factor].landmark_of_feature;
+  const std::vector<int>& assoc = factors_[factor].landmark_of_feature;
   if (feature < 0 || feature >= static_cast<int>(assoc.size())) {
     return absl::InvalidArgumentError(absl::StrCat("split: factor ", factor, " has no feature ", feature));
   }
@@ -63,10 +63,15 @@ absl::StatusOr<int> SubmapGraph::SplitFeature(int factor, int feature, const Eig
     return absl::InvalidArgumentError(absl::StrCat("split of feature ", feature, " of factor ", factor,
                                                    ": its landmark ", assoc[feature], " has no other feature"));
   }
-  if (!position.allFinite()) return absl::InvalidArgumentError("split: non-finite position");
-  landmarks_.push_back(position);
-  assoc[feature] = num_landmarks() - 1;
-  return assoc[feature];
+  return absl::OkStatus();
+}
+
+absl::StatusOr<int> SubmapGraph::SplitFeature(int factor, int feature) {
+  if (absl::Status st = ValidateSplit(factor, feature); !st.ok()) return st;
+  SubmapFactor& f = factors_[factor];
+  landmarks_.push_back(TransformFrom(anchors_[f.start_anchor], f.submap.landmark(feature)));
+  f.landmark_of_feature[feature] = num_landmarks() - 1;
+  return num_landmarks() - 1;
 }
 
 absl::Status SubmapGraph::WriteG2o(const std::string& path) const {

@@ -382,8 +382,6 @@ class EifJoiner final : public MapJoiner {
   // For each landmark, the 5 × 5 marginal of [anchor, landmark] where a factor couples
   // the two (read off the sparse inverse on the factor's pattern).
   std::vector<Matrix5d> FactorMarginals(int anchor, const std::vector<int>& landmarks) const;
-  // The conditional mean of landmarks a and b given that they are one point.
-  absl::StatusOr<Eigen::Vector2d> MergedPosition(int a, int b) const;
   // Association of `s` (starting at anchor `start`) with the map, timed and counted.
   SubmapAssociation AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
   Eigen::VectorXd StateVector() const;

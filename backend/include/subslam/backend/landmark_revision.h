@@ -14,8 +14,8 @@
 //    (SubmapAssociationOptions::loop_test_min_sigma_radius_m). Two landmarks known
 //    relative to each other only to metres are a loop closure with one pairing, in the
 //    regime where association asks for several (min_loop_pairings): not a merge.
-//    The merged position is the conditional mean of L_a given Δ = 0. (Also, with
-//    merge_unresolved, a pair closer than any one local map could resolve.)
+//    (Also, with merge_unresolved, a pair closer than any one local map could resolve.)
+//    The joiner then solves for the merged landmark (the conditional mean given Δ = 0).
 //  - split: a feature i of a local map leaves its landmark j (for a landmark of its own)
 //    when its residual r = P_s⁻¹·L_j − l_i fails the outlier test: rᵀ C⁻¹ r with
 //    C = Q_ii − J Σ Jᵀ, the residual's covariance in the linear-Gaussian model (Q_ii the
@@ -74,7 +74,6 @@ struct LandmarkMerge {
   int keep = 0;  // the lower index
   int drop = 0;  // the higher index (erased)
   double d2 = 0.0;
-  Eigen::Vector2d position = Eigen::Vector2d::Zero();  // the merged landmark's
 };
 
 struct FeatureSplit {

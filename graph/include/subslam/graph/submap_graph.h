@@ -39,16 +39,24 @@ class SubmapGraph {
   }
   void AddFactor(SubmapFactor factor) { factors_.push_back(std::move(factor)); }
 
-  // Revision of the association table (backend/landmark_revision.h decides when).
-  // MergeLandmarks: every feature of landmark `drop` becomes a feature of `keep`, whose
-  // position becomes `position`; `drop` is erased and the landmarks after it move down
-  // by one. Errors: an unknown or equal pair, or a pair that one local map holds as two
-  // distinct features (nothing is changed then).
-  absl::Status MergeLandmarks(int keep, int drop, const Eigen::Vector2d& position);
+  // Revision of the association table (backend/landmark_revision.h decides when); each
+  // checks its request first and changes nothing on an error.
+  // MergeLandmarks: every feature of landmark `drop` becomes a feature of `keep` (whose
+  // position stays until the joiner solves again); `drop` is erased and the landmarks
+  // after it move down by one (RenumberAfterMerge). Errors (ValidateMerge): an unknown or
+  // equal pair, or a pair that one local map holds as two distinct features.
+  absl::Status ValidateMerge(int keep, int drop) const;
+  absl::Status MergeLandmarks(int keep, int drop);
+  static int RenumberAfterMerge(int landmark, int keep, int drop) {
+    if (landmark == drop) return keep;
+    return landmark > drop ? landmark - 1 : landmark;
+  }
   // SplitFeature: feature `feature` of factor `factor` leaves its landmark for a new one
-  // at `position` (appended; its index is returned). Errors: an unknown factor or
-  // feature, or a landmark that has no other feature (nothing to split from).
-  absl::StatusOr<int> SplitFeature(int factor, int feature, const Eigen::Vector2d& position);
+  // at the feature's own position through its start anchor (appended; its index is
+  // returned). Errors (ValidateSplit): an unknown factor or feature, or a landmark that
+  // has no other feature (nothing to split from).
+  absl::Status ValidateSplit(int factor, int feature) const;
+  absl::StatusOr<int> SplitFeature(int factor, int feature);
   // How many features (over all factors) each landmark has.
   std::vector<int> FeatureCounts() const;
   // Whether some factor holds both landmarks as features.
