@@ -17,6 +17,7 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "cli_reference.h"
 #include "keep_freed_memory_flag.h"
 #include "subslam/app/join_pipeline.h"
 #include "subslam/app/run_pipeline.h"
@@ -180,7 +181,7 @@ ABSL_FLAG(double, relinearize_linearization_chi2, kEifDefaults.relinearize_linea
           "eif: relinearise after a join when some factor's linear model is off at the current "
           "estimate by more than this, whitened by its local map's covariance (chi2 units; 0: off)");
 ABSL_FLAG(bool, single_linearization, false,
-          "eif: the single-linearisation EIF of Combined SLAM (paper 000): no relinearisation at "
+          "eif: the single-linearisation EIF of Combined SLAM: no relinearisation at "
           "all, whatever the relinearize_* flags say");
 ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
           "eif: relinearise to convergence after the last join (ceres: off, Ceres solves there)");
@@ -544,14 +545,7 @@ int Run() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  absl::SetProgramUsageMessage(
-      "submap-based landmark SLAM\n"
-      "  subslam simulate --scenario NAME [--seed S] --out DIR\n"
-      "  subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf "
-      "--out DIR\n"
-      "  subslam join --submaps FILE --backend eif|ceres|ekf|tree-ekf|tree-eif [--known_association] "
-      "[--dataset DIR | --scenario NAME --seed S] --out DIR\n"
-      "  subslam scenarios");
+  absl::SetProgramUsageMessage(subslam::app::CliUsage());
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);
   subslam::app::ApplyKeepFreedMemoryFlag();
   if (args.size() != 2) {
@@ -562,6 +556,10 @@ int main(int argc, char** argv) {
   if (command == "simulate") return Simulate();
   if (command == "run") return Run();
   if (command == "join") return Join();
+  if (command == "cli-reference") {
+    std::printf("%s", subslam::app::CliReferenceMarkdown().c_str());
+    return 0;
+  }
   if (command == "scenarios") {
     std::printf("%s\n", absl::StrJoin(subslam::sim::ScenarioNames(), "\n").c_str());
     return 0;

@@ -1,6 +1,6 @@
 // Every back-end on the same recorded local maps, side by side; the total-time curves of
 // single-map EKF-SLAM against local mapping plus sequential or tree joining (Figure 9 of
-// paper 000); and the growth of the joining cost with the number of local maps.
+// Combined SLAM); and the growth of the joining cost with the number of local maps.
 //
 //   build/bench/backends_bench [--scenario combined-2km --seed 1 | --dataset DIR]
 //       [--frontend ekf|rbpf] [--known_association] [--backends eif,ceres,ekf,tree-ekf,tree-eif]

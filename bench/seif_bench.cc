@@ -1,4 +1,4 @@
-// SEIF / ISEIF studies (issue 6, paper 004 §3):
+// SEIF / ISEIF studies (Iterative Sparse Extended Information Filter, §3):
 //
 //  1. Monte Carlo on a scenario (default iseif-circle, 50 seeds): EKF-SLAM, SEIF and
 //     ISEIF side by side — the mean over runs of the per-run RMS of pose x, y, heading

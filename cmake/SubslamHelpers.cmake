@@ -45,7 +45,7 @@ function(subslam_add_test NAME)
   target_compile_options(${NAME} PRIVATE -Wall -Wextra)
   target_include_directories(${NAME} PRIVATE ${PROJECT_SOURCE_DIR}/tests)
   target_compile_definitions(${NAME} PRIVATE
-    SUBSLAM_SHARED_DATA_DIR="${PROJECT_SOURCE_DIR}/../shared/data")
+    SUBSLAM_VICTORIA_PARK_DIR="${SUBSLAM_VICTORIA_PARK_DIR}")
   target_link_libraries(${NAME} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
   gtest_discover_tests(${NAME} DISCOVERY_TIMEOUT 60 PROPERTIES LABELS "${ARG_LABELS}")
 endfunction()

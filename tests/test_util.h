@@ -20,7 +20,8 @@ inline constexpr double kExactTolerance = 1e-12;     // algebraic identities
 inline constexpr double kJacobianTolerance = 1e-6;   // analytic vs central differences
 inline constexpr double kNumericStep = 1e-6;         // central-difference step
 
-inline std::string VictoriaParkDir() { return std::string(SUBSLAM_SHARED_DATA_DIR) + "/victoria_park"; }
+// The optional Victoria Park data set (CMake cache variable SUBSLAM_VICTORIA_PARK_DIR).
+inline std::string VictoriaParkDir() { return SUBSLAM_VICTORIA_PARK_DIR; }
 
 // Central-difference Jacobian of f at x. Output entries listed in `angle_outputs` are
 // differenced with wrapping, so a heading near ±π differentiates correctly.

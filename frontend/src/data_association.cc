@@ -78,7 +78,7 @@ class Jcbb {
     // The fewest candidates first (ties in detection order): the narrow levels at the top
     // of the tree, where every branch is paid for again below. On combined-2km's joins
     // under an uncertain anchor (40-70 candidates per detection) it visits fewer nodes
-    // and hits the node budget less often (bench/RESULTS.md, twelfth session).
+    // and hits the node budget less often (bench/RESULTS.md).
     std::stable_sort(branching_.begin(), branching_.end(), [&](int a, int b) {
       return problem.candidates[a].size() < problem.candidates[b].size();
     });

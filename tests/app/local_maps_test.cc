@@ -77,7 +77,7 @@ TEST(RbpfLocalMaps, Hybrid120mJointNeesIsConsistent) {
 // ...and with the default 100 particles, over twelve seeds (1,241 maps), once the moment
 // matching accounts for the particles' shared ancestry (FastSlamOptions::
 // correct_shared_ancestry: the spread under-states the posterior's, and the mean has a
-// Monte Carlo error of its own). Margins (bench/RESULTS.md, thirteenth session): joint
+// Monte Carlo error of its own). Margins (bench/RESULTS.md): joint
 // 1,161 inside against the bound's 1,154, end pose about 1,159; without the correction
 // 1,149 and about 1,144 (both checks fail); with the spread divided by 1 − R alone
 // about 1,154 and 1,150 (the end-pose check fails). Deterministic, but near the bound:

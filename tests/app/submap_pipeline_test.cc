@@ -423,11 +423,11 @@ TEST(SubmapPipeline, JoinedAnchorsAreNotOverconfident) {
   EXPECT_GE(inside, bound) << inside << " / " << n;
 }
 
-// issue 4's "done when": combined-2km with unknown association in the front-end and the
-// back-end, at the defaults. The EIF relinearises during the run (whenever a factor's
-// linear model is off by more than its noise); without that (single linearisation) this
-// seed's loop closes wrongly and ends at 257 m, worse than chaining the local maps
-// (172 m). With it the final pose is many times closer to the truth than the chained
+// The whole pipeline closes combined-2km's loop with unknown association in the front-end
+// and the back-end, at the defaults. The EIF relinearises during the run (whenever a
+// factor's linear model is off by more than its noise); without that (single
+// linearisation) this seed's loop closes wrongly and ends at 257 m, worse than chaining
+// the local maps (172 m). With it the final pose is many times closer to the truth than the chained
 // local maps, consistent with its covariance, and the trajectory passes the 10σ test.
 TEST(SubmapPipeline, Combined2kmUnknownAssociationClosesTheLoop) {
   const io::Dataset d = Simulate(3, "combined-2km");

@@ -131,8 +131,8 @@ TEST(JointCompatibility, JointD2EqualsTheDenseMahalanobisDistance) {
 }
 
 // Detections without candidates do not spend the search budget: among 500 detections of
-// which 3 have candidates, a 20-node budget still finds the full hypothesis (every node
-// of the old search visited each detection, 500 nodes per hypothesis).
+// which 3 have candidates, a 20-node budget still finds the full hypothesis (a search
+// that branched on every detection would spend 500 nodes per hypothesis).
 TEST(JointCompatibility, DetectionsWithoutCandidatesCostNothing) {
   AssociationProblem p;
   p.candidates.resize(500);

@@ -277,7 +277,7 @@ TEST(Iseif, OneIterationIsTheSeifUpdate) {
       << "with a tight stop some updates should iterate more than once";
 }
 
-// The gradient of the step's MAP cost (004 Eq. 9) at the updated mean,
+// The gradient of the step's MAP cost (ISEIF Eq. 9) at the updated mean,
 //   ∇J = Ω⁻ (μ⁺ − μ⁻) − Σ Hᵀ R⁻¹ (z − h(μ⁺)),
 // relative to the size of its first term.
 double RelativeMapGradient(const Eigen::MatrixXd& omega_prior, const Eigen::VectorXd& mu_prior,

@@ -9,8 +9,8 @@
 // (the dense EKF its n × n covariance as it grows, the EIF its sparse factor at every
 // full factorisation). On a virtual machine where a page fault costs microseconds this
 // dominated the dense EKF joiner (combined-2km seed 1: 4.4-5.9 s and 325,000 page
-// faults, against 0.35-0.45 s and 19,000 faults with these settings; bench/RESULTS.md,
-// fourteenth session). Blocks above 32 MiB are still mmapped.
+// faults, against 0.35-0.45 s and 19,000 faults with these settings; bench/RESULTS.md).
+// Blocks above 32 MiB are still mmapped.
 #ifndef SUBSLAM_APP_PROCESS_MEMORY_H_
 #define SUBSLAM_APP_PROCESS_MEMORY_H_
 

@@ -1,6 +1,6 @@
 // The `subslam run` job as a library call: feed a data set (read or simulated) through
 // an online estimator, evaluate it against whatever ground truth the data set has,
-// and write the run outputs of ../shared/design.md to a directory.
+// and write the run outputs of docs/formats.md to a directory.
 //
 // Outputs (in RunOptions::out_dir, when set):
 //   trajectory_online.csv  the pose and covariance after every step, as it was then;

@@ -1,4 +1,4 @@
-// One local map as one Ceres residual block (../shared/design.md, "The submap factor"):
+// One local map as one Ceres residual block (docs/conventions.md, "The submap factor"):
 // residual W (h(X) ⊖ z) of size 3 + 2n with W = L⁻¹, Q = L Lᵀ the local map's covariance
 // (so ‖residual‖² = rᵀ Q⁻¹ r), heading entry wrapped; parameter blocks: start anchor
 // (x, y, θ), end anchor (x, y, θ), then each distinct associated landmark (x, y).

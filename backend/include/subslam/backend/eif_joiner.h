@@ -1,5 +1,5 @@
 // The incremental, exactly sparse extended information filter that joins local maps
-// into the global map (paper 000 §5; ../shared/design.md, "The submap factor").
+// into the global map (Combined SLAM §5; docs/conventions.md, "The submap factor").
 //
 // State: the anchors P1 … Pk (P0, the initial pose, is fixed and not a variable) and the
 // global landmarks, in the order they were created. Each local map adds one factor,
@@ -26,7 +26,7 @@
 //  2. the end anchor and the new landmarks are initialised through the start anchor;
 //  3. the information update above;
 //  4. state recovery by one solve.
-// Relinearisation (ISEIF's adaptive stop, paper 004 §2.3): rebuild every factor at the
+// Relinearisation (ISEIF's adaptive stop, ISEIF §2.3): rebuild every factor at the
 // current estimate and re-solve while the step exceeds `relinearize_tolerance` or its χ²
 // length exceeds `relinearize_step_chi2` (or, with `predict_convergence`, until the next
 // step, solved with the factor at hand, is below them) — after a join that left a
@@ -35,11 +35,11 @@
 // linearisation (off by default), every `relinearize_every` joins and/or at Finish() (on
 // by default); iterated to convergence this is Gauss-Newton over the submap graph. Without the
 // triggers and the relinearisation at the end (all 0 / false: SingleLinearization()) it
-// is the single-linearisation EIF of paper 000.
+// is the single-linearisation EIF of Combined SLAM.
 // Time per stage (association, covariance recovery — association's, plus the marginal
 // bounds recomputed after a relinearisation —, update, factorisation — of which
 // full_factorization —, recovery, recovery_check, and linearization_check, the
-// relinearisation trigger's test) is accumulated as in Table 1 of paper 000.
+// relinearisation trigger's test) is accumulated as in Table 1 of Combined SLAM.
 // Not thread-safe.
 #ifndef SUBSLAM_BACKEND_EIF_JOINER_H_
 #define SUBSLAM_BACKEND_EIF_JOINER_H_
@@ -79,7 +79,7 @@ struct EifJoinerOptions {
   // local map joined again without associations (its odometry still links the chain),
   // counted and its id reported. Off by default: on hybrid-120m it also rejected 1-2
   // correct loop-closing joins per run (the single-linearisation residual after a large
-  // correction), so it waits for the relinearising joiner (issue 5).
+  // correction).
   bool validate_joins = false;
   double validation_probability = 0.999;
   // Loop-closure confirmation (beyond the papers).
@@ -105,8 +105,7 @@ struct EifJoinerOptions {
   //    correct closures were all undone. 0 maps: off.
   //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
   //    wrong closure (RBPF maps, seed 7) found no such landmark in its next three maps;
-  //    every correct first closure found one within three (bench/RESULTS.md, ninth
-  //    session).
+  //    every correct first closure found one within three (bench/RESULTS.md).
   int loop_confirmation_maps = 3;
   double loop_confirmation_min_sigma_radius_m = 60.0;
   // Relinearisation.
@@ -116,18 +115,17 @@ struct EifJoinerOptions {
   // linearised where each join left them: with the heading trigger alone, on a random
   // 16 km world (807 joins, no heading moving 0.05 rad) the final anchors' mean NEES was
   // 102.7 without it and 4.7 with it, for three Gauss-Newton iterations (`subslam join`,
-  // bench/RESULTS.md, twelfth session). The Ceres back-end turns it off (Ceres solves
-  // there).
+  // bench/RESULTS.md). The Ceres back-end turns it off (Ceres solves there).
   bool relinearize_at_end = true;
   // A relinearisation's Gauss-Newton iterations stop when the last step Δx is small
   // either way: max |Δx| below `relinearize_tolerance` (m, rad), or ΔxᵀΛΔx below
   // `relinearize_step_chi2` (0: off), Λ the information of the linearisation that gave the
   // step — its length in units of the estimate's own uncertainty (χ² units; it is the
   // decrease of Cost() that the step predicts). The second test is ISEIF's adaptive stop
-  // (paper 004 §2.3) with the Mahalanobis distance between iterates: Gauss-Newton
+  // (ISEIF §2.3) with the Mahalanobis distance between iterates: Gauss-Newton
   // converges linearly here (each step ≈ 0.1-0.15 of the last on combined-2km), and
   // millimetre steps of landmarks known to a metre took two more iterations for nothing
-  // (bench/RESULTS.md, ninth session).
+  // (bench/RESULTS.md).
   double relinearize_tolerance = 1e-3;
   double relinearize_step_chi2 = 1e-3;
   int max_relinearizations = 20;
@@ -148,21 +146,21 @@ struct EifJoinerOptions {
   // covariance; MaxLinearizationError()); 0: off. After a relinearisation stopped at its
   // best iterate or at max_relinearizations (or on a predicted step) the error can stay
   // above the threshold, and the next joins relinearise again, which carries
-  // Gauss-Newton on. It replaced the heading trigger below as the default (thirteenth
-  // session): a small turn under long levers can leave a linear model far off — on a
+  // Gauss-Newton on. It is the default rather than the heading trigger below: a small
+  // turn under long levers can leave a linear model far off — on a
   // 16 km random world a loop closure turned no heading by 0.05 rad but put one
   // factor's linear model 148 χ² units off, and the online estimate ended at NEES 58
   // without a relinearisation there, 3.6 with it. On combined-2km's recorded maps,
   // seeds 1-20, it spends 560 / 704 Gauss-Newton iterations (EKF / RBPF maps) against
   // the heading trigger's 635 / 803, merging as many loop re-observations or more with
-  // fewer duplicates and the same wrong merges (bench/RESULTS.md, thirteenth session).
+  // fewer duplicates and the same wrong merges (bench/RESULTS.md).
   double relinearize_linearization_chi2 = 1.0;
   // Also relinearise after a join when an anchor's heading has moved this far [rad] from
   // where one of its factors was linearised (the submap factor is nonlinear in the
-  // headings only); 0: off (the default since the thirteenth session). At 0.05 (≈ 3°),
-  // the default before, combined-2km's loop closes with unknown association on ten seeds
-  // of ten (at 0.1, six; bench/RESULTS.md, seventh session) — as it does with the
-  // linearisation-error trigger alone.
+  // headings only); 0: off (by default the linearisation-error trigger above covers it).
+  // At 0.05 (≈ 3°) combined-2km's loop closes with unknown association on ten seeds of
+  // ten (at 0.1, six; bench/RESULTS.md) — as it does with the linearisation-error
+  // trigger alone.
   double relinearize_heading_change = 0.0;
   // Gauss-Newton may raise the cost once on its way to a lower minimum, but this many
   // rises in a row end a relinearisation at its best iterate (counter

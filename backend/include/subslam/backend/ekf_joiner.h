@@ -1,4 +1,4 @@
-// Dense EKF map joining in covariance form (HybridSLAM §4, paper 001; Tardós et al.'s
+// Dense EKF map joining in covariance form (HybridSLAM §4, Brooks & Bailey; Tardós et al.'s
 // sequential map joining): the baseline back-end of the RBPF-EKF and EKF-EIF
 // configurations and the reference for cost comparisons with the EIF.
 //

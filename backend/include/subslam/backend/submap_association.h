@@ -71,16 +71,14 @@ struct SubmapAssociationOptions {
   // min_loop_pairings of them (two explanations of the same features; "local
   // uniqueness"). On combined-2km, seeds 1-10, RBPF maps: loop re-observations merged
   // 323 → 365 of 600, seed 10's loop closed (anchor RMS 121 → 12 m); EKF maps: 395 → 376
-  // of 594, seed 10 closes later (10 → 30 m); Victoria Park unchanged
-  // (bench/RESULTS.md, seventh session).
+  // of 594, seed 10 closes later (10 → 30 m); Victoria Park unchanged (bench/RESULTS.md).
   bool loop_ambiguity_test = true;
   // When either test drops a loop closure's pairings, keep those whose landmark's
   // position relative to the start anchor is known to 3σ < loop_test_min_sigma_radius_m
   // (through the [anchor, landmark] marginal): a landmark seen a few maps ago is still
   // tightly correlated with the anchor, and no chance fit. They still count towards
   // min_loop_pairings. On combined-2km, seeds 1-20: duplicate landmarks 606 → 367 (EKF
-  // maps) and 738 → 477 (RBPF), wrong merges 38 → 38 and 83 → 82 (bench/RESULTS.md,
-  // twelfth session).
+  // maps) and 738 → 477 (RBPF), wrong merges 38 → 38 and 83 → 82 (bench/RESULTS.md).
   bool keep_certain_loop_pairings = true;
   int recent_maps = 2;
   double loop_test_min_sigma_radius_m = 5.0;

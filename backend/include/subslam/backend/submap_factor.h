@@ -1,4 +1,4 @@
-// The submap factor of ../shared/design.md: local map k, started at anchor P_s and ended
+// The submap factor of docs/conventions.md: local map k, started at anchor P_s and ended
 // at anchor P_e, observed global landmarks L_1 … L_n. Its prediction is
 //   h(X) = [ P_s⁻¹ ∘ P_e , P_s⁻¹ · L_1 , … , P_s⁻¹ · L_n ]   (3 + 2n, start frame)
 // and its residual r = h(X) ⊖ z (z the local map's mean; heading entry wrapped), with

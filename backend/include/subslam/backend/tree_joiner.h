@@ -1,4 +1,4 @@
-// Binary-tree map joining (Combined SLAM §6.2, paper 000; FMJ, paper 003; Paz et al.'s
+// Binary-tree map joining (Combined SLAM §6.2; Fast Map Joining; Paz et al.'s
 // divide-and-conquer SLAM): local maps are joined pairwise, level by level, until one map
 // remains, instead of each into one ever-growing global map.
 //

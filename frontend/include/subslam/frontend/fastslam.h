@@ -1,6 +1,6 @@
 // FastSLAM 2.0 with unknown data association (known association: a study option, see
 // FastSlamOptions::known_association): the Rao-Blackwellised particle filter of
-// the local mapper (paper 001 §2-3, Montemerlo et al. 2003), usable on its own as the
+// the local mapper (HybridSLAM §2-3, Montemerlo et al. 2003), usable on its own as the
 // single-map FastSLAM 2.0 baseline (`subslam run --frontend fastslam`).
 //
 // Each particle holds a pose hypothesis and its own map of 2-D Gaussian landmarks.
@@ -99,7 +99,7 @@ struct FastSlamOptions {
   // ignored: it updates nothing, and the particle's weight scores it by the likelihood of
   // its most likely landmark that no other detection took (at least p0) — scoring it by
   // p0 alone would down-weight particles whose pose puts a landmark just outside the
-  // gate and cut off the tails of the pose posterior (bench/RESULTS.md, seventh session).
+  // gate and cut off the tails of the pose posterior (bench/RESULTS.md).
   // Resample when N_eff < resample_ess_ratio · N.
   double resample_ess_ratio = 0.5;
   // Existence model (HybridSLAM Eq. 11): the filter's α and β.

@@ -1,5 +1,5 @@
 // Conversion of a weighted set of particle hypotheses (a Gaussian mixture) to one
-// Gaussian by moment matching (HybridSLAM, paper 001 §2.2-3.2, Eqs. 6-9):
+// Gaussian by moment matching (HybridSLAM, Brooks & Bailey, §2.2-3.2, Eqs. 6-9):
 //   x = Σ_p w_p x_p,   P = Σ_p w_p [P_p + (x_p − x)(x_p − x)ᵀ],
 // with x_p = [pose_p, μ_{δ(1,p)}, …, μ_{δ(N,p)}] ordered by common feature id and P_p
 // block-diagonal (the particle's pose covariance, then its landmark covariances).

@@ -1,6 +1,7 @@
 // The sparse extended information filter (SEIF; Thrun et al., IJRR 2004, and
-// Probabilistic Robotics ch. 12) and its iterated variant ISEIF (paper 004, §2.3), as
-// whole single-map SLAM filters: the fourth system of our papers and a baseline.
+// Probabilistic Robotics ch. 12) and its iterated variant ISEIF (*Iterative Sparse
+// Extended Information Filter*, §2.3), as whole single-map SLAM filters: the fourth
+// system of the papers cited in docs/scenarios.md, and a baseline.
 //
 // State y = [pose (3), landmark 1 (2), …] in the world frame (conventions.h), kept in
 // information form: Ω = Σ⁻¹ and ξ = Ω μ, block-sparse, plus a running estimate μ of
@@ -23,7 +24,7 @@
 //    active, those seen longest ago (ties: lower ids first) are made
 //    passive by the approximation
 //    p(x | m⁺, m⁰, m⁻) ≈ p(x | m⁺, m⁻ = μ⁻); only the pose/active block changes.
-//    This is the approximation that makes SEIF over-confident (004 §2.2).
+//    This is the approximation that makes SEIF over-confident (ISEIF §2.2).
 //  * Mean recovery: exact (sparse Cholesky of Ω with CHOLMOD; O(n) and more per scan),
 //    or amortised block Gauss-Seidel relaxation (Thrun §12.6) over the pose, the active
 //    and the observed landmarks, and a round-robin slice of the rest.
@@ -35,7 +36,7 @@
 //    the (approximate) covariance, as EkfSlam; or, as an explicit study option only,
 //    the detections' true ids. Existence (HybridSLAM Eq. 11) and the cull of tentative
 //    landmarks are EkfSlam's; a culled landmark is marginalised out of Ω (exact).
-//  * ISEIF (004 §2.3, Eqs. 14-19): on every `period_scans`-th scan the measurement
+//  * ISEIF (ISEIF §2.3, Eqs. 14-19): on every `period_scans`-th scan the measurement
 //    update is relinearised at the latest estimate — Gauss-Newton on the step's MAP
 //    problem (Eq. 9) — until the largest change of the pose or an observed landmark
 //    falls below stop_change, or max_iterations. The first iteration is the SEIF update.
@@ -80,7 +81,7 @@ const char* ToString(CovarianceRecovery recovery);
 absl::StatusOr<MeanRecovery> MeanRecoveryFromString(const std::string& name);
 absl::StatusOr<CovarianceRecovery> CovarianceRecoveryFromString(const std::string& name);
 
-// ISEIF's iterated measurement update (004 §2.3).
+// ISEIF's iterated measurement update (ISEIF §2.3).
 struct IteratedUpdateOptions {
   bool enabled = false;         // false: SEIF
   int period_scans = 100;       // iterate on every this-many-th scan (the paper: 100 or 500 steps)

@@ -1,9 +1,9 @@
-// When to close a local map (paper 000 §6.1, FMJ 003, HybridSLAM §6). The local mapper
-// asks after every scan; any enabled criterion closes the map, once it is at least
-// `min_duration_s` old:
+// When to close a local map (Combined SLAM §6.1, Fast Map Joining, HybridSLAM §6). The
+// local mapper asks after every scan; any enabled criterion closes the map, once it is at
+// least `min_duration_s` old:
 //  * elapsed time: the map is older than `max_duration_s`;
-//  * pose uncertainty (000 §6.1, whose printed formula is garbled; our reading): the
-//    local pose's standard deviations measured in sensor-noise units,
+//  * pose uncertainty (Combined SLAM §6.1, whose printed formula is garbled; our
+//    reading): the local pose's standard deviations measured in sensor-noise units,
 //    max(σ_x / σ_r, σ_y / σ_r, σ_θ / σ_b), exceed `max_pose_sigma_ratio` — the map
 //    ends before the pose error dominates the sensor's;
 //  * particle diversity (RBPF only): the share of distinct ancestors the particles have
@@ -12,12 +12,12 @@
 //    the particles no longer represent the map's uncertainty; or the effective sample
 //    size ratio N_eff / N after the last scan's weight update fell below `min_ess_ratio`;
 //  * feature count: the map holds `max_features` confirmed features (the rule of
-//    thumb of 000: 5-20 × the pose dimension, 15-60);
-//  * landmark density (FMJ sizes local maps by the density of features; it gives no
-//    formula, our reading): the map holds at least `density_min_features` confirmed
-//    features and at least `density_min_visible` of them are within sensor range of the
-//    vehicle now — closing where landmarks are dense gives the next map many common
-//    features to join on.
+//    thumb of Combined SLAM: 5-20 × the pose dimension, 15-60);
+//  * landmark density (Fast Map Joining sizes local maps by the density of features; it
+//    gives no formula, our reading): the map holds at least `density_min_features`
+//    confirmed features and at least `density_min_visible` of them are within sensor
+//    range of the vehicle now — closing where landmarks are dense gives the next map
+//    many common features to join on.
 // Delay (HybridSLAM §6, option): while the particles disagree about the last scan's
 // identities (the weight voting against the winner exceeds `ambiguity_threshold`),
 // closing is postponed, at most by `max_delay_s` after a criterion first fired.
@@ -36,7 +36,7 @@ struct SubmapPolicyOptions {
   double min_duration_s = 1.0;
   double max_duration_s = 10.0;       // 0: off (10 s: HybridSLAM §5)
   double max_pose_sigma_ratio = 0.0;  // 0: off
-  double min_lineage_diversity = 0.5; // 0: off (ours: 0.3 → 0.5 in the fifth session, bench/RESULTS.md)
+  double min_lineage_diversity = 0.5; // 0: off (our choice, bench/RESULTS.md)
   double min_ess_ratio = 0.0;         // 0: off
   int max_features = 30;              // 0: off (10 × the pose dimension)
   int density_min_features = 0;      // 0: off
@@ -50,7 +50,7 @@ struct SubmapPolicyOptions {
   // (max(σ_r, σ_b · max range)). Such a feature carries less than one detection's
   // information, and in an RBPF map it is usually one the particles place apart (two
   // trees the sensor cannot separate, say); its wide gate lets the back-end join it to a
-  // landmark metres away (bench/RESULTS.md, tenth session). Conditioning on the end pose
+  // landmark metres away (bench/RESULTS.md). Conditioning on the end pose
   // keeps the features that are uncertain only through the drift they share with it.
   // 0: export all.
   double max_feature_sigma_ratio = 1.0;

@@ -1,5 +1,6 @@
 // A local map reduced to one Gaussian: the unit the front-end hands to the back-end
-// (../shared/design.md, "The submap factor" and "Local maps exchange").
+// (docs/conventions.md, "The submap factor"; docs/formats.md, "Local maps exchange
+// (submaps.jsonl)").
 //
 // Local map k starts at anchor P_s (the end pose of local map k − 1, or the initial pose)
 // with zero uncertainty and no landmarks. Its Gaussian is over

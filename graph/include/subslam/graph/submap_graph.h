@@ -1,4 +1,4 @@
-// The global problem the back-ends solve (../shared/design.md, "The submap factor"):
+// The global problem the back-ends solve (docs/conventions.md, "The submap factor"):
 // anchor poses P0 … Pk in the world frame (P0 = the initial pose, fixed; Pk = the end pose
 // of local map k), global landmarks, and one factor per local map linking its start and
 // end anchors and the global landmarks its features were associated with.

@@ -1,4 +1,4 @@
-// In-memory data set: what a `dataset.json` directory (../shared/design.md, "Data-set
+// In-memory data set: what a `dataset.json` directory (docs/formats.md, "Data-set
 // directory") holds once read and checked, and what the simulators produce.
 //
 // Times are seconds (any origin), angles radians, lengths metres. Controls hold until

@@ -1,4 +1,4 @@
-// Reading a data-set directory (../shared/design.md, "Data-set directory").
+// Reading a data-set directory (docs/formats.md, "Data-set directory").
 //
 // Everything is checked at this boundary; an error names the file, the line (for
 // text files) and the field: a missing or mistyped manifest field, a short or

@@ -1,4 +1,4 @@
-// Writers for the run outputs of ../shared/design.md ("Run outputs"):
+// Writers for the run outputs of docs/formats.md ("Run outputs"):
 //   trajectory_online.csv / trajectory_final.csv: t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt
 //   landmarks.csv: id,x,y,cov_xx,cov_xy,cov_yy
 // and a helper to write a text file (report.json is built by the caller).

@@ -1,5 +1,5 @@
-// The local-maps exchange file `submaps.jsonl` (../shared/design.md, "Local maps
-// exchange"): one JSON object per line, one line per local map, in order:
+// The local-maps exchange file `submaps.jsonl` (docs/formats.md, "Local maps exchange
+// (submaps.jsonl)"): one JSON object per line, one line per local map, in order:
 //   {"id": 3, "t_start": 30.0, "t_end": 40.0,
 //    "state": [x, y, theta, l1x, l1y, …],          // end pose and landmarks, start frame
 //    "cov": [(3+2n)² numbers, row-major],

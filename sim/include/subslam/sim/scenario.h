@@ -1,5 +1,5 @@
-// Named, seeded simulation scenarios reproducing the papers' set-ups
-// (../shared/papers/). Where a paper leaves a parameter out, the value chosen here is
+// Named, seeded simulation scenarios reproducing the papers' set-ups (the papers cited
+// in docs/scenarios.md). Where a paper leaves a parameter out, the value chosen here is
 // marked "ours" in docs/scenarios.md, which lists every scenario's parameters.
 //
 //   combined-2km  Combined SLAM §7: 2 km × 2 km, 554 features, 3 m/s, 40 Hz / 5 Hz,

@@ -123,7 +123,7 @@ class SparseCholesky {
   // factorisation per entry (measured: 40-70 ns per entry, at 0.5-1.7 GFlop/s), so below
   // about this AMD's whole factorisation costs less than METIS would. The EIF's matrices
   // lie far on either side: 29 flops per entry on combined-2km (one loop), 100-780 on
-  // the random worlds (bench/RESULTS.md, fifteenth session).
+  // the random worlds (bench/RESULTS.md).
   static constexpr double kNestedDissectionMinFlopsPerEntry = 50.0;
   // Whether a nested-dissection ordering was asked for and AMD used instead, because this
   // CHOLMOD has no METIS.

@@ -1,0 +1,163 @@
+#include "cli_reference.h"
+
+#include <algorithm>
+#include <array>
+#include <initializer_list>
+#include <map>
+#include <vector>
+
+#include "absl/flags/commandlineflag.h"
+#include "absl/flags/reflection.h"
+
+namespace subslam::app {
+namespace {
+
+constexpr std::array<CliCommand, 5> kCommands = {{
+    {"simulate", "subslam simulate --scenario NAME [--seed S] --out DIR",
+     "Simulates a named scenario (docs/scenarios.md) and writes it as a data-set directory "
+     "(docs/formats.md, \"Data-set directory\"), with the true poses, the true landmarks and "
+     "each detection's true id for evaluation."},
+    {"run",
+     "subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend "
+     "odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf [--backend none|eif|ceres|ekf|tree-ekf|tree-eif] "
+     "--out DIR",
+     "Runs one estimator over a data set or a simulated scenario, prints a summary table and "
+     "writes the run outputs (docs/formats.md, \"Run outputs\"): the online and final "
+     "trajectories, the map, `report.json` with the metrics the ground truth allows, and for the "
+     "local-map front-ends (`rbpf`, `ekf`) the local maps as `submaps.jsonl`."},
+    {"join",
+     "subslam join --submaps FILE --backend eif|ceres|ekf|tree-ekf|tree-eif [--known_association] "
+     "[--dataset DIR | --scenario NAME --seed S] --out DIR",
+     "Runs a back-end alone on recorded local maps, so that every back-end can be compared on "
+     "the same input. With `--dataset` or `--scenario`/`--seed` it takes the initial pose and "
+     "the ground truth from there and scores the association against the features' true ids. "
+     "Writes the anchors, the map, the submap graph (`graph.g2o`) and `report.json`."},
+    {"scenarios", "subslam scenarios", "Lists the simulated scenarios, one name per line."},
+    {"cli-reference", "subslam cli-reference",
+     "Prints this reference in Markdown; docs/cli.md is its output."},
+}};
+
+// Flag groups of the reference, in order. A flag belongs to the first group one of whose
+// patterns it matches: a pattern ending in '*' is a name prefix, any other an exact name.
+struct FlagGroup {
+  std::string_view title;
+  std::string_view note;
+  std::vector<std::string_view> patterns;
+};
+
+const std::vector<FlagGroup>& FlagGroups() {
+  static const auto* groups = new std::vector<FlagGroup>{
+      {"Input and output",
+       "Where the data comes from and where the outputs go. The noise and sensor overrides "
+       "replace the data set's own values.",
+       {"dataset", "scenario", "seed", "submaps", "out", "known_association", "sensor_yaw",
+        "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "progress", "quiet",
+        "keep_freed_memory"}},
+      {"Simulation", "Shape the simulated worlds (docs/scenarios.md).",
+       {"world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks",
+        "path_length", "lattice_spacing", "noise_scale", "signature"}},
+      {"Front-end: association and existence",
+       "Shared by EKF-SLAM, SEIF/ISEIF and the particle filters.",
+       {"frontend", "association", "gate", "new_landmark_gate", "existence_*"}},
+      {"Particle filter (`fastslam`, `rbpf`)", "",
+       {"particles", "filter_seed", "threads", "sample_association", "landmark_iterations",
+        "resample_ess", "correct_shared_ancestry", "sigma_signature"}},
+      {"SEIF and ISEIF (`seif`, `iseif`)", "", {"seif_*", "iseif_*"}},
+      {"Local maps (`rbpf`, `ekf`)",
+       "When a local map is closed and what it exports (frontend/submap_policy.h).",
+       {"submap_*"}},
+      {"Back-end: joining and association",
+       "How local maps are joined into the global map and how their features are associated "
+       "with its landmarks (backend/submap_association.h, backend/landmark_revision.h).",
+       {"backend", "join_*", "validate_joins"}},
+      {"Back-end: EIF relinearisation and factorisation", "",
+       {"relinearize_*", "max_relinearizations", "single_linearization", "eif_*"}},
+      {"Back-end: Ceres", "", {"ceres_*"}},
+      {"Back-end: dense EKF and binary tree", "", {"ekf_*", "tree_*"}},
+  };
+  return *groups;
+}
+
+// Appends the pieces to `out` (Abseil's string functions here take absl::string_view,
+// which Debian's build does not alias to std::string_view).
+void Append(std::string& out, std::initializer_list<std::string_view> pieces) {
+  for (std::string_view piece : pieces) out.append(piece);
+}
+
+bool Matches(std::string_view name, std::string_view pattern) {
+  if (!pattern.empty() && pattern.back() == '*') {
+    return name.starts_with(pattern.substr(0, pattern.size() - 1));
+  }
+  return name == pattern;
+}
+
+// Markdown table cell: no pipes or line breaks that would end the cell.
+std::string Cell(std::string_view text) {
+  std::string cell;
+  for (char c : text) {
+    if (c == '|') cell += "\\|";
+    else cell += c == '\n' ? ' ' : c;
+  }
+  return cell;
+}
+
+}  // namespace
+
+std::span<const CliCommand> CliCommands() { return kCommands; }
+
+std::string CliUsage() {
+  std::string usage = "submap-based landmark SLAM";
+  for (const CliCommand& command : kCommands) Append(usage, {"\n  ", command.synopsis});
+  usage += "\nEvery flag: subslam --help, or docs/cli.md.";
+  return usage;
+}
+
+std::string CliReferenceMarkdown() {
+  // The program's own flags (Abseil's --help, --flagfile, ... are left out), by name.
+  std::map<std::string, const absl::CommandLineFlag*> flags;
+  for (const auto& [name, flag] : absl::GetAllFlags()) {
+    if (flag->IsRetired() || flag->Filename().find("absl/") != std::string::npos) continue;
+    flags.emplace(std::string(name), flag);
+  }
+  std::vector<std::vector<const absl::CommandLineFlag*>> grouped(FlagGroups().size() + 1);
+  for (const auto& [name, flag] : flags) {
+    size_t g = 0;
+    while (g < FlagGroups().size() &&
+           std::none_of(FlagGroups()[g].patterns.begin(), FlagGroups()[g].patterns.end(),
+                        [&](std::string_view p) { return Matches(name, p); })) {
+      ++g;
+    }
+    grouped[g].push_back(flag);
+  }
+
+  std::string md =
+      "# Command-line reference\n\n"
+      "<!-- Generated by `subslam cli-reference > docs/cli.md` (scripts/update_cli_doc.sh); "
+      "a test checks that it is current. Do not edit by hand. -->\n\n"
+      "`subslam` is the command-line tool of the library: one command per job. Flags are "
+      "given as `--name=value` or `--name value` (booleans also as `--name` / "
+      "`--noname`); a flag that names a front-end or back-end in its text applies to that "
+      "one only. Units are SI, angles in radians (docs/conventions.md).\n\n"
+      "## Commands\n";
+  for (const CliCommand& command : kCommands) {
+    Append(md, {"\n### `", command.name, "`\n\n```\n", command.synopsis, "\n```\n\n",
+                command.description, "\n"});
+  }
+  md += "\n## Flags\n";
+  for (size_t g = 0; g < grouped.size(); ++g) {
+    if (grouped[g].empty()) continue;
+    const bool other = g == FlagGroups().size();
+    Append(md, {"\n### ", other ? "Other" : FlagGroups()[g].title, "\n\n"});
+    if (!other && !FlagGroups()[g].note.empty()) Append(md, {FlagGroups()[g].note, "\n\n"});
+    md += "| flag | default | meaning |\n| --- | --- | --- |\n";
+    for (const absl::CommandLineFlag* flag : grouped[g]) {
+      const std::string default_value = flag->DefaultValue();
+      const std::string shown = default_value.empty() ? "(none)" : "`" + Cell(default_value) + "`";
+      Append(md, {"| `--", std::string(flag->Name()), "` | ", shown, " | ", Cell(flag->Help()),
+                  " |\n"});
+    }
+  }
+  return md;
+}
+
+}  // namespace subslam::app
