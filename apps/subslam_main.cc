@@ -58,7 +58,7 @@ ABSL_FLAG(bool, signature, kScenarioDefaults.with_signature, "simulated detectio
 ABSL_FLAG(std::string, out, "", "output directory");
 ABSL_FLAG(std::string, frontend, subslam::app::ToString(subslam::app::RunOptions{}.frontend),
           "odometry | ekfslam | fastslam | seif | iseif | rbpf | ekf");
-ABSL_FLAG(std::string, association, subslam::frontend::ToString(kEkfDefaults.association),
+ABSL_FLAG(std::string, association, subslam::association::ToString(kEkfDefaults.association),
           "ekfslam / seif / iseif data association: nn | jcbb");
 ABSL_FLAG(double, gate, kEkfDefaults.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
 ABSL_FLAG(double, new_landmark_gate, kEkfDefaults.new_landmark_probability,
@@ -454,7 +454,7 @@ int Run() {
   auto frontend = subslam::app::FrontendFromString(absl::GetFlag(FLAGS_frontend));
   if (!frontend.ok()) return Fail(frontend.status());
   options.frontend = *frontend;
-  auto association = subslam::frontend::AssociationMethodFromString(absl::GetFlag(FLAGS_association));
+  auto association = subslam::association::AssociationMethodFromString(absl::GetFlag(FLAGS_association));
   if (!association.ok()) return Fail(association.status());
   options.ekf.association = *association;
   options.ekf.gate_probability = absl::GetFlag(FLAGS_gate);

@@ -65,10 +65,10 @@ class Progress {
 // (evaluation only: the estimators never see truth ids).
 class TruthVotes {
  public:
-  void Add(int map_id, const std::vector<int>& features, const io::Scan& scan) {
+  void Add(int map_id, const std::vector<int>& features, const Scan& scan) {
     for (size_t k = 0; k < features.size() && k < scan.detections.size(); ++k) {
       const int truth = scan.detections[k].truth_id;
-      if (features[k] < 0 || truth == io::kUnknownTruthId) continue;
+      if (features[k] < 0 || truth == kUnknownTruthId) continue;
       ++votes_[{map_id, features[k]}][truth];
     }
   }
@@ -152,8 +152,8 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
   if (max_range) d->sensor.range_bearing.max_range_m = *max_range;
   if (sensor_yaw) {
     if (!std::isfinite(*sensor_yaw)) return absl::InvalidArgumentError("--sensor_yaw must be finite");
-    for (io::Scan& scan : d->scans) {
-      for (io::Detection& det : scan.detections) det.bearing_rad = WrapAngle(det.bearing_rad + *sensor_yaw);
+    for (Scan& scan : d->scans) {
+      for (Detection& det : scan.detections) det.bearing_rad = WrapAngle(det.bearing_rad + *sensor_yaw);
     }
   }
   return d->sensor.range_bearing.Validate();
@@ -225,7 +225,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
       const io::Step& step = steps[k];
       estimator->Predict(step.control, step.dt);
       if (step.scan_index >= 0) {
-        const io::Scan& scan = dataset.scans[step.scan_index];
+        const Scan& scan = dataset.scans[step.scan_index];
         estimator->Update(scan);
         if (chain != nullptr) truth_votes.Add(chain->last_scan_map_id(), chain->last_scan_features(), scan);
       }
@@ -361,7 +361,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         {"min_range", rb.min_range_m},
         {"max_range", rb.max_range_m},
         {"sensor_yaw", options.noise.sensor_yaw.value_or(0.0)},
-        {"association", known_association ? "known" : frontend::ToString(options.ekf.association)},
+        {"association", known_association ? "known" : association::ToString(options.ekf.association)},
         {"gate_probability", options.ekf.gate_probability},
         {"new_landmark_probability", options.ekf.new_landmark_probability},
         {"existence_detection_probability", options.ekf.existence.detection_probability},
@@ -394,7 +394,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
     r.report["configuration"]["seif"] = {
         {"known_association", seif.known_association},
-        {"association", frontend::ToString(seif.association)},
+        {"association", association::ToString(seif.association)},
         {"max_active_landmarks", seif.max_active_landmarks},
         {"mean_recovery", frontend::ToString(seif.recovery)},
         {"relaxation_sweeps", seif.relaxation_sweeps},

@@ -3,7 +3,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 #include <algorithm>
 #include <exception>
@@ -122,7 +122,7 @@ std::string SubmapSlam::Name() const {
   return backend_ == Backend::kNone ? mapper_->Name() : absl::StrCat(mapper_->Name(), "+", ToString(backend_));
 }
 
-void SubmapSlam::Update(const io::Scan& scan) {
+void SubmapSlam::Update(const Scan& scan) {
   // While a join runs, its thread has a core of its own.
   if (background_) mapper_->SetSpareCores(join_busy_.load(std::memory_order_relaxed) ? 1 : 0);
   last_scan_map_id_ = mapper_->current_map_id();
@@ -282,9 +282,9 @@ std::vector<LandmarkEstimate> SubmapSlam::Map() const {
   return out;
 }
 
-frontend::StageTimes SubmapSlam::stage_times() const {
+StageTimes SubmapSlam::stage_times() const {
   WaitForJoins();
-  frontend::StageTimes times = mapper_->stage_times();
+  StageTimes times = mapper_->stage_times();
   if (joiner_) {
     for (const auto& [stage, seconds] : joiner_->stage_times()) times["join_" + stage] = seconds;
   }

@@ -10,12 +10,11 @@
 #include "subslam/backend/internal/sparse_cholesky.h"
 #include "state_blocks.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/frontend/internal/stage_timer.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/graph/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
-using frontend::StageTimer;
 
 struct EifJoiner::Solver {
   SparseCholesky factor;

@@ -8,11 +8,10 @@
 #include "absl/strings/str_cat.h"
 #include "state_blocks.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/frontend/internal/stage_timer.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/graph/check.h"
 
 namespace subslam::backend {
-using frontend::StageTimer;
 
 absl::Status EkfJoinerOptions::Validate() const {
   if (absl::Status st = association.Validate(); !st.ok()) return st;

@@ -11,7 +11,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 namespace subslam::backend {
 namespace {

@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "absl/time/clock.h"
-#include "subslam/frontend/data_association.h"
+#include "subslam/association/data_association.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
@@ -227,7 +227,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   const auto individual = [&](int i, int c) -> Eigen::Matrix2d {
     return relative(c) + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
   };
-  frontend::AssociationProblem problem;
+  association::AssociationProblem problem;
   problem.candidates.resize(n);
   for (int c = 0; c < c_count; ++c) {
     const int j = candidates[c];
@@ -266,12 +266,12 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
       certain[candidates[c]] = largest < radius * radius ? 1 : 0;
     }
   }
-  frontend::AssociationResult result;
+  association::AssociationResult result;
   if (options_.joint_compatibility) {
     // The joint covariance of P_s and the individually compatible candidates only.
     std::vector<int> slot(c_count, -1), compatible;
     for (const auto& list : problem.candidates) {
-      for (const frontend::AssociationCandidate& cand : list) {
+      for (const association::AssociationCandidate& cand : list) {
         if (slot[cand.landmark] < 0) {
           slot[cand.landmark] = static_cast<int>(compatible.size());
           compatible.push_back(candidates[cand.landmark]);
@@ -308,24 +308,24 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
       }
       return projected[key] + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
     };
-    result = frontend::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
+    result = association::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
     out.jcbb_truncated = result.truncated;
     // Loop-closure ambiguity: with the hypothesis' loop pairings struck out, does another
     // jointly compatible hypothesis still pair as many features with old landmarks? Then
     // the corridor offers two explanations and the loop closure waits.
     const auto closes_loop = [&](int c) { return c >= 0 && !recent[candidates[c]]; };
-    const auto loop_pairings_of = [&](const frontend::AssociationResult& r) {
+    const auto loop_pairings_of = [&](const association::AssociationResult& r) {
       return static_cast<int>(std::count_if(r.landmark_of_detection.begin(), r.landmark_of_detection.end(), closes_loop));
     };
     if (options_.loop_ambiguity_test && loop_regime && loop_pairings_of(result) >= options_.min_loop_pairings) {
-      frontend::AssociationProblem alternative = problem;
+      association::AssociationProblem alternative = problem;
       for (int i = 0; i < n; ++i) {
         const int c = result.landmark_of_detection[i];
         if (!closes_loop(c)) continue;
-        std::erase_if(alternative.candidates[i], [c](const frontend::AssociationCandidate& x) { return x.landmark == c; });
+        std::erase_if(alternative.candidates[i], [c](const association::AssociationCandidate& x) { return x.landmark == c; });
       }
-      const frontend::AssociationResult other =
-          frontend::JointCompatibility(alternative, options_.gate_probability, options_.jcbb_max_nodes);
+      const association::AssociationResult other =
+          association::JointCompatibility(alternative, options_.gate_probability, options_.jcbb_max_nodes);
       if (loop_pairings_of(other) >= options_.min_loop_pairings) {
         for (int& c : result.landmark_of_detection) {
           if (closes_loop(c) && !certain[candidates[c]]) c = -1;
@@ -334,7 +334,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
       }
     }
   } else {
-    result = frontend::NearestNeighbour(problem);
+    result = association::NearestNeighbour(problem);
   }
   for (int i = 0; i < n; ++i) {
     if (result.landmark_of_detection[i] >= 0) out.landmark_of_feature[i] = candidates[result.landmark_of_detection[i]];

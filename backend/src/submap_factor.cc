@@ -1,6 +1,6 @@
 #include "subslam/backend/submap_factor.h"
 
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 namespace subslam::backend {
 

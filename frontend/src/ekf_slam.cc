@@ -8,8 +8,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/single_map_common.h"
-#include "subslam/frontend/internal/stage_timer.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/graph/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -101,7 +101,7 @@ void EkfSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
   if (options_.existence.Confirms(info->existence)) info->confirmed = true;
 }
 
-void EkfSlam::Update(const io::Scan& scan) {
+void EkfSlam::Update(const Scan& scan) {
   ++counters_.scans;
   const Pose2 p = pose();
   const models::RangeBearingConfig& rb = sensor_.config();
@@ -136,7 +136,7 @@ void EkfSlam::Update(const io::Scan& scan) {
 
   // 1. Predicted measurements and individual compatibility.
   std::vector<Prediction> predictions;
-  AssociationProblem problem;
+  association::AssociationProblem problem;
   problem.candidates.resize(m);
   std::vector<double> min_d2(m, INFINITY);
   std::vector<bool> gated(landmarks_.size(), false);
@@ -169,12 +169,12 @@ void EkfSlam::Update(const io::Scan& scan) {
         if (*d2 < gate_d2_) problem.candidates[j].push_back({pr.landmark, *d2, nu});
       }
       std::sort(problem.candidates[j].begin(), problem.candidates[j].end(),
-                [](const AssociationCandidate& a, const AssociationCandidate& b) {
+                [](const association::AssociationCandidate& a, const association::AssociationCandidate& b) {
                   return a.d2 < b.d2;
                 });
     }
   }
-  AssociationResult association;
+  association::AssociationResult association;
   {
     StageTimer timer(&times_, "associate");
     if (options_.known_association) {
@@ -192,25 +192,25 @@ void EkfSlam::Update(const io::Scan& scan) {
         association.landmark_of_detection[j] = i;
         gated[i] = true;
       }
-    } else if (options_.association == AssociationMethod::kJointCompatibility) {
+    } else if (options_.association == association::AssociationMethod::kJointCompatibility) {
       problem.covariance_block = [&](int, int a, int, int b) -> Eigen::Matrix2d {
         const Prediction& pa = predictions[prediction_of_landmark[a]];
         const Prediction& pb = predictions[prediction_of_landmark[b]];
         return a == b ? pa.S : CrossCovariance(pa, pb);
       };
-      association = JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
+      association = association::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
       if (association.truncated) ++counters_.jcbb_truncated;
     } else {
-      association = NearestNeighbour(problem);
+      association = association::NearestNeighbour(problem);
     }
   }
 
   // 2. Batch EKF update with all pairings.
-  std::vector<std::pair<int, const AssociationCandidate*>> pairs;  // (detection, candidate)
+  std::vector<std::pair<int, const association::AssociationCandidate*>> pairs;  // (detection, candidate)
   for (int j = 0; j < m; ++j) {
     const int l = association.landmark_of_detection[j];
     if (l < 0) continue;
-    for (const AssociationCandidate& c : problem.candidates[j]) {
+    for (const association::AssociationCandidate& c : problem.candidates[j]) {
       if (c.landmark == l) pairs.push_back({j, &c});
     }
   }

@@ -10,9 +10,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/genealogy.h"
-#include "subslam/frontend/internal/stage_timer.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/frontend/internal/worker_pool.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -541,7 +541,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
   }
 }
 
-void FastSlam::Update(const io::Scan& scan) {
+void FastSlam::Update(const Scan& scan) {
   if (resample_pending_) {
     StageTimer timer(&times_, "resample");
     Resample();
@@ -554,14 +554,14 @@ void FastSlam::Update(const io::Scan& scan) {
   truth_.clear();
   detection_index_.clear();
   for (size_t k = 0; k < scan.detections.size(); ++k) {
-    const io::Detection& d = scan.detections[k];
+    const Detection& d = scan.detections[k];
     if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
     z_.push_back(d.z());
     signature_.push_back(d.signature);
     if (options_.known_association) {
       // A false alarm, or an id already detected in this scan: no true landmark to pair.
       const bool repeated = d.truth_id >= 0 && std::find(truth_.begin(), truth_.end(), d.truth_id) != truth_.end();
-      truth_.push_back(repeated ? io::kFalseAlarmId : d.truth_id);
+      truth_.push_back(repeated ? kFalseAlarmId : d.truth_id);
     }
     detection_index_.push_back(static_cast<int>(k));
   }

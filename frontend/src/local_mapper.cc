@@ -6,7 +6,7 @@
 #include <cmath>
 
 #include "absl/time/clock.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 namespace subslam::frontend {
 
@@ -24,7 +24,7 @@ void LocalMapper::Predict(const Eigen::Vector2d& u, double dt) {
   FilterPredict(u, dt);
 }
 
-void LocalMapper::Update(const io::Scan& scan) {
+void LocalMapper::Update(const Scan& scan) {
   t_ = scan.t;
   FilterUpdate(scan);
   ++scans_in_map_;

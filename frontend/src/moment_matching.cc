@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 namespace subslam::frontend {
 namespace {

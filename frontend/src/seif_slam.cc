@@ -11,8 +11,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/single_map_common.h"
-#include "subslam/frontend/internal/stage_timer.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/graph/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -574,7 +574,7 @@ void SeifSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
   if (options_.existence.Confirms(info->existence)) info->confirmed = true;
 }
 
-void SeifSlam::Update(const io::Scan& scan) {
+void SeifSlam::Update(const Scan& scan) {
   FlushMotion();
   ++counters_.scans;
   Invalidate();
@@ -661,7 +661,7 @@ void SeifSlam::Update(const io::Scan& scan) {
         pr.S = 0.5 * (pr.S + pr.S.transpose()).eval();
         prediction[l] = pr;
       }
-      AssociationProblem problem;
+      association::AssociationProblem problem;
       problem.candidates.resize(m);
       std::vector<double> min_d2(m, INFINITY);
       for (int j = 0; j < m; ++j) {
@@ -675,18 +675,18 @@ void SeifSlam::Update(const io::Scan& scan) {
           if (*d2 < gate_d2_) problem.candidates[j].push_back({l, *d2, nu});
         }
         std::sort(problem.candidates[j].begin(), problem.candidates[j].end(),
-                  [](const AssociationCandidate& a, const AssociationCandidate& b) { return a.d2 < b.d2; });
+                  [](const association::AssociationCandidate& a, const association::AssociationCandidate& b) { return a.d2 < b.d2; });
       }
-      AssociationResult association;
-      if (options_.association == AssociationMethod::kJointCompatibility) {
+      association::AssociationResult association;
+      if (options_.association == association::AssociationMethod::kJointCompatibility) {
         problem.covariance_block = [&](int, int a, int, int b) -> Eigen::Matrix2d {
           if (a == b) return prediction[a].S;
           return prediction[a].H * joint(a, b) * prediction[b].H.transpose();
         };
-        association = JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
+        association = association::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
         if (association.truncated) ++counters_.jcbb_truncated;
       } else {
-        association = NearestNeighbour(problem);
+        association = association::NearestNeighbour(problem);
       }
       for (int j = 0; j < m; ++j) {
         landmark_of_detection[j] = association.landmark_of_detection[j];

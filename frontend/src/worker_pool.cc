@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 namespace subslam::frontend {
 

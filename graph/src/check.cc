@@ -1,4 +1,4 @@
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 #include <cstdio>
 #include <cstdlib>

@@ -3,7 +3,7 @@
 #include <Eigen/Cholesky>
 #include <boost/math/distributions/chi_squared.hpp>
 
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 namespace subslam::models {
 

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 #include "absl/strings/str_cat.h"
 
 namespace subslam::models {

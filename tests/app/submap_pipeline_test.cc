@@ -217,7 +217,7 @@ TEST(SubmapSlam, BackgroundOnlinePoseIsTheLastJoinedAnchorThroughTheClosedMapsEn
     slam->Predict(step.control, step.dt);
     if (abandoned) abandoned->Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
-    const io::Scan& scan = d.scans[step.scan_index];
+    const Scan& scan = d.scans[step.scan_index];
     const Pose2 last_joined = slam->joiner()->LastAnchor();  // waits for the pending join
     const size_t maps = slam->local_maps().size();
     slam->Update(scan);

@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <memory>
 
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 
 #include "subslam/eval/nees.h"
 #include "subslam/models/gating.h"
@@ -171,8 +171,8 @@ TEST(EkfSlam, FalseAlarmsDoNotBecomeLandmarks) {
     const RunOutput out = RunEkf("hybrid-120m", o, options);
     const eval::MapErrors m = eval::ComputeMapErrors(out.map, out.dataset.truth_landmarks, 2.0);
     long false_alarms = 0;
-    for (const io::Scan& s : out.dataset.scans) {
-      for (const io::Detection& det : s.detections) false_alarms += det.truth_id < 0 ? 1 : 0;
+    for (const Scan& s : out.dataset.scans) {
+      for (const Detection& det : s.detections) false_alarms += det.truth_id < 0 ? 1 : 0;
     }
     EXPECT_GT(false_alarms, 100) << "seed " << seed;
     // A false alarm is uniform over the sensor's footprint: in the map it would lie far
@@ -192,7 +192,7 @@ TEST(EkfSlam, JointCompatibilityRunsTheSameScenario) {
   o.detection_probability = 0.7;
   o.false_alarm_probability = 0.02;
   EkfSlamOptions options;
-  options.association = AssociationMethod::kJointCompatibility;
+  options.association = association::AssociationMethod::kJointCompatibility;
   options.existence.detection_probability = 0.7;
   const RunOutput out = RunEkf("hybrid-120m", o, options);
   const eval::TrajectoryErrors e = eval::ComputeTrajectoryErrors(out.trajectory, out.dataset.truth_poses);
@@ -229,7 +229,7 @@ TEST(EkfSlam, BatchUpdateEqualsDenseTextbookUpdate) {
   const models::RangeBearingModel model(sensor);
   const std::vector<Eigen::Vector2d> landmarks = {{10, 0}, {4, 9}, {-3, 8}, {12, -7}};
   auto scan_from = [&](const Pose2& p, double perturbation) {
-    io::Scan scan;
+    Scan scan;
     for (size_t i = 0; i < landmarks.size(); ++i) {
       const Eigen::Vector2d z = model.Observe(p, landmarks[i]);
       scan.detections.push_back({z[0] + perturbation * (i + 1), z[1] - 0.2 * perturbation, NAN, 0});
@@ -242,7 +242,7 @@ TEST(EkfSlam, BatchUpdateEqualsDenseTextbookUpdate) {
     ekf.Predict({1.0, 0.1}, 0.5);
     const Eigen::VectorXd x = ekf.mean();
     const Eigen::MatrixXd P = ekf.covariance();
-    const io::Scan scan = scan_from(ekf.pose(), 0.05);
+    const Scan scan = scan_from(ekf.pose(), 0.05);
     const int n = static_cast<int>(x.size()), m = 2 * static_cast<int>(landmarks.size());
     auto predict_all = [&](const Eigen::VectorXd& s) {
       Eigen::VectorXd h(m);

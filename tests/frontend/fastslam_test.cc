@@ -5,7 +5,7 @@
 #include <algorithm>
 
 #include "subslam/frontend/ekf_slam.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
 #include "subslam/models/unicycle_model.h"
 #include "subslam/sim/simulator.h"
@@ -302,19 +302,19 @@ TEST(FastSlam, SignatureCueResolvesGeometricAmbiguity) {
   const Eigen::Vector2d A(10.0, 0.0), B(10.0, 1.0);
   auto detection = [&](const Eigen::Vector2d& p, double signature) {
     const Eigen::Vector2d z = model.Observe(Pose2(), p);
-    return io::Detection{z[0], z[1], signature, 0};
+    return Detection{z[0], z[1], signature, 0};
   };
   for (const double sigma_signature : {0.0, 0.05}) {
     FastSlamOptions options;
     options.num_particles = 1;
     options.sigma_signature = sigma_signature;
     FastSlam f(std::make_unique<models::UnicycleModel>(models::ControlNoise{}), sensor, Pose2(), options);
-    io::Scan first;
+    Scan first;
     first.detections = {detection(A, 0.2), detection(B, 0.5)};
     f.Update(first);
     const int feature_a = f.last_scan_features()[0], feature_b = f.last_scan_features()[1];
     ASSERT_NE(feature_a, feature_b);
-    io::Scan second;
+    Scan second;
     second.detections = {detection(A + Eigen::Vector2d(0.0, 0.4), 0.5)};
     f.Update(second);
     EXPECT_EQ(f.last_scan_features()[0], sigma_signature > 0 ? feature_b : feature_a)

@@ -7,7 +7,7 @@
 
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
 #include "subslam/sim/simulator.h"
 
@@ -37,13 +37,13 @@ std::map<int, int> CheckFeaturesFollowTrueIds(Filter* filter, const io::Dataset&
   for (const io::Step& step : io::BuildSteps(d)) {
     filter->Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
-    const io::Scan& scan = d.scans[step.scan_index];
+    const Scan& scan = d.scans[step.scan_index];
     filter->Update(scan);
     const std::vector<int>& features = filter->last_scan_features();
     EXPECT_EQ(features.size(), scan.detections.size());
     for (size_t k = 0; k < features.size(); ++k) {
       const int truth = scan.detections[k].truth_id;
-      const io::Detection& z = scan.detections[k];
+      const Detection& z = scan.detections[k];
       const bool in_range = z.range_m >= d.sensor.range_bearing.min_range_m &&
                             z.range_m <= d.sensor.range_bearing.max_range_m;
       if (truth < 0) {
@@ -104,8 +104,8 @@ TEST(KnownAssociation, EkfSlamFeaturesFollowTheTrueIds) {
 TEST(KnownAssociation, UnknownAssociationNeverReadsTrueIds) {
   const io::Dataset d = ClutteredCombined(60.0);
   io::Dataset scrambled = d;
-  for (io::Scan& scan : scrambled.scans) {
-    for (io::Detection& det : scan.detections) det.truth_id = 1000 - det.truth_id;
+  for (Scan& scan : scrambled.scans) {
+    for (Detection& det : scan.detections) det.truth_id = 1000 - det.truth_id;
   }
   FastSlamOptions options;
   options.num_particles = 20;

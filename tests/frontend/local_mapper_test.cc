@@ -41,7 +41,7 @@ class FixedGaussianMapper final : public LocalMapper {
 
  private:
   void FilterPredict(const Eigen::Vector2d&, double) override {}
-  void FilterUpdate(const io::Scan&) override {}
+  void FilterUpdate(const Scan&) override {}
   void FilterReset() override {}
   SubmapStatus FilterStatus() const override { return {}; }
   Pose2 FilterPose() const override { return Pose2(); }
@@ -68,7 +68,7 @@ TEST(LocalMapper, DoesNotExportAFeatureWiderThanOneDetectionAtMaximumRange) {
     SubmapPolicyOptions policy;
     policy.max_feature_sigma_ratio = ratio;
     FixedGaussianMapper mapper(policy, sensor);
-    io::Scan scan;
+    Scan scan;
     scan.t = 0.5;
     mapper.Update(scan);
     mapper.Finish();

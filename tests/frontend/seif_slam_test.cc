@@ -9,7 +9,7 @@
 #include <memory>
 
 #include "subslam/frontend/ekf_slam.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
 #include "subslam/models/range_bearing_model.h"
 #include "subslam/sim/simulator.h"
@@ -40,7 +40,7 @@ Eigen::Matrix3d PriorCovariance(const SeifOptions& o) {
 
 // Feeds the data set to the filter, calling after_scan(scan) after every update.
 void Drive(SeifSlam* seif, const io::Dataset& d,
-           const std::function<void(const io::Scan&)>& after_scan = nullptr) {
+           const std::function<void(const Scan&)>& after_scan = nullptr) {
   for (const io::Step& step : io::BuildSteps(d)) {
     seif->Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
@@ -108,9 +108,9 @@ TEST(SeifSlam, JcbbEqualsEkfSlamToo) {
   so.duration_s = 50.0;
   io::Dataset d = Simulate("iseif-circle", so);
   SeifOptions seif_options = ExactEifOptions();
-  seif_options.association = AssociationMethod::kJointCompatibility;
+  seif_options.association = association::AssociationMethod::kJointCompatibility;
   EkfSlamOptions ekf_options;
-  ekf_options.association = AssociationMethod::kJointCompatibility;
+  ekf_options.association = association::AssociationMethod::kJointCompatibility;
   EkfSlam ekf(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, ekf_options,
               PriorCovariance(seif_options));
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, seif_options);
@@ -185,7 +185,7 @@ TEST(SeifSlam, SparsificationKeepsTheMean) {
   options.known_association = true;
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   double worst = 0;
-  Drive(&seif, d, [&](const io::Scan&) {
+  Drive(&seif, d, [&](const Scan&) {
     const Eigen::VectorXd before = seif.DenseMean();
     seif.RecoverMeanExactly();
     Eigen::VectorXd diff = seif.DenseMean() - before;
@@ -234,7 +234,7 @@ TEST(SeifSlam, CullsFalseAlarmsUnderClutter) {
     options.iterated.period_scans = 7;
     SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
     bool finite = true;
-    Drive(&seif, d, [&](const io::Scan&) { finite &= seif.pose().vector().allFinite(); });
+    Drive(&seif, d, [&](const Scan&) { finite &= seif.pose().vector().allFinite(); });
     EXPECT_TRUE(finite);
     EXPECT_GT(seif.counters().deleted_landmarks, 20);
     int far_from_truth = 0;
@@ -282,7 +282,7 @@ TEST(Iseif, OneIterationIsTheSeifUpdate) {
 // relative to the size of its first term.
 double RelativeMapGradient(const Eigen::MatrixXd& omega_prior, const Eigen::VectorXd& mu_prior,
                            const Eigen::VectorXd& mu_post, const std::vector<int>& live,
-                           const io::Scan& scan, const std::vector<int>& features,
+                           const Scan& scan, const std::vector<int>& features,
                            const models::RangeBearingModel& sensor) {
   Eigen::VectorXd delta = mu_post - mu_prior;
   delta[2] = WrapAngle(delta[2]);
@@ -359,7 +359,7 @@ TEST(SeifSlam, KnownAssociationUsesTrueIdsAndDropsFalseAlarms) {
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   std::map<int, int> truth_of_landmark;
   bool consistent = true;
-  Drive(&seif, d, [&](const io::Scan& scan) {
+  Drive(&seif, d, [&](const Scan& scan) {
     for (size_t k = 0; k < scan.detections.size(); ++k) {
       const int l = seif.last_scan_features()[k];
       if (scan.detections[k].truth_id < 0) {

@@ -112,10 +112,10 @@ TEST(Simulator, DetectionsMatchTruthWithinNoise) {
   double sum_r = 0, sum_b = 0;
   int n = 0;
   size_t k = 0;
-  for (const io::Scan& scan : d->scans) {
+  for (const Scan& scan : d->scans) {
     while (d->truth_poses[k].t < scan.t) ++k;
     ASSERT_EQ(d->truth_poses[k].t, scan.t);
-    for (const io::Detection& det : scan.detections) {
+    for (const Detection& det : scan.detections) {
       ASSERT_GE(det.truth_id, 0);  // no clutter by default
       const Eigen::Vector2d z = sensor.Observe(d->truth_poses[k].pose, d->truth_landmarks[det.truth_id].p);
       const Eigen::Vector2d e = models::RangeBearingModel::Difference(det.z(), z);
@@ -142,9 +142,9 @@ TEST(Simulator, ClutterAndMissedDetections) {
   absl::StatusOr<io::Dataset> noisy = SimulateScenario("hybrid-120m", o);
   ASSERT_TRUE(clean.ok() && noisy.ok());
   long true_clean = 0, true_noisy = 0, false_noisy = 0;
-  for (const io::Scan& s : clean->scans) true_clean += static_cast<long>(s.detections.size());
-  for (const io::Scan& s : noisy->scans) {
-    for (const io::Detection& det : s.detections) (det.truth_id >= 0 ? true_noisy : false_noisy)++;
+  for (const Scan& s : clean->scans) true_clean += static_cast<long>(s.detections.size());
+  for (const Scan& s : noisy->scans) {
+    for (const Detection& det : s.detections) (det.truth_id >= 0 ? true_noisy : false_noisy)++;
   }
   // α = 0.4 of the visible features are detected; β = 0.04 false alarms per visible
   // feature. Counts over > 10,000 visible features: 5σ binomial margins.

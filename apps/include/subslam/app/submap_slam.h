@@ -94,11 +94,11 @@ class SubmapSlam final : public frontend::OnlineEstimator {
 
   std::string Name() const override;
   void Predict(const Eigen::Vector2d& u, double dt) override { mapper_->Predict(u, dt); }
-  void Update(const io::Scan& scan) override;
+  void Update(const Scan& scan) override;
   Pose2 pose() const override;
   Eigen::Matrix3d pose_covariance() const override;
   std::vector<LandmarkEstimate> Map() const override;
-  frontend::StageTimes stage_times() const override;
+  StageTimes stage_times() const override;
   std::map<std::string, double> Counters() const override;
 
   // Remembers the current step (its map and local pose) for FinalTrajectory().

@@ -30,7 +30,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/frontend/data_association.h"
+#include "subslam/association/data_association.h"
 #include "subslam/frontend/existence_model.h"
 #include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/online_estimator.h"
@@ -40,14 +40,14 @@
 namespace subslam::frontend {
 
 struct EkfSlamOptions {
-  AssociationMethod association = AssociationMethod::kNearestNeighbour;
+  association::AssociationMethod association = association::AssociationMethod::kNearestNeighbour;
   // Individual-compatibility gate, P(χ²₂ ≤ gate) (also the JCBB joint gate level).
   double gate_probability = 0.99;
   // A detection outside this gate for every landmark starts a new landmark.
   double new_landmark_probability = 0.9999;
   long jcbb_max_nodes = 20000;  // JCBB search budget per scan
   // Known association (simulations; a study option, as in Combined SLAM §7): each
-  // detection is paired with the landmark of the same io::Detection::truth_id, without
+  // detection is paired with the landmark of the same Detection::truth_id, without
   // gating, or starts one; false alarms (no true id) and repeated ids in a scan are
   // dropped, and no landmark is culled. Export() then reports each feature's true id.
   bool known_association = false;
@@ -91,7 +91,7 @@ class EkfSlam final : public OnlineEstimator {
 
   std::string Name() const override { return "ekfslam"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;
-  void Update(const io::Scan& scan) override;
+  void Update(const Scan& scan) override;
   Pose2 pose() const override;
   Eigen::Matrix3d pose_covariance() const override;
   std::vector<LandmarkEstimate> Map() const override;

@@ -88,7 +88,7 @@ struct FastSlamOptions {
   bool sample_association = false;
   AssociationScore association_score = AssociationScore::kLikelihood;
   // Known association (simulations; a study option, as in Combined SLAM §7): every
-  // detection is paired with the particle's landmark of the same io::Detection::truth_id
+  // detection is paired with the particle's landmark of the same Detection::truth_id
   // or starts one, without gating; false alarms (no true id) are ignored, and no landmark
   // is culled (each true landmark keeps one landmark and one common id). MomentMatched()
   // then reports each feature's true id.
@@ -154,7 +154,7 @@ class FastSlam final : public OnlineEstimator {
 
   std::string Name() const override { return "fastslam"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;
-  void Update(const io::Scan& scan) override;
+  void Update(const Scan& scan) override;
   // Moment-matched pose and covariance (Eqs. 6-7 over the pose block).
   Pose2 pose() const override;
   Eigen::Matrix3d pose_covariance() const override;

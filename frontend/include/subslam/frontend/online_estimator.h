@@ -1,7 +1,8 @@
 // The interface the run pipeline drives: one estimator over the whole run, fed the
 // steps of io::BuildSteps in order (predict over dt with the active control, then
-// update with the step's scan, if any). Implemented by DeadReckoning and EkfSlam; the
-// submap pipelines of later issues wrap their local mappers behind it as well.
+// update with the step's scan, if any). Implemented by the single-map filters
+// (DeadReckoning, EkfSlam, FastSlam, SeifSlam) and by the submap pipeline, which wraps a
+// local mapper and a back-end behind it.
 // Not thread-safe: one estimator per thread.
 #ifndef SUBSLAM_FRONTEND_ONLINE_ESTIMATOR_H_
 #define SUBSLAM_FRONTEND_ONLINE_ESTIMATOR_H_
@@ -11,12 +12,10 @@
 #include <vector>
 
 #include "subslam/graph/estimates.h"
-#include "subslam/io/dataset.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/models/scan.h"
 
 namespace subslam::frontend {
-
-// Wall-clock seconds spent per named stage, accumulated over the run.
-using StageTimes = std::map<std::string, double>;
 
 class OnlineEstimator {
  public:
@@ -25,7 +24,7 @@ class OnlineEstimator {
   // Predicts over dt ≥ 0 seconds with control u held constant.
   virtual void Predict(const Eigen::Vector2d& u, double dt) = 0;
   // Incorporates one scan of detections taken at the current time.
-  virtual void Update(const io::Scan& scan) = 0;
+  virtual void Update(const Scan& scan) = 0;
   // Current vehicle pose and its marginal covariance.
   virtual Pose2 pose() const = 0;
   virtual Eigen::Matrix3d pose_covariance() const = 0;

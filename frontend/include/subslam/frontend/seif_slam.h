@@ -63,10 +63,11 @@
 #include <string>
 #include <vector>
 
+#include "absl/container/btree_map.h"
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/frontend/data_association.h"
+#include "subslam/association/data_association.h"
 #include "subslam/frontend/existence_model.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
@@ -94,7 +95,7 @@ struct IteratedUpdateOptions {
 };
 
 struct SeifOptions {
-  AssociationMethod association = AssociationMethod::kNearestNeighbour;
+  association::AssociationMethod association = association::AssociationMethod::kNearestNeighbour;
   // Study option: associate by the detections' true ids (simulations only); false
   // alarms (no true landmark) are dropped. Never the default.
   bool known_association = false;
@@ -156,7 +157,7 @@ class SeifSlam final : public OnlineEstimator {
   std::string Name() const override { return options_.iterated.enabled ? "iseif" : "seif"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;
   // Known association reads detections' truth_id; without it truth ids are never read.
-  void Update(const io::Scan& scan) override;
+  void Update(const Scan& scan) override;
   Pose2 pose() const override;
   // Exact or Markov-blanket marginal (options.pose_covariance).
   Eigen::Matrix3d pose_covariance() const override;
@@ -246,11 +247,13 @@ class SeifSlam final : public OnlineEstimator {
   double gate_d2_ = 0.0, new_landmark_d2_ = 0.0;
   // Block-sparse Ω: pose block, pose-landmark links (the active set), landmark
   // diagonal blocks and landmark-landmark links (stored in both directions; the block
-  // at links_[i][j] is Ω_{l_i, l_j}).
+  // at links_[i][j] is Ω_{l_i, l_j}). The links are ordered maps: sums over them
+  // (e.g. the relaxation's Ω·μ) then run in landmark order, so a run is reproducible to
+  // the bit (a hash map's order changes from process to process).
   Eigen::Matrix3d omega_xx_;
-  absl::flat_hash_map<int, Matrix32d> pose_links_;
+  absl::btree_map<int, Matrix32d> pose_links_;
   std::vector<Eigen::Matrix2d> omega_ll_;
-  std::vector<absl::flat_hash_map<int, Eigen::Matrix2d>> links_;
+  std::vector<absl::btree_map<int, Eigen::Matrix2d>> links_;
   Eigen::VectorXd xi_, mu_;  // capacity-doubling; 3 + 2 × (landmark slots) live
   std::vector<LandmarkInfo> landmarks_;
   absl::flat_hash_map<int, int> landmark_of_truth_;  // known association only

@@ -20,6 +20,7 @@
 #include "subslam/models/ackermann_model.h"
 #include "subslam/models/motion_model.h"
 #include "subslam/models/range_bearing_model.h"
+#include "subslam/models/scan.h"
 
 namespace subslam::io {
 
@@ -47,25 +48,6 @@ struct SensorConfig {
 struct ControlRecord {
   double t = 0.0;
   Eigen::Vector2d u = Eigen::Vector2d::Zero();
-};
-
-inline constexpr int kFalseAlarmId = -1;    // truth id of a false alarm
-inline constexpr int kUnknownTruthId = -2;  // no truth id in the data set
-
-struct Detection {
-  double range_m = 0.0;
-  double bearing_rad = 0.0;  // in the vehicle frame (offset applied)
-  double signature = std::numeric_limits<double>::quiet_NaN();  // NaN when absent
-  // Evaluation; read by estimators only under their known-association study option.
-  int truth_id = kUnknownTruthId;
-
-  Eigen::Vector2d z() const { return {range_m, bearing_rad}; }
-};
-
-// All detections with one time stamp.
-struct Scan {
-  double t = 0.0;
-  std::vector<Detection> detections;
 };
 
 struct TimedPose {

@@ -7,7 +7,7 @@
 
 #include "absl/status/status.h"
 #include "subslam/frontend/existence_model.h"
-#include "subslam/io/dataset.h"
+#include "subslam/models/scan.h"
 #include "subslam/models/range_bearing_model.h"
 
 namespace subslam::frontend::internal {
@@ -25,7 +25,7 @@ struct UsableDetections {
   std::vector<Eigen::Vector2d> z;
   std::vector<int> index;
 };
-UsableDetections DetectionsInRange(const io::Scan& scan, const models::RangeBearingConfig& sensor);
+UsableDetections DetectionsInRange(const Scan& scan, const models::RangeBearingConfig& sensor);
 
 }  // namespace subslam::frontend::internal
 

@@ -1,10 +1,10 @@
-// Internal invariant checks that fail loudly (Abseil 20220623 on Debian 12 has no
+// Invariant checks that fail loudly, shared by every module (Abseil 20220623 on Debian 12 has no
 // logging library). A failed check prints file, line, the condition and an optional
 // streamed message to stderr, then aborts. Checks stay on in Release builds: they
 // guard contracts (a non-positive-definite covariance, an out-of-range index), not
 // user input, which is answered with absl::Status instead.
-#ifndef SUBSLAM_GRAPH_INTERNAL_CHECK_H_
-#define SUBSLAM_GRAPH_INTERNAL_CHECK_H_
+#ifndef SUBSLAM_GRAPH_CHECK_H_
+#define SUBSLAM_GRAPH_CHECK_H_
 
 #include <sstream>
 
@@ -31,4 +31,4 @@ class CheckFailure {
   } else /* NOLINT */                                                               \
     ::subslam::internal::CheckFailure(__FILE__, __LINE__, #condition)
 
-#endif  // SUBSLAM_GRAPH_INTERNAL_CHECK_H_
+#endif  // SUBSLAM_GRAPH_CHECK_H_

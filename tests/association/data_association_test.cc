@@ -1,4 +1,4 @@
-#include "subslam/frontend/data_association.h"
+#include "subslam/association/data_association.h"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 
 #include "subslam/models/gating.h"
 
-namespace subslam::frontend {
+namespace subslam::association {
 namespace {
 
 AssociationCandidate C(int landmark, double nu0, double nu1) {
@@ -239,4 +239,4 @@ TEST(JointCompatibility, EqualsExhaustiveSearch) {
 }
 
 }  // namespace
-}  // namespace subslam::frontend
+}  // namespace subslam::association

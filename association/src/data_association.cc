@@ -1,4 +1,4 @@
-#include "subslam/frontend/data_association.h"
+#include "subslam/association/data_association.h"
 
 #include <Eigen/Cholesky>
 #include <algorithm>
@@ -7,7 +7,7 @@
 #include "absl/strings/str_cat.h"
 #include "subslam/models/gating.h"
 
-namespace subslam::frontend {
+namespace subslam::association {
 
 const char* ToString(AssociationMethod method) {
   return method == AssociationMethod::kNearestNeighbour ? "nn" : "jcbb";
@@ -228,4 +228,4 @@ AssociationResult JointCompatibility(const AssociationProblem& problem, double g
   return Jcbb(problem, gate_probability, max_nodes).Solve();
 }
 
-}  // namespace subslam::frontend
+}  // namespace subslam::association

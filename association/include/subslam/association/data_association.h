@@ -1,4 +1,5 @@
-// Data association of one scan's detections to map landmarks with unknown identities.
+// Data association of detections (or local-map features) to map landmarks with unknown
+// identities, shared by the single-map filters, the local mappers and the back-ends.
 //
 // The caller builds an AssociationProblem: for each detection the individually
 // compatible landmarks (Mahalanobis d² = νᵀ S⁻¹ ν below the χ²₂ gate), and a function
@@ -16,8 +17,8 @@
 //    (reported).
 //
 // Not thread-safe per problem; the functions are re-entrant.
-#ifndef SUBSLAM_FRONTEND_DATA_ASSOCIATION_H_
-#define SUBSLAM_FRONTEND_DATA_ASSOCIATION_H_
+#ifndef SUBSLAM_ASSOCIATION_DATA_ASSOCIATION_H_
+#define SUBSLAM_ASSOCIATION_DATA_ASSOCIATION_H_
 
 #include <Eigen/Core>
 #include <functional>
@@ -26,7 +27,7 @@
 
 #include "absl/status/statusor.h"
 
-namespace subslam::frontend {
+namespace subslam::association {
 
 enum class AssociationMethod { kNearestNeighbour, kJointCompatibility };
 const char* ToString(AssociationMethod method);
@@ -60,6 +61,6 @@ AssociationResult NearestNeighbour(const AssociationProblem& problem);
 AssociationResult JointCompatibility(const AssociationProblem& problem, double gate_probability,
                                      long max_nodes);
 
-}  // namespace subslam::frontend
+}  // namespace subslam::association
 
-#endif  // SUBSLAM_FRONTEND_DATA_ASSOCIATION_H_
+#endif  // SUBSLAM_ASSOCIATION_DATA_ASSOCIATION_H_
