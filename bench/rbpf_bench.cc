@@ -36,12 +36,12 @@ class RingWorld {
   static constexpr double kDt = 0.1;
 
   // Advances the truth one step and returns its scan.
-  io::Scan Step() {
+  Scan Step() {
     truth_ = Compose(truth_, Pose2(control()[0] * kDt, 0.0, control()[1] * kDt));
     t_ += kDt;
     const models::RangeBearingModel model(sensor_);
     std::normal_distribution<double> nr(0.0, sensor_.sigma_range_m), nb(0.0, sensor_.sigma_bearing_rad);
-    io::Scan scan;
+    Scan scan;
     scan.t = t_;
     for (size_t i = 0; i < ring_.size(); ++i) {
       const Eigen::Vector2d z = model.Observe(truth_, ring_[i]);
@@ -75,7 +75,7 @@ void BM_RbpfStep(benchmark::State& state) {
   long detections = 0;
   for (auto _ : state) {
     state.PauseTiming();
-    const io::Scan scan = world.Step();
+    const Scan scan = world.Step();
     detections += static_cast<long>(scan.detections.size());
     state.ResumeTiming();
     filter.Predict(world.control(), RingWorld::kDt);

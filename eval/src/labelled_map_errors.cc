@@ -7,7 +7,7 @@
 #include <unordered_set>
 
 #include "subslam/eval/nees.h"
-#include "subslam/graph/internal/check.h"
+#include "subslam/graph/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::eval {

@@ -63,7 +63,7 @@ absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed
     d.truth_poses.push_back({t_next, x});
     if ((k + 1) % config.observation_every != 0) continue;
 
-    io::Scan scan;
+    Scan scan;
     scan.t = t_next;
     for (size_t i = 0; i < config.landmarks.size(); ++i) {
       const io::TruthLandmark& l = config.landmarks[i];
@@ -71,7 +71,7 @@ absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed
       const Eigen::Vector2d z = sensor.Observe(x, l.p);
       if (!sensor.IsVisible(z)) continue;
       if (unit(rng) < config.detection_probability) {
-        io::Detection det;
+        Detection det;
         det.range_m = std::max(1e-3, z[0] + rb.sigma_range_m * gauss(rng));
         det.bearing_rad = WrapAngle(z[1] + rb.sigma_bearing_rad * gauss(rng));
         det.truth_id = l.id;
@@ -81,10 +81,10 @@ absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed
         scan.detections.push_back(det);
       }
       if (unit(rng) < config.false_alarm_probability) {
-        io::Detection fa;
+        Detection fa;
         fa.range_m = std::max(1e-3, rb.min_range_m + (rb.max_range_m - rb.min_range_m) * unit(rng));
         fa.bearing_rad = rb.fov_min_rad + (rb.fov_max_rad - rb.fov_min_rad) * unit(rng);
-        fa.truth_id = io::kFalseAlarmId;
+        fa.truth_id = kFalseAlarmId;
         if (config.with_signature) fa.signature = 0.1 + 0.5 * unit(rng);
         scan.detections.push_back(fa);
       }
