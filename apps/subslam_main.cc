@@ -19,8 +19,8 @@
 #include "absl/strings/str_join.h"
 #include "cli_reference.h"
 #include "keep_freed_memory_flag.h"
-#include "subslam/app/join_pipeline.h"
-#include "subslam/app/run_pipeline.h"
+#include "subslam/pipeline/join_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/io/dataset_reader.h"
 #include "subslam/io/dataset_writer.h"
@@ -56,7 +56,7 @@ ABSL_FLAG(double, lattice_spacing, kScenarioDefaults.random_lattice_spacing_m,
 ABSL_FLAG(double, noise_scale, kScenarioDefaults.random_noise_scale, "random scenario: multiplies every sigma");
 ABSL_FLAG(bool, signature, kScenarioDefaults.with_signature, "simulated detections carry a noisy signature");
 ABSL_FLAG(std::string, out, "", "output directory");
-ABSL_FLAG(std::string, frontend, subslam::app::ToString(subslam::app::RunOptions{}.frontend),
+ABSL_FLAG(std::string, frontend, subslam::pipeline::ToString(subslam::pipeline::RunOptions{}.frontend),
           "odometry | ekfslam | fastslam | seif | iseif | rbpf | ekf");
 ABSL_FLAG(std::string, association, subslam::association::ToString(kEkfDefaults.association),
           "ekfslam / seif / iseif data association: nn | jcbb");
@@ -100,7 +100,7 @@ ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | do
 ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
 ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
 ABSL_FLAG(int, ceres_every, 0, "ceres: also solve the graph every K joins during the run (0: at the end only)");
-ABSL_FLAG(bool, join_in_background, subslam::app::BackendOptions{}.background,
+ABSL_FLAG(bool, join_in_background, subslam::pipeline::BackendOptions{}.background,
           "run: join each closed local map on a thread of its own while the front-end builds the "
           "next (the online pose one join behind; while a join runs, rbpf leaves it a core; the "
           "final trajectory and map are unchanged); false: join inside the scan that closed the "
@@ -384,9 +384,9 @@ absl::StatusOr<subslam::backend::CeresSolveOptions> CeresOptionsFromFlags() {
   return o;
 }
 
-absl::StatusOr<subslam::app::BackendOptions> BackendOptionsFromFlags() {
-  subslam::app::BackendOptions o;
-  auto kind = subslam::app::BackendFromString(absl::GetFlag(FLAGS_backend));
+absl::StatusOr<subslam::pipeline::BackendOptions> BackendOptionsFromFlags() {
+  subslam::pipeline::BackendOptions o;
+  auto kind = subslam::pipeline::BackendFromString(absl::GetFlag(FLAGS_backend));
   if (!kind.ok()) return kind.status();
   o.kind = *kind;
   o.eif = EifOptionsFromFlags();
@@ -408,12 +408,12 @@ int Join() {
   if (path.empty()) return Fail(absl::InvalidArgumentError("join needs --submaps FILE"));
   auto backend = BackendOptionsFromFlags();
   if (!backend.ok()) return Fail(backend.status());
-  if (backend->kind == subslam::app::Backend::kNone) {
+  if (backend->kind == subslam::pipeline::Backend::kNone) {
     return Fail(absl::InvalidArgumentError("join needs --backend eif, ceres, ekf, tree-ekf or tree-eif"));
   }
   auto submaps = subslam::io::ReadSubmapsJsonl(path);
   if (!submaps.ok()) return Fail(submaps.status());
-  subslam::app::JoinOptions options;
+  subslam::pipeline::JoinOptions options;
   options.backend = *backend;
   options.out_dir = absl::GetFlag(FLAGS_out);
   // The initial pose and the ground truth come from the data set or the scenario the
@@ -432,7 +432,7 @@ int Join() {
     options.truth_poses = dataset->truth_poses;
     options.truth_landmarks = dataset->truth_landmarks;
   }
-  auto r = subslam::app::RunJoin(*submaps, options);
+  auto r = subslam::pipeline::RunJoin(*submaps, options);
   if (!r.ok()) return Fail(r.status());
   if (!absl::GetFlag(FLAGS_quiet)) {
     std::printf("subslam join summary\n%s", r->report.dump(2).c_str());
@@ -450,8 +450,8 @@ int Run() {
   if (dataset_dir.empty() == scenario.empty()) {
     return Fail(absl::InvalidArgumentError("run needs exactly one of --dataset or --scenario"));
   }
-  subslam::app::RunOptions options;
-  auto frontend = subslam::app::FrontendFromString(absl::GetFlag(FLAGS_frontend));
+  subslam::pipeline::RunOptions options;
+  auto frontend = subslam::pipeline::FrontendFromString(absl::GetFlag(FLAGS_frontend));
   if (!frontend.ok()) return Fail(frontend.status());
   options.frontend = *frontend;
   auto association = subslam::association::AssociationMethodFromString(absl::GetFlag(FLAGS_association));
@@ -529,10 +529,10 @@ int Run() {
     options.source = absl::StrCat("scenario ", scenario, " seed ", scenario_options.seed);
   }
   if (!dataset.ok()) return Fail(dataset.status());
-  auto result = subslam::app::RunPipeline(*std::move(dataset), options);
+  auto result = subslam::pipeline::RunPipeline(*std::move(dataset), options);
   if (!result.ok()) return Fail(result.status());
   if (!absl::GetFlag(FLAGS_quiet)) {
-    std::printf("subslam run summary\n%s", subslam::app::SummaryTable(*result).c_str());
+    std::printf("subslam run summary\n%s", subslam::pipeline::SummaryTable(*result).c_str());
     if (!options.out_dir.empty()) {
       const bool local_maps = !result->local_maps.empty();
       std::printf("  %-34s %s/{trajectory_online,trajectory_final,landmarks}.csv, report.json%s\n",
@@ -545,9 +545,9 @@ int Run() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  absl::SetProgramUsageMessage(subslam::app::CliUsage());
+  absl::SetProgramUsageMessage(subslam::pipeline::CliUsage());
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);
-  subslam::app::ApplyKeepFreedMemoryFlag();
+  subslam::pipeline::ApplyKeepFreedMemoryFlag();
   if (args.size() != 2) {
     std::fprintf(stderr, "%s\n", absl::ProgramUsageMessage().data());
     return 2;
@@ -557,7 +557,7 @@ int main(int argc, char** argv) {
   if (command == "run") return Run();
   if (command == "join") return Join();
   if (command == "cli-reference") {
-    std::printf("%s", subslam::app::CliReferenceMarkdown().c_str());
+    std::printf("%s", subslam::pipeline::CliReferenceMarkdown().c_str());
     return 0;
   }
   if (command == "scenarios") {

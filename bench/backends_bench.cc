@@ -29,9 +29,9 @@
 #include "absl/flags/parse.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
-#include "subslam/app/join_pipeline.h"
+#include "subslam/pipeline/join_pipeline.h"
 #include "keep_freed_memory_flag.h"
-#include "subslam/app/run_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/trajectory_errors.h"
@@ -72,7 +72,7 @@ ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {
 
-using subslam::app::Backend;
+using subslam::pipeline::Backend;
 
 std::vector<std::string> SplitList(const std::string& list) { return absl::StrSplit(list, ',', absl::SkipEmpty()); }
 
@@ -83,11 +83,11 @@ struct Input {
   double run_seconds = 0.0;
 };
 
-absl::StatusOr<Input> Record(subslam::io::Dataset dataset, subslam::app::Frontend frontend) {
+absl::StatusOr<Input> Record(subslam::io::Dataset dataset, subslam::pipeline::Frontend frontend) {
   Input in;
-  subslam::app::RunOptions options;
+  subslam::pipeline::RunOptions options;
   options.frontend = frontend;
-  absl::StatusOr<subslam::app::RunResult> r = subslam::app::RunPipeline(dataset, options);
+  absl::StatusOr<subslam::pipeline::RunResult> r = subslam::pipeline::RunPipeline(dataset, options);
   if (!r.ok()) return r.status();
   in.dataset = std::move(dataset);
   in.maps = r->local_maps;
@@ -96,8 +96,8 @@ absl::StatusOr<Input> Record(subslam::io::Dataset dataset, subslam::app::Fronten
   return in;
 }
 
-subslam::app::BackendOptions Options(Backend kind) {
-  subslam::app::BackendOptions o;
+subslam::pipeline::BackendOptions Options(Backend kind) {
+  subslam::pipeline::BackendOptions o;
   o.kind = kind;
   o.eif.association.known_association = absl::GetFlag(FLAGS_known_association);
   o.eif.relinearize_heading_change = absl::GetFlag(FLAGS_eif_relinearize_heading);
@@ -122,7 +122,7 @@ struct InformationSize {
 // the joiner's stage times in `stages` and, for the EIF, its size in `size`, if given.
 std::vector<double> TimeEachJoin(const std::vector<subslam::LocalSubmap>& maps, Backend kind, const subslam::Pose2& p0,
                                  std::map<std::string, double>* stages = nullptr, InformationSize* size = nullptr) {
-  std::unique_ptr<subslam::backend::MapJoiner> j = subslam::app::MakeJoiner(Options(kind), p0);
+  std::unique_ptr<subslam::backend::MapJoiner> j = subslam::pipeline::MakeJoiner(Options(kind), p0);
   std::vector<double> out;
   const absl::Time start = absl::Now();
   for (const subslam::LocalSubmap& s : maps) {
@@ -148,14 +148,14 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
   std::printf("%-9s %10s %10s %9s %10s %8s %8s %9s %12s\n", "backend", truth ? "anchor_rms" : "gps_rms_m",
               "mean_nees", "in_95%", "landmarks", "wrong", "loop", "join_ms", "per_join_ms");
   for (Backend kind : kinds) {
-    subslam::app::JoinOptions options;
+    subslam::pipeline::JoinOptions options;
     options.backend = Options(kind);
     options.initial_pose = in.dataset.initial_pose;
     options.truth_poses = in.dataset.truth_poses;
     options.truth_landmarks = in.dataset.truth_landmarks;
-    absl::StatusOr<subslam::app::JoinResult> r = subslam::app::RunJoin(in.maps, options);
+    absl::StatusOr<subslam::pipeline::JoinResult> r = subslam::pipeline::RunJoin(in.maps, options);
     if (!r.ok()) {
-      std::printf("%-9s failed: %s\n", subslam::app::ToString(kind), std::string(r.status().message()).c_str());
+      std::printf("%-9s failed: %s\n", subslam::pipeline::ToString(kind), std::string(r.status().message()).c_str());
       continue;
     }
     double error = NAN, nees = NAN, inside = NAN;
@@ -168,10 +168,10 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
       auto g = subslam::eval::CompareWithGps(r->anchors, in.dataset.gps);
       if (g.ok()) error = g->rms_m;
     }
-    std::printf("%-9s %10.3f %10.2f %8.1f%% %10zu %8ld %4ld/%-3ld %9.1f %12.3f\n", subslam::app::ToString(kind), error,
+    std::printf("%-9s %10.3f %10.2f %8.1f%% %10zu %8ld %4ld/%-3ld %9.1f %12.3f\n", subslam::pipeline::ToString(kind), error,
                 nees, 100.0 * inside, r->landmarks.size(), r->association.wrong, r->association.loop_merged, r->association.loop_merged + r->association.loop_missed,
                 1e3 * r->wall_seconds, 1e3 * r->wall_seconds / std::max<size_t>(1, in.maps.size()));
-    rows.push_back({{"backend", subslam::app::ToString(kind)},
+    rows.push_back({{"backend", subslam::pipeline::ToString(kind)},
                     {truth ? "anchor_rms_m" : "gps_rms_m", error},
                     {"mean_anchor_nees", nees},
                     {"anchors_in_95_bounds", inside},
@@ -188,15 +188,15 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
 
 nlohmann::json Figure9(const Input& in, const std::vector<Backend>& kinds) {
   // Single-map EKF-SLAM on the same data.
-  subslam::app::RunOptions slam;
-  slam.frontend = subslam::app::Frontend::kEkfSlam;
-  absl::StatusOr<subslam::app::RunResult> single = subslam::app::RunPipeline(in.dataset, slam);
+  subslam::pipeline::RunOptions slam;
+  slam.frontend = subslam::pipeline::Frontend::kEkfSlam;
+  absl::StatusOr<subslam::pipeline::RunResult> single = subslam::pipeline::RunPipeline(in.dataset, slam);
   if (!single.ok()) return nullptr;
   const double t0 = in.maps.front().t_start, t1 = in.maps.back().t_end;
   std::map<std::string, std::vector<double>> joins;
   for (Backend kind : kinds) {
     if (kind == Backend::kCeres) continue;
-    joins[subslam::app::ToString(kind)] = TimeEachJoin(in.maps, kind, in.dataset.initial_pose);
+    joins[subslam::pipeline::ToString(kind)] = TimeEachJoin(in.maps, kind, in.dataset.initial_pose);
   }
   std::printf("\nFigure 9: cumulative seconds at each tenth of the run (local mapping + joining)\n");
   std::printf("%5s %11s %13s", "tenth", "ekf-slam", "local_maps");
@@ -227,7 +227,7 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
   std::printf("\nJoining cost against the number of local maps (random worlds, constant density)\n");
   std::printf("%8s %6s %9s", "path_km", "maps", "landmarks");
   for (Backend kind : kinds) {
-    std::printf(" %11s %9s %13s", (std::string(subslam::app::ToString(kind)) + "_s").c_str(), "/nlog2n",
+    std::printf(" %11s %9s %13s", (std::string(subslam::pipeline::ToString(kind)) + "_s").c_str(), "/nlog2n",
                 "last10%_ms/j");
   }
   std::printf("   (eif: factorisation / state recovery [s]; Λ and L entries per local map)\n");
@@ -240,7 +240,7 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
     o.random_landmarks = static_cast<int>(std::lround(300.0 * km));
     absl::StatusOr<subslam::io::Dataset> d = subslam::sim::SimulateScenario("random", o);
     if (!d.ok()) break;
-    absl::StatusOr<Input> in = Record(*std::move(d), subslam::app::Frontend::kEkfLocal);
+    absl::StatusOr<Input> in = Record(*std::move(d), subslam::pipeline::Frontend::kEkfLocal);
     if (!in.ok()) break;
     const double n = static_cast<double>(in->maps.size());
     std::printf("%8.0f %6zu %9zu", km, in->maps.size(), in->dataset.truth_landmarks.size());
@@ -255,15 +255,15 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
       InformationSize size;
       const std::vector<double> t = TimeEachJoin(in->maps, kind, in->dataset.initial_pose, &stages, &size);
       const double total = t.empty() ? NAN : t.back();
-      row[std::string(subslam::app::ToString(kind)) + "_stages"] = stages;
+      row[std::string(subslam::pipeline::ToString(kind)) + "_stages"] = stages;
       double last_tenth_ms = NAN;
       if (t.size() >= 10) {  // per-join time in the last tenth of the joins
         const size_t a = t.size() - t.size() / 10;
         last_tenth_ms = 1e3 * (t.back() - t[a - 1]) / static_cast<double>(t.size() - a);
-        row[std::string(subslam::app::ToString(kind)) + "_last_tenth_ms_per_join"] = last_tenth_ms;
+        row[std::string(subslam::pipeline::ToString(kind)) + "_last_tenth_ms_per_join"] = last_tenth_ms;
       }
       std::printf(" %11.4f %9.2e %13.2f", total, total / (n * std::log2(std::max(2.0, n))), last_tenth_ms);
-      row[std::string(subslam::app::ToString(kind)) + "_s"] = total;
+      row[std::string(subslam::pipeline::ToString(kind)) + "_s"] = total;
       if (kind == Backend::kEif) {
         std::printf("   (%.3f / %.3f; %.0f / %.0f)", stages["factorization"], stages["recovery"] + stages["recovery_check"],
                     static_cast<double>(size.lambda_entries) / n, static_cast<double>(size.factor_entries) / n);
@@ -281,7 +281,7 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
 // A comma-separated list of back-ends (none excluded); false, with a message, on a bad name.
 bool ParseBackends(const std::string& list, std::vector<Backend>* out) {
   for (const std::string& name : SplitList(list)) {
-    auto b = subslam::app::BackendFromString(name);
+    auto b = subslam::pipeline::BackendFromString(name);
     if (!b.ok() || *b == Backend::kNone) {
       std::fprintf(stderr, "unknown back-end %s\n", name.c_str());
       return false;
@@ -295,13 +295,13 @@ bool ParseBackends(const std::string& list, std::vector<Backend>* out) {
 
 int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
-  subslam::app::ApplyKeepFreedMemoryFlag();
+  subslam::pipeline::ApplyKeepFreedMemoryFlag();
   std::vector<Backend> kinds, growth_kinds;
   if (!ParseBackends(absl::GetFlag(FLAGS_backends), &kinds) ||
       !ParseBackends(absl::GetFlag(FLAGS_growth_backends), &growth_kinds)) {
     return 2;
   }
-  absl::StatusOr<subslam::app::Frontend> frontend = subslam::app::FrontendFromString(absl::GetFlag(FLAGS_frontend));
+  absl::StatusOr<subslam::pipeline::Frontend> frontend = subslam::pipeline::FrontendFromString(absl::GetFlag(FLAGS_frontend));
   if (!frontend.ok()) {
     std::fprintf(stderr, "%s\n", std::string(frontend.status().message()).c_str());
     return 2;

@@ -26,7 +26,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "keep_freed_memory_flag.h"
-#include "subslam/app/run_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/eval/nees.h"
 #include "subslam/sim/simulator.h"
 
@@ -52,7 +52,7 @@ ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {
 
-using subslam::app::Frontend;
+using subslam::pipeline::Frontend;
 using nlohmann::json;
 
 std::vector<std::string> SplitList(const std::string& s) {
@@ -63,9 +63,9 @@ std::vector<std::string> SplitList(const std::string& s) {
 
 // The run options of a filter named on the command line, with the SEIF flags applied
 // (RunPipeline validates the values).
-absl::StatusOr<subslam::app::RunOptions> OptionsFor(const std::string& name) {
-  subslam::app::RunOptions o;
-  absl::StatusOr<Frontend> frontend = subslam::app::FrontendFromString(name);
+absl::StatusOr<subslam::pipeline::RunOptions> OptionsFor(const std::string& name) {
+  subslam::pipeline::RunOptions o;
+  absl::StatusOr<Frontend> frontend = subslam::pipeline::FrontendFromString(name);
   if (!frontend.ok()) return frontend.status();
   o.frontend = *frontend;
   absl::StatusOr<subslam::frontend::MeanRecovery> recovery =
@@ -109,7 +109,7 @@ json RowJson(const MonteCarloRow& r) {
 
 int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
-  subslam::app::ApplyKeepFreedMemoryFlag();
+  subslam::pipeline::ApplyKeepFreedMemoryFlag();
   const int runs = absl::GetFlag(FLAGS_runs);
   const std::string scenario = absl::GetFlag(FLAGS_scenario);
   json out = json::object();
@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
   // 1. Monte Carlo.
   std::vector<MonteCarloRow> rows;
   for (const std::string& name : SplitList(absl::GetFlag(FLAGS_filters))) {
-    const absl::StatusOr<subslam::app::RunOptions> options = OptionsFor(name);
+    const absl::StatusOr<subslam::pipeline::RunOptions> options = OptionsFor(name);
     if (!options.ok()) {
       std::fprintf(stderr, "%s\n", std::string(options.status().message()).c_str());
       return 2;
@@ -133,7 +133,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "%s\n", std::string(d.status().message()).c_str());
         return 1;
       }
-      absl::StatusOr<subslam::app::RunResult> r = subslam::app::RunPipeline(*std::move(d), *options);
+      absl::StatusOr<subslam::pipeline::RunResult> r = subslam::pipeline::RunPipeline(*std::move(d), *options);
       if (!r.ok()) {
         std::fprintf(stderr, "%s seed %llu: %s\n", name.c_str(), static_cast<unsigned long long>(so.seed),
                      std::string(r.status().message()).c_str());
@@ -233,12 +233,12 @@ int main(int argc, char** argv) {
       std::vector<std::string> row_filters = filters;
       if (landmarks <= absl::GetFlag(FLAGS_growth_ekf_max_landmarks)) row_filters.push_back("ekfslam");
       for (const std::string& name : row_filters) {
-        const absl::StatusOr<subslam::app::RunOptions> options = OptionsFor(name);
+        const absl::StatusOr<subslam::pipeline::RunOptions> options = OptionsFor(name);
         if (!options.ok()) {
           std::fprintf(stderr, "%s\n", std::string(options.status().message()).c_str());
           return 2;
         }
-        absl::StatusOr<subslam::app::RunResult> r = subslam::app::RunPipeline(*d, *options);
+        absl::StatusOr<subslam::pipeline::RunResult> r = subslam::pipeline::RunPipeline(*d, *options);
         if (!r.ok()) {
           std::fprintf(stderr, "%s: %s\n", name.c_str(), std::string(r.status().message()).c_str());
           return 1;

@@ -17,7 +17,7 @@
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
-#include "subslam/app/run_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/io/dataset_reader.h"
 
 ABSL_FLAG(std::string, dataset, SUBSLAM_DEFAULT_VICTORIA_PARK, "data-set directory");
@@ -47,10 +47,10 @@ int main(int argc, char** argv) {
   const int points = static_cast<int>(std::floor((to - from) / step + 1e-9)) + 1;
   for (int k = 0; k < points; ++k) {
     const double yaw = from + k * step;
-    subslam::app::RunOptions options;
-    options.frontend = subslam::app::Frontend::kEkfSlam;
+    subslam::pipeline::RunOptions options;
+    options.frontend = subslam::pipeline::Frontend::kEkfSlam;
     options.noise.sensor_yaw = yaw;
-    absl::StatusOr<subslam::app::RunResult> r = subslam::app::RunPipeline(*dataset, options);
+    absl::StatusOr<subslam::pipeline::RunResult> r = subslam::pipeline::RunPipeline(*dataset, options);
     if (!r.ok()) {
       std::fprintf(stderr, "yaw %g: %s\n", yaw, std::string(r.status().message()).c_str());
       return 1;

@@ -23,7 +23,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "keep_freed_memory_flag.h"
-#include "subslam/app/run_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/io/dataset_reader.h"
 
 ABSL_FLAG(std::string, dataset, SUBSLAM_DEFAULT_VICTORIA_PARK, "Victoria Park data-set directory");
@@ -44,7 +44,7 @@ struct Measurement {
 };
 
 // Runs one front-end in this (child) process and writes its measurement to `fd`.
-int RunChild(subslam::app::Frontend frontend, int fd) {
+int RunChild(subslam::pipeline::Frontend frontend, int fd) {
   const absl::Time start = absl::Now();
   auto d = subslam::io::ReadDataset(absl::GetFlag(FLAGS_dataset));
   if (!d.ok()) {
@@ -52,9 +52,9 @@ int RunChild(subslam::app::Frontend frontend, int fd) {
     return 1;
   }
   const double read_s = absl::ToDoubleSeconds(absl::Now() - start);
-  subslam::app::RunOptions options;
+  subslam::pipeline::RunOptions options;
   options.frontend = frontend;
-  auto r = subslam::app::RunPipeline(*std::move(d), options);
+  auto r = subslam::pipeline::RunPipeline(*std::move(d), options);
   if (!r.ok() || !r->gps_final) return 1;
   Measurement m;
   m.read_s = read_s;
@@ -81,7 +81,7 @@ int RunChild(subslam::app::Frontend frontend, int fd) {
   return write(fd, &m, sizeof(m)) == sizeof(m) ? 0 : 1;
 }
 
-bool Measure(subslam::app::Frontend frontend, Measurement* m) {
+bool Measure(subslam::pipeline::Frontend frontend, Measurement* m) {
   int fds[2];
   if (pipe(fds) != 0) return false;
   const pid_t pid = fork();
@@ -101,7 +101,7 @@ bool Measure(subslam::app::Frontend frontend, Measurement* m) {
 
 int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
-  subslam::app::ApplyKeepFreedMemoryFlag();
+  subslam::pipeline::ApplyKeepFreedMemoryFlag();
   const int repeats = std::max(1, absl::GetFlag(FLAGS_repeats));
   nlohmann::json results = nlohmann::json::array();
   std::printf("%-9s %7s %11s %10s %8s %11s %8s %10s %9s %10s\n", "frontend", "read_s",
@@ -109,12 +109,12 @@ int main(int argc, char** argv) {
               "landmarks", "gps_rms_m");
   const std::vector<std::string> names = absl::StrSplit(absl::GetFlag(FLAGS_frontends), ',');
   for (const std::string& name : names) {
-    const absl::StatusOr<subslam::app::Frontend> parsed = subslam::app::FrontendFromString(name);
+    const absl::StatusOr<subslam::pipeline::Frontend> parsed = subslam::pipeline::FrontendFromString(name);
     if (!parsed.ok()) {
       std::fprintf(stderr, "%s\n", std::string(parsed.status().message()).c_str());
       return 1;
     }
-    const subslam::app::Frontend frontend = *parsed;
+    const subslam::pipeline::Frontend frontend = *parsed;
     std::vector<Measurement> runs;
     for (int i = 0; i < repeats; ++i) {
       Measurement m;
@@ -130,10 +130,10 @@ int main(int argc, char** argv) {
     long peak = 0;
     for (const Measurement& m : runs) peak = std::max(peak, m.peak_kb);
     std::printf("%-9s %7.3f %11.3f %10.3f %8.3f %11.1f %8.1f %10zu %9zu %10.2f\n",
-                subslam::app::ToString(frontend), med.read_s, med.estimator_s, med.frontend_s,
+                subslam::pipeline::ToString(frontend), med.read_s, med.estimator_s, med.frontend_s,
                 med.total_s, 1e6 * med.frontend_s / std::max(1, med.scans), peak / 1024.0,
                 med.local_maps, med.landmarks, med.rms_m);
-    results.push_back({{"frontend", subslam::app::ToString(frontend)},
+    results.push_back({{"frontend", subslam::pipeline::ToString(frontend)},
                        {"repeats", repeats},
                        {"median_read_s", med.read_s},
                        {"median_estimator_s", med.estimator_s},

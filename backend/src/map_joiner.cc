@@ -7,6 +7,45 @@
 
 namespace subslam::backend {
 
+std::span<const JoinerCounters::Field> JoinerCounters::Fields() {
+  using C = JoinerCounters;
+  static constexpr Field kFields[] = {
+      {"maps", &C::joins},
+      {"associated_features", &C::associated},
+      {"new_landmarks", &C::new_landmarks},
+      {"relinearizations", &C::relinearizations},
+      {"relinearizations_diverged", &C::relinearizations_diverged},
+      {"relinearizations_predicted_converged", &C::relinearizations_predicted_converged},
+      {"relinearized_on_heading", &C::relinearized_on_heading},
+      {"relinearized_on_linearization_error", &C::relinearized_on_linearization_error},
+      {"jcbb_truncated", &C::jcbb_truncated},
+      {"loop_closures_thin", &C::loop_closures_thin},
+      {"loop_closures_ambiguous", &C::loop_closures_ambiguous},
+      {"loop_closures_confirmed", &C::loop_closures_confirmed},
+      {"loop_closures_unconfirmed", &C::loop_closures_unconfirmed},
+      {"associations_replayed", &C::associations_replayed},
+      {"rejected", &C::rejected_joins},
+      {"revision_passes", &C::revision_passes},
+      {"landmarks_merged", &C::landmarks_merged},
+      {"features_split", &C::features_split},
+      {"incremental_updates", &C::incremental_updates},
+      {"full_factorizations", &C::full_factorizations},
+      {"nested_dissection_factorizations", &C::nested_dissection_factorizations},
+      {"reused_analyses", &C::reused_analyses},
+      {"failed_updates", &C::failed_updates},
+      {"candidates", &C::candidates},
+      {"candidates_bounded_out", &C::candidates_bounded_out},
+      {"covariance_columns", &C::covariance_columns},
+      {"covariance_reach", &C::covariance_reach},
+  };
+  return kFields;
+}
+
+JoinerCounters& JoinerCounters::operator+=(const JoinerCounters& o) {
+  for (const Field& f : Fields()) this->*f.member += o.*f.member;
+  return *this;
+}
+
 std::vector<Eigen::Matrix3d> MapJoiner::AnchorCovariances() const {
   std::vector<Eigen::Matrix3d> out;
   out.reserve(num_anchors());

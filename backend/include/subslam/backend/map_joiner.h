@@ -1,5 +1,5 @@
 // What every back-end that joins local maps into the global map offers the pipeline
-// (apps/submap_slam.h) and the benchmarks, so they run on identical input:
+// (pipeline/submap_slam.h) and the benchmarks, so they run on identical input:
 // sequential joining of LocalSubmaps in time order, the estimate as a SubmapGraph (anchor
 // k = start of local map k, in the world frame, P0 fixed at the initial pose; global
 // landmarks; the association of every feature), and marginal covariances of anchors and
@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -66,36 +67,23 @@ struct JoinerCounters {
   long covariance_columns = 0;
   long covariance_reach = 0;
 
-  JoinerCounters& operator+=(const JoinerCounters& o) {
-    joins += o.joins;
-    associated += o.associated;
-    new_landmarks += o.new_landmarks;
-    relinearizations += o.relinearizations;
-    relinearizations_diverged += o.relinearizations_diverged;
-    relinearizations_predicted_converged += o.relinearizations_predicted_converged;
-    relinearized_on_heading += o.relinearized_on_heading;
-    relinearized_on_linearization_error += o.relinearized_on_linearization_error;
-    jcbb_truncated += o.jcbb_truncated;
-    loop_closures_thin += o.loop_closures_thin;
-    loop_closures_ambiguous += o.loop_closures_ambiguous;
-    loop_closures_confirmed += o.loop_closures_confirmed;
-    loop_closures_unconfirmed += o.loop_closures_unconfirmed;
-    associations_replayed += o.associations_replayed;
-    rejected_joins += o.rejected_joins;
-    revision_passes += o.revision_passes;
-    landmarks_merged += o.landmarks_merged;
-    features_split += o.features_split;
-    incremental_updates += o.incremental_updates;
-    full_factorizations += o.full_factorizations;
-    nested_dissection_factorizations += o.nested_dissection_factorizations;
-    reused_analyses += o.reused_analyses;
-    failed_updates += o.failed_updates;
-    candidates += o.candidates;
-    candidates_bounded_out += o.candidates_bounded_out;
-    covariance_columns += o.covariance_columns;
-    covariance_reach += o.covariance_reach;
-    return *this;
-  }
+  JoinerCounters& operator+=(const JoinerCounters& o);
+
+  // Every counter with its name in the reports (report.json: "join_" + name in a run's
+  // estimator counters, name in `subslam join`'s counts), in one list.
+  struct Field {
+    const char* name;
+    long JoinerCounters::*member;
+  };
+  static std::span<const Field> Fields();
+};
+
+// What a joiner reports beyond JoinerCounters and its stage times, named as report.json
+// names them (e.g. the Ceres back-end's solves, iterations and costs, and Ceres's
+// termination): figures are numbers, notes text. Empty for most joiners.
+struct JoinerExtras {
+  std::map<std::string, double> figures;
+  std::map<std::string, std::string> notes;
 };
 
 class MapJoiner {
@@ -137,6 +125,7 @@ class MapJoiner {
   // Accumulated wall time per stage (seconds).
   virtual std::map<std::string, double> stage_times() const = 0;
   virtual const JoinerCounters& counters() const = 0;
+  virtual JoinerExtras Extras() const { return {}; }
   // What association keeps per landmark (signatures, truth ids).
   virtual const SubmapAssociator& associator() const = 0;
 

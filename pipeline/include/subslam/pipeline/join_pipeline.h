@@ -1,6 +1,6 @@
-// The `subslam join` job: run a back-end (EIF, or EIF then Ceres) alone on recorded local
-// maps (submaps.jsonl),
-// so back-ends can be compared on identical input and local maps built elsewhere joined.
+// The `subslam join` job: run a back-end alone on recorded local maps (submaps.jsonl), so
+// back-ends can be compared on identical input and local maps built elsewhere joined.
+// The back-end is the one `subslam run` builds (MakeJoiner), joined in the same way.
 //
 // Outputs (JoinOptions::out_dir, when set):
 //   anchors.csv     t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt (the trajectory
@@ -10,8 +10,8 @@
 //   graph.g2o       the submap graph in g2o text (see SubmapGraph::WriteG2o: marginal blocks);
 //   report.json     configuration, counts, time per stage, and — when ground truth is given —
 //                   anchor and landmark errors.
-#ifndef SUBSLAM_APP_JOIN_PIPELINE_H_
-#define SUBSLAM_APP_JOIN_PIPELINE_H_
+#ifndef SUBSLAM_PIPELINE_JOIN_PIPELINE_H_
+#define SUBSLAM_PIPELINE_JOIN_PIPELINE_H_
 
 #include <optional>
 #include <string>
@@ -20,19 +20,15 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
-#include "subslam/app/submap_slam.h"
-#include "subslam/backend/ceres_solver.h"
+#include "subslam/pipeline/submap_slam.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/io/dataset.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 struct JoinOptions {
-  // The back-end (not kNone). kCeres: the graph the EIF built (its association, its
-  // estimate as the start) is solved with Ceres after the last join; anchors and
-  // landmarks come from that solution (anchor covariances from ceres::Covariance,
-  // landmark covariances from the EIF).
+  // The back-end (not kNone).
   BackendOptions backend = [] {
     BackendOptions o;
     o.kind = Backend::kEif;
@@ -82,14 +78,13 @@ struct JoinResult {
   // online pose composes with until the next join; row 0: the initial pose).
   Trajectory anchors_online;
   std::vector<LandmarkEstimate> landmarks;
-  double wall_seconds = 0.0;  // joining (Finish and a Ceres solve included), not the online records
+  double wall_seconds = 0.0;  // joining and Finish (a Ceres solve included), not the online records
   AssociationVsTruth association;  // against the local maps' truth ids
-  std::optional<backend::CeresSolveReport> ceres;
   nlohmann::json report;
 };
 
 absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options);
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline
 
-#endif  // SUBSLAM_APP_JOIN_PIPELINE_H_
+#endif  // SUBSLAM_PIPELINE_JOIN_PIPELINE_H_

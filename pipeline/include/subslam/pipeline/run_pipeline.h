@@ -10,8 +10,8 @@
 //   landmarks.csv          the final map (confirmed landmarks);
 //   report.json            configuration, counts, time per stage, metrics;
 //   submaps.jsonl          (rbpf, ekf) the local maps, in the exchange format.
-#ifndef SUBSLAM_APP_RUN_PIPELINE_H_
-#define SUBSLAM_APP_RUN_PIPELINE_H_
+#ifndef SUBSLAM_PIPELINE_RUN_PIPELINE_H_
+#define SUBSLAM_PIPELINE_RUN_PIPELINE_H_
 
 #include <optional>
 #include <string>
@@ -25,13 +25,13 @@
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
 #include "subslam/frontend/seif_slam.h"
-#include "subslam/app/submap_slam.h"
+#include "subslam/pipeline/submap_slam.h"
 #include "subslam/frontend/submap_policy.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/io/dataset.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 // odometry: dead reckoning; ekfslam, fastslam: single-map filters; rbpf, ekf: local
 // mappers (FastSLAM 2.0 / EKF-SLAM per local map), joined by RunOptions::backend.
@@ -114,6 +114,6 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
 // A short human-readable summary table of a result.
 std::string SummaryTable(const RunResult& result);
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline
 
-#endif  // SUBSLAM_APP_RUN_PIPELINE_H_
+#endif  // SUBSLAM_PIPELINE_RUN_PIPELINE_H_

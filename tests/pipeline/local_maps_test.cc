@@ -8,13 +8,13 @@
 
 #include <boost/math/distributions/binomial.hpp>
 
-#include "subslam/app/run_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/sim/simulator.h"
 
 #include <set>
 
-namespace subslam::app {
+namespace subslam::pipeline {
 namespace {
 
 int BinomialLowerBound(int n, double p = 0.95, double alpha = 0.001) {
@@ -195,4 +195,4 @@ TEST(FastSlamSingleMap, BecomesOverconfidentOverALongRun) {
 }
 
 }  // namespace
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

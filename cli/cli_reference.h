@@ -1,14 +1,14 @@
 // The command-line tool's commands and its reference page. docs/cli.md is the output of
 // `subslam cli-reference`, generated from the program's own command table and flag
 // registry (names, defaults, help texts), and a test checks that the two agree.
-#ifndef SUBSLAM_APPS_EXECUTABLE_CLI_REFERENCE_H_
-#define SUBSLAM_APPS_EXECUTABLE_CLI_REFERENCE_H_
+#ifndef SUBSLAM_CLI_CLI_REFERENCE_H_
+#define SUBSLAM_CLI_CLI_REFERENCE_H_
 
 #include <span>
 #include <string>
 #include <string_view>
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 struct CliCommand {
   std::string_view name;
@@ -26,6 +26,6 @@ std::string CliUsage();
 // defined outside Abseil), grouped by topic, each with its default and help text.
 std::string CliReferenceMarkdown();
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline
 
-#endif  // SUBSLAM_APPS_EXECUTABLE_CLI_REFERENCE_H_
+#endif  // SUBSLAM_CLI_CLI_REFERENCE_H_

@@ -5,17 +5,17 @@
 #include <cmath>
 #include <optional>
 
-#include "subslam/app/join_pipeline.h"
+#include "subslam/pipeline/join_pipeline.h"
 #include "subslam/eval/nees.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/models/gating.h"
-#include "subslam/app/run_pipeline.h"
-#include "subslam/app/submap_slam.h"
+#include "subslam/pipeline/run_pipeline.h"
+#include "subslam/pipeline/submap_slam.h"
 #include "subslam/io/steps.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/sim/simulator.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 namespace {
 
 io::Dataset Simulate(uint64_t seed, const std::string& scenario = "hybrid-120m",
@@ -537,4 +537,4 @@ TEST(BackendOptions, RejectsBadInput) {
 }
 
 }  // namespace
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

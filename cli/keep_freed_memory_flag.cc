@@ -3,14 +3,14 @@
 #include <cstdio>
 
 #include "absl/flags/flag.h"
-#include "subslam/app/process_memory.h"
+#include "subslam/pipeline/process_memory.h"
 
 ABSL_FLAG(bool, keep_freed_memory, true,
           "keep freed memory in the process for reuse (glibc: mmap threshold 32 MiB, trim "
-          "threshold 512 MiB; see subslam/app/process_memory.h) instead of returning it to "
+          "threshold 512 MiB; see subslam/pipeline/process_memory.h) instead of returning it to "
           "the kernel and faulting it in again");
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 void ApplyKeepFreedMemoryFlag() {
   if (absl::GetFlag(FLAGS_keep_freed_memory) && !KeepFreedMemoryInProcess()) {
@@ -18,4 +18,4 @@ void ApplyKeepFreedMemoryFlag() {
   }
 }
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

@@ -1,4 +1,4 @@
-#include "subslam/app/run_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 
 #include "report_json.h"
 
@@ -16,7 +16,7 @@
 #include "absl/time/clock.h"
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/local_map_errors.h"
-#include "subslam/app/submap_slam.h"
+#include "subslam/pipeline/submap_slam.h"
 #include "subslam/frontend/dead_reckoning.h"
 #include "subslam/frontend/ekf_local_mapper.h"
 #include "subslam/io/submaps_jsonl.h"
@@ -24,7 +24,7 @@
 #include "subslam/io/run_output_writer.h"
 #include "subslam/io/steps.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 namespace {
 
 using nlohmann::json;
@@ -495,4 +495,4 @@ std::string SummaryTable(const RunResult& r) {
   return s;
 }
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

@@ -1,4 +1,4 @@
-#include "subslam/app/join_pipeline.h"
+#include "subslam/pipeline/join_pipeline.h"
 
 #include "report_json.h"
 
@@ -13,7 +13,7 @@
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/io/run_output_writer.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph) {
   AssociationVsTruth c;
@@ -91,21 +91,8 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   }
   const absl::Time start = absl::Now() - joining;  // the online records are not timed
   if (absl::Status st = joiner->Finish(); !st.ok()) return st;
-  std::optional<SubmapGraph> solved;
-  std::vector<int> all_anchors(joiner->num_anchors());
-  for (int k = 0; k < joiner->num_anchors(); ++k) all_anchors[k] = k;
-  std::vector<Eigen::Matrix3d> ceres_covariances;
-  if (options.backend.kind == Backend::kCeres) {
-    SubmapGraph g = joiner->graph();
-    absl::StatusOr<backend::CeresSolveReport> c =
-        backend::SolveWithCeres(&g, options.backend.ceres, all_anchors, &ceres_covariances);
-    if (!c.ok()) return c.status();
-    r.ceres = *c;
-    solved = std::move(g);
-  }
   r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
-  // Marginal covariances of every anchor: the joiner's (timed, for comparison with
-  // ceres::Covariance), or Ceres's at its solution.
+  // Marginal covariances of every anchor (timed: the joiner's bulk recovery).
   const absl::Time covariance_start = absl::Now();
   const std::vector<Eigen::Matrix3d> joiner_covariances = joiner->AnchorCovariances();
   const double joiner_covariance_seconds = absl::ToDoubleSeconds(absl::Now() - covariance_start);
@@ -114,12 +101,11 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   r.anchor_times.push_back(submaps.front().t_start);
   for (const LocalSubmap& s : submaps) r.anchor_times.push_back(s.t_end);
   for (int k = 0; k < joiner->num_anchors(); ++k) {
-    r.anchors.push_back({r.anchor_times[k], solved ? solved->anchors()[k] : joiner->anchor(k),
-                         solved ? ceres_covariances[k] : joiner_covariances[k]});
+    r.anchors.push_back({r.anchor_times[k], joiner->anchor(k), joiner_covariances[k]});
   }
   const std::vector<Eigen::Matrix2d> landmark_covariances = joiner->LandmarkCovariances();
   for (int j = 0; j < joiner->num_landmarks(); ++j) {
-    r.landmarks.push_back({j, solved ? solved->landmarks()[j] : joiner->landmark(j), landmark_covariances[j]});
+    r.landmarks.push_back({j, joiner->landmark(j), landmark_covariances[j]});
   }
 
   nlohmann::json metrics = nlohmann::json::object();
@@ -145,6 +131,16 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                                         {"reobserved_recent_missed", a.recent_missed},
                                         {"reobserved_loop_merged", a.loop_merged},
                                         {"reobserved_loop_missed", a.loop_missed}};
+  nlohmann::json counts = {{"local_maps", r.local_maps},
+                           {"anchors", joiner->num_anchors()},
+                           {"landmarks", joiner->num_landmarks()}};
+  for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) {
+    counts[f.name] = joiner->counters().*f.member;
+  }
+  const backend::JoinerExtras joiner_extras = joiner->Extras();
+  nlohmann::json extras = nlohmann::json::object();
+  for (const auto& [name, value] : joiner_extras.figures) extras[name] = value;
+  for (const auto& [name, value] : joiner_extras.notes) extras[name] = value;
   nlohmann::json stages = nlohmann::json::object();
   for (const auto& [stage, seconds] : joiner->stage_times()) stages[stage] = seconds;
   r.report = {{"format", "subslam-join-report/1"},
@@ -158,43 +154,12 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"relinearize_linearization_chi2", options.backend.eif.relinearize_linearization_chi2},
                 {"relinearize_every", options.backend.eif.relinearize_every},
                 {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}}},
-              {"counts",
-               {{"local_maps", r.local_maps},
-                {"anchors", joiner->num_anchors()},
-                {"landmarks", joiner->num_landmarks()},
-                {"associated_features", joiner->counters().associated},
-                {"rejected_joins", joiner->counters().rejected_joins},
-                {"relinearizations", joiner->counters().relinearizations},
-                {"relinearizations_diverged", joiner->counters().relinearizations_diverged},
-                {"relinearizations_predicted_converged", joiner->counters().relinearizations_predicted_converged},
-                {"relinearized_on_heading", joiner->counters().relinearized_on_heading},
-                {"relinearized_on_linearization_error", joiner->counters().relinearized_on_linearization_error},
-                {"jcbb_truncated", joiner->counters().jcbb_truncated},
-                {"loop_closures_thin", joiner->counters().loop_closures_thin},
-                {"loop_closures_ambiguous", joiner->counters().loop_closures_ambiguous},
-                {"loop_closures_confirmed", joiner->counters().loop_closures_confirmed},
-                {"loop_closures_unconfirmed", joiner->counters().loop_closures_unconfirmed},
-                {"associations_replayed", joiner->counters().associations_replayed},
-                {"revision_passes", joiner->counters().revision_passes},
-                {"landmarks_merged", joiner->counters().landmarks_merged},
-                {"features_split", joiner->counters().features_split},
-                {"incremental_factor_updates", joiner->counters().incremental_updates},
-                {"full_factorizations", joiner->counters().full_factorizations},
-                {"nested_dissection_factorizations", joiner->counters().nested_dissection_factorizations},
-                {"reused_analyses", joiner->counters().reused_analyses},
-                {"failed_factor_updates", joiner->counters().failed_updates}}},
+              {"counts", counts},
               {"time_seconds",
                {{"total", r.wall_seconds},
                 {"stages", stages},
-                {"joiner_all_anchor_covariances", joiner_covariance_seconds},
-                {"ceres_all_anchor_covariances", r.ceres ? r.ceres->covariance_seconds : 0.0}}},
-              {"ceres", r.ceres ? nlohmann::json{{"iterations", r.ceres->iterations},
-                                                 {"initial_cost", r.ceres->initial_cost},
-                                                 {"final_cost", r.ceres->final_cost},
-                                                 {"seconds", r.ceres->seconds},
-                                                 {"termination", r.ceres->termination},
-                                                 {"brief", r.ceres->brief}}
-                                : nlohmann::json(nullptr)},
+                {"joiner_all_anchor_covariances", joiner_covariance_seconds}}},
+              {"extras", extras},
               {"metrics", metrics}};
 
   if (!options.out_dir.empty()) {
@@ -210,4 +175,4 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   return r;
 }
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

@@ -9,7 +9,7 @@
 #include "absl/flags/commandlineflag.h"
 #include "absl/flags/reflection.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 namespace {
 
 constexpr std::array<CliCommand, 5> kCommands = {{
@@ -160,4 +160,4 @@ std::string CliReferenceMarkdown() {
   return md;
 }
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

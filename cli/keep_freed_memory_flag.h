@@ -1,16 +1,16 @@
 // The executables' flag --keep_freed_memory (default true), for subslam's own programs
 // (the CLI and the benches) only: this target is not installed, so a program that links
 // the libraries gets no flag of this name.
-#ifndef SUBSLAM_APPS_EXECUTABLE_KEEP_FREED_MEMORY_FLAG_H_
-#define SUBSLAM_APPS_EXECUTABLE_KEEP_FREED_MEMORY_FLAG_H_
+#ifndef SUBSLAM_CLI_KEEP_FREED_MEMORY_FLAG_H_
+#define SUBSLAM_CLI_KEEP_FREED_MEMORY_FLAG_H_
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
-// Calls KeepFreedMemoryInProcess() (subslam/app/process_memory.h) when
+// Calls KeepFreedMemoryInProcess() (subslam/pipeline/process_memory.h) when
 // --keep_freed_memory is set, with a note on stderr if that failed. Call it after
 // absl::ParseCommandLine.
 void ApplyKeepFreedMemoryFlag();
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline
 
-#endif  // SUBSLAM_APPS_EXECUTABLE_KEEP_FREED_MEMORY_FLAG_H_
+#endif  // SUBSLAM_CLI_KEEP_FREED_MEMORY_FLAG_H_

@@ -9,12 +9,9 @@
 //    baseline; it associates with the same module and options as the EIF;
 //  * kTreeEkf, kTreeEif — binary-tree joining (backend/tree_joiner.h) over dense EKF or
 //    sparse EIF nodes; the online anchor is chained over the tree's pending nodes;
-//  * kCeres — the EIF joiner associates and gives the online estimate; every
-//    `ceres_every` joins (0: never during the run) and at Finish() the whole graph is
-//    solved with Ceres (backend/ceres_solver.h), warm-started from the current estimate
-//    (ISEIF's schedule, with Ceres doing the iterations), and the EIF adopts the solution
-//    (relinearising there), so the online anchors, the final trajectory, the map and the
-//    marginals all follow it.
+//  * kCeres — the Ceres back-end (backend/ceres_joiner.h): the EIF associates and gives
+//    the online estimate, and every `ceres_every` joins and at Finish() Ceres solves the
+//    whole graph and the EIF adopts the solution.
 //
 // pose() is the current start anchor composed with the local map's pose; its covariance
 // adds the anchor's marginal and the local pose's covariance (their correlation is
@@ -28,13 +25,13 @@
 // built, its start anchor is map k's start anchor as joined so far composed with map k's
 // end pose (covariance to first order). The final trajectory, the map and the marginals
 // are those of the synchronous run. The joiner-backed accessors wait for a pending join;
-// what joiner() and ceres_report() return is valid until the next Update() or Finish().
+// what joiner() returns is valid until the next Update() or Finish().
 //
 // After Finish(), FinalTrajectory() re-expresses every recorded step with the final
 // anchors, and Map() is the global map (kNone: every local map's features through its
 // anchor, id = map · 10⁶ + feature, duplicates included).
-#ifndef SUBSLAM_APP_SUBMAP_SLAM_H_
-#define SUBSLAM_APP_SUBMAP_SLAM_H_
+#ifndef SUBSLAM_PIPELINE_SUBMAP_SLAM_H_
+#define SUBSLAM_PIPELINE_SUBMAP_SLAM_H_
 
 #include <atomic>
 #include <condition_variable>
@@ -46,7 +43,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/backend/ceres_solver.h"
+#include "subslam/backend/ceres_joiner.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/ekf_joiner.h"
 #include "subslam/backend/map_joiner.h"
@@ -54,7 +51,7 @@
 #include "subslam/frontend/local_mapper.h"
 #include "subslam/frontend/online_estimator.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 enum class Backend { kNone, kEif, kCeres, kEkf, kTreeEkf, kTreeEif };
 const char* ToString(Backend backend);  // none, eif, ceres, ekf, tree-ekf, tree-eif
@@ -79,8 +76,7 @@ struct BackendOptions {
 // for kCeres, where Ceres solves there instead.
 bool EifRelinearizesAtEnd(const BackendOptions& options);
 
-// The joiner of a back-end (nullptr for kNone; for kCeres the EIF, without its Gauss-Newton
-// at Finish(): Ceres solves there).
+// The joiner of a back-end (nullptr for kNone).
 std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose);
 
 class SubmapSlam final : public frontend::OnlineEstimator {
@@ -116,16 +112,11 @@ class SubmapSlam final : public frontend::OnlineEstimator {
     WaitForJoins();
     return joiner_.get();
   }
-  // kCeres, after Finish(): Ceres's summary.
-  const std::optional<backend::CeresSolveReport>& ceres_report() const {
-    WaitForJoins();
-    return ceres_report_;
-  }
   static constexpr int kFeatureIdStride = 1000000;
 
  private:
   void JoinClosed();
-  // Joins one local map (and solves with Ceres on its schedule); records the first error.
+  // Joins one local map; records the first error.
   void JoinOne(const LocalSubmap& s);
   // Background joins: until the join in progress, if any, is done.
   void WaitForJoins() const;
@@ -137,14 +128,6 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   std::unique_ptr<frontend::LocalMapper> mapper_;
   Backend backend_;
   std::unique_ptr<backend::MapJoiner> joiner_;
-  backend::EifJoiner* eif_ = nullptr;  // joiner_, when it is the EIF
-  backend::CeresSolveOptions ceres_options_;
-  absl::Status SolveAndAdopt();
-  int ceres_every_ = 0;
-  int joins_ = 0;
-  std::optional<backend::CeresSolveReport> ceres_report_;  // of the last solve
-  int ceres_solves_ = 0, ceres_iterations_ = 0;
-  double ceres_seconds_ = 0.0, ceres_max_seconds_ = 0.0;
   std::vector<frontend::ClosedLocalMap> closed_;
   // kNone: the chained anchors (index k = start of map k) and covariances; the joiners
   // keep their own.
@@ -163,8 +146,7 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   int last_scan_map_id_ = 0;
   absl::Status status_;  // written by the joining thread while a join is pending
   // Background joins: the map being joined (set until its join is done), guarded by
-  // join_mutex_; the joiner, status_ and the Ceres fields belong to the joining thread
-  // while it is set.
+  // join_mutex_; the joiner and status_ belong to the joining thread while it is set.
   bool background_ = false;
   mutable std::mutex join_mutex_;
   mutable std::condition_variable join_done_;
@@ -175,6 +157,6 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   std::thread join_thread_;
 };
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline
 
-#endif  // SUBSLAM_APP_SUBMAP_SLAM_H_
+#endif  // SUBSLAM_PIPELINE_SUBMAP_SLAM_H_

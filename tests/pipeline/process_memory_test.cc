@@ -1,4 +1,4 @@
-#include "subslam/app/process_memory.h"
+#include "subslam/pipeline/process_memory.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include <malloc.h>
 #endif
 
-namespace subslam::app {
+namespace subslam::pipeline {
 namespace {
 
 // glibc's allocator only: not under AddressSanitizer, whose allocator replaces it.
@@ -45,4 +45,4 @@ TEST(ProcessMemory, WithoutItAFreedBlockIsReturned) {
 #endif
 
 }  // namespace
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

@@ -1,5 +1,5 @@
 // Pieces of report.json shared by the run and join pipelines, and the output directory.
-// Private to subslam::app.
+// Private to subslam::pipeline.
 #ifndef SUBSLAM_APPS_SRC_REPORT_JSON_H_
 #define SUBSLAM_APPS_SRC_REPORT_JSON_H_
 
@@ -14,7 +14,7 @@
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 inline nlohmann::json ErrorsJson(const eval::TrajectoryErrors& e) {
   return {{"steps", e.steps},
@@ -64,6 +64,6 @@ inline absl::StatusOr<std::filesystem::path> CreateOutputDirectory(const std::st
   return std::filesystem::path(dir);
 }
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline
 
 #endif  // SUBSLAM_APPS_SRC_REPORT_JSON_H_

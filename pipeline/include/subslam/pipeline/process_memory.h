@@ -1,5 +1,5 @@
 // Process-wide allocator settings for subslam's executables (the CLI and the benches,
-// through their flag --keep_freed_memory, apps/executable/); the libraries never change
+// through their flag --keep_freed_memory, cli/); the libraries never change
 // them, so a program that embeds subslam keeps its own unless it calls this itself.
 //
 // glibc hands a freed block of at least 128 KiB (a threshold it raises as it goes) back
@@ -11,10 +11,10 @@
 // dominated the dense EKF joiner (combined-2km seed 1: 4.4-5.9 s and 325,000 page
 // faults, against 0.35-0.45 s and 19,000 faults with these settings; bench/RESULTS.md).
 // Blocks above 32 MiB are still mmapped.
-#ifndef SUBSLAM_APP_PROCESS_MEMORY_H_
-#define SUBSLAM_APP_PROCESS_MEMORY_H_
+#ifndef SUBSLAM_PIPELINE_PROCESS_MEMORY_H_
+#define SUBSLAM_PIPELINE_PROCESS_MEMORY_H_
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 // Keeps freed memory in the process for reuse: blocks up to 32 MiB (glibc's largest
 // mmap threshold on 64-bit) come from the heap, and the heap's top is given back to the
@@ -24,6 +24,6 @@ namespace subslam::app {
 // setting (nothing is then changed for that setting).
 bool KeepFreedMemoryInProcess();
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline
 
-#endif  // SUBSLAM_APP_PROCESS_MEMORY_H_
+#endif  // SUBSLAM_PIPELINE_PROCESS_MEMORY_H_

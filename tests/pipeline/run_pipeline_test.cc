@@ -1,4 +1,4 @@
-#include "subslam/app/run_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include "subslam/sim/simulator.h"
 #include "test_util.h"
 
-namespace subslam::app {
+namespace subslam::pipeline {
 namespace {
 
 namespace fs = std::filesystem;
@@ -230,4 +230,4 @@ TEST(RunPipeline, VictoriaParkRbpfEifWithCalibratedYawBelowThePapersErrors) {
 }
 
 }  // namespace
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

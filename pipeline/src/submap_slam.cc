@@ -1,4 +1,4 @@
-#include "subslam/app/submap_slam.h"
+#include "subslam/pipeline/submap_slam.h"
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
@@ -8,7 +8,7 @@
 #include <algorithm>
 #include <exception>
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 const char* ToString(Backend backend) {
   switch (backend) {
@@ -47,13 +47,11 @@ std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, co
   switch (options.kind) {
     case Backend::kNone: return nullptr;
     case Backend::kEif: return std::make_unique<backend::EifJoiner>(initial_pose, options.eif);
-    case Backend::kCeres: {
-      // Ceres solves the whole graph after the last join: the EIF's own Gauss-Newton there
-      // would only be done again.
-      backend::EifJoinerOptions eif = options.eif;
-      eif.relinearize_at_end = EifRelinearizesAtEnd(options);
-      return std::make_unique<backend::EifJoiner>(initial_pose, eif);
-    }
+    case Backend::kCeres:
+      return std::make_unique<backend::CeresJoiner>(
+          initial_pose, backend::CeresJoinerOptions{.eif = options.eif,
+                                                    .solve = options.ceres,
+                                                    .solve_every = options.ceres_every});
     case Backend::kEkf: return std::make_unique<backend::EkfJoiner>(initial_pose, options.ekf);
     case Backend::kTreeEkf: {
       backend::EkfJoinerOptions ekf = options.ekf;
@@ -73,13 +71,10 @@ SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose
     : mapper_(std::move(mapper)),
       backend_(backend.kind),
       joiner_(MakeJoiner(backend, initial_pose)),
-      ceres_options_(backend.ceres),
-      ceres_every_(backend.ceres_every),
       anchor_(initial_pose) {
   SUBSLAM_CHECK(backend.Validate().ok()) << backend.Validate().message();
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
-  if (backend_ == Backend::kEif || backend_ == Backend::kCeres) eif_ = static_cast<backend::EifJoiner*>(joiner_.get());
   background_ = backend.background && joiner_ != nullptr;
   if (background_) join_thread_ = std::thread([this] { JoinWorker(); });
 }
@@ -183,26 +178,6 @@ void SubmapSlam::JoinOne(const LocalSubmap& s) {
                   ? st
                   : absl::Status(st.code(), absl::StrCat("joining ", map, ": ", st.message()));
   }
-  ++joins_;
-  if (backend_ == Backend::kCeres && ceres_every_ > 0 && joins_ % ceres_every_ == 0 && status_.ok()) {
-    status_ = SolveAndAdopt();
-  }
-}
-
-absl::Status SubmapSlam::SolveAndAdopt() {
-  if (eif_->graph().factors().empty()) return absl::OkStatus();
-  const absl::Time start = absl::Now();
-  SubmapGraph g = eif_->graph();  // warm start: the current estimate
-  absl::StatusOr<backend::CeresSolveReport> r = backend::SolveWithCeres(&g, ceres_options_);
-  if (!r.ok()) return r.status();
-  ceres_report_ = *r;
-  ++ceres_solves_;
-  ceres_iterations_ += r->iterations;
-  if (absl::Status st = eif_->AdoptEstimate(g); !st.ok()) return st;
-  const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
-  ceres_seconds_ += seconds;
-  ceres_max_seconds_ = std::max(ceres_max_seconds_, seconds);
-  return absl::OkStatus();
 }
 
 Pose2 SubmapSlam::Anchor(int k) const { return joiner_ ? joiner_->anchor(k) : chain_[k]; }
@@ -229,7 +204,6 @@ absl::Status SubmapSlam::Finish() {
   JoinClosed();
   WaitForJoins();
   if (joiner_ && status_.ok()) status_ = joiner_->Finish();
-  if (backend_ == Backend::kCeres && status_.ok()) status_ = SolveAndAdopt();
   if (joiner_ && status_.ok()) {  // the online pose after the run: on the final estimate
     anchor_ = Anchor(mapper_->current_map_id());
     anchor_covariance_ = AnchorCovariance(mapper_->current_map_id());
@@ -286,9 +260,11 @@ StageTimes SubmapSlam::stage_times() const {
   WaitForJoins();
   StageTimes times = mapper_->stage_times();
   if (joiner_) {
-    for (const auto& [stage, seconds] : joiner_->stage_times()) times["join_" + stage] = seconds;
+    for (const auto& [stage, seconds] : joiner_->stage_times()) {
+      // The Ceres back-end's own stage keeps its name.
+      times[stage.starts_with("ceres_") ? stage : "join_" + stage] = seconds;
+    }
   }
-  if (ceres_solves_ > 0) times["ceres_solve_and_adopt"] = ceres_seconds_;
   return times;
 }
 
@@ -296,42 +272,14 @@ std::map<std::string, double> SubmapSlam::Counters() const {
   WaitForJoins();
   std::map<std::string, double> out = mapper_->Counters();
   if (joiner_) {
-    out["join_associated_features"] = joiner_->counters().associated;
-    out["join_new_landmarks"] = joiner_->counters().new_landmarks;
-    out["join_relinearizations"] = joiner_->counters().relinearizations;
-    out["join_relinearizations_diverged"] = joiner_->counters().relinearizations_diverged;
-    out["join_relinearizations_predicted_converged"] = joiner_->counters().relinearizations_predicted_converged;
-    out["join_relinearized_on_heading"] = joiner_->counters().relinearized_on_heading;
-    out["join_relinearized_on_linearization_error"] = joiner_->counters().relinearized_on_linearization_error;
-    out["join_rejected"] = joiner_->counters().rejected_joins;
-    out["join_full_factorizations"] = joiner_->counters().full_factorizations;
-    out["join_nested_dissection_factorizations"] = joiner_->counters().nested_dissection_factorizations;
-    out["join_reused_analyses"] = joiner_->counters().reused_analyses;
-    out["join_jcbb_truncated"] = joiner_->counters().jcbb_truncated;
-    out["join_loop_closures_thin"] = joiner_->counters().loop_closures_thin;
-    out["join_loop_closures_ambiguous"] = joiner_->counters().loop_closures_ambiguous;
-    out["join_loop_closures_confirmed"] = joiner_->counters().loop_closures_confirmed;
-    out["join_loop_closures_unconfirmed"] = joiner_->counters().loop_closures_unconfirmed;
-    out["join_associations_replayed"] = joiner_->counters().associations_replayed;
-    out["join_revision_passes"] = joiner_->counters().revision_passes;
-    out["join_landmarks_merged"] = joiner_->counters().landmarks_merged;
-    out["join_features_split"] = joiner_->counters().features_split;
-    out["join_incremental_updates"] = joiner_->counters().incremental_updates;
-    out["join_candidates"] = joiner_->counters().candidates;
-    out["join_candidates_bounded_out"] = joiner_->counters().candidates_bounded_out;
-    out["join_covariance_columns"] = joiner_->counters().covariance_columns;
-    out["join_covariance_reach"] = joiner_->counters().covariance_reach;
+    const backend::JoinerCounters& counters = joiner_->counters();
+    for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) {
+      out[std::string("join_") + f.name] = counters.*f.member;
+    }
     out["global_landmarks"] = joiner_->num_landmarks();
-  }
-  if (ceres_report_) {
-    out["ceres_solves"] = ceres_solves_;
-    out["ceres_iterations_total"] = ceres_iterations_;
-    out["ceres_max_solve_and_adopt_seconds"] = ceres_max_seconds_;
-    out["ceres_iterations"] = ceres_report_->iterations;  // last solve
-    out["ceres_initial_cost"] = ceres_report_->initial_cost;
-    out["ceres_final_cost"] = ceres_report_->final_cost;
+    for (const auto& [name, value] : joiner_->Extras().figures) out[name] = value;
   }
   return out;
 }
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

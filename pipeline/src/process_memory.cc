@@ -1,4 +1,4 @@
-#include "subslam/app/process_memory.h"
+#include "subslam/pipeline/process_memory.h"
 
 #include <cstdlib>  // defines __GLIBC__ (through <features.h>) where the C library is glibc
 
@@ -6,7 +6,7 @@
 #include <malloc.h>
 #endif
 
-namespace subslam::app {
+namespace subslam::pipeline {
 
 bool KeepFreedMemoryInProcess() {
 #if defined(__GLIBC__)
@@ -20,4 +20,4 @@ bool KeepFreedMemoryInProcess() {
 #endif
 }
 
-}  // namespace subslam::app
+}  // namespace subslam::pipeline

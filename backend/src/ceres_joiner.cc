@@ -1,0 +1,76 @@
+#include "subslam/backend/ceres_joiner.h"
+
+#include <algorithm>
+
+#include "absl/time/clock.h"
+
+namespace subslam::backend {
+namespace {
+
+EifJoinerOptions WithoutGaussNewtonAtEnd(EifJoinerOptions options) {
+  options.relinearize_at_end = false;
+  return options;
+}
+
+}  // namespace
+
+absl::Status CeresJoinerOptions::Validate() const {
+  if (absl::Status st = eif.Validate(); !st.ok()) return st;
+  if (absl::Status st = solve.Validate(); !st.ok()) return st;
+  if (solve_every < 0) return absl::InvalidArgumentError("ceres solve_every must be >= 0");
+  return absl::OkStatus();
+}
+
+CeresJoiner::CeresJoiner(const Pose2& initial_pose, const CeresJoinerOptions& options)
+    : eif_(initial_pose, WithoutGaussNewtonAtEnd(options.eif)),
+      solve_options_(options.solve),
+      solve_every_(options.solve_every) {}
+
+absl::Status CeresJoiner::Join(const LocalSubmap& submap) {
+  if (absl::Status st = eif_.Join(submap); !st.ok()) return st;
+  ++joins_;
+  if (solve_every_ > 0 && joins_ % solve_every_ == 0) return SolveAndAdopt();
+  return absl::OkStatus();
+}
+
+absl::Status CeresJoiner::Finish() {
+  if (absl::Status st = eif_.Finish(); !st.ok()) return st;
+  return SolveAndAdopt();
+}
+
+absl::Status CeresJoiner::SolveAndAdopt() {
+  if (eif_.graph().factors().empty()) return absl::OkStatus();
+  const absl::Time start = absl::Now();
+  SubmapGraph g = eif_.graph();  // warm start: the current estimate
+  absl::StatusOr<CeresSolveReport> r = SolveWithCeres(&g, solve_options_);
+  if (!r.ok()) return r.status();
+  last_solve_ = *r;
+  ++solves_;
+  iterations_ += r->iterations;
+  if (absl::Status st = eif_.AdoptEstimate(g); !st.ok()) return st;
+  const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  seconds_ += seconds;
+  max_seconds_ = std::max(max_seconds_, seconds);
+  return absl::OkStatus();
+}
+
+std::map<std::string, double> CeresJoiner::stage_times() const {
+  std::map<std::string, double> times = eif_.stage_times();
+  if (solves_ > 0) times["ceres_solve_and_adopt"] = seconds_;
+  return times;
+}
+
+JoinerExtras CeresJoiner::Extras() const {
+  JoinerExtras extras;
+  if (!last_solve_) return extras;
+  extras.figures = {{"ceres_solves", solves_},
+                    {"ceres_iterations_total", static_cast<double>(iterations_)},
+                    {"ceres_max_solve_and_adopt_seconds", max_seconds_},
+                    {"ceres_iterations", last_solve_->iterations},
+                    {"ceres_initial_cost", last_solve_->initial_cost},
+                    {"ceres_final_cost", last_solve_->final_cost}};
+  extras.notes = {{"ceres_termination", last_solve_->termination}, {"ceres_brief", last_solve_->brief}};
+  return extras;
+}
+
+}  // namespace subslam::backend
