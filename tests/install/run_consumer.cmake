@@ -1,7 +1,7 @@
 # Installs subslam from SUBSLAM_BUILD_DIR into WORK_DIR/prefix, configures and builds the
 # consumer project in SOURCE_DIR against it, simulates a short data set with SUBSLAM_APP
-# and runs the consumer on it; then, on a machine with AVX2, the same consumer built for
-# AVX2 (-march=haswell) (another Eigen alignment than the library's unless the layout is pinned, see
+# and runs the consumer and the navigation-loop example on it; then, on a machine with
+# AVX2, the same consumer built for AVX2 (-march=haswell) (another Eigen alignment than the library's unless the layout is pinned, see
 # cmake/SubslamHelpers.cmake). Run by CTest: cmake -D… -P run_consumer.cmake.
 foreach(var SUBSLAM_BUILD_DIR SOURCE_DIR WORK_DIR SUBSLAM_APP CXX_COMPILER GENERATOR)
   if(NOT DEFINED ${var})
@@ -50,6 +50,8 @@ run(build ${CMAKE_COMMAND} --build "${WORK_DIR}/build")
 run(simulate "${SUBSLAM_APP}" simulate --scenario hybrid-120m --seed 1 --duration 60 --out "${WORK_DIR}/data")
 run(consumer "${WORK_DIR}/build/consumer" "${WORK_DIR}/data")
 message(STATUS "${last_output}")
+run(navigation_loop "${WORK_DIR}/build/navigation_loop" "${WORK_DIR}/data")
+message(STATUS "navigation_loop: ${last_output}")
 file(READ /proc/cpuinfo cpuinfo LIMIT 20000)
 if(cpuinfo MATCHES " avx2 " AND cpuinfo MATCHES " fma " AND cpuinfo MATCHES " bmi2 ")
   list(FIND configure_args "${WORK_DIR}/build" at)
