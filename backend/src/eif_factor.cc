@@ -1,0 +1,308 @@
+// EifJoiner: one local map's factor — its linearisation at the current estimate, its
+// information blocks, and how far its linear model is from the estimate (the
+// relinearisation triggers).
+
+#include "subslam/backend/eif_joiner.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
+#include "eif_solver.h"
+#include "state_blocks.h"
+#include "subslam/backend/submap_factor.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/graph/check.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::backend {
+
+EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
+  const SubmapFactor& record = graph_.factors()[index];
+  Factor f;
+  f.index = index;
+  const Eigen::LLT<Eigen::MatrixXd> llt(record.submap.covariance);
+  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
+  f.covariance_sqrt = std::make_shared<const Eigen::MatrixXd>(llt.matrixL());
+  if (options_.relinearize_linearization_chi2 > 0) {  // LinearizationErrorAbove's screen
+    f.covariance_min_eigenvalue =
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(record.submap.covariance, Eigen::EigenvaluesOnly)
+            .eigenvalues()
+            .minCoeff();
+  }
+  SetLayout(&f);
+  return f;
+}
+
+void EifJoiner::SetLayout(Factor* f) const {
+  const SubmapFactor& record = graph_.factors()[f->index];
+  f->offsets.clear();
+  f->sizes.clear();
+  if (record.start_anchor != 0) {
+    f->offsets.push_back(anchor_offset_[record.start_anchor]);
+    f->sizes.push_back(3);
+  }
+  f->offsets.push_back(anchor_offset_[record.end_anchor]);
+  f->sizes.push_back(3);
+  for (int j : record.landmark_of_feature) {
+    f->offsets.push_back(landmark_offset_[j]);
+    f->sizes.push_back(2);
+  }
+}
+
+void EifJoiner::RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const {
+  const SubmapFactor& record = graph_.factors()[f->index];
+  f->start_theta = start.theta;
+  f->end_theta = end.theta;
+  const Eigen::Vector2d p_s(start.x, start.y);
+  f->levers.resize(record.landmark_of_feature.size() + 1);
+  f->levers[0] = Eigen::Vector2d(end.x, end.y) - p_s;
+  for (size_t i = 0; i < record.landmark_of_feature.size(); ++i) {
+    f->levers[i + 1] = graph_.landmarks()[record.landmark_of_feature[i]] - p_s;
+  }
+}
+
+void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
+  if (whitened_jacobian == nullptr) {
+    LinearizeStructured(f);
+    return;
+  }
+  const SubmapFactor& record = graph_.factors()[f->index];
+  const LocalSubmap& s = record.submap;
+  const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
+  const std::vector<Eigen::Vector2d> landmarks = FactorLandmarks(record);
+  const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
+  RecordLinearizationPoint(f, start, end);
+
+  // Stack the Jacobian over the variable blocks (P0, fixed, has none) and x̂.
+  const bool start_fixed = record.start_anchor == 0;
+  const int m = static_cast<int>(lin.residual.size());
+  const int cols = (start_fixed ? 0 : 3) + 3 + 2 * s.num_landmarks();
+  Eigen::MatrixXd J(m, cols);
+  Eigen::VectorXd x(cols);
+  int c = 0;
+  if (!start_fixed) {
+    J.middleCols<3>(c) = lin.J_start;
+    x.segment<3>(c) = start.vector();
+    c += 3;
+  }
+  J.middleCols<3>(c) = lin.J_end;
+  x.segment<3>(c) = end.vector();
+  c += 3;
+  J.rightCols(2 * s.num_landmarks()) = lin.J_landmarks;
+  for (int i = 0; i < s.num_landmarks(); ++i) x.segment<2>(c + 2 * i) = landmarks[i];
+
+  // Whiten with Q = L Lᵀ: A = L⁻¹ J, e = L⁻¹ (J x̂ − r).
+  const auto L = f->covariance_sqrt->triangularView<Eigen::Lower>();
+  Eigen::MatrixXd A = J;
+  L.solveInPlace(A);
+  Eigen::VectorXd e = J * x - lin.residual;
+  L.solveInPlace(e);
+  f->H = A.transpose() * A;
+  f->b = A.transpose() * e;
+  *whitened_jacobian = std::move(A);
+}
+
+// H = Jᵀ Q⁻¹ J and b = Jᵀ Q⁻¹ (J x̂ − r) from J's structure, without whitening: J's
+// anchor columns J_a are dense (m × 3 or 6), and its landmark columns hold one 2 × 2 block
+// R_i = ∂r_i/∂L_i in feature i's rows only. With W = Q⁻¹ (kept per factor):
+//   H_aa = J_aᵀ W J_a,  H_a,i = (W J_a)_iᵀ R_i,  H_i,k = R_iᵀ W_ik R_k,
+//   b_a = J_aᵀ w,  b_i = R_iᵀ w_i,  w = W (J x̂ − r),
+// O(m² · 6) instead of the O(m³) triangular solve and product (m = 3 + 2n).
+void EifJoiner::LinearizeStructured(Factor* f) const {
+  const SubmapFactor& record = graph_.factors()[f->index];
+  const LocalSubmap& s = record.submap;
+  const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
+  RecordLinearizationPoint(f, start, end);
+  const int n = s.num_landmarks(), m = 3 + 2 * n;
+  const bool start_fixed = record.start_anchor == 0;
+  const int na = start_fixed ? 3 : 6;
+  Eigen::MatrixXd J_a = Eigen::MatrixXd::Zero(m, na);
+  Eigen::VectorXd x_a(na), r(m), Jx(m);
+  Eigen::Matrix3d J_s, J_e;
+  const Pose2 relative = Between(start, end, &J_s, &J_e);
+  r.head<3>() = relative.vector() - s.mean.head<3>();
+  r[2] = WrapAngle(r[2]);
+  if (!start_fixed) {
+    J_a.topLeftCorner<3, 3>() = J_s;
+    x_a.head<3>() = start.vector();
+  }
+  J_a.block<3, 3>(0, na - 3) = J_e;
+  x_a.tail<3>() = end.vector();
+  std::vector<Eigen::Matrix2d> R(n);
+  std::vector<Eigen::Vector2d> landmarks(n);
+  for (int i = 0; i < n; ++i) {
+    landmarks[i] = graph_.landmarks()[record.landmark_of_feature[i]];
+    Matrix23d J_frame;
+    r.segment<2>(3 + 2 * i) = TransformTo(start, landmarks[i], &J_frame, &R[i]) - s.landmark(i);
+    if (!start_fixed) J_a.block<2, 3>(3 + 2 * i, 0) = J_frame;
+  }
+  Jx.noalias() = J_a * x_a;
+  for (int i = 0; i < n; ++i) Jx.segment<2>(3 + 2 * i) += R[i] * landmarks[i];
+  if (f->information == nullptr) {  // Q⁻¹ = L⁻ᵀ L⁻¹, once per factor
+    Eigen::MatrixXd L_inv = Eigen::MatrixXd::Identity(m, m);
+    f->covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(L_inv);
+    Eigen::MatrixXd information = L_inv.transpose() * L_inv;
+    f->information = std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
+  }
+  const Eigen::MatrixXd& W = *f->information;
+  const Eigen::MatrixXd WJ_a = W * J_a;
+  const Eigen::VectorXd w = W * (Jx - r);
+  const int cols = na + 2 * n;
+  f->H.resize(cols, cols);
+  f->b.resize(cols);
+  f->H.topLeftCorner(na, na).noalias() = J_a.transpose() * WJ_a;
+  f->H.topLeftCorner(na, na) = 0.5 * (f->H.topLeftCorner(na, na) + f->H.topLeftCorner(na, na).transpose()).eval();
+  f->b.head(na).noalias() = J_a.transpose() * w;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::MatrixXd cross = WJ_a.middleRows<2>(3 + 2 * i).transpose() * R[i];  // na × 2
+    f->H.block(0, na + 2 * i, na, 2) = cross;
+    f->H.block(na + 2 * i, 0, 2, na) = cross.transpose();
+    f->b.segment<2>(na + 2 * i) = R[i].transpose() * w.segment<2>(3 + 2 * i);
+    for (int k = 0; k <= i; ++k) {  // H symmetric to the bit
+      f->H.block<2, 2>(na + 2 * i, na + 2 * k) = R[i].transpose() * W.block<2, 2>(3 + 2 * i, 3 + 2 * k) * R[k];
+      if (k < i) f->H.block<2, 2>(na + 2 * k, na + 2 * i) = f->H.block<2, 2>(na + 2 * i, na + 2 * k).transpose();
+    }
+  }
+}
+
+void EifJoiner::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
+  Eigen::VectorXd local(f.H.rows());
+  int row = 0;
+  for (size_t a = 0; a < f.offsets.size(); ++a) {
+    local.segment(row, f.sizes[a]) = x.segment(f.offsets[a], f.sizes[a]);
+    row += f.sizes[a];
+  }
+  const Eigen::VectorXd product = f.H * local;
+  row = 0;
+  for (size_t a = 0; a < f.offsets.size(); ++a) {
+    y->segment(f.offsets[a], f.sizes[a]) += product.segment(row, f.sizes[a]);
+    row += f.sizes[a];
+  }
+}
+
+double EifJoiner::InformationNorm(const Eigen::VectorXd& x) const {
+  Eigen::VectorXd Lambda_x = Eigen::VectorXd::Zero(x.size());
+  for (const Factor& f : factors_) AddInformationTimes(f, x, &Lambda_x);
+  return x.dot(Lambda_x);
+}
+
+void EifJoiner::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
+  int row = 0;
+  for (size_t a = 0; a < f.offsets.size(); ++a) {
+    eta->segment(f.offsets[a], f.sizes[a]) += f.b.segment(row, f.sizes[a]);
+    row += f.sizes[a];
+  }
+}
+
+std::vector<int> EifJoiner::FactorOffsets() const {
+  std::vector<int> offsets;
+  for (const Factor& f : factors_) {
+    offsets.push_back(static_cast<int>(f.offsets.size()));
+    offsets.insert(offsets.end(), f.offsets.begin(), f.offsets.end());
+  }
+  return offsets;
+}
+
+Pose2 EifJoiner::AnchorPose(int k) const {
+  const Pose2& p = graph_.anchors()[k];
+  return Pose2(p.x, p.y, anchor_theta_[k]);
+}
+
+std::vector<Eigen::Vector2d> EifJoiner::FactorLandmarks(const SubmapFactor& record) const {
+  std::vector<Eigen::Vector2d> landmarks;
+  landmarks.reserve(record.landmark_of_feature.size());
+  for (int j : record.landmark_of_feature) landmarks.push_back(graph_.landmarks()[j]);
+  return landmarks;
+}
+
+double EifJoiner::NormalisedResidual(const Factor& f) const {
+  const SubmapFactor& record = graph_.factors()[f.index];
+  Eigen::VectorXd r = SubmapResidual(record.submap, AnchorPose(record.start_anchor), AnchorPose(record.end_anchor),
+                                     FactorLandmarks(record));
+  f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(r);  // rᵀ Q⁻¹ r = |L⁻¹ r|²
+  return r.squaredNorm();
+}
+
+double EifJoiner::Cost() const {
+  double cost = 0.0;
+  for (const Factor& f : factors_) cost += NormalisedResidual(f);
+  return cost;
+}
+
+void EifJoiner::SwapLinearization(Factor* f, Linearization* l) {
+  f->H.swap(l->H);
+  f->b.swap(l->b);
+  std::swap(f->start_theta, l->start_theta);
+  std::swap(f->end_theta, l->end_theta);
+  f->levers.swap(l->levers);
+}
+
+void EifJoiner::UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const {
+  // The factor is nonlinear only through the start heading θ: each position row is
+  // Rᵀ(θ) v, v the lever from the start anchor to the end anchor or a landmark. Its linear
+  // model at (θ₀, v₀) is Rᵀ(θ₀) v + Ṙᵀ(θ₀) v₀ (θ − θ₀), so the error is
+  // (Rᵀ(θ) − Rᵀ(θ₀)) v − Ṙᵀ(θ₀) v₀ (θ − θ₀); the heading row is linear.
+  const SubmapFactor& record = graph_.factors()[f.index];
+  const double theta = anchor_theta_[record.start_anchor], dtheta = theta - f.start_theta;
+  const Eigen::Vector2d p_s(graph_.anchors()[record.start_anchor].x, graph_.anchors()[record.start_anchor].y);
+  const Eigen::Matrix2d Rt = Pose2(0, 0, theta).rotation().transpose();
+  const Eigen::Matrix2d Rt0 = Pose2(0, 0, f.start_theta).rotation().transpose();
+  Eigen::Matrix2d dRt0;  // d/dθ Rᵀ(θ) at θ₀
+  const double c = std::cos(f.start_theta), s = std::sin(f.start_theta);
+  dRt0 << -s, c, -c, -s;
+  const int n = static_cast<int>(f.levers.size()) - 1;
+  e->setZero(3 + 2 * n);
+  const auto error = [&](const Eigen::Vector2d& v, const Eigen::Vector2d& v0) {
+    return Eigen::Vector2d((Rt - Rt0) * v - dRt0 * v0 * dtheta);
+  };
+  e->head<2>() = error(Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y) - p_s,
+                       f.levers[0]);
+  for (int i = 0; i < n; ++i) {
+    e->segment<2>(3 + 2 * i) = error(graph_.landmarks()[record.landmark_of_feature[i]] - p_s, f.levers[i + 1]);
+  }
+}
+
+double EifJoiner::LinearizationError(const Factor& f) const {
+  Eigen::VectorXd e;
+  UnwhitenedLinearizationError(f, &e);
+  f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);
+  return e.squaredNorm();
+}
+
+double EifJoiner::MaxLinearizationError() const {
+  double worst = 0.0;
+  for (const Factor& f : factors_) worst = std::max(worst, LinearizationError(f));
+  return worst;
+}
+
+bool EifJoiner::LinearizationErrorAbove(double chi2) const {
+  Eigen::VectorXd e;
+  for (const Factor& f : factors_) {
+    const SubmapFactor& record = graph_.factors()[f.index];
+    if (anchor_theta_[record.start_anchor] == f.start_theta) continue;  // no error at all
+    // Whitening scales a vector by at most 1 / √λ_min(Q): the unwhitened error (O(n))
+    // settles most factors without the triangular solve (O(n²)).
+    UnwhitenedLinearizationError(f, &e);
+    if (e.squaredNorm() <= chi2 * f.covariance_min_eigenvalue) continue;
+    f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);
+    if (e.squaredNorm() > chi2) return true;
+  }
+  return false;
+}
+
+double EifJoiner::MaxHeadingDrift() const {
+  double drift = 0.0;
+  for (const Factor& f : factors_) {
+    const SubmapFactor& record = graph_.factors()[f.index];
+    drift = std::max({drift, std::abs(anchor_theta_[record.start_anchor] - f.start_theta),
+                      std::abs(anchor_theta_[record.end_anchor] - f.end_theta)});
+  }
+  return drift;
+}
+
+}  // namespace subslam::backend

@@ -1,0 +1,138 @@
+// EifJoiner: relinearisation — Gauss-Newton over the submap graph with its stopping rules,
+// and adopting an estimate solved elsewhere (the Ceres back-end).
+
+#include "subslam/backend/eif_joiner.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
+#include "eif_solver.h"
+#include "state_blocks.h"
+#include "subslam/backend/submap_factor.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/graph/check.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::backend {
+
+bool EifJoiner::PredictedStepConverged(const Eigen::VectorXd& x) {
+  // The factors are linearised at x: Σ_f (H_f x_f − b_f) = Σ_f J_fᵀ Q_f⁻¹ r_f(x) is the
+  // gradient g of Cost()/2 at x, and the Gauss-Newton step is −Λ(x)⁻¹ g. The factor at
+  // hand is of Λ at the previous linearisation point, a step away, whose headings differ
+  // by that step's (the factor is nonlinear only through the headings): δ = −Λ_prev⁻¹ g.
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(dim_), eta = Eigen::VectorXd::Zero(dim_);
+  for (const Factor& f : factors_) {
+    AddInformationTimes(f, x, &g);
+    AddToEta(f, &eta);
+  }
+  g -= eta;
+  Eigen::VectorXd step;
+  {
+    StageTimer timer(&times_, "recovery");
+    step = -solver_->factor.Solve(g);
+  }
+  if (!step.allFinite()) return false;
+  // With each step at most half the last (linear convergence), the steps still to come sum
+  // to less than twice this one: it is held to half the tolerance and a quarter of the χ²
+  // bound, so that the stopped estimate is as close to the converged one as when a step
+  // taken is below them.
+  if (step.cwiseAbs().maxCoeff() < 0.5 * options_.relinearize_tolerance) return true;
+  return options_.relinearize_step_chi2 > 0.0 && -g.dot(step) < 0.25 * options_.relinearize_step_chi2;
+}
+
+absl::Status EifJoiner::Relinearize() {
+  if (absl::Status st = GaussNewton(); !st.ok()) return st;
+  // Every factor moved, so the landmarks' marginal bounds were forgotten: today's exact
+  // marginals, all at once from the sparse inverse, bound every later one until the next
+  // relinearisation (Λ only grows), so association can skip candidates at once again.
+  if (options_.bound_candidate_marginals && graph_.num_landmarks() > 0) {
+    StageTimer timer(&times_, "covariance_recovery");
+    marginal_bound_ = LandmarkCovariances();
+  }
+  return absl::OkStatus();
+}
+
+absl::Status EifJoiner::GaussNewton() {
+  // Gauss-Newton need not lower the cost at every iteration (a first step often raises
+  // it a little on the way to a lower minimum), but `divergence_rises` rises in a row
+  // mean divergence (seen with wrong associations): then the best iterate is restored —
+  // the factors' linearisation whose solution it was — and the iterations end.
+  const int max_rises = options_.divergence_rises;
+  const bool watch = max_rises > 0 && options_.max_relinearizations >= max_rises;
+  double best_cost = watch ? Cost() : 0.0, last_cost = best_cost;
+  std::vector<Factor> best_factors;  // their solution is the best iterate so far
+  if (watch) best_factors = factors_;
+  int rises = 0;
+  // The linearisation the factor and the estimate belong to, while the factors hold the
+  // next one (swapped, not copied).
+  std::vector<Linearization> previous;
+  for (int it = 0; it < options_.max_relinearizations; ++it) {
+    const Eigen::VectorXd before = StateVector();
+    const bool check = it > 0 && options_.predict_convergence;
+    if (check) {
+      previous.resize(factors_.size());
+      for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &previous[k]);
+    }
+    {
+      StageTimer timer(&times_, "update");
+      for (Factor& f : factors_) Linearize(&f);
+    }
+    if (check && PredictedStepConverged(before)) {
+      // The estimate solves the previous linearisation and the step from it is already
+      // small: that linearisation stays, without another factorisation.
+      for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &previous[k]);
+      ++counters_.relinearizations_predicted_converged;
+      break;
+    }
+    if (absl::Status s = Rebuild(/*only_last_factor=*/false); !s.ok()) return s;
+    ++counters_.relinearizations;
+    if (watch) {
+      const double cost = Cost();
+      // Near convergence the cost changes by its rounding error only (about 1e-12 of it
+      // here), up or down: a rise counts when it is well above that.
+      constexpr double kRoundingFloor = 1e-8;
+      rises = cost > last_cost * (1.0 + kRoundingFloor) ? rises + 1 : 0;
+      last_cost = cost;
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_factors = factors_;
+      } else if (rises >= max_rises || !std::isfinite(cost)) {
+        ++counters_.relinearizations_diverged;
+        factors_ = std::move(best_factors);
+        return Rebuild(/*only_last_factor=*/false);
+      }
+    }
+    const Eigen::VectorXd step = StateVector() - before;
+    if (step.cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
+    // The step's length in the information metric of the linearisation that produced it
+    // (ΔxᵀΛΔx, the decrease of Cost() it predicts): a small fraction of the estimate's
+    // uncertainty is converged for estimation, however far it moved an ill-determined
+    // variable in metres.
+    if (InformationNorm(step) < options_.relinearize_step_chi2) break;
+  }
+  return absl::OkStatus();
+}
+
+absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) {
+  if (solved.num_anchors() != graph_.num_anchors() || solved.num_landmarks() != graph_.num_landmarks()) {
+    return absl::InvalidArgumentError("AdoptEstimate: not the joiner's graph");
+  }
+  for (int k = 1; k < graph_.num_anchors(); ++k) {
+    const Pose2& p = solved.anchors()[k];
+    anchor_theta_[k] += WrapAngle(p.theta - anchor_theta_[k]);  // stay continuous
+    graph_.anchor(k) = Pose2(p.x, p.y, WrapAngle(p.theta));
+  }
+  for (int j = 0; j < graph_.num_landmarks(); ++j) graph_.landmark(j) = solved.landmarks()[j];
+  {
+    StageTimer timer(&times_, "update");
+    for (Factor& f : factors_) Linearize(&f);
+  }
+  return Rebuild(/*only_last_factor=*/false);
+}
+
+}  // namespace subslam::backend

@@ -1,0 +1,304 @@
+// EifJoiner: the information matrix Λ — its pattern, values and lower triangle — and its
+// factorisation, full or by the incremental update of the newest factor.
+
+#include "subslam/backend/eif_joiner.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
+#include "eif_solver.h"
+#include "state_blocks.h"
+#include "subslam/backend/submap_factor.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/graph/check.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::backend {
+
+template <typename Visit>
+void EifJoiner::ForEachEntry(const Factor& f, Visit visit) {
+  int row = 0;
+  for (size_t a = 0; a < f.offsets.size(); ++a) {
+    int col = 0;
+    for (size_t b = 0; b < f.offsets.size(); ++b) {
+      for (int i = 0; i < f.sizes[a]; ++i) {
+        for (int j = 0; j < f.sizes[b]; ++j) visit(f.offsets[a] + i, f.offsets[b] + j, f.H(row + i, col + j));
+      }
+      col += f.sizes[b];
+    }
+    row += f.sizes[a];
+  }
+}
+
+const Eigen::SparseMatrix<double>& EifJoiner::information() const {
+  const SparseLowerTriangle& lower = LowerInformation();
+  if (lambda_full_valid_ && Lambda_.rows() == dim_) return Lambda_;
+  // Both triangles from the lower one.
+  const Eigen::Map<const Eigen::SparseMatrix<double>> lower_view(lower.n, lower.n, lower.p[lower.n], lower.p.data(),
+                                                                  lower.i.data(), lower.x.data());
+  Lambda_ = lower_view.selfadjointView<Eigen::Lower>();
+  lambda_full_valid_ = true;
+  return Lambda_;
+}
+
+void EifJoiner::FillLambdaValues(size_t first_factor, std::vector<double>* values) const {
+  values->assign(solver_->lambda_lower.i.size(), 0.0);
+  double* x = values->data();
+  size_t entries = 0;
+  for (size_t k = 0; k < first_factor; ++k) entries += static_cast<size_t>(factors_[k].H.size());
+  const int* slot = lambda_slots_.data() + entries;
+  for (size_t k = first_factor; k < factors_.size(); ++k) {
+    ForEachEntry(factors_[k], [&](int, int, double h) {
+      if (*slot >= 0) x[*slot] += h;
+      ++slot;
+    });
+  }
+}
+
+const SparseLowerTriangle& EifJoiner::LowerInformation() const {
+  if (lambda_factors_ == factors_.size() && solver_->lambda_lower.n == dim_) return solver_->lambda_lower;
+  lambda_full_valid_ = false;
+  if (lambda_factors_ == 0 && solver_->lambda_lower.n == dim_ && !lambda_slots_.empty() &&
+      FactorOffsets() == lambda_slot_offsets_) {
+    // The same factors over the same variables (relinearised): refill Λ's values.
+    FillLambdaValues(0, &solver_->lambda_lower.x);
+    lambda_factors_ = factors_.size();
+    return solver_->lambda_lower;
+  }
+  if (lambda_factors_ > 0 && solver_->lambda_lower.n <= dim_) {
+    // Joins since the last assembly, the older factors unchanged: the new pattern, the
+    // old sums carried over and the new factors' sum added to them (Λ_old + ΔΛ, as
+    // assembling ΔΛ on its own and adding it would).
+    const SparseLowerTriangle old = std::move(solver_->lambda_lower);
+    BuildLambdaPattern();
+    std::vector<double> added;
+    FillLambdaValues(lambda_factors_, &added);
+    std::vector<double>& x = solver_->lambda_lower.x;
+    x.assign(solver_->lambda_lower.i.size(), 0.0);
+    for (int c = 0; c < old.n; ++c) {  // the old pattern lies within the new one, columns sorted
+      int k = solver_->lambda_lower.p[c];
+      for (int q = old.p[c]; q < old.p[c + 1]; ++q) {
+        while (k < solver_->lambda_lower.p[c + 1] && solver_->lambda_lower.i[k] != old.i[q]) ++k;
+        SUBSLAM_CHECK(k < solver_->lambda_lower.p[c + 1]) << "Λ's old pattern is not within the new one, column " << c;
+        x[k] = old.x[q];
+      }
+    }
+    for (size_t k = 0; k < x.size(); ++k) x[k] += added[k];
+    lambda_factors_ = factors_.size();
+    return solver_->lambda_lower;
+  }
+  // Relinearised factors over a new pattern: Λ's structure is built from the factors'
+  // variable blocks, and each H entry's place in Λ's values is recorded for the refill
+  // above and the next ones.
+  BuildLambdaPattern();
+  FillLambdaValues(0, &solver_->lambda_lower.x);
+  lambda_factors_ = factors_.size();
+  return solver_->lambda_lower;
+}
+
+void EifJoiner::BuildLambdaPattern() const {
+  // Each variable block by its first row: its size and the sorted first rows of the
+  // blocks it shares a factor with (itself included), all lists in one flat array
+  // (block o's from first[o], unique ones first, length unique[o]).
+  std::vector<int> size_of(dim_, 0), first(dim_ + 1, 0), unique(dim_, 0);
+  size_t count = 0;
+  for (const Factor& f : factors_) {
+    count += static_cast<size_t>(f.H.size());
+    for (size_t b = 0; b < f.offsets.size(); ++b) {
+      size_of[f.offsets[b]] = f.sizes[b];
+      first[f.offsets[b] + 1] += static_cast<int>(f.offsets.size());
+    }
+  }
+  for (int o = 0; o < dim_; ++o) first[o + 1] += first[o];
+  std::vector<int> neighbour(static_cast<size_t>(first[dim_]));
+  std::vector<int> fill(first.begin(), first.end() - 1);
+  for (const Factor& f : factors_) {
+    for (int b : f.offsets) {
+      for (int a : f.offsets) neighbour[fill[b]++] = a;
+    }
+  }
+  // The lower triangle: column j of block o holds rows j … of block o itself, then every
+  // row of the neighbours after o. below[first[o] + k]: the rows of the neighbours after o
+  // that come before neighbour k (k after o) in each of o's columns.
+  std::vector<int> below(neighbour.size(), 0);
+  std::vector<int> later_rows(dim_, 0);  // rows of the neighbours after block o
+  for (int o = 0; o < dim_; ++o) {
+    if (size_of[o] == 0) continue;
+    int* begin = neighbour.data() + first[o];
+    std::sort(begin, neighbour.data() + first[o + 1]);
+    unique[o] = static_cast<int>(std::unique(begin, neighbour.data() + first[o + 1]) - begin);
+    int rows = 0;
+    for (int k = 0; k < unique[o]; ++k) {
+      if (begin[k] <= o) continue;
+      below[first[o] + k] = rows;
+      rows += size_of[begin[k]];
+    }
+    later_rows[o] = rows;
+  }
+  SparseLowerTriangle& lower = solver_->lambda_lower;
+  lower.n = dim_;
+  lower.p.assign(dim_ + 1, 0);
+  for (int o = 0; o < dim_; ++o) {
+    for (int j = 0; j < size_of[o]; ++j) lower.p[o + j + 1] = size_of[o] - j + later_rows[o];
+  }
+  for (int c = 0; c < dim_; ++c) lower.p[c + 1] += lower.p[c];
+  const int nonzeros = lower.p[dim_];
+  lower.i.resize(static_cast<size_t>(nonzeros));
+  for (int o = 0; o < dim_; ++o) {
+    for (int j = 0; j < size_of[o]; ++j) {
+      int* row = lower.i.data() + lower.p[o + j];
+      for (int i = j; i < size_of[o]; ++i) *row++ = o + i;
+      for (int k = first[o]; k < first[o] + unique[o]; ++k) {
+        if (neighbour[k] <= o) continue;
+        for (int i = 0; i < size_of[neighbour[k]]; ++i) *row++ = neighbour[k] + i;
+      }
+      SUBSLAM_CHECK(row == lower.i.data() + lower.p[o + j + 1]) << "Λ's pattern, column " << o + j;
+    }
+  }
+  // Each H entry's slot in the lower triangle's values, in ForEachEntry's order (block
+  // pairs (a, b), rows i outer, columns j inner: entry (a, b, i, j) of a factor sits at
+  // start[a]·cols + size_a·start[b] + i·size_b + j, start the blocks' first rows in H);
+  // −1 above the diagonal. By column block: with `where` holding, for the blocks after
+  // it, their first row's place in its columns, every factor touching the block fills
+  // the entries of its column (one pass over the entries, no search).
+  std::vector<size_t> entry_start(factors_.size() + 1, 0);
+  std::vector<int> touching_count(dim_ + 1, 0);
+  for (size_t k = 0; k < factors_.size(); ++k) {
+    entry_start[k + 1] = entry_start[k] + static_cast<size_t>(factors_[k].H.size());
+    for (int o : factors_[k].offsets) ++touching_count[o + 1];
+  }
+  for (int o = 0; o < dim_; ++o) touching_count[o + 1] += touching_count[o];
+  std::vector<std::pair<int, int>> touching(static_cast<size_t>(touching_count[dim_]));  // (factor, block)
+  std::vector<int> touching_fill(touching_count.begin(), touching_count.end() - 1);
+  for (size_t k = 0; k < factors_.size(); ++k) {
+    for (size_t v = 0; v < factors_[k].offsets.size(); ++v) {
+      touching[touching_fill[factors_[k].offsets[v]]++] = {static_cast<int>(k), static_cast<int>(v)};
+    }
+  }
+  lambda_slots_.resize(count);
+  std::vector<int> where(dim_, -1), block_start;
+  for (int o = 0; o < dim_; ++o) {
+    if (size_of[o] == 0) continue;
+    const int size_o = size_of[o];
+    for (int k = first[o]; k < first[o] + unique[o]; ++k) {
+      if (neighbour[k] > o) where[neighbour[k]] = below[k];
+    }
+    for (int t = touching_count[o]; t < touching_count[o + 1]; ++t) {
+      const Factor& f = factors_[touching[t].first];
+      const int b = touching[t].second, blocks = static_cast<int>(f.offsets.size());
+      const int cols = static_cast<int>(f.H.cols());
+      block_start.assign(blocks + 1, 0);
+      for (int v = 0; v < blocks; ++v) block_start[v + 1] = block_start[v] + f.sizes[v];
+      int* base = lambda_slots_.data() + entry_start[touching[t].first];
+      for (int a = 0; a < blocks; ++a) {
+        const int size_a = f.sizes[a], row_block = f.offsets[a];
+        int* slot = base + block_start[a] * cols + size_a * block_start[b];
+        for (int i = 0; i < size_a; ++i) {
+          for (int j = 0; j < size_o; ++j) {
+            int position = -1;
+            if (row_block == o) {
+              if (i >= j) position = i - j;
+            } else if (row_block > o) {
+              position = size_o - j + where[row_block] + i;
+            }
+            slot[i * size_o + j] = position < 0 ? -1 : lower.p[o + j] + position;
+          }
+        }
+      }
+    }
+    for (int k = first[o]; k < first[o] + unique[o]; ++k) {
+      if (neighbour[k] > o) where[neighbour[k]] = -1;
+    }
+  }
+  lambda_slot_offsets_ = FactorOffsets();
+}
+
+long EifJoiner::factor_nonzeros() const { return solver_->factor.nonzeros(); }
+
+FillReducingOrdering EifJoiner::factor_ordering() const { return solver_->factor.ordering(); }
+
+absl::Status EifJoiner::FullFactorization() {
+  StageTimer full(&times_, "full_factorization");
+  SparseCholesky& L = solver_->factor;
+  const long reuses = L.symbolic_reuses();
+  // Spare slots for the next joins' new variables (about 15 % of the state).
+  if (absl::Status st = L.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering); !st.ok()) {
+    return absl::InternalError(absl::StrCat("EIF: ", st.message()));
+  }
+  ++counters_.full_factorizations;
+  if (L.ordering() == FillReducingOrdering::kNestedDissection) ++counters_.nested_dissection_factorizations;
+  counters_.reused_analyses += L.symbolic_reuses() - reuses;
+  return absl::OkStatus();
+}
+
+absl::Status EifJoiner::Rebuild(bool only_last_factor) {
+  {
+    StageTimer timer(&times_, "update");
+    // Λ itself is assembled only when a full factorisation needs it (information()).
+    if (only_last_factor) {
+      const Eigen::Index old_dim = eta_.size();
+      eta_.conservativeResize(dim_);
+      eta_.tail(dim_ - old_dim).setZero();
+      AddToEta(factors_.back(), &eta_);
+    } else {
+      // Every factor may have been relinearised: Λ need not have grown, so the marginal
+      // bounds are forgotten.
+      marginal_bound_.assign(graph_.num_landmarks(), Eigen::Matrix2d::Constant(NAN));
+      eta_ = Eigen::VectorXd::Zero(dim_);
+      for (const Factor& f : factors_) AddToEta(f, &eta_);
+      lambda_factors_ = 0;
+    }
+  }
+  bool incremental = false;
+  {
+    StageTimer timer(&times_, "factorization");
+    SparseCholesky& L = solver_->factor;
+    // The newest factor as a rank update of the existing factor, while there are spare
+    // slots and the fill has not doubled since the last ordering.
+    if (only_last_factor && options_.incremental_factorization && L.ready() && !solver_->stale &&
+        dim_ <= L.capacity() &&
+        L.nonzeros() <= options_.refactorize_fill_ratio * static_cast<double>(L.nonzeros_after_factorize())) {
+      const Factor& f = factors_.back();
+      std::vector<int> rows;
+      for (size_t v = 0; v < f.offsets.size(); ++v) {
+        for (int i = 0; i < f.sizes[v]; ++i) rows.push_back(f.offsets[v] + i);
+      }
+      incremental = L.Update(dim_, rows, solver_->last_whitened_jacobian.transpose()).ok();
+      ++(incremental ? counters_.incremental_updates : counters_.failed_updates);
+    }
+    solver_->last_whitened_jacobian.resize(0, 0);
+    solver_->stale = false;
+    if (!incremental) {
+      if (absl::Status st = FullFactorization(); !st.ok()) return st;
+    }
+  }
+  Eigen::VectorXd x;
+  {
+    StageTimer timer(&times_, "recovery");
+    x = solver_->factor.Solve(eta_);
+  }
+  if (incremental) {
+    // Guard on the updated factor: Λx must give back η, or refactorise. Λx = Σ H_f x_f
+    // over the factors' dense blocks (Λ is not assembled).
+    StageTimer timer(&times_, "recovery_check");
+    Eigen::VectorXd Lambda_x = Eigen::VectorXd::Zero(dim_);
+    for (const Factor& f : factors_) AddInformationTimes(f, x, &Lambda_x);
+    const double residual = (Lambda_x - eta_).norm();
+    if (!(residual <= 1e-8 * std::max(1.0, eta_.norm()))) {
+      ++counters_.failed_updates;
+      --counters_.incremental_updates;
+      if (absl::Status st = FullFactorization(); !st.ok()) return st;
+      x = solver_->factor.Solve(eta_);
+    }
+  }
+  if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
+  SetState(x);
+  return absl::OkStatus();
+}
+
+}  // namespace subslam::backend
