@@ -16,6 +16,7 @@
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
+
 namespace {
 
 template <typename Derived>
@@ -28,9 +29,11 @@ bool IsZero(const Eigen::MatrixBase<Derived>& block) {
 const char* ToString(MeanRecovery recovery) {
   return recovery == MeanRecovery::kExact ? "exact" : "relaxation";
 }
+
 const char* ToString(CovarianceRecovery recovery) {
   return recovery == CovarianceRecovery::kExact ? "exact" : "markov-blanket";
 }
+
 absl::StatusOr<MeanRecovery> MeanRecoveryFromString(const std::string& name) {
   for (MeanRecovery r : {MeanRecovery::kExact, MeanRecovery::kRelaxation}) {
     if (name == ToString(r)) return r;
@@ -38,6 +41,7 @@ absl::StatusOr<MeanRecovery> MeanRecoveryFromString(const std::string& name) {
   return absl::InvalidArgumentError(
       absl::StrCat("unknown mean recovery \"", name, "\" (expected exact or relaxation)"));
 }
+
 absl::StatusOr<CovarianceRecovery> CovarianceRecoveryFromString(const std::string& name) {
   for (CovarianceRecovery r : {CovarianceRecovery::kExact, CovarianceRecovery::kMarkovBlanket}) {
     if (name == ToString(r)) return r;
@@ -73,53 +77,6 @@ absl::Status SeifOptions::Validate() const {
   }
   return absl::OkStatus();
 }
-
-// Ω over the live variables, factorised by CHOLMOD; for exact mean and covariance
-// recovery. Column of the pose: 0-2; of landmark i: Column(i), Column(i) + 1.
-class SeifSlam::ExactSolver {
- public:
-  explicit ExactSolver(const SeifSlam& f) : column_(f.landmarks_.size(), -1) {
-    dim_ = 3;
-    for (size_t i = 0; i < f.landmarks_.size(); ++i) {
-      if (!f.landmarks_[i].alive) continue;
-      column_[i] = dim_;
-      dim_ += 2;
-    }
-    std::vector<Eigen::Triplet<double>> t;
-    auto add_lower = [&t](int r0, int c0, const auto& block, bool diagonal) {
-      for (int c = 0; c < block.cols(); ++c) {
-        for (int r = diagonal ? c : 0; r < block.rows(); ++r) t.emplace_back(r0 + r, c0 + c, block(r, c));
-      }
-    };
-    add_lower(0, 0, f.omega_xx_, true);
-    for (const auto& [l, block] : f.pose_links_) add_lower(column_[l], 0, block.transpose(), false);
-    for (size_t i = 0; i < f.landmarks_.size(); ++i) {
-      if (!f.landmarks_[i].alive) continue;
-      add_lower(column_[i], column_[i], f.omega_ll_[i], true);
-      for (const auto& [j, block] : f.links_[i]) {
-        if (static_cast<int>(i) > j) add_lower(column_[i], column_[j], block, false);
-      }
-    }
-    Eigen::SparseMatrix<double> A(dim_, dim_);
-    A.setFromTriplets(t.begin(), t.end());
-    chol_.compute(A);
-    SUBSLAM_CHECK(chol_.info() == Eigen::Success) << "SEIF information matrix not positive definite";
-  }
-  int dim() const { return dim_; }
-  int Column(int landmark) const { return column_[landmark]; }
-  Eigen::MatrixXd Solve(const Eigen::MatrixXd& b) const { return chol_.solve(b); }
-
- private:
-  std::vector<int> column_;
-  int dim_ = 3;
-  Eigen::CholmodDecomposition<Eigen::SparseMatrix<double>, Eigen::Lower> chol_;
-};
-
-struct SeifSlam::Linearization {
-  std::vector<int> landmarks;  // distinct, in the order of D's blocks
-  Eigen::MatrixXd D;           // added to Ω over [pose, landmarks]
-  Eigen::VectorXd dxi;         // added to ξ
-};
 
 SeifSlam::SeifSlam(std::unique_ptr<models::MotionModel> motion,
                    const models::RangeBearingConfig& sensor, const Pose2& initial_pose,
@@ -446,376 +403,6 @@ void SeifSlam::Marginalize(int landmark) {
   --live_landmarks_;
 }
 
-void SeifSlam::RelaxPose() {
-  Eigen::Vector3d r = xi_.head<3>();
-  for (const auto& [l, block] : pose_links_) r.noalias() -= block * mu_.segment<2>(Offset(l));
-  mu_.head<3>() = omega_xx_.ldlt().solve(r);
-}
-
-void SeifSlam::RelaxLandmark(int l) {
-  if (!landmarks_[l].alive) return;  // e.g. observed, then culled in the same scan
-  Eigen::Vector2d r = xi_.segment<2>(Offset(l));
-  if (auto it = pose_links_.find(l); it != pose_links_.end()) r.noalias() -= it->second.transpose() * mu_.head<3>();
-  for (const auto& [w, block] : links_[l]) r.noalias() -= block * mu_.segment<2>(Offset(w));
-  mu_.segment<2>(Offset(l)) = omega_ll_[l].ldlt().solve(r);
-  UpdateCell(l);
-}
-
-void SeifSlam::Relax(const std::vector<int>& landmarks, int sweeps) {
-  for (int s = 0; s < sweeps; ++s) {
-    RelaxPose();
-    for (int l : landmarks) RelaxLandmark(l);
-  }
-}
-
-void SeifSlam::RecoverMeanExactly() {
-  FlushMotion();
-  const ExactSolver solver(*this);
-  Eigen::VectorXd b(solver.dim());
-  b.head<3>() = xi_.head<3>();
-  for (size_t i = 0; i < landmarks_.size(); ++i) {
-    if (landmarks_[i].alive) b.segment<2>(solver.Column(static_cast<int>(i))) = xi_.segment<2>(Offset(static_cast<int>(i)));
-  }
-  const Eigen::VectorXd x = solver.Solve(b);
-  mu_.head<3>() = x.head<3>();
-  for (size_t i = 0; i < landmarks_.size(); ++i) {
-    if (!landmarks_[i].alive) continue;
-    mu_.segment<2>(Offset(static_cast<int>(i))) = x.segment<2>(solver.Column(static_cast<int>(i)));
-    UpdateCell(static_cast<int>(i));
-  }
-  ++counters_.exact_recoveries;
-  Invalidate();
-}
-
-void SeifSlam::RecoverLocally() {
-  StageTimer timer(&times_, "recovery");
-  Invalidate();
-  if (options_.recovery == MeanRecovery::kExact) {
-    RecoverMeanExactly();
-  } else {
-    Relax(ActiveLandmarks(), options_.relaxation_sweeps);  // the observed landmarks are active
-  }
-}
-
-void SeifSlam::RecoverAmortised(const std::vector<int>& touched) {
-  StageTimer timer(&times_, "recovery");
-  Invalidate();
-  std::vector<int> set = ActiveLandmarks();
-  set.insert(set.end(), touched.begin(), touched.end());
-  // A round-robin slice of the whole map, so that every landmark is revisited.
-  const size_t slots = landmarks_.size();
-  for (int added = 0, visited = 0; added < options_.relaxation_extra_landmarks &&
-                                   visited < static_cast<int>(slots); ++visited) {
-    round_robin_ = (round_robin_ + 1) % slots;
-    if (!landmarks_[round_robin_].alive) continue;
-    set.push_back(static_cast<int>(round_robin_));
-    ++added;
-  }
-  std::sort(set.begin(), set.end());
-  set.erase(std::unique(set.begin(), set.end()), set.end());
-  Relax(set, options_.relaxation_sweeps);
-}
-
-SeifSlam::LocalCovariance SeifSlam::Covariance(const std::vector<int>& landmarks, bool exact) const {
-  LocalCovariance out;
-  const int k = static_cast<int>(landmarks.size());
-  for (int a = 0; a < k; ++a) out.offset[landmarks[a]] = 3 + 2 * a;
-  if (exact) {
-    const ExactSolver solver(*this);
-    std::vector<int> rows = {0, 1, 2};
-    for (int l : landmarks) {
-      rows.push_back(solver.Column(l));
-      rows.push_back(solver.Column(l) + 1);
-    }
-    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(solver.dim(), rows.size());
-    for (size_t c = 0; c < rows.size(); ++c) rhs(rows[c], c) = 1.0;
-    out.sigma = solver.Solve(rhs)(rows, Eigen::all);
-    return out;
-  }
-  // Markov blanket: the requested landmarks, the active ones and as many neighbours of
-  // the requested ones as the cap allows; everything else is held at its mean.
-  std::vector<int> blanket = landmarks;
-  absl::flat_hash_map<int, int> in_blanket;
-  for (int a = 0; a < k; ++a) in_blanket[landmarks[a]] = a;
-  for (int l : ActiveLandmarks()) {
-    if (in_blanket.try_emplace(l, static_cast<int>(blanket.size())).second) blanket.push_back(l);
-  }
-  for (int a = 0; a < k && static_cast<int>(blanket.size()) < options_.blanket_max_landmarks; ++a) {
-    for (const auto& [w, block] : links_[landmarks[a]]) {
-      if (static_cast<int>(blanket.size()) >= options_.blanket_max_landmarks) break;
-      if (in_blanket.try_emplace(w, static_cast<int>(blanket.size())).second) blanket.push_back(w);
-    }
-  }
-  const Eigen::LLT<Eigen::MatrixXd> llt(Gather(blanket));
-  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "SEIF Markov-blanket information not positive definite";
-  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(3 + 2 * blanket.size(), 3 + 2 * k);
-  rhs.topLeftCorner(3 + 2 * k, 3 + 2 * k).setIdentity();  // the requested variables come first
-  out.sigma = llt.solve(rhs).topRows(3 + 2 * k);
-  return out;
-}
-
-Eigen::Matrix3d SeifSlam::pose_covariance() const {
-  // Ω holds the pose at the last flush; the pending motion propagates its marginal
-  // exactly (conditioning on passive landmarks commutes with a pose-only motion).
-  const Eigen::Matrix3d* at_flush = &exact_pose_cov_;
-  if (options_.pose_covariance == CovarianceRecovery::kMarkovBlanket) {
-    if (pose_cov_version_ != version_) {
-      pose_cov_ = Covariance({}, false).sigma;
-      pose_cov_ = 0.5 * (pose_cov_ + pose_cov_.transpose()).eval();
-      pose_cov_version_ = version_;
-    }
-    at_flush = &pose_cov_;
-  }
-  return pending_A_ * *at_flush * pending_A_.transpose() + pending_Q_;
-}
-
-void SeifSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
-  info->existence = options_.existence.Update(info->existence, detected);
-  if (options_.existence.Confirms(info->existence)) info->confirmed = true;
-}
-
-void SeifSlam::Update(const Scan& scan) {
-  FlushMotion();
-  ++counters_.scans;
-  Invalidate();
-  const Pose2 p = pose();
-  const models::RangeBearingConfig& rb = sensor_.config();
-  const Eigen::Matrix2d R = sensor_.NoiseCovariance();
-
-  const internal::UsableDetections usable = internal::DetectionsInRange(scan, rb);
-  const std::vector<Eigen::Vector2d>& z = usable.z;
-  const std::vector<int>& detection_index = usable.index;
-  scan_features_.assign(scan.detections.size(), -1);
-  counters_.detections += static_cast<long>(z.size());
-  const int m = static_cast<int>(z.size());
-
-  // 1. Association.
-  std::vector<int> landmark_of_detection(m, -1);
-  std::vector<bool> creates(m, false);
-  absl::flat_hash_map<int, bool> gated;  // landmarks within reach → gated with a detection
-  std::vector<int> in_reach;
-  {
-    StageTimer timer(&times_, "associate");
-    const double reach = cell_size_m_;
-    const int64_t cx = CellCoordinate(p.x), cy = CellCoordinate(p.y);
-    for (int64_t dx = -1; dx <= 1; ++dx) {
-      for (int64_t dy = -1; dy <= 1; ++dy) {
-        auto it = grid_.find(CellKey(cx + dx, cy + dy));
-        if (it == grid_.end()) continue;
-        for (int l : it->second) {
-          if ((mu_.segment<2>(Offset(l)) - p.translation()).squaredNorm() <= reach * reach) in_reach.push_back(l);
-        }
-      }
-    }
-    std::sort(in_reach.begin(), in_reach.end());
-    for (int l : in_reach) gated[l] = false;
-    if (options_.known_association) {
-      for (int j = 0; j < m; ++j) {
-        const int truth = scan.detections[detection_index[j]].truth_id;
-        if (truth < 0) continue;  // a false alarm: no true landmark to associate with
-        if (auto it = landmark_of_truth_.find(truth); it != landmark_of_truth_.end()) {
-          landmark_of_detection[j] = it->second;
-          if (auto g = gated.find(it->second); g != gated.end()) g->second = true;
-        } else {
-          creates[j] = true;
-        }
-      }
-    } else {
-      std::vector<Eigen::Vector2d> points(m);
-      for (int j = 0; j < m; ++j) points[j] = sensor_.InverseObserve(p, z[j]);
-      const double r2 = options_.candidate_radius_m * options_.candidate_radius_m;
-      std::vector<int> candidates;
-      for (int l : in_reach) {
-        for (int j = 0; j < m; ++j) {
-          if ((mu_.segment<2>(Offset(l)) - points[j]).squaredNorm() <= r2) {
-            candidates.push_back(l);
-            break;
-          }
-        }
-      }
-      const LocalCovariance cov =
-          Covariance(candidates, options_.covariance == CovarianceRecovery::kExact);
-      struct Prediction {
-        Eigen::Vector2d z;
-        Eigen::Matrix<double, 2, 5> H;
-        Eigen::Matrix2d S;
-      };
-      absl::flat_hash_map<int, Prediction> prediction;
-      auto joint = [&cov](int a, int b) -> Eigen::Matrix<double, 5, 5> {
-        // Σ over [x, l_a] × [x, l_b].
-        const int oa = cov.offset.at(a), ob = cov.offset.at(b);
-        Eigen::Matrix<double, 5, 5> s;
-        s.topLeftCorner<3, 3>() = cov.sigma.topLeftCorner<3, 3>();
-        s.topRightCorner<3, 2>() = cov.sigma.block<3, 2>(0, ob);
-        s.bottomLeftCorner<2, 3>() = cov.sigma.block<2, 3>(oa, 0);
-        s.bottomRightCorner<2, 2>() = cov.sigma.block<2, 2>(oa, ob);
-        return s;
-      };
-      for (int l : candidates) {
-        Prediction pr;
-        Matrix23d H_pose;
-        Eigen::Matrix2d H_landmark;
-        pr.z = sensor_.Observe(p, mu_.segment<2>(Offset(l)), &H_pose, &H_landmark);
-        pr.H << H_pose, H_landmark;
-        pr.S = pr.H * joint(l, l) * pr.H.transpose() + R;
-        pr.S = 0.5 * (pr.S + pr.S.transpose()).eval();
-        prediction[l] = pr;
-      }
-      association::AssociationProblem problem;
-      problem.candidates.resize(m);
-      std::vector<double> min_d2(m, INFINITY);
-      for (int j = 0; j < m; ++j) {
-        for (int l : candidates) {
-          const Prediction& pr = prediction[l];
-          const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
-          const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
-          SUBSLAM_CHECK(d2.has_value()) << "innovation covariance not positive definite";
-          min_d2[j] = std::min(min_d2[j], *d2);
-          if (*d2 < new_landmark_d2_) gated[l] = true;
-          if (*d2 < gate_d2_) problem.candidates[j].push_back({l, *d2, nu});
-        }
-        std::sort(problem.candidates[j].begin(), problem.candidates[j].end(),
-                  [](const association::AssociationCandidate& a, const association::AssociationCandidate& b) { return a.d2 < b.d2; });
-      }
-      association::AssociationResult association;
-      if (options_.association == association::AssociationMethod::kJointCompatibility) {
-        problem.covariance_block = [&](int, int a, int, int b) -> Eigen::Matrix2d {
-          if (a == b) return prediction[a].S;
-          return prediction[a].H * joint(a, b) * prediction[b].H.transpose();
-        };
-        association = association::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
-        if (association.truncated) ++counters_.jcbb_truncated;
-      } else {
-        association = association::NearestNeighbour(problem);
-      }
-      for (int j = 0; j < m; ++j) {
-        landmark_of_detection[j] = association.landmark_of_detection[j];
-        if (landmark_of_detection[j] < 0) {
-          if (min_d2[j] > new_landmark_d2_) {
-            creates[j] = true;
-          } else {
-            ++counters_.ambiguous;
-          }
-        }
-      }
-    }
-  }
-
-  // 2. Measurement update of the associations; ISEIF relinearises it to convergence.
-  std::vector<std::pair<int, Eigen::Vector2d>> pairs;
-  std::vector<int> touched;
-  for (int j = 0; j < m; ++j) {
-    if (landmark_of_detection[j] < 0) continue;
-    pairs.push_back({landmark_of_detection[j], z[j]});
-    touched.push_back(landmark_of_detection[j]);
-  }
-  std::sort(touched.begin(), touched.end());
-  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
-  if (!pairs.empty()) {
-    const bool iterate = options_.iterated.enabled && options_.iterated.max_iterations > 1 &&
-                         counters_.scans % options_.iterated.period_scans == 0;
-    // μ⁰, the prediction, over the pose and the observed landmarks (Eq. 28's g).
-    Eigen::VectorXd previous = GatherMean(touched);
-    Linearization lin;
-    for (int i = 1;; ++i) {
-      // Eqs. 14-19: linearise at the latest estimate μⁱ⁻¹, starting from the prediction;
-      // the first pass is the SEIF update.
-      {
-        StageTimer timer(&times_, i == 1 ? "measurement" : "iteration");
-        if (i > 1) Retract(lin);
-        lin = ApplyMeasurements(pairs);
-      }
-      if (!iterate) {
-        RecoverLocally();  // the pose the new landmarks are initialised from
-        break;
-      }
-      StageTimer timer(&times_, "iteration");
-      ++counters_.iterations;
-      if (i <= options_.iterated.exact_recoveries) {
-        RecoverMeanExactly();
-      } else {
-        Relax(ActiveLandmarks(), options_.relaxation_sweeps);
-      }
-      const Eigen::VectorXd current = GatherMean(touched);
-      Eigen::VectorXd change = current - previous;
-      change[2] = WrapAngle(change[2]);
-      previous = current;
-      if (change.cwiseAbs().maxCoeff() < options_.iterated.stop_change ||
-          i == options_.iterated.max_iterations) {
-        ++counters_.iterated_updates;
-        break;
-      }
-    }
-    counters_.associated += static_cast<long>(pairs.size());
-  }
-
-  // 3. Existence, new landmarks, deletion of false alarms.
-  std::vector<int> created;
-  {
-    StageTimer timer(&times_, "map_management");
-    for (int j = 0; j < m; ++j) {
-      const int l = landmark_of_detection[j];
-      if (l < 0) continue;
-      UpdateExistence(&landmarks_[l], true);
-      landmarks_[l].last_seen_scan = counters_.scans;
-      scan_features_[detection_index[j]] = l;
-    }
-    for (int l : in_reach) {
-      if (gated[l]) continue;
-      const Eigen::Vector2d z_hat = sensor_.Observe(p, mu_.segment<2>(Offset(l)));
-      if (sensor_.IsVisible(z_hat, options_.expect_range_margin_m, options_.expect_bearing_margin_rad)) {
-        UpdateExistence(&landmarks_[l], false);
-      }
-    }
-    std::vector<std::pair<int, Eigen::Vector2d>> new_pairs;
-    const Pose2 updated = pose();
-    for (int j = 0; j < m; ++j) {
-      if (!creates[j]) continue;
-      const int l = AddLandmarkSlot(sensor_.InverseObserve(updated, z[j]));
-      LandmarkInfo& info = landmarks_[l];
-      info.existence = options_.existence.Initial();
-      info.confirmed = options_.existence.Confirms(info.existence);
-      info.last_seen_scan = counters_.scans;
-      if (options_.known_association) {
-        info.truth_id = scan.detections[detection_index[j]].truth_id;
-        landmark_of_truth_[info.truth_id] = l;
-      }
-      scan_features_[detection_index[j]] = l;
-      new_pairs.push_back({l, z[j]});
-      created.push_back(l);
-      ++counters_.new_landmarks;
-    }
-    // The first detection's information: ν = 0 at μ_l = g(μ_x, z), so the mean holds.
-    if (!new_pairs.empty()) ApplyMeasurements(new_pairs);
-    if (counters_.scans % options_.cull_every_scans == 0) {
-      for (size_t i = 0; i < landmarks_.size(); ++i) {
-        LandmarkInfo& info = landmarks_[i];
-        if (info.alive && options_.existence.Deletes(info.existence, info.confirmed)) {
-          Marginalize(static_cast<int>(i));
-          ++counters_.deleted_landmarks;
-        }
-      }
-    }
-  }
-  counters_.max_active = std::max<long>(counters_.max_active, num_active_landmarks());
-
-  // 4. Sparsification, then the amortised recovery (exact recovery needs none: the
-  // new landmarks, the marginalisation and sparsification all keep Ω μ = ξ).
-  Sparsify();
-  if (options_.recovery == MeanRecovery::kRelaxation) {
-    touched.insert(touched.end(), created.begin(), created.end());
-    RecoverAmortised(touched);
-  }
-  // Only here and after the motion update: an iterated update must not see its
-  // coordinates shift between applying a linearisation and taking it back.
-  WrapHeading();
-  if (options_.pose_covariance == CovarianceRecovery::kExact) {
-    StageTimer timer(&times_, "pose_covariance");
-    const Eigen::Matrix3d sigma = Covariance({}, true).sigma;
-    exact_pose_cov_ = 0.5 * (sigma + sigma.transpose());
-  }
-}
-
 std::vector<int> SeifSlam::LiveLandmarkIds() const {
   std::vector<int> ids;
   for (size_t i = 0; i < landmarks_.size(); ++i) {
@@ -828,38 +415,13 @@ Eigen::MatrixXd SeifSlam::DenseInformation() {
   FlushMotion();
   return Gather(LiveLandmarkIds());
 }
+
 Eigen::VectorXd SeifSlam::DenseInformationVector() {
   FlushMotion();
   return GatherXi(LiveLandmarkIds());
 }
-Eigen::VectorXd SeifSlam::DenseMean() const { return GatherMean(LiveLandmarkIds()); }
 
-std::vector<LandmarkEstimate> SeifSlam::Map() const {
-  std::vector<int> confirmed;
-  for (size_t i = 0; i < landmarks_.size(); ++i) {
-    if (landmarks_[i].alive && landmarks_[i].confirmed) confirmed.push_back(static_cast<int>(i));
-  }
-  std::vector<LandmarkEstimate> out;
-  if (confirmed.empty()) return out;
-  const ExactSolver solver(*this);
-  constexpr size_t kBatch = 64;  // landmarks per multi-column solve (bounds the memory)
-  for (size_t start = 0; start < confirmed.size(); start += kBatch) {
-    const size_t count = std::min(kBatch, confirmed.size() - start);
-    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(solver.dim(), 2 * count);
-    for (size_t a = 0; a < count; ++a) {
-      const int c = solver.Column(confirmed[start + a]);
-      rhs(c, 2 * a) = rhs(c + 1, 2 * a + 1) = 1.0;
-    }
-    const Eigen::MatrixXd columns = solver.Solve(rhs);
-    for (size_t a = 0; a < count; ++a) {
-      const int l = confirmed[start + a], c = solver.Column(l);
-      Eigen::Matrix2d cov = columns.block<2, 2>(c, 2 * a);
-      cov = 0.5 * (cov + cov.transpose()).eval();
-      out.push_back({l, mu_.segment<2>(Offset(l)), cov});
-    }
-  }
-  return out;
-}
+Eigen::VectorXd SeifSlam::DenseMean() const { return GatherMean(LiveLandmarkIds()); }
 
 std::map<std::string, double> SeifSlam::Counters() const {
   int confirmed = 0;

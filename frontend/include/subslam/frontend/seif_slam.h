@@ -186,7 +186,12 @@ class SeifSlam final : public OnlineEstimator {
 
  private:
   class ExactSolver;
-  struct Linearization;
+  // One linearised measurement update: what it adds to Ω and ξ.
+  struct Linearization {
+    std::vector<int> landmarks;  // distinct, in the order of D's blocks
+    Eigen::MatrixXd D;           // added to Ω over [pose, landmarks]
+    Eigen::VectorXd dxi;         // added to ξ
+  };
   struct LandmarkInfo {
     bool alive = true;
     double existence = 0.5;

@@ -1,0 +1,420 @@
+// FastSlam: one particle's scan update — association (maximum likelihood or sampled), the
+// FastSLAM 2.0 proposal and importance weight, existence, the correspondence votes, and
+// the landmark updates that apply the decisions.
+
+#include "subslam/frontend/fastslam.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <numbers>
+#include <thread>
+
+#include "absl/strings/str_cat.h"
+#include "subslam/frontend/internal/genealogy.h"
+#include "subslam/graph/stage_timer.h"
+#include "subslam/frontend/internal/worker_pool.h"
+#include "subslam/graph/check.h"
+#include "subslam/models/gating.h"
+
+namespace subslam::frontend {
+
+void FastSlam::UpdateExistence(LandmarkRecord* record, bool detected) const {
+  record->existence = options_.existence.Update(record->existence, detected);
+  if (options_.existence.Confirms(record->existence)) record->confirmed = true;
+}
+
+FastSlam::LandmarkGaussian* FastSlam::Mutable(LandmarkRecord* record, Scratch* scratch) {
+  if (record->gaussian.use_count() > 1) {
+    record->gaussian = std::make_shared<const LandmarkGaussian>(*record->gaussian);
+    ++scratch->landmark_copies;
+  } else {
+    // Sole owner now — possibly because a particle on another thread has just copied the
+    // landmark and dropped its reference: the acquire fence orders that thread's reads of
+    // the old value (before its release of the count) before our writes.
+    std::atomic_thread_fence(std::memory_order_acquire);
+  }
+  // Sole owner: the object was created non-const, so writing through it is defined.
+  return const_cast<LandmarkGaussian*>(record->gaussian.get());
+}
+
+FastSlam::PairScore FastSlam::Score(const Prediction& pr, const LandmarkGaussian& landmark,
+                                    const Eigen::Vector2d& z, double signature,
+                                    const Eigen::Vector3d& delta, const Eigen::Matrix3d& Sigma) const {
+  PairScore out;
+  out.nu = models::RangeBearingModel::Difference(z, pr.z) - pr.H_pose * delta;
+  out.nu[1] = WrapAngle(out.nu[1]);
+  out.S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
+  out.det = out.S(0, 0) * out.S(1, 1) - out.S(0, 1) * out.S(1, 0);
+  SUBSLAM_CHECK(out.S(0, 0) > 0.0 && out.det > 0.0) << "predictive covariance not positive definite";
+  out.S_inv << out.S(1, 1), -out.S(0, 1), -out.S(1, 0), out.S(0, 0);
+  out.S_inv /= out.det;
+  out.d2 = out.nu.dot(out.S_inv * out.nu);
+  // log N(ν; 0, S) without its −½ log det S, which callers add (or accumulate as a
+  // product of determinants, one log per particle and scan).
+  out.log_likelihood_but_det = -0.5 * out.d2 - std::log(2.0 * std::numbers::pi) +
+                               SignatureLogLikelihood(landmark, signature);
+  return out;
+}
+
+double FastSlam::SignatureLogLikelihood(const LandmarkGaussian& l, double signature) const {
+  if (!(options_.sigma_signature > 0) || !std::isfinite(signature) || l.signatures == 0) return 0.0;
+  const double var = options_.sigma_signature * options_.sigma_signature * (1.0 + 1.0 / l.signatures);
+  const double ds = signature - l.signature_sum / l.signatures;
+  return -0.5 * ds * ds / var - 0.5 * std::log(2.0 * std::numbers::pi * var);
+}
+
+void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
+                              const std::vector<double>& signature, int* decisions, Scratch* scratch,
+                              std::mt19937_64* rng) const {
+  std::vector<Prediction>& predictions = scratch->predictions;
+  std::vector<GatedPair>& pairs = scratch->pairs;
+  std::vector<double>& min_d2 = scratch->min_d2;
+  std::vector<GatedPair>& near_pairs = scratch->near_pairs;
+  std::vector<std::pair<int, double>>& likelihoods = scratch->likelihoods;
+  const Eigen::Matrix2d R = sensor_.NoiseCovariance();
+  const double reach = sensor_.config().max_range_m + 10.0;
+  const int n = static_cast<int>(particle->landmarks.size());
+  const int m = static_cast<int>(z.size());
+  Eigen::Matrix3d Sigma;  // of the proposal, below
+  const Pose2 x0 = CurrentPose(*particle, &Sigma);
+  predictions.resize(n);
+  // Cheap visibility cull before the atan2 of Observe: within reach, and inside the
+  // field of view widened by kFovMarginRad (cos of the bearing off the FOV's centre).
+  const double c_axis = std::cos(x0.theta + fov_center_), s_axis = std::sin(x0.theta + fov_center_);
+  const models::RangeBearingConfig& rb = sensor_.config();
+  const auto predict = [&](int i) {
+    Prediction& pr = predictions[i];
+    const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
+    Eigen::Matrix2d H_l;
+    pr.z[0] = sensor_.ObserveRange(x0, l.mean, &pr.H_pose, &H_l);
+    pr.z[1] = NAN;  // the bearing (an atan2) only for pairs that pass the range gate
+    pr.Z = H_l * l.covariance * H_l.transpose() + R;
+  };
+  const auto predict_bearing = [&](int i) {
+    Prediction& pr = predictions[i];
+    if (std::isnan(pr.z[1])) pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
+  };
+  for (int i = 0; i < n; ++i) {
+    Prediction& pr = predictions[i];
+    const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
+    pr.used = pr.gated = false;
+    const Eigen::Vector2d d = l.mean - x0.translation();
+    const double d2 = d.squaredNorm();
+    const double along = c_axis * d.x() + s_axis * d.y(), distance = std::sqrt(d2);
+    pr.in_reach = d2 < reach * reach && along >= fov_cos_limit_ * distance;
+    if (!pr.in_reach) continue;
+    // Expected (for the missed-detection update): well inside range and field of view,
+    // tested on the cosine of the bearing off the field of view's centre.
+    pr.expected = distance >= rb.min_range_m + options_.expect_range_margin_m &&
+                  distance <= rb.max_range_m - options_.expect_range_margin_m &&
+                  along >= fov_cos_expected_ * distance;
+    predict(i);
+  }
+  if (options_.known_association) {
+    // Known association: detection j belongs to the particle's landmark with its true id
+    // (predicted even if the particle believes it out of reach), or starts one; a false
+    // alarm or a repeated id (truth_ −1, see Update) is ignored.
+    for (int j = 0; j < m; ++j) {
+      decisions[j] = truth_[j] < 0 ? kIgnore : kNew;
+      if (decisions[j] == kIgnore) continue;
+      for (int i = 0; i < n; ++i) {
+        if (particle->landmarks[i].gaussian->truth_id != truth_[j]) continue;
+        decisions[j] = i;
+        if (!predictions[i].in_reach) {
+          predictions[i].in_reach = true;
+          predictions[i].expected = false;
+          predict(i);
+        }
+        break;
+      }
+    }
+  }
+  // The proposal N(x0 ⊕ δ, Σ), updated by each associated detection in turn.
+  Eigen::Vector3d delta = Eigen::Vector3d::Zero();
+  double log_w = 0.0;
+  double det_product = 1.0;  // of the associated pairs' S, folded into log_w at the end
+  const auto update_proposal = [&](const Prediction& pr, const PairScore& score) {
+    const Eigen::Matrix<double, 3, 2> K = Sigma * pr.H_pose.transpose() * score.S_inv;
+    delta += K * score.nu;
+    Sigma -= K * pr.H_pose * Sigma;
+    Sigma = 0.5 * (Sigma + Sigma.transpose()).eval();
+  };
+  // Pairs detection j with landmark i, scored at the current proposal for the weight.
+  const auto associate = [&](int j, int i) {
+    Prediction& pr = predictions[i];
+    const PairScore score = Score(pr, *particle->landmarks[i].gaussian, z[j], signature[j], delta, Sigma);
+    pr.used = true;
+    decisions[j] = i;
+    log_w += score.log_likelihood_but_det;
+    det_product *= score.det;
+    if (det_product < 1e-200 || det_product > 1e200) {
+      log_w -= 0.5 * std::log(det_product);
+      det_product = 1.0;
+    }
+    update_proposal(pr, score);
+    ++scratch->associated;
+  };
+
+  // 1. Score every (detection, landmark) pair at the prior proposal, where S depends on
+  //    the landmark only: one 2×2 inverse per landmark, a few flops per pair.
+  for (int i = 0; i < n; ++i) {
+    Prediction& pr = predictions[i];
+    if (!pr.in_reach) continue;
+    pr.S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
+    const double det = pr.S.determinant();
+    SUBSLAM_CHECK(det > 0.0) << "predictive covariance not positive definite";
+    pr.S_inv = pr.S.inverse();
+    pr.log_norm = NAN;  // computed when a pair gates
+    pr.det = det;
+  }
+  min_d2.assign(m, INFINITY);
+  near_pairs.clear();
+  pairs.clear();
+  if (options_.known_association) {
+    // 2. Known association: the given pairings in detection order, each scored at the
+    //    current proposal.
+    for (int j = 0; j < m; ++j) {
+      const int i = decisions[j];
+      if (i < 0) continue;
+      predict_bearing(i);
+      predictions[i].gated = true;
+      associate(j, i);
+    }
+  } else {
+    // The gated pairs, ranked.
+    for (int j = 0; j < m; ++j) {
+      decisions[j] = kIgnore;
+      for (int i = 0; i < n; ++i) {
+        Prediction& pr = predictions[i];
+        if (!pr.in_reach) continue;
+        // νᵀS⁻¹ν ≥ ν_r² / S_rr: most pairs are rejected on range alone.
+        const double nu_r = z[j][0] - pr.z[0];
+        if (nu_r * nu_r >= new_landmark_d2_ * pr.S(0, 0)) continue;
+        predict_bearing(i);
+        const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+        const double d2 = nu.dot(pr.S_inv * nu);
+        min_d2[j] = std::min(min_d2[j], d2);
+        if (d2 >= new_landmark_d2_) continue;
+        pr.gated = true;
+        if (std::isnan(pr.log_norm)) {
+          pr.log_norm = -std::log(2.0 * std::numbers::pi) - 0.5 * std::log(pr.det);
+        }
+        const double ll = pr.log_norm - 0.5 * d2 +
+                          SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
+        near_pairs.push_back({ll, j, i});
+        if (d2 >= gate_d2_) continue;
+        const double rank = options_.association_score == AssociationScore::kLikelihood ? ll : -d2;
+        pairs.push_back({rank, j, i});
+      }
+    }
+    if (!options_.sample_association) {
+      // 2a. One-to-one greedy assignment, best pair first; then the proposal updates in
+      //     that order, each pair rescored at the current proposal for the weight.
+      std::sort(pairs.begin(), pairs.end(), [](const GatedPair& a, const GatedPair& b) {
+        return a.rank > b.rank || (a.rank == b.rank && (a.detection < b.detection ||
+                                                        (a.detection == b.detection && a.landmark < b.landmark)));
+      });
+      for (const GatedPair& p : pairs) {
+        if (decisions[p.detection] >= 0 || predictions[p.landmark].used) continue;
+        associate(p.detection, p.landmark);
+      }
+    } else {
+      // 2b. Data-association sampling, detection by detection: among the still unused
+      //     gated landmarks and "new", in proportion to their likelihoods at the current
+      //     proposal.
+      for (int j = 0; j < m; ++j) {
+        likelihoods.clear();
+        double max_ll = log_p0_;
+        for (const GatedPair& p : pairs) {
+          if (p.detection != j || predictions[p.landmark].used) continue;
+          const PairScore score =
+              Score(predictions[p.landmark], *particle->landmarks[p.landmark].gaussian, z[j], signature[j], delta, Sigma);
+          if (score.d2 >= gate_d2_) continue;
+          const double ll = score.log_likelihood_but_det - 0.5 * std::log(score.det);
+          likelihoods.push_back({p.landmark, ll});
+          max_ll = std::max(max_ll, ll);
+        }
+        if (likelihoods.empty()) continue;
+        double total = std::exp(log_p0_ - max_ll);
+        for (const auto& [i, ll] : likelihoods) total += std::exp(ll - max_ll);
+        double r = std::uniform_real_distribution<double>(0.0, total)(*rng);
+        for (const auto& [i, ll] : likelihoods) {
+          r -= std::exp(ll - max_ll);
+          if (r < 0) {
+            associate(j, i);
+            break;
+          }
+        }
+        if (decisions[j] < 0) decisions[j] = kNew;  // sampled "new" although something gated
+      }
+    }
+  }
+  log_w -= 0.5 * std::log(det_product);
+  // 3. Unexplained detections: a new landmark beyond the new-landmark gate of every
+  //    landmark, with the density p0; otherwise ignored, with the likelihood of its most
+  //    likely landmark that no other detection took (at least p0, which is also what a
+  //    false alarm or a sampled "new" gets).
+  for (int j = 0; j < m; ++j) {
+    if (decisions[j] >= 0) continue;
+    if (decisions[j] != kNew && !options_.known_association) {
+      decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
+    }
+    double log_density = log_p0_;
+    if (decisions[j] == kIgnore && !options_.known_association) {
+      for (const GatedPair& p : near_pairs) {
+        if (p.detection == j && !predictions[p.landmark].used) log_density = std::max(log_density, p.rank);
+      }
+    }
+    log_w += log_density;
+    if (decisions[j] == kIgnore) ++scratch->ignored;
+  }
+  // Sample the pose from the proposal.
+  Eigen::Vector3d x = x0.vector() + delta;
+  if (Sigma.trace() > 0.0) {
+    std::normal_distribution<double> normal;
+    const Eigen::Vector3d xi(normal(*rng), normal(*rng), normal(*rng));
+    const Eigen::LLT<Eigen::Matrix3d> llt(Sigma);
+    if (llt.info() == Eigen::Success) {
+      x += llt.matrixL() * xi;
+    } else {  // positive semi-definite (e.g. no noise on one axis)
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+      eig.computeDirect(Sigma);
+      x += eig.eigenvectors() * (eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseProduct(xi));
+    }
+  }
+  // Expected but missed: predicted well inside the field of view (at the prior pose:
+  // the sample moves it by centimetres) and not even within the new-landmark gate of
+  // any detection.
+  for (int i = 0; i < n; ++i) {
+    const Prediction& pr = predictions[i];
+    particle->landmarks[i].missed = pr.in_reach && !pr.gated && pr.expected;
+  }
+  SetPose(particle, Pose2(x[0], x[1], WrapAngle(x[2])));
+  particle->log_weight += log_w;
+}
+
+void FastSlam::Vote(int m) {
+  const int P = num_particles();
+  scan_features_.assign(m, -1);
+  voted_label_.assign(2 * m, kIgnore);  // [2j]: for modified landmarks, [2j+1]: for created
+  scan_disagreement_ = 0.0;
+  weights_.resize(P);
+  for (int p = 0; p < P; ++p) weights_[p] = std::exp(particles_[p].log_weight);
+  for (int j = 0; j < m; ++j) {
+    tally_.clear();
+    for (int p = 0; p < P; ++p) {
+      const int label = decision_label_[p * m + j];
+      const double w = weights_[p];
+      auto it = std::find_if(tally_.begin(), tally_.end(),
+                             [label](const auto& t) { return t.first == label; });
+      if (it == tally_.end()) {
+        tally_.push_back({label, w});
+      } else {
+        it->second += w;
+      }
+    }
+    const auto winner = std::max_element(tally_.begin(), tally_.end(), [](const auto& a, const auto& b) {
+      return a.second < b.second || (a.second == b.second && a.first > b.first);
+    });
+    double total = 0.0;
+    for (const auto& t : tally_) total += t.second;
+    scan_disagreement_ = std::max(scan_disagreement_, 1.0 - winner->second / total);
+    int label = winner->first;
+    if (label == kNew) {
+      label = next_feature_++;
+      ++counters_.features;
+    }
+    if (label >= 0) {
+      voted_label_[2 * j] = voted_label_[2 * j + 1] = label;
+      scan_features_[j] = label;
+      if (options_.known_association) feature_truth_[label] = truth_[j];
+    } else {
+      // Winner "ignore": landmarks that particles created anyway get a fresh minority id.
+      const bool created = std::any_of(tally_.begin(), tally_.end(),
+                                       [](const auto& t) { return t.first == kNew; });
+      if (created) {
+        voted_label_[2 * j + 1] = next_feature_++;
+        ++counters_.features;
+      }
+    }
+  }
+}
+
+void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
+                              const std::vector<double>& signature, const int* decisions,
+                              Scratch* scratch) const {
+  const Eigen::Matrix2d R = sensor_.NoiseCovariance();
+  const Pose2& x = particle->pose;
+  const int m = static_cast<int>(z.size());
+  const int n_before = static_cast<int>(particle->landmarks.size());
+  std::vector<LandmarkRecord>& landmarks = particle->landmarks;
+  for (int j = 0; j < m; ++j) {
+    const int d = decisions[j];
+    if (d >= 0) {
+      LandmarkRecord& record = landmarks[d];
+      LandmarkGaussian* l = Mutable(&record, scratch);
+      // Iterated EKF: relinearise the measurement at the updated landmark mean.
+      const Eigen::Vector2d prior_mean = l->mean;
+      const Eigen::Matrix2d prior_cov = l->covariance;
+      Eigen::Vector2d mean = prior_mean;
+      Eigen::Matrix2d H_l, K;
+      for (int it = 0; it < options_.landmark_update_iterations; ++it) {
+        const Eigen::Vector2d z_hat = sensor_.Observe(x, mean, nullptr, &H_l);
+        Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], z_hat);
+        nu += H_l * (mean - prior_mean);
+        nu[1] = WrapAngle(nu[1]);
+        const Eigen::Matrix2d S = H_l * prior_cov * H_l.transpose() + R;
+        K = prior_cov * H_l.transpose() * S.inverse();
+        const Eigen::Vector2d next = prior_mean + K * nu;
+        const bool converged = (next - mean).squaredNorm() < 1e-16;
+        mean = next;
+        if (converged) break;
+      }
+      l->mean = mean;
+      l->covariance = prior_cov - K * H_l * prior_cov;
+      l->covariance = 0.5 * (l->covariance + l->covariance.transpose()).eval();
+      if (std::isfinite(signature[j])) {
+        l->signature_sum += signature[j];
+        ++l->signatures;
+      }
+      UpdateExistence(&record, true);
+      if (voted_label_[2 * j] != kIgnore) record.feature = voted_label_[2 * j];
+    } else if (d == kNew) {
+      auto l = std::make_shared<LandmarkGaussian>();
+      if (options_.known_association) l->truth_id = truth_[j];
+      Eigen::Matrix2d G_z;
+      l->mean = sensor_.InverseObserve(x, z[j], nullptr, &G_z);
+      l->covariance = G_z * R * G_z.transpose();
+      if (std::isfinite(signature[j])) {
+        l->signature_sum = signature[j];
+        l->signatures = 1;
+      }
+      LandmarkRecord record;
+      record.gaussian = std::move(l);
+      record.existence = options_.existence.Initial();  // the prior and the creating detection
+      record.confirmed = options_.existence.Confirms(record.existence);
+      record.feature = voted_label_[2 * j + 1];
+      landmarks.push_back(std::move(record));
+      ++scratch->landmarks_created;
+    }
+  }
+  // Expected but missed (flagged by UpdateParticle): the missed-detection update.
+  for (int i = 0; i < n_before; ++i) {
+    if (landmarks[i].missed) UpdateExistence(&landmarks[i], false);
+  }
+  // Known association settles existence too (every landmark has a true id): no cull, so
+  // a true landmark keeps its one landmark and common id.
+  if (counters_.scans % options_.cull_every_scans == 0 && !options_.known_association) {
+    const auto doomed = [this](const LandmarkRecord& r) {
+      return options_.existence.Deletes(r.existence, r.confirmed);
+    };
+    const auto first = std::remove_if(landmarks.begin(), landmarks.end(), doomed);
+    scratch->landmarks_culled += landmarks.end() - first;
+    landmarks.erase(first, landmarks.end());
+  }
+}
+
+}  // namespace subslam::frontend
