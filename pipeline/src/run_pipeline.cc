@@ -109,6 +109,285 @@ std::future<absl::Status> WriteInBackground(Write write) {
   }
 }
 
+// The SEIF options the run uses (ISEIF: the iterated update on), after every option
+// struct was validated; and whether any stage associates by the true ids.
+struct CheckedOptions {
+  frontend::SeifOptions seif;
+  bool known_association = false;
+};
+
+absl::StatusOr<CheckedOptions> CheckOptions(const io::Dataset& dataset, const RunOptions& options) {
+  if (absl::Status s = options.ekf.Validate(); !s.ok()) return s;
+  if (absl::Status s = options.fastslam.Validate(); !s.ok()) return s;
+  if (absl::Status s = options.policy.Validate(); !s.ok()) return s;
+  if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
+  CheckedOptions checked;
+  checked.seif = options.seif;
+  checked.seif.iterated.enabled = options.frontend == Frontend::kIseif;
+  if (absl::Status s = checked.seif.Validate(); !s.ok()) return s;
+  checked.known_association = checked.seif.known_association || options.ekf.known_association ||
+                              options.fastslam.known_association ||
+                              options.backend.eif.association.known_association ||
+                              options.backend.ekf.association.known_association;
+  if (checked.known_association && !dataset.sensor.has_truth_id) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "known association needs detections with true ids; data set \"", dataset.name, "\" has none"));
+  }
+  return checked;
+}
+
+// The estimator of the chosen front-end; `chain` is set to it for the local-map
+// front-ends (the submap pipeline), else to nullptr.
+std::unique_ptr<frontend::OnlineEstimator> MakeEstimator(const io::Dataset& dataset, const RunOptions& options,
+                                                         const frontend::SeifOptions& seif, SubmapSlam** chain) {
+  *chain = nullptr;
+  switch (options.frontend) {
+    case Frontend::kOdometry:
+      return std::make_unique<frontend::DeadReckoning>(dataset.motion.MakeModel(), dataset.initial_pose);
+    case Frontend::kRbpf:
+    case Frontend::kEkfLocal: {
+      const double t0 = dataset.controls.empty() ? 0.0 : dataset.controls.front().t;
+      std::unique_ptr<frontend::LocalMapper> mapper;
+      if (options.frontend == Frontend::kRbpf) {
+        mapper = std::make_unique<frontend::RbpfLocalMapper>(
+            dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.fastslam, options.policy, t0);
+      } else {
+        mapper = std::make_unique<frontend::EkfLocalMapper>(
+            dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.ekf, options.policy, t0,
+            options.fastslam.moment_matching.min_existence);
+      }
+      auto slam = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose, options.backend);
+      *chain = slam.get();
+      return slam;
+    }
+    case Frontend::kSeif:
+    case Frontend::kIseif:
+      return std::make_unique<frontend::SeifSlam>(dataset.motion.MakeModel(), dataset.sensor.range_bearing,
+                                                  dataset.initial_pose, seif);
+    case Frontend::kFastSlam:
+      return std::make_unique<frontend::FastSlam>(dataset.motion.MakeModel(), dataset.sensor.range_bearing,
+                                                  dataset.initial_pose, options.fastslam);
+    case Frontend::kEkfSlam:
+      break;
+  }
+  return std::make_unique<frontend::EkfSlam>(dataset.motion.MakeModel(), dataset.sensor.range_bearing,
+                                             dataset.initial_pose, options.ekf);
+}
+
+// Drives the estimator over the steps: the online trajectory, the wall time after each
+// tenth of the run, and (submap pipeline) the truth votes of each scan's features and the
+// final joins. Fills r's counts, online trajectory and times.
+absl::Status Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Dataset& dataset,
+                   bool show_progress, RunResult* r, TruthVotes* truth_votes) {
+  const std::vector<io::Step> steps = io::BuildSteps(dataset);
+  r->steps = static_cast<int>(steps.size());
+  r->scans = static_cast<int>(dataset.scans.size());
+  r->detections = static_cast<long>(dataset.NumDetections());
+  r->online.reserve(steps.size());
+  Progress progress(show_progress, steps.size());
+  const absl::Time start = absl::Now();
+  for (size_t k = 0; k < steps.size(); ++k) {
+    const io::Step& step = steps[k];
+    estimator.Predict(step.control, step.dt);
+    if (step.scan_index >= 0) {
+      const Scan& scan = dataset.scans[step.scan_index];
+      estimator.Update(scan);
+      if (chain != nullptr) truth_votes->Add(chain->last_scan_map_id(), chain->last_scan_features(), scan);
+    }
+    r->online.push_back({step.t, estimator.pose(), estimator.pose_covariance()});
+    if (chain != nullptr) chain->RecordStep(step.t);
+    progress.Tick(k, step.t);
+    // Wall time at the end of each tenth of the run: flat increments mean the time
+    // per step does not grow with the length of the run.
+    if ((k + 1) * 10 / steps.size() != k * 10 / steps.size()) {
+      r->wall_seconds_by_tenth.push_back(absl::ToDoubleSeconds(absl::Now() - start));
+    }
+  }
+  if (chain != nullptr) {
+    if (absl::Status st = chain->Finish(); !st.ok()) return st;
+  }
+  r->wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  return absl::OkStatus();
+}
+
+// Each local map's NEES against the truth (the true end pose and features in the true
+// start frame), summarised, with one row per map.
+json EvaluateLocalMaps(const io::Dataset& dataset, RunResult* r) {
+  json per_map = json::array();
+  LocalMapSummary summary;
+  for (const LocalSubmap& s : r->local_maps) {
+    const std::optional<eval::LocalMapNees> e =
+        eval::EvaluateLocalMap(s, dataset.truth_poses, dataset.truth_landmarks);
+    if (!e) continue;
+    ++summary.evaluated;
+    summary.inside += e->inside() ? 1 : 0;
+    summary.pose_inside += e->pose_nees <= models::ChiSquareQuantile(0.975, 3) &&
+                                   e->pose_nees >= models::ChiSquareQuantile(0.025, 3)
+                               ? 1 : 0;
+    summary.nees_per_dof += e->nees / e->dof;
+    summary.false_alarms += e->false_alarms;
+    for (double nees : e->landmark_nees) {
+      ++summary.landmarks;
+      summary.landmarks_inside += nees >= models::ChiSquareQuantile(0.025, 2) &&
+                                          nees <= models::ChiSquareQuantile(0.975, 2)
+                                      ? 1 : 0;
+    }
+    per_map.push_back({{"id", e->id}, {"nees", e->nees}, {"dof", e->dof},
+                       {"pose_nees", e->pose_nees}, {"landmarks", e->landmarks_evaluated},
+                       {"false_alarms", e->false_alarms}, {"inside_95", e->inside()}});
+  }
+  if (summary.evaluated > 0) summary.nees_per_dof /= summary.evaluated;
+  r->local_map_summary = summary;
+  return {{"evaluated", summary.evaluated},
+          {"nees_inside_95", summary.inside},
+          {"pose_nees_inside_95", summary.pose_inside},
+          {"mean_nees_per_dof", summary.nees_per_dof},
+          {"landmarks_evaluated", summary.landmarks},
+          {"landmark_marginal_nees_inside_95", summary.landmarks_inside},
+          {"false_alarms_exported", summary.false_alarms},
+          {"features_mixing_true_landmarks", r->impure_features},
+          {"per_map", per_map}};
+}
+
+// The metrics the data set's ground truth allows (report.json's "metrics"), also kept in r.
+json Evaluate(const io::Dataset& dataset, const RunOptions& options, const SubmapSlam* chain, RunResult* r) {
+  json metrics = json::object();
+  if (!dataset.truth_poses.empty()) {
+    r->errors = eval::ComputeTrajectoryErrors(r->final_trajectory, dataset.truth_poses);
+    metrics["trajectory"] = ErrorsJson(*r->errors);
+    if (chain != nullptr && options.backend.kind != Backend::kNone) {  // else final = online
+      r->errors_online = eval::ComputeTrajectoryErrors(r->online, dataset.truth_poses);
+      metrics["trajectory_online"] = ErrorsJson(*r->errors_online);
+    }
+  }
+  if (!dataset.truth_landmarks.empty()) {
+    r->map_errors = eval::ComputeMapErrors(r->landmarks, dataset.truth_landmarks);
+    metrics["map"] = MapErrorsJson(*r->map_errors, dataset.truth_landmarks.size());
+    if (chain != nullptr && chain->joiner() != nullptr) {
+      r->labelled_map_errors = eval::ComputeLabelledMapErrors(
+          r->landmarks, eval::GlobalLandmarkTruthLabels(chain->joiner()->graph(), r->local_maps, r->landmarks),
+          dataset.truth_landmarks);
+      if (r->labelled_map_errors->labelled > 0) {
+        metrics["map_by_truth_label"] = LabelledMapErrorsJson(*r->labelled_map_errors);
+      }
+    }
+  }
+  if (!dataset.gps.empty()) {
+    auto online = eval::CompareWithGps(r->online, dataset.gps);
+    auto final_cmp = eval::CompareWithGps(r->final_trajectory, dataset.gps);
+    if (online.ok()) {
+      r->gps_online = *online;
+      metrics["gps_online"] = GpsJson(*online);
+    }
+    if (final_cmp.ok()) {
+      r->gps_final = *final_cmp;
+      metrics["gps_final"] = GpsJson(*final_cmp);
+    }
+  }
+  if (!r->local_maps.empty() && !dataset.truth_poses.empty()) metrics["local_maps"] = EvaluateLocalMaps(dataset, r);
+  return metrics;
+}
+
+// report.json: configuration, counts, the estimator's counters and stage times, memory and
+// the metrics.
+json Report(const io::Dataset& dataset, const RunOptions& options, const CheckedOptions& checked,
+            const frontend::OnlineEstimator& estimator, const RunResult& r, json metrics) {
+  const frontend::SeifOptions& seif = checked.seif;
+  json stage_times = json::object();
+  for (const auto& [stage, seconds] : estimator.stage_times()) stage_times[stage] = seconds;
+  json counters = json::object();
+  for (const auto& [name, value] : estimator.Counters()) counters[name] = value;
+  const models::RangeBearingConfig& rb = dataset.sensor.range_bearing;
+  json report = {
+      {"format", "subslam-report/1"},
+      {"source", r.source},
+      {"dataset", dataset.name},
+      {"configuration",
+       {{"frontend", r.frontend},
+        {"motion_model", io::ToString(dataset.motion.model)},
+        {"sigma_v", dataset.motion.noise.sigma_u0},
+        {"sigma_u1", dataset.motion.noise.sigma_u1},
+        {"sigma_v_scale", dataset.motion.noise.scale_u0},
+        {"sigma_u1_scale", dataset.motion.noise.scale_u1},
+        {"sigma_range", rb.sigma_range_m},
+        {"sigma_bearing", rb.sigma_bearing_rad},
+        {"min_range", rb.min_range_m},
+        {"max_range", rb.max_range_m},
+        {"sensor_yaw", options.noise.sensor_yaw.value_or(0.0)},
+        {"association", checked.known_association ? "known" : association::ToString(options.ekf.association)},
+        {"gate_probability", options.ekf.gate_probability},
+        {"new_landmark_probability", options.ekf.new_landmark_probability},
+        {"existence_detection_probability", options.ekf.existence.detection_probability},
+        {"existence_false_alarm_probability", options.ekf.existence.false_alarm_probability}}},
+      {"counts",
+       {{"steps", r.steps},
+        {"scans", r.scans},
+        {"detections", r.detections},
+        {"submaps", r.local_maps.size()},
+        {"landmarks", r.landmarks.size()}}},
+      {"estimator_counters", counters},
+      {"time_seconds",
+       {{"total", r.wall_seconds},
+        {"stages", stage_times},
+        {"cumulative_by_tenth_of_steps", r.wall_seconds_by_tenth}}},
+      {"peak_rss_kb", r.peak_rss_kb},
+      {"metrics", std::move(metrics)}};
+
+  if (options.backend.kind != Backend::kNone &&
+      (options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal)) {
+    // What the online and final figures depend on.
+    report["configuration"]["backend"] = {
+        {"kind", ToString(options.backend.kind)},
+        {"background", options.backend.background},
+        {"relinearize_heading_change", options.backend.eif.relinearize_heading_change},
+        {"relinearize_linearization_chi2", options.backend.eif.relinearize_linearization_chi2},
+        {"relinearize_every", options.backend.eif.relinearize_every},
+        {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}};
+  }
+  if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
+    report["configuration"]["seif"] = {
+        {"known_association", seif.known_association},
+        {"association", association::ToString(seif.association)},
+        {"max_active_landmarks", seif.max_active_landmarks},
+        {"mean_recovery", frontend::ToString(seif.recovery)},
+        {"relaxation_sweeps", seif.relaxation_sweeps},
+        {"relaxation_extra_landmarks", seif.relaxation_extra_landmarks},
+        {"covariance_recovery", frontend::ToString(seif.covariance)},
+        {"pose_covariance", frontend::ToString(seif.pose_covariance)},
+        {"candidate_radius_m", seif.candidate_radius_m},
+        {"blanket_max_landmarks", seif.blanket_max_landmarks},
+        {"iterated", seif.iterated.enabled},
+        {"iterated_period_scans", seif.iterated.period_scans},
+        {"iterated_max_iterations", seif.iterated.max_iterations},
+        {"iterated_stop_change", seif.iterated.stop_change},
+        {"iterated_exact_recoveries", seif.iterated.exact_recoveries}};
+  }
+  return report;
+}
+
+// Writes the outputs other than the online trajectory (already being written by
+// `online_written`) into `out`: the final trajectory and the local maps on another
+// thread, the map and the report here.
+absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, bool local_maps,
+                          std::future<absl::Status> online_written) {
+  // The files are independent, and formatting the trajectories is most of the time. The
+  // report is serialised first (nlohmann's serialiser reads the C locale, not to be shared).
+  const std::string report_text = r.report.dump(2) + "\n";
+  std::future<absl::Status> final_written = WriteInBackground([&r, &out, local_maps] {
+    absl::Status s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory);
+    if (s.ok() && local_maps) s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps);
+    return s;
+  });
+  absl::Status here = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks);
+  if (here.ok()) here = io::WriteTextFile((out / "report.json").string(), report_text);
+  const absl::Status online_status = online_written.get();
+  const absl::Status final_status = final_written.get();
+  for (const absl::Status& st : {online_status, final_status, here}) {
+    if (!st.ok()) return st;
+  }
+  return absl::OkStatus();
+}
+
 }  // namespace
 
 const char* ToString(Frontend frontend) {
@@ -161,88 +440,15 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
 
 absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& options) {
   if (absl::Status s = options.noise.ApplyTo(&dataset); !s.ok()) return s;
-  if (absl::Status s = options.ekf.Validate(); !s.ok()) return s;
-  if (absl::Status s = options.fastslam.Validate(); !s.ok()) return s;
-  if (absl::Status s = options.policy.Validate(); !s.ok()) return s;
-  if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
-  frontend::SeifOptions seif = options.seif;
-  seif.iterated.enabled = options.frontend == Frontend::kIseif;
-  if (absl::Status s = seif.Validate(); !s.ok()) return s;
-  const bool known_association = seif.known_association || options.ekf.known_association ||
-                                 options.fastslam.known_association ||
-                                 options.backend.eif.association.known_association ||
-                                 options.backend.ekf.association.known_association;
-  if (known_association && !dataset.sensor.has_truth_id) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "known association needs detections with true ids; data set \"", dataset.name, "\" has none"));
-  }
-  std::unique_ptr<frontend::OnlineEstimator> estimator;
-  SubmapSlam* chain = nullptr;  // set for the local-map front-ends
-  if (options.frontend == Frontend::kOdometry) {
-    estimator = std::make_unique<frontend::DeadReckoning>(dataset.motion.MakeModel(),
-                                                          dataset.initial_pose);
-  } else if (options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal) {
-    const double t0 = dataset.controls.empty() ? 0.0 : dataset.controls.front().t;
-    std::unique_ptr<frontend::LocalMapper> mapper;
-    if (options.frontend == Frontend::kRbpf) {
-      mapper = std::make_unique<frontend::RbpfLocalMapper>(
-          dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.fastslam,
-          options.policy, t0);
-    } else {
-      mapper = std::make_unique<frontend::EkfLocalMapper>(
-          dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.ekf, options.policy,
-          t0, options.fastslam.moment_matching.min_existence);
-    }
-    auto chained = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose, options.backend);
-    chain = chained.get();
-    estimator = std::move(chained);
-  } else if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
-    estimator = std::make_unique<frontend::SeifSlam>(dataset.motion.MakeModel(),
-                                                     dataset.sensor.range_bearing,
-                                                     dataset.initial_pose, seif);
-  } else if (options.frontend == Frontend::kFastSlam) {
-    estimator = std::make_unique<frontend::FastSlam>(dataset.motion.MakeModel(),
-                                                     dataset.sensor.range_bearing,
-                                                     dataset.initial_pose, options.fastslam);
-  } else {
-    estimator = std::make_unique<frontend::EkfSlam>(
-        dataset.motion.MakeModel(), dataset.sensor.range_bearing, dataset.initial_pose, options.ekf);
-  }
-
+  absl::StatusOr<CheckedOptions> checked = CheckOptions(dataset, options);
+  if (!checked.ok()) return checked.status();
+  SubmapSlam* chain = nullptr;
+  std::unique_ptr<frontend::OnlineEstimator> estimator = MakeEstimator(dataset, options, checked->seif, &chain);
   RunResult r;
   r.source = options.source.empty() ? dataset.name : options.source;
   r.frontend = estimator->Name();
-  const std::vector<io::Step> steps = io::BuildSteps(dataset);
-  r.steps = static_cast<int>(steps.size());
-  r.scans = static_cast<int>(dataset.scans.size());
-  r.detections = static_cast<long>(dataset.NumDetections());
-  r.online.reserve(steps.size());
   TruthVotes truth_votes;
-  {
-    Progress progress(options.progress, steps.size());
-    const absl::Time start = absl::Now();
-    for (size_t k = 0; k < steps.size(); ++k) {
-      const io::Step& step = steps[k];
-      estimator->Predict(step.control, step.dt);
-      if (step.scan_index >= 0) {
-        const Scan& scan = dataset.scans[step.scan_index];
-        estimator->Update(scan);
-        if (chain != nullptr) truth_votes.Add(chain->last_scan_map_id(), chain->last_scan_features(), scan);
-      }
-      r.online.push_back({step.t, estimator->pose(), estimator->pose_covariance()});
-      if (chain != nullptr) chain->RecordStep(step.t);
-      progress.Tick(k, step.t);
-      // Wall time at the end of each tenth of the run: flat increments mean the time
-      // per step does not grow with the length of the run.
-      if ((k + 1) * 10 / steps.size() != k * 10 / steps.size()) {
-        r.wall_seconds_by_tenth.push_back(absl::ToDoubleSeconds(absl::Now() - start));
-      }
-    }
-    if (chain != nullptr) {
-      if (absl::Status st = chain->Finish(); !st.ok()) return st;
-    }
-    r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
-  }
+  if (absl::Status st = Drive(*estimator, chain, dataset, options.progress, &r, &truth_votes); !st.ok()) return st;
   // The online trajectory is complete: it is written on another thread while the final
   // one, the map and the metrics are computed (Victoria Park: 69,000 rows).
   std::optional<std::filesystem::path> out_dir;
@@ -267,166 +473,11 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   // every step with the final anchors.
   r.final_trajectory = chain != nullptr ? chain->FinalTrajectory() : r.online;
   r.landmarks = estimator->Map();
-
-  // Evaluation against the ground truth the data set has.
-  json metrics = json::object();
-  if (!dataset.truth_poses.empty()) {
-    r.errors = eval::ComputeTrajectoryErrors(r.final_trajectory, dataset.truth_poses);
-    metrics["trajectory"] = ErrorsJson(*r.errors);
-    if (chain != nullptr && options.backend.kind != Backend::kNone) {  // else final = online
-      r.errors_online = eval::ComputeTrajectoryErrors(r.online, dataset.truth_poses);
-      metrics["trajectory_online"] = ErrorsJson(*r.errors_online);
-    }
-  }
-  if (!dataset.truth_landmarks.empty()) {
-    r.map_errors = eval::ComputeMapErrors(r.landmarks, dataset.truth_landmarks);
-    metrics["map"] = MapErrorsJson(*r.map_errors, dataset.truth_landmarks.size());
-    if (chain != nullptr && chain->joiner() != nullptr) {
-      r.labelled_map_errors = eval::ComputeLabelledMapErrors(
-          r.landmarks, eval::GlobalLandmarkTruthLabels(chain->joiner()->graph(), r.local_maps, r.landmarks),
-          dataset.truth_landmarks);
-      if (r.labelled_map_errors->labelled > 0) {
-        metrics["map_by_truth_label"] = LabelledMapErrorsJson(*r.labelled_map_errors);
-      }
-    }
-  }
-  if (!dataset.gps.empty()) {
-    auto online = eval::CompareWithGps(r.online, dataset.gps);
-    auto final_cmp = eval::CompareWithGps(r.final_trajectory, dataset.gps);
-    if (online.ok()) {
-      r.gps_online = *online;
-      metrics["gps_online"] = GpsJson(*online);
-    }
-    if (final_cmp.ok()) {
-      r.gps_final = *final_cmp;
-      metrics["gps_final"] = GpsJson(*final_cmp);
-    }
-  }
-
-  if (!r.local_maps.empty() && !dataset.truth_poses.empty()) {
-    json per_map = json::array();
-    LocalMapSummary summary;
-    for (const LocalSubmap& s : r.local_maps) {
-      const std::optional<eval::LocalMapNees> e =
-          eval::EvaluateLocalMap(s, dataset.truth_poses, dataset.truth_landmarks);
-      if (!e) continue;
-      ++summary.evaluated;
-      summary.inside += e->inside() ? 1 : 0;
-      summary.pose_inside += e->pose_nees <= models::ChiSquareQuantile(0.975, 3) &&
-                                     e->pose_nees >= models::ChiSquareQuantile(0.025, 3)
-                                 ? 1 : 0;
-      summary.nees_per_dof += e->nees / e->dof;
-      summary.false_alarms += e->false_alarms;
-      for (double nees : e->landmark_nees) {
-        ++summary.landmarks;
-        summary.landmarks_inside += nees >= models::ChiSquareQuantile(0.025, 2) &&
-                                            nees <= models::ChiSquareQuantile(0.975, 2)
-                                        ? 1 : 0;
-      }
-      per_map.push_back({{"id", e->id}, {"nees", e->nees}, {"dof", e->dof},
-                         {"pose_nees", e->pose_nees}, {"landmarks", e->landmarks_evaluated},
-                         {"false_alarms", e->false_alarms}, {"inside_95", e->inside()}});
-    }
-    if (summary.evaluated > 0) summary.nees_per_dof /= summary.evaluated;
-    r.local_map_summary = summary;
-    metrics["local_maps"] = {{"evaluated", summary.evaluated},
-                             {"nees_inside_95", summary.inside},
-                             {"pose_nees_inside_95", summary.pose_inside},
-                             {"mean_nees_per_dof", summary.nees_per_dof},
-                             {"landmarks_evaluated", summary.landmarks},
-                             {"landmark_marginal_nees_inside_95", summary.landmarks_inside},
-                             {"false_alarms_exported", summary.false_alarms},
-                             {"features_mixing_true_landmarks", r.impure_features},
-                             {"per_map", per_map}};
-  }
-
-  json stage_times = json::object();
-  for (const auto& [stage, seconds] : estimator->stage_times()) stage_times[stage] = seconds;
-  json counters = json::object();
-  for (const auto& [name, value] : estimator->Counters()) counters[name] = value;
-  const models::RangeBearingConfig& rb = dataset.sensor.range_bearing;
-  r.report = {
-      {"format", "subslam-report/1"},
-      {"source", r.source},
-      {"dataset", dataset.name},
-      {"configuration",
-       {{"frontend", r.frontend},
-        {"motion_model", io::ToString(dataset.motion.model)},
-        {"sigma_v", dataset.motion.noise.sigma_u0},
-        {"sigma_u1", dataset.motion.noise.sigma_u1},
-        {"sigma_v_scale", dataset.motion.noise.scale_u0},
-        {"sigma_u1_scale", dataset.motion.noise.scale_u1},
-        {"sigma_range", rb.sigma_range_m},
-        {"sigma_bearing", rb.sigma_bearing_rad},
-        {"min_range", rb.min_range_m},
-        {"max_range", rb.max_range_m},
-        {"sensor_yaw", options.noise.sensor_yaw.value_or(0.0)},
-        {"association", known_association ? "known" : association::ToString(options.ekf.association)},
-        {"gate_probability", options.ekf.gate_probability},
-        {"new_landmark_probability", options.ekf.new_landmark_probability},
-        {"existence_detection_probability", options.ekf.existence.detection_probability},
-        {"existence_false_alarm_probability", options.ekf.existence.false_alarm_probability}}},
-      {"counts",
-       {{"steps", r.steps},
-        {"scans", r.scans},
-        {"detections", r.detections},
-        {"submaps", r.local_maps.size()},
-        {"landmarks", r.landmarks.size()}}},
-      {"estimator_counters", counters},
-      {"time_seconds",
-       {{"total", r.wall_seconds},
-        {"stages", stage_times},
-        {"cumulative_by_tenth_of_steps", r.wall_seconds_by_tenth}}},
-      {"peak_rss_kb", r.peak_rss_kb},
-      {"metrics", metrics}};
-
-  if (options.backend.kind != Backend::kNone &&
-      (options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal)) {
-    // What the online and final figures depend on.
-    r.report["configuration"]["backend"] = {
-        {"kind", ToString(options.backend.kind)},
-        {"background", options.backend.background},
-        {"relinearize_heading_change", options.backend.eif.relinearize_heading_change},
-        {"relinearize_linearization_chi2", options.backend.eif.relinearize_linearization_chi2},
-        {"relinearize_every", options.backend.eif.relinearize_every},
-        {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}};
-  }
-  if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
-    r.report["configuration"]["seif"] = {
-        {"known_association", seif.known_association},
-        {"association", association::ToString(seif.association)},
-        {"max_active_landmarks", seif.max_active_landmarks},
-        {"mean_recovery", frontend::ToString(seif.recovery)},
-        {"relaxation_sweeps", seif.relaxation_sweeps},
-        {"relaxation_extra_landmarks", seif.relaxation_extra_landmarks},
-        {"covariance_recovery", frontend::ToString(seif.covariance)},
-        {"pose_covariance", frontend::ToString(seif.pose_covariance)},
-        {"candidate_radius_m", seif.candidate_radius_m},
-        {"blanket_max_landmarks", seif.blanket_max_landmarks},
-        {"iterated", seif.iterated.enabled},
-        {"iterated_period_scans", seif.iterated.period_scans},
-        {"iterated_max_iterations", seif.iterated.max_iterations},
-        {"iterated_stop_change", seif.iterated.stop_change},
-        {"iterated_exact_recoveries", seif.iterated.exact_recoveries}};
-  }
-
+  json metrics = Evaluate(dataset, options, chain, &r);
+  r.report = Report(dataset, options, *checked, *estimator, r, std::move(metrics));
   if (out_dir.has_value()) {
-    const std::filesystem::path& out = *out_dir;
-    // The files are independent, and formatting the trajectories is most of the time:
-    // the final trajectory and the local maps go to another thread too. The report is
-    // serialised first (nlohmann's serialiser reads the C locale, not to be shared).
-    const std::string report_text = r.report.dump(2) + "\n";
-    std::future<absl::Status> final_written = WriteInBackground([&r, &out, chain] {
-      absl::Status s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory);
-      if (s.ok() && chain != nullptr) s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps);
-      return s;
-    });
-    absl::Status here = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks);
-    if (here.ok()) here = io::WriteTextFile((out / "report.json").string(), report_text);
-    const absl::Status online_status = online_written.get();
-    const absl::Status final_status = final_written.get();
-    for (const absl::Status& st : {online_status, final_status, here}) {
-      if (!st.ok()) return st;
+    if (absl::Status st = WriteOutputs(*out_dir, r, chain != nullptr, std::move(online_written)); !st.ok()) {
+      return st;
     }
   }
   return r;
