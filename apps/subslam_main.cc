@@ -60,10 +60,10 @@ ABSL_FLAG(std::string, frontend, subslam::pipeline::ToString(subslam::pipeline::
           "odometry | ekfslam | fastslam | seif | iseif | rbpf | ekf");
 ABSL_FLAG(std::string, association, subslam::association::ToString(kEkfDefaults.association),
           "ekfslam / seif / iseif data association: nn | jcbb");
-ABSL_FLAG(double, gate, kEkfDefaults.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
-ABSL_FLAG(double, new_landmark_gate, kEkfDefaults.new_landmark_probability,
+ABSL_FLAG(double, gate, kEkfDefaults.landmarks.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
+ABSL_FLAG(double, new_landmark_gate, kEkfDefaults.landmarks.new_landmark_probability,
           "a detection outside this gate for every landmark starts a new one");
-ABSL_FLAG(double, existence_alpha, kEkfDefaults.existence.detection_probability, "existence model: detection probability");
+ABSL_FLAG(double, existence_alpha, kEkfDefaults.landmarks.existence.detection_probability, "existence model: detection probability");
 ABSL_FLAG(int, particles, kFastSlamDefaults.num_particles, "fastslam / rbpf: number of particles");
 ABSL_FLAG(uint64_t, filter_seed, kFastSlamDefaults.seed, "fastslam / rbpf: seed of the particle filter's random draws");
 ABSL_FLAG(int, threads, 0,
@@ -238,7 +238,7 @@ ABSL_FLAG(int, submap_density_visible, kPolicyDefaults.density_min_visible,
           "rbpf: see --submap_density_features");
 ABSL_FLAG(bool, submap_delay_ambiguous, kPolicyDefaults.delay_while_ambiguous,
           "rbpf: postpone closing while the particles disagree about identities");
-ABSL_FLAG(double, existence_beta, kEkfDefaults.existence.false_alarm_probability, "existence model: false-alarm probability");
+ABSL_FLAG(double, existence_beta, kEkfDefaults.landmarks.existence.false_alarm_probability, "existence model: false-alarm probability");
 ABSL_FLAG(std::optional<double>, sigma_v, std::nullopt, "override speed noise sigma [m/s]");
 ABSL_FLAG(std::optional<double>, sigma_u1, std::nullopt,
           "override turn-rate [rad/s] or steering [rad] noise sigma");
@@ -457,10 +457,17 @@ int Run() {
   auto association = subslam::association::AssociationMethodFromString(absl::GetFlag(FLAGS_association));
   if (!association.ok()) return Fail(association.status());
   options.ekf.association = *association;
-  options.ekf.gate_probability = absl::GetFlag(FLAGS_gate);
-  options.ekf.new_landmark_probability = absl::GetFlag(FLAGS_new_landmark_gate);
-  options.ekf.existence.detection_probability = absl::GetFlag(FLAGS_existence_alpha);
-  options.ekf.existence.false_alarm_probability = absl::GetFlag(FLAGS_existence_beta);
+  options.seif.association = *association;
+  // The gates, known association and existence model every front-end shares.
+  subslam::frontend::LandmarkOptions landmarks;
+  landmarks.gate_probability = absl::GetFlag(FLAGS_gate);
+  landmarks.new_landmark_probability = absl::GetFlag(FLAGS_new_landmark_gate);
+  landmarks.existence.detection_probability = absl::GetFlag(FLAGS_existence_alpha);
+  landmarks.existence.false_alarm_probability = absl::GetFlag(FLAGS_existence_beta);
+  landmarks.known_association = absl::GetFlag(FLAGS_known_association);
+  options.ekf.landmarks = landmarks;
+  options.fastslam.landmarks = landmarks;
+  options.seif.landmarks = landmarks;
   auto backend = BackendOptionsFromFlags();
   if (!backend.ok()) return Fail(backend.status());
   options.backend = *backend;
@@ -482,16 +489,6 @@ int Run() {
   options.fastslam.landmark_update_iterations = absl::GetFlag(FLAGS_landmark_iterations);
   options.fastslam.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   options.fastslam.correct_shared_ancestry = absl::GetFlag(FLAGS_correct_shared_ancestry);
-  options.fastslam.gate_probability = options.ekf.gate_probability;
-  options.fastslam.new_landmark_probability = options.ekf.new_landmark_probability;
-  options.fastslam.existence = options.ekf.existence;
-  options.seif.association = options.ekf.association;
-  options.seif.gate_probability = options.ekf.gate_probability;
-  options.seif.new_landmark_probability = options.ekf.new_landmark_probability;
-  options.seif.existence = options.ekf.existence;
-  options.seif.known_association = absl::GetFlag(FLAGS_known_association);
-  options.ekf.known_association = options.seif.known_association;
-  options.fastslam.known_association = options.seif.known_association;
   options.seif.max_active_landmarks = absl::GetFlag(FLAGS_seif_max_active);
   auto recovery = subslam::frontend::MeanRecoveryFromString(absl::GetFlag(FLAGS_seif_recovery));
   if (!recovery.ok()) return Fail(recovery.status());

@@ -74,7 +74,7 @@ absl::StatusOr<subslam::pipeline::RunOptions> OptionsFor(const std::string& name
   absl::StatusOr<subslam::frontend::CovarianceRecovery> pose_covariance =
       subslam::frontend::CovarianceRecoveryFromString(absl::GetFlag(FLAGS_seif_pose_covariance));
   if (!pose_covariance.ok()) return pose_covariance.status();
-  o.seif.known_association = absl::GetFlag(FLAGS_known_association);
+  o.seif.landmarks.known_association = absl::GetFlag(FLAGS_known_association);
   o.seif.max_active_landmarks = absl::GetFlag(FLAGS_seif_max_active);
   o.seif.recovery = *recovery;
   o.seif.pose_covariance = *pose_covariance;

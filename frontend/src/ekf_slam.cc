@@ -14,9 +14,8 @@
 
 namespace subslam::frontend {
 absl::Status EkfSlamOptions::Validate() const {
-  return internal::ValidateAssociationAndExistence(gate_probability, new_landmark_probability,
-                                                   existence, jcbb_max_nodes, expect_range_margin_m,
-                                                   expect_bearing_margin_rad, cull_every_scans);
+  if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
+  return landmarks.Validate();
 }
 
 EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion,
@@ -24,8 +23,8 @@ EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion,
                  const EkfSlamOptions& options, const Eigen::Matrix3d& initial_pose_covariance)
     : motion_(std::move(motion)), sensor_(sensor), options_(options) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
-  gate_d2_ = models::ChiSquareQuantile(options_.gate_probability, 2);
-  new_landmark_d2_ = models::ChiSquareQuantile(options_.new_landmark_probability, 2);
+  gate_d2_ = models::ChiSquareQuantile(options_.landmarks.gate_probability, 2);
+  new_landmark_d2_ = models::ChiSquareQuantile(options_.landmarks.new_landmark_probability, 2);
   x_.setZero(3 + 2 * 64);
   P_.setZero(3 + 2 * 64, 3 + 2 * 64);
   x_.head<3>() = initial_pose.vector();
@@ -97,8 +96,8 @@ Eigen::Matrix2d EkfSlam::CrossCovariance(const Prediction& a, const Prediction& 
 }
 
 void EkfSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
-  info->existence = options_.existence.Update(info->existence, detected);
-  if (options_.existence.Confirms(info->existence)) info->confirmed = true;
+  info->existence = options_.landmarks.existence.Update(info->existence, detected);
+  if (options_.landmarks.existence.Confirms(info->existence)) info->confirmed = true;
 }
 
 void EkfSlam::Update(const Scan& scan) {
@@ -119,7 +118,7 @@ void EkfSlam::Update(const Scan& scan) {
   // one), or kDropped for a false alarm or an id already detected in this scan.
   constexpr int kDropped = -2;
   std::vector<int> known_landmark(m, -1), truth_of_detection(m, -1);
-  if (options_.known_association) {
+  if (options_.landmarks.known_association) {
     for (int j = 0; j < m; ++j) {
       const int truth = scan.detections[detection_index[j]].truth_id;
       const auto earlier = truth_of_detection.begin() + j;
@@ -159,7 +158,7 @@ void EkfSlam::Update(const Scan& scan) {
       if (i >= 0 && prediction_of_landmark[i] < 0) predict(i);
     }
     for (Prediction& pr : predictions) pr.S = CrossCovariance(pr, pr) + R;
-    for (int j = 0; j < m && !options_.known_association; ++j) {
+    for (int j = 0; j < m && !options_.landmarks.known_association; ++j) {
       for (const Prediction& pr : predictions) {
         const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
         const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
@@ -177,7 +176,7 @@ void EkfSlam::Update(const Scan& scan) {
   association::AssociationResult association;
   {
     StageTimer timer(&times_, "associate");
-    if (options_.known_association) {
+    if (options_.landmarks.known_association) {
       // The pairing the true ids give; an unseen id starts a landmark (below).
       association.landmark_of_detection.assign(m, -1);
       for (int j = 0; j < m; ++j) {
@@ -198,7 +197,7 @@ void EkfSlam::Update(const Scan& scan) {
         const Prediction& pb = predictions[prediction_of_landmark[b]];
         return a == b ? pa.S : CrossCovariance(pa, pb);
       };
-      association = association::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
+      association = association::JointCompatibility(problem, options_.landmarks.gate_probability, options_.jcbb_max_nodes);
       if (association.truncated) ++counters_.jcbb_truncated;
     } else {
       association = association::NearestNeighbour(problem);
@@ -268,7 +267,7 @@ void EkfSlam::Update(const Scan& scan) {
   }
   for (const Prediction& pr : predictions) {
     if (gated[pr.landmark]) continue;
-    if (sensor_.IsVisible(pr.z, options_.expect_range_margin_m, options_.expect_bearing_margin_rad)) {
+    if (sensor_.IsVisible(pr.z, options_.landmarks.expect_range_margin_m, options_.landmarks.expect_bearing_margin_rad)) {
       UpdateExistence(&landmarks_[pr.landmark], false);
     }
   }
@@ -277,15 +276,15 @@ void EkfSlam::Update(const Scan& scan) {
     if (min_d2[j] > new_landmark_d2_) {
       AddLandmark(z[j], truth_of_detection[j]);
       scan_features_[detection_index[j]] = landmarks_.back().id;
-    } else if (!options_.known_association) {
+    } else if (!options_.landmarks.known_association) {
       ++counters_.ambiguous;
     }
   }
   // Known association settles existence too (every landmark has a true id): no cull.
-  if (counters_.scans % options_.cull_every_scans != 0 || options_.known_association) return;
+  if (counters_.scans % options_.landmarks.cull_every_scans != 0 || options_.landmarks.known_association) return;
   std::vector<int> doomed;
   for (int i = 0; i < num_landmarks(); ++i) {
-    if (options_.existence.Deletes(landmarks_[i].existence, landmarks_[i].confirmed)) {
+    if (options_.landmarks.existence.Deletes(landmarks_[i].existence, landmarks_[i].confirmed)) {
       doomed.push_back(i);
     }
   }
@@ -309,8 +308,8 @@ void EkfSlam::AddLandmark(const Eigen::Vector2d& z, int truth_id) {
   LandmarkInfo info;
   info.id = next_id_++;
   info.truth_id = truth_id;
-  info.existence = options_.existence.Initial();  // the prior and the creating detection
-  info.confirmed = options_.existence.Confirms(info.existence);
+  info.existence = options_.landmarks.existence.Initial();  // the prior and the creating detection
+  info.confirmed = options_.landmarks.existence.Confirms(info.existence);
   landmarks_.push_back(info);
   ++counters_.new_landmarks;
 }
@@ -356,7 +355,7 @@ MomentMatchedGaussian EkfSlam::Export(double min_existence) const {
     g.features.push_back(landmarks_[i].id);
     g.existence.push_back(landmarks_[i].existence);
     g.signature.push_back(std::numeric_limits<double>::quiet_NaN());
-    if (options_.known_association) g.truth_id.push_back(landmarks_[i].truth_id);
+    if (options_.landmarks.known_association) g.truth_id.push_back(landmarks_[i].truth_id);
   }
   g.mean = x_(index);
   g.covariance = covariance()(index, index);

@@ -19,8 +19,6 @@ namespace subslam::frontend {
 
 namespace {
 
-bool InOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
-
 // log N(ν; 0, S) for 2-D ν given S⁻¹ν·ν = d2.
 double LogGaussian2(double d2, const Eigen::Matrix2d& S) {
   return -0.5 * d2 - std::log(2.0 * std::numbers::pi) - 0.5 * std::log(S.determinant());
@@ -30,20 +28,12 @@ double LogGaussian2(double d2, const Eigen::Matrix2d& S) {
 
 absl::Status FastSlamOptions::Validate() const {
   if (num_particles < 1) return absl::InvalidArgumentError("num_particles must be >= 1");
-  if (!InOpenUnit(gate_probability) || !InOpenUnit(new_landmark_probability) ||
-      new_landmark_probability < gate_probability) {
-    return absl::InvalidArgumentError(
-        "need 0 < gate_probability <= new_landmark_probability < 1");
-  }
+  if (absl::Status s = landmarks.Validate(); !s.ok()) return s;
   if (!(resample_ess_ratio >= 0.0 && resample_ess_ratio <= 1.0)) {
     return absl::InvalidArgumentError("resample_ess_ratio must be in [0, 1]");
   }
-  if (absl::Status s = existence.Validate(); !s.ok()) return s;
   if (landmark_update_iterations < 1) {
     return absl::InvalidArgumentError("landmark_update_iterations must be >= 1");
-  }
-  if (cull_every_scans < 1 || expect_range_margin_m < 0 || expect_bearing_margin_rad < 0) {
-    return absl::InvalidArgumentError("cull_every_scans >= 1 and margins >= 0 required");
   }
   if (!(sigma_signature >= 0.0 && std::isfinite(sigma_signature))) {
     return absl::InvalidArgumentError("sigma_signature must be finite and >= 0");
@@ -57,7 +47,7 @@ absl::Status FastSlamOptions::Validate() const {
                                                    moment_matching.repair_relative_floor));
   }
   if (num_threads < 0) return absl::InvalidArgumentError("num_threads must be >= 0 (0: every core)");
-  if (known_association && sample_association) {
+  if (landmarks.known_association && sample_association) {
     return absl::InvalidArgumentError("known_association and sample_association exclude each other");
   }
   return absl::OkStatus();
@@ -68,14 +58,14 @@ FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
                    const FastSlamOptions& options)
     : motion_(std::move(motion)), sensor_(sensor), options_(options), rng_(options.seed) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
-  gate_d2_ = models::ChiSquareQuantile(options_.gate_probability, 2);
-  new_landmark_d2_ = models::ChiSquareQuantile(options_.new_landmark_probability, 2);
+  gate_d2_ = models::ChiSquareQuantile(options_.landmarks.gate_probability, 2);
+  new_landmark_d2_ = models::ChiSquareQuantile(options_.landmarks.new_landmark_probability, 2);
   log_p0_ = LogGaussian2(new_landmark_d2_, sensor_.NoiseCovariance());
   const models::RangeBearingConfig& rb = sensor_.config();
   fov_center_ = 0.5 * (rb.fov_min_rad + rb.fov_max_rad);
   const double half = 0.5 * (rb.fov_max_rad - rb.fov_min_rad) + kFovMarginRad;
   fov_cos_limit_ = half >= kPi ? -2.0 : std::cos(half);  // −2: no bearing limit
-  const double half_expected = 0.5 * (rb.fov_max_rad - rb.fov_min_rad) - options_.expect_bearing_margin_rad;
+  const double half_expected = 0.5 * (rb.fov_max_rad - rb.fov_min_rad) - options_.landmarks.expect_bearing_margin_rad;
   fov_cos_expected_ = half_expected >= kPi ? -2.0 : std::cos(std::max(0.0, half_expected));
   for (const char* stage : {"predict", "associate", "update", "resample"}) times_[stage] = 0;
   const int threads = options_.num_threads > 0
@@ -163,7 +153,7 @@ void FastSlam::Update(const Scan& scan) {
     if (d.range_m < rb.min_range_m || d.range_m > rb.max_range_m) continue;
     z_.push_back(d.z());
     signature_.push_back(d.signature);
-    if (options_.known_association) {
+    if (options_.landmarks.known_association) {
       // A false alarm, or an id already detected in this scan: no true landmark to pair.
       const bool repeated = d.truth_id >= 0 && std::find(truth_.begin(), truth_.end(), d.truth_id) != truth_.end();
       truth_.push_back(repeated ? kFalseAlarmId : d.truth_id);
@@ -401,7 +391,7 @@ MomentMatchedGaussian FastSlam::MomentMatched() const {
   const std::vector<ParticleHypothesis> h = Hypotheses();
   MomentMatchedGaussian g =
       MomentMatch(h, options_.moment_matching, options_.correct_shared_ancestry ? SharedAncestry() : 0.0);
-  if (options_.known_association) {
+  if (options_.landmarks.known_association) {
     g.truth_id.reserve(g.features.size());
     for (int f : g.features) {
       const auto it = feature_truth_.find(f);

@@ -22,8 +22,8 @@
 namespace subslam::frontend {
 
 void FastSlam::UpdateExistence(LandmarkRecord* record, bool detected) const {
-  record->existence = options_.existence.Update(record->existence, detected);
-  if (options_.existence.Confirms(record->existence)) record->confirmed = true;
+  record->existence = options_.landmarks.existence.Update(record->existence, detected);
+  if (options_.landmarks.existence.Confirms(record->existence)) record->confirmed = true;
 }
 
 FastSlam::LandmarkGaussian* FastSlam::Mutable(LandmarkRecord* record, Scratch* scratch) {
@@ -108,12 +108,12 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
     if (!pr.in_reach) continue;
     // Expected (for the missed-detection update): well inside range and field of view,
     // tested on the cosine of the bearing off the field of view's centre.
-    pr.expected = distance >= rb.min_range_m + options_.expect_range_margin_m &&
-                  distance <= rb.max_range_m - options_.expect_range_margin_m &&
+    pr.expected = distance >= rb.min_range_m + options_.landmarks.expect_range_margin_m &&
+                  distance <= rb.max_range_m - options_.landmarks.expect_range_margin_m &&
                   along >= fov_cos_expected_ * distance;
     predict(i);
   }
-  if (options_.known_association) {
+  if (options_.landmarks.known_association) {
     // Known association: detection j belongs to the particle's landmark with its true id
     // (predicted even if the particle believes it out of reach), or starts one; a false
     // alarm or a repeated id (truth_ −1, see Update) is ignored.
@@ -173,7 +173,7 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   min_d2.assign(m, INFINITY);
   near_pairs.clear();
   pairs.clear();
-  if (options_.known_association) {
+  if (options_.landmarks.known_association) {
     // 2. Known association: the given pairings in detection order, each scored at the
     //    current proposal.
     for (int j = 0; j < m; ++j) {
@@ -259,11 +259,11 @@ void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vecto
   //    false alarm or a sampled "new" gets).
   for (int j = 0; j < m; ++j) {
     if (decisions[j] >= 0) continue;
-    if (decisions[j] != kNew && !options_.known_association) {
+    if (decisions[j] != kNew && !options_.landmarks.known_association) {
       decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
     }
     double log_density = log_p0_;
-    if (decisions[j] == kIgnore && !options_.known_association) {
+    if (decisions[j] == kIgnore && !options_.landmarks.known_association) {
       for (const GatedPair& p : near_pairs) {
         if (p.detection == j && !predictions[p.landmark].used) log_density = std::max(log_density, p.rank);
       }
@@ -330,7 +330,7 @@ void FastSlam::Vote(int m) {
     if (label >= 0) {
       voted_label_[2 * j] = voted_label_[2 * j + 1] = label;
       scan_features_[j] = label;
-      if (options_.known_association) feature_truth_[label] = truth_[j];
+      if (options_.landmarks.known_association) feature_truth_[label] = truth_[j];
     } else {
       // Winner "ignore": landmarks that particles created anyway get a fresh minority id.
       const bool created = std::any_of(tally_.begin(), tally_.end(),
@@ -384,7 +384,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       if (voted_label_[2 * j] != kIgnore) record.feature = voted_label_[2 * j];
     } else if (d == kNew) {
       auto l = std::make_shared<LandmarkGaussian>();
-      if (options_.known_association) l->truth_id = truth_[j];
+      if (options_.landmarks.known_association) l->truth_id = truth_[j];
       Eigen::Matrix2d G_z;
       l->mean = sensor_.InverseObserve(x, z[j], nullptr, &G_z);
       l->covariance = G_z * R * G_z.transpose();
@@ -394,8 +394,8 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       }
       LandmarkRecord record;
       record.gaussian = std::move(l);
-      record.existence = options_.existence.Initial();  // the prior and the creating detection
-      record.confirmed = options_.existence.Confirms(record.existence);
+      record.existence = options_.landmarks.existence.Initial();  // the prior and the creating detection
+      record.confirmed = options_.landmarks.existence.Confirms(record.existence);
       record.feature = voted_label_[2 * j + 1];
       landmarks.push_back(std::move(record));
       ++scratch->landmarks_created;
@@ -407,9 +407,9 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
   }
   // Known association settles existence too (every landmark has a true id): no cull, so
   // a true landmark keeps its one landmark and common id.
-  if (counters_.scans % options_.cull_every_scans == 0 && !options_.known_association) {
+  if (counters_.scans % options_.landmarks.cull_every_scans == 0 && !options_.landmarks.known_association) {
     const auto doomed = [this](const LandmarkRecord& r) {
-      return options_.existence.Deletes(r.existence, r.confirmed);
+      return options_.landmarks.existence.Deletes(r.existence, r.confirmed);
     };
     const auto first = std::remove_if(landmarks.begin(), landmarks.end(), doomed);
     scratch->landmarks_culled += landmarks.end() - first;

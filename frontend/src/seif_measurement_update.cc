@@ -22,8 +22,8 @@
 namespace subslam::frontend {
 
 void SeifSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
-  info->existence = options_.existence.Update(info->existence, detected);
-  if (options_.existence.Confirms(info->existence)) info->confirmed = true;
+  info->existence = options_.landmarks.existence.Update(info->existence, detected);
+  if (options_.landmarks.existence.Confirms(info->existence)) info->confirmed = true;
 }
 
 void SeifSlam::Update(const Scan& scan) {
@@ -61,7 +61,7 @@ void SeifSlam::Update(const Scan& scan) {
     }
     std::sort(in_reach.begin(), in_reach.end());
     for (int l : in_reach) gated[l] = false;
-    if (options_.known_association) {
+    if (options_.landmarks.known_association) {
       for (int j = 0; j < m; ++j) {
         const int truth = scan.detections[detection_index[j]].truth_id;
         if (truth < 0) continue;  // a false alarm: no true landmark to associate with
@@ -135,7 +135,7 @@ void SeifSlam::Update(const Scan& scan) {
           if (a == b) return prediction[a].S;
           return prediction[a].H * joint(a, b) * prediction[b].H.transpose();
         };
-        association = association::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
+        association = association::JointCompatibility(problem, options_.landmarks.gate_probability, options_.jcbb_max_nodes);
         if (association.truncated) ++counters_.jcbb_truncated;
       } else {
         association = association::NearestNeighbour(problem);
@@ -215,7 +215,7 @@ void SeifSlam::Update(const Scan& scan) {
     for (int l : in_reach) {
       if (gated[l]) continue;
       const Eigen::Vector2d z_hat = sensor_.Observe(p, mu_.segment<2>(Offset(l)));
-      if (sensor_.IsVisible(z_hat, options_.expect_range_margin_m, options_.expect_bearing_margin_rad)) {
+      if (sensor_.IsVisible(z_hat, options_.landmarks.expect_range_margin_m, options_.landmarks.expect_bearing_margin_rad)) {
         UpdateExistence(&landmarks_[l], false);
       }
     }
@@ -225,10 +225,10 @@ void SeifSlam::Update(const Scan& scan) {
       if (!creates[j]) continue;
       const int l = AddLandmarkSlot(sensor_.InverseObserve(updated, z[j]));
       LandmarkInfo& info = landmarks_[l];
-      info.existence = options_.existence.Initial();
-      info.confirmed = options_.existence.Confirms(info.existence);
+      info.existence = options_.landmarks.existence.Initial();
+      info.confirmed = options_.landmarks.existence.Confirms(info.existence);
       info.last_seen_scan = counters_.scans;
-      if (options_.known_association) {
+      if (options_.landmarks.known_association) {
         info.truth_id = scan.detections[detection_index[j]].truth_id;
         landmark_of_truth_[info.truth_id] = l;
       }
@@ -239,10 +239,10 @@ void SeifSlam::Update(const Scan& scan) {
     }
     // The first detection's information: ν = 0 at μ_l = g(μ_x, z), so the mean holds.
     if (!new_pairs.empty()) ApplyMeasurements(new_pairs);
-    if (counters_.scans % options_.cull_every_scans == 0) {
+    if (counters_.scans % options_.landmarks.cull_every_scans == 0) {
       for (size_t i = 0; i < landmarks_.size(); ++i) {
         LandmarkInfo& info = landmarks_[i];
-        if (info.alive && options_.existence.Deletes(info.existence, info.confirmed)) {
+        if (info.alive && options_.landmarks.existence.Deletes(info.existence, info.confirmed)) {
           Marginalize(static_cast<int>(i));
           ++counters_.deleted_landmarks;
         }

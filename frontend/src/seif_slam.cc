@@ -51,12 +51,8 @@ absl::StatusOr<CovarianceRecovery> CovarianceRecoveryFromString(const std::strin
 }
 
 absl::Status SeifOptions::Validate() const {
-  if (absl::Status s = internal::ValidateAssociationAndExistence(
-          gate_probability, new_landmark_probability, existence, jcbb_max_nodes,
-          expect_range_margin_m, expect_bearing_margin_rad, cull_every_scans);
-      !s.ok()) {
-    return s;
-  }
+  if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
+  if (absl::Status s = landmarks.Validate(); !s.ok()) return s;
   if (!(candidate_radius_m > 0)) {
     return absl::InvalidArgumentError(absl::StrCat("candidate_radius_m must be > 0, got ", candidate_radius_m));
   }
@@ -83,8 +79,8 @@ SeifSlam::SeifSlam(std::unique_ptr<models::MotionModel> motion,
                    const SeifOptions& options)
     : motion_(std::move(motion)), sensor_(sensor), options_(options) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
-  gate_d2_ = models::ChiSquareQuantile(options_.gate_probability, 2);
-  new_landmark_d2_ = models::ChiSquareQuantile(options_.new_landmark_probability, 2);
+  gate_d2_ = models::ChiSquareQuantile(options_.landmarks.gate_probability, 2);
+  new_landmark_d2_ = models::ChiSquareQuantile(options_.landmarks.new_landmark_probability, 2);
   cell_size_m_ = sensor.max_range_m + 10.0;  // the reach of a scan: a 3 × 3 block of cells covers it
   Reserve(64);
   omega_xx_ = options_.initial_pose_sigma.array().square().inverse().matrix().asDiagonal();

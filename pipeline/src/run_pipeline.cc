@@ -125,8 +125,9 @@ absl::StatusOr<CheckedOptions> CheckOptions(const io::Dataset& dataset, const Ru
   checked.seif = options.seif;
   checked.seif.iterated.enabled = options.frontend == Frontend::kIseif;
   if (absl::Status s = checked.seif.Validate(); !s.ok()) return s;
-  checked.known_association = checked.seif.known_association || options.ekf.known_association ||
-                              options.fastslam.known_association ||
+  checked.known_association = checked.seif.landmarks.known_association ||
+                              options.ekf.landmarks.known_association ||
+                              options.fastslam.landmarks.known_association ||
                               options.backend.eif.association.known_association ||
                               options.backend.ekf.association.known_association;
   if (checked.known_association && !dataset.sensor.has_truth_id) {
@@ -315,10 +316,10 @@ json Report(const io::Dataset& dataset, const RunOptions& options, const Checked
         {"max_range", rb.max_range_m},
         {"sensor_yaw", options.noise.sensor_yaw.value_or(0.0)},
         {"association", checked.known_association ? "known" : association::ToString(options.ekf.association)},
-        {"gate_probability", options.ekf.gate_probability},
-        {"new_landmark_probability", options.ekf.new_landmark_probability},
-        {"existence_detection_probability", options.ekf.existence.detection_probability},
-        {"existence_false_alarm_probability", options.ekf.existence.false_alarm_probability}}},
+        {"gate_probability", options.ekf.landmarks.gate_probability},
+        {"new_landmark_probability", options.ekf.landmarks.new_landmark_probability},
+        {"existence_detection_probability", options.ekf.landmarks.existence.detection_probability},
+        {"existence_false_alarm_probability", options.ekf.landmarks.existence.false_alarm_probability}}},
       {"counts",
        {{"steps", r.steps},
         {"scans", r.scans},
@@ -346,7 +347,7 @@ json Report(const io::Dataset& dataset, const RunOptions& options, const Checked
   }
   if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
     report["configuration"]["seif"] = {
-        {"known_association", seif.known_association},
+        {"known_association", seif.landmarks.known_association},
         {"association", association::ToString(seif.association)},
         {"max_active_landmarks", seif.max_active_landmarks},
         {"mean_recovery", frontend::ToString(seif.recovery)},

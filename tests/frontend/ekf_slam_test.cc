@@ -166,8 +166,8 @@ TEST(EkfSlam, FalseAlarmsDoNotBecomeLandmarks) {
     o.detection_probability = 0.7;
     o.false_alarm_probability = 0.02;
     EkfSlamOptions options;
-    options.existence.detection_probability = 0.7;
-    options.existence.false_alarm_probability = 0.05;
+    options.landmarks.existence.detection_probability = 0.7;
+    options.landmarks.existence.false_alarm_probability = 0.05;
     const RunOutput out = RunEkf("hybrid-120m", o, options);
     const eval::MapErrors m = eval::ComputeMapErrors(out.map, out.dataset.truth_landmarks, 2.0);
     long false_alarms = 0;
@@ -193,7 +193,7 @@ TEST(EkfSlam, JointCompatibilityRunsTheSameScenario) {
   o.false_alarm_probability = 0.02;
   EkfSlamOptions options;
   options.association = association::AssociationMethod::kJointCompatibility;
-  options.existence.detection_probability = 0.7;
+  options.landmarks.existence.detection_probability = 0.7;
   const RunOutput out = RunEkf("hybrid-120m", o, options);
   const eval::TrajectoryErrors e = eval::ComputeTrajectoryErrors(out.trajectory, out.dataset.truth_poses);
   EXPECT_FALSE(e.failed);
@@ -275,10 +275,10 @@ TEST(EkfSlam, BatchUpdateEqualsDenseTextbookUpdate) {
 TEST(EkfSlamOptions, ValidationRejectsNonsense) {
   EkfSlamOptions o;
   EXPECT_TRUE(o.Validate().ok());
-  o.gate_probability = 1.5;
+  o.landmarks.gate_probability = 1.5;
   EXPECT_FALSE(o.Validate().ok());
   o = {};
-  o.existence.delete_existence = 0.99;
+  o.landmarks.existence.delete_existence = 0.99;
   EXPECT_FALSE(o.Validate().ok());
 }
 

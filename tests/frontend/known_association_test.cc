@@ -78,7 +78,7 @@ TEST(KnownAssociation, FastSlamFeaturesFollowTheTrueIds) {
   FastSlamOptions options;
   options.num_particles = 30;
   options.num_threads = 2;  // the per-particle pairing runs on worker threads too
-  options.known_association = true;
+  options.landmarks.known_association = true;
   FastSlam filter(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   int false_alarms = 0;
   const std::map<int, int> truth_of_feature = CheckFeaturesFollowTrueIds(&filter, d, &false_alarms);
@@ -90,7 +90,7 @@ TEST(KnownAssociation, FastSlamFeaturesFollowTheTrueIds) {
 TEST(KnownAssociation, EkfSlamFeaturesFollowTheTrueIds) {
   const io::Dataset d = ClutteredCombined(200.0);
   EkfSlamOptions options;
-  options.known_association = true;
+  options.landmarks.known_association = true;
   EkfSlam filter(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   int false_alarms = 0;
   const std::map<int, int> truth_of_feature = CheckFeaturesFollowTrueIds(&filter, d, &false_alarms);
@@ -132,7 +132,7 @@ TEST(KnownAssociation, UnknownAssociationNeverReadsTrueIds) {
 
 TEST(KnownAssociation, ExcludesDataAssociationSampling) {
   FastSlamOptions options;
-  options.known_association = true;
+  options.landmarks.known_association = true;
   EXPECT_TRUE(options.Validate().ok());
   options.sample_association = true;
   EXPECT_FALSE(options.Validate().ok());

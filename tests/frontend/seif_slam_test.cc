@@ -182,7 +182,7 @@ TEST(SeifSlam, SparsificationKeepsTheMean) {
   SeifOptions options;
   options.max_active_landmarks = 6;  // sparsifies on most scans
   options.recovery = MeanRecovery::kExact;
-  options.known_association = true;
+  options.landmarks.known_association = true;
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   double worst = 0;
   Drive(&seif, d, [&](const Scan&) {
@@ -355,7 +355,7 @@ TEST(SeifSlam, KnownAssociationUsesTrueIdsAndDropsFalseAlarms) {
   so.false_alarm_probability = 0.05;
   io::Dataset d = Simulate("hybrid-120m", so);
   SeifOptions options;
-  options.known_association = true;
+  options.landmarks.known_association = true;
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   std::map<int, int> truth_of_landmark;
   bool consistent = true;
@@ -382,7 +382,7 @@ TEST(SeifOptions, RejectsBadValues) {
     edit(o);
     return !o.Validate().ok();
   };
-  EXPECT_TRUE(bad([](SeifOptions& o) { o.gate_probability = 1.0; }));
+  EXPECT_TRUE(bad([](SeifOptions& o) { o.landmarks.gate_probability = 1.0; }));
   EXPECT_TRUE(bad([](SeifOptions& o) { o.max_active_landmarks = -1; }));
   EXPECT_TRUE(bad([](SeifOptions& o) { o.relaxation_sweeps = 0; }));
   EXPECT_TRUE(bad([](SeifOptions& o) { o.candidate_radius_m = NAN; }));

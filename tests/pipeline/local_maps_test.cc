@@ -97,7 +97,7 @@ TEST(RbpfLocalMaps, Hybrid120mJointNeesIsConsistentAtTheDefaultParticleCount) {
 // pose stays consistent at a tight gate too.
 TEST(RbpfLocalMaps, Hybrid120mTightGateKeepsTheEndPoseConsistent) {
   RunOptions options = Rbpf(300);
-  options.fastslam.gate_probability = 0.9;
+  options.fastslam.landmarks.gate_probability = 0.9;
   const Totals t = RunLocalMaps("hybrid-120m", {1, 2}, 150.0, options);
   ASSERT_GT(t.maps, 50);
   EXPECT_GE(t.pose_inside, BinomialLowerBound(t.maps)) << t.pose_inside << " / " << t.maps;
@@ -163,7 +163,7 @@ TEST(RbpfLocalMaps, Combined2kmWithClutterExportsNoFalseAlarm) {
 // local maps are consistent: joint and feature NEES against the binomial bound.
 TEST(RbpfLocalMaps, Combined2kmWithKnownAssociationIsConsistent) {
   RunOptions options = Rbpf(100);
-  options.fastslam.known_association = true;
+  options.fastslam.landmarks.known_association = true;
   const Totals t = RunLocalMaps("combined-2km", {1, 2}, 2000.0, options);
   ASSERT_GT(t.maps, 200);
   EXPECT_GE(t.inside, BinomialLowerBound(t.maps)) << t.inside << " / " << t.maps;

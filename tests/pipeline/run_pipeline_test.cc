@@ -168,17 +168,17 @@ TEST(RunPipeline, KnownAssociationNeedsTrueIds) {
   d->sensor.has_truth_id = false;
   RunOptions options;
   options.frontend = Frontend::kSeif;
-  options.seif.known_association = true;
+  options.seif.landmarks.known_association = true;
   absl::StatusOr<RunResult> r = RunPipeline(*d, options);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("true ids"), std::string::npos) << r.status();
   options.seif.max_active_landmarks = -1;
-  options.seif.known_association = false;
+  options.seif.landmarks.known_association = false;
   EXPECT_FALSE(RunPipeline(*d, options).ok());
   // The same for the local mappers and the back-end (--known_association reaches all).
   RunOptions rbpf;
   rbpf.frontend = Frontend::kRbpf;
-  rbpf.fastslam.known_association = true;
+  rbpf.fastslam.landmarks.known_association = true;
   r = RunPipeline(*d, rbpf);
   ASSERT_FALSE(r.ok());
   EXPECT_NE(r.status().message().find("true ids"), std::string::npos) << r.status();

@@ -457,7 +457,7 @@ TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
   const io::Dataset d = Simulate(1, "combined-2km");
   RunOptions options;
   options.frontend = Frontend::kRbpf;
-  options.fastslam.known_association = true;
+  options.fastslam.landmarks.known_association = true;
   options.backend.kind = Backend::kNone;
   absl::StatusOr<RunResult> chained = RunPipeline(d, options);
   ASSERT_TRUE(chained.ok()) << chained.status();

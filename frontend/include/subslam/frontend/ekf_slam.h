@@ -31,7 +31,7 @@
 
 #include "absl/status/status.h"
 #include "subslam/association/data_association.h"
-#include "subslam/frontend/existence_model.h"
+#include "subslam/frontend/landmark_options.h"
 #include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
@@ -41,25 +41,8 @@ namespace subslam::frontend {
 
 struct EkfSlamOptions {
   association::AssociationMethod association = association::AssociationMethod::kNearestNeighbour;
-  // Individual-compatibility gate, P(χ²₂ ≤ gate) (also the JCBB joint gate level).
-  double gate_probability = 0.99;
-  // A detection outside this gate for every landmark starts a new landmark.
-  double new_landmark_probability = 0.9999;
   long jcbb_max_nodes = 20000;  // JCBB search budget per scan
-  // Known association (simulations; a study option, as in Combined SLAM §7): each
-  // detection is paired with the landmark of the same Detection::truth_id, without
-  // gating, or starts one; false alarms (no true id) and repeated ids in a scan are
-  // dropped, and no landmark is culled. Export() then reports each feature's true id.
-  bool known_association = false;
-  // Existence model (HybridSLAM Eq. 11): the filter's α and β (not the simulator's).
-  ExistenceModel existence;
-  // A landmark is "expected" (a miss counts) only this far inside the sensor's range
-  // and field of view, to allow for its position uncertainty.
-  double expect_range_margin_m = 1.0;
-  double expect_bearing_margin_rad = 0.05;
-  // Tentative landmarks below existence.delete_existence are removed every this many scans;
-  // removal compacts the dense state in O(n²), so batching it saves time on big maps.
-  int cull_every_scans = 10;
+  LandmarkOptions landmarks;    // gates, known association, existence
 
   absl::Status Validate() const;
 };

@@ -58,7 +58,7 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
-#include "subslam/frontend/existence_model.h"
+#include "subslam/frontend/landmark_options.h"
 #include "subslam/frontend/internal/genealogy.h"
 #include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/online_estimator.h"
@@ -78,21 +78,14 @@ enum class AssociationScore {
 struct FastSlamOptions {
   int num_particles = 100;
   uint64_t seed = 1;
-  // Individual-compatibility gate, P(χ²₂ ≤ gate).
-  double gate_probability = 0.99;
-  // A detection outside this gate for every landmark of a particle starts a new one.
-  double new_landmark_probability = 0.9999;
+  // Gates, known association (per particle: a detection goes to the particle's landmark
+  // of its true id), existence.
+  LandmarkOptions landmarks;
   // false: one-to-one greedy assignment of the gated pairs, best `association_score`
   // first; true: data-association sampling — each detection in turn picks one of the
   // unused gated landmarks or "new" at random in proportion to their likelihoods.
   bool sample_association = false;
   AssociationScore association_score = AssociationScore::kLikelihood;
-  // Known association (simulations; a study option, as in Combined SLAM §7): every
-  // detection is paired with the particle's landmark of the same Detection::truth_id
-  // or starts one, without gating; false alarms (no true id) are ignored, and no landmark
-  // is culled (each true landmark keeps one landmark and one common id). MomentMatched()
-  // then reports each feature's true id.
-  bool known_association = false;
   // p0, the density of a detection explained by a new landmark or by clutter, is the
   // Gaussian density N(·; 0, R) at the new-landmark gate's boundary, R the sensor noise.
   // A detection between the two gates (close to a landmark, but not close enough) is
@@ -102,11 +95,6 @@ struct FastSlamOptions {
   // gate and cut off the tails of the pose posterior (bench/RESULTS.md).
   // Resample when N_eff < resample_ess_ratio · N.
   double resample_ess_ratio = 0.5;
-  // Existence model (HybridSLAM Eq. 11): the filter's α and β.
-  ExistenceModel existence;
-  double expect_range_margin_m = 1.0;
-  double expect_bearing_margin_rad = 0.05;
-  int cull_every_scans = 10;
   // Landmark EKF update iterations (1: plain EKF; more: iterated EKF, relinearising the
   // measurement at the updated mean — better with large bearing noise at long range).
   int landmark_update_iterations = 1;

@@ -68,7 +68,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "subslam/association/data_association.h"
-#include "subslam/frontend/existence_model.h"
+#include "subslam/frontend/landmark_options.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
 #include "subslam/models/range_bearing_model.h"
@@ -96,20 +96,12 @@ struct IteratedUpdateOptions {
 
 struct SeifOptions {
   association::AssociationMethod association = association::AssociationMethod::kNearestNeighbour;
-  // Study option: associate by the detections' true ids (simulations only); false
-  // alarms (no true landmark) are dropped. Never the default.
-  bool known_association = false;
-  double gate_probability = 0.99;            // individual gate, P(χ²₂ ≤ gate)
-  double new_landmark_probability = 0.9999;  // outside this gate for all: new landmark
   long jcbb_max_nodes = 20000;
+  LandmarkOptions landmarks;  // gates, known association, existence
   // A landmark whose mean lies farther than this from a detection's point (the
   // detection projected from the pose mean) is not gated with it: a cheap pre-filter
   // that bounds the covariance recovery to the neighbourhood of the detections.
   double candidate_radius_m = 10.0;
-  ExistenceModel existence;
-  double expect_range_margin_m = 1.0;
-  double expect_bearing_margin_rad = 0.05;
-  int cull_every_scans = 10;
   // Sparsification bound on the active landmarks (Thrun's experiments use a few to a
   // few tens); 0 never sparsifies (the exact EIF, whose motion update is then O(n²)).
   int max_active_landmarks = 20;

@@ -12,12 +12,6 @@
 
 namespace subslam::frontend::internal {
 
-// 0 < gate ≤ new-landmark gate < 1, a valid existence model, jcbb_max_nodes ≥ 1,
-// cull_every_scans ≥ 1 and non-negative visibility margins.
-absl::Status ValidateAssociationAndExistence(double gate_probability, double new_landmark_probability,
-                                             const ExistenceModel& existence, long jcbb_max_nodes,
-                                             double expect_range_margin_m,
-                                             double expect_bearing_margin_rad, int cull_every_scans);
 
 // The detections inside the sensor's valid range, as measurements z = (range, bearing),
 // with their index in the scan.
