@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "cli_reference.h"
+#include "enum_flags.h"
 #include "keep_freed_memory_flag.h"
 #include "subslam/pipeline/join_pipeline.h"
 #include "subslam/pipeline/run_pipeline.h"
@@ -344,14 +345,9 @@ absl::StatusOr<subslam::backend::EkfJoinerOptions> EkfJoinOptionsFromFlags() {
   subslam::backend::EkfJoinerOptions o;
   o.association = EifOptionsFromFlags().association;
   o.revision = RevisionOptionsFromFlags();  // (the EIF's single linearisation turns its own off)
-  const std::string fusion = absl::GetFlag(FLAGS_ekf_fusion);
-  if (fusion == "zero-noise") {
-    o.fusion = subslam::backend::EkfFusion::kZeroNoiseConstraint;
-  } else if (fusion == "conditional") {
-    o.fusion = subslam::backend::EkfFusion::kConditionalUpdate;
-  } else {
-    return absl::InvalidArgumentError("--ekf_fusion must be zero-noise or conditional");
-  }
+  absl::StatusOr<subslam::backend::EkfFusion> fusion = subslam::backend::EkfFusionFromString(absl::GetFlag(FLAGS_ekf_fusion));
+  if (!fusion.ok()) return fusion.status();
+  o.fusion = *fusion;
   o.keep_anchors = absl::GetFlag(FLAGS_ekf_keep_anchors);
   if (absl::Status s = o.Validate(); !s.ok()) return s;
   return o;
@@ -359,26 +355,14 @@ absl::StatusOr<subslam::backend::EkfJoinerOptions> EkfJoinOptionsFromFlags() {
 
 absl::StatusOr<subslam::backend::CeresSolveOptions> CeresOptionsFromFlags() {
   subslam::backend::CeresSolveOptions o;
-  const std::string method = absl::GetFlag(FLAGS_ceres_method);
-  if (method == "lm") {
-    o.method = subslam::backend::CeresMethod::kLevenbergMarquardt;
-  } else if (method == "dogleg") {
-    o.method = subslam::backend::CeresMethod::kDogleg;
-  } else if (method == "gn") {
-    o.method = subslam::backend::CeresMethod::kGaussNewton;
-  } else {
-    return absl::InvalidArgumentError("--ceres_method must be lm, dogleg or gn");
-  }
-  const std::string loss = absl::GetFlag(FLAGS_ceres_loss);
-  if (loss == "none") {
-    o.loss = subslam::backend::RobustLoss::kNone;
-  } else if (loss == "huber") {
-    o.loss = subslam::backend::RobustLoss::kHuber;
-  } else if (loss == "cauchy") {
-    o.loss = subslam::backend::RobustLoss::kCauchy;
-  } else {
-    return absl::InvalidArgumentError("--ceres_loss must be none, huber or cauchy");
-  }
+  absl::StatusOr<subslam::backend::CeresMethod> method =
+      subslam::backend::CeresMethodFromString(absl::GetFlag(FLAGS_ceres_method));
+  if (!method.ok()) return method.status();
+  o.method = *method;
+  absl::StatusOr<subslam::backend::RobustLoss> loss =
+      subslam::backend::RobustLossFromString(absl::GetFlag(FLAGS_ceres_loss));
+  if (!loss.ok()) return loss.status();
+  o.loss = *loss;
   o.loss_scale = absl::GetFlag(FLAGS_ceres_loss_scale);
   if (absl::Status s = o.Validate(); !s.ok()) return s;
   return o;

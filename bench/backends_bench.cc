@@ -30,6 +30,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "subslam/pipeline/join_pipeline.h"
+#include "enum_flags.h"
 #include "keep_freed_memory_flag.h"
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/backend/eif_joiner.h"

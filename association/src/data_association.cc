@@ -5,19 +5,20 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
+#include "subslam/graph/enum_names.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::association {
 
-const char* ToString(AssociationMethod method) {
-  return method == AssociationMethod::kNearestNeighbour ? "nn" : "jcbb";
-}
+namespace {
+constexpr EnumName<AssociationMethod> kAssociationMethodNames[] = {
+    {AssociationMethod::kNearestNeighbour, "nn"}, {AssociationMethod::kJointCompatibility, "jcbb"}};
+}  // namespace
+
+const char* ToString(AssociationMethod method) { return NameOf(kAssociationMethodNames, method); }
 
 absl::StatusOr<AssociationMethod> AssociationMethodFromString(const std::string& name) {
-  if (name == "nn") return AssociationMethod::kNearestNeighbour;
-  if (name == "jcbb") return AssociationMethod::kJointCompatibility;
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown association method \"", name, "\" (expected nn or jcbb)"));
+  return ParseEnum(kAssociationMethodNames, name, "association method");
 }
 
 AssociationResult NearestNeighbour(const AssociationProblem& problem) {

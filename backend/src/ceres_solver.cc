@@ -1,3 +1,4 @@
+#include "subslam/graph/enum_names.h"
 #include "subslam/backend/ceres_solver.h"
 
 #include <ceres/ceres.h>
@@ -12,6 +13,23 @@
 #include "subslam/backend/ceres_submap_cost.h"
 
 namespace subslam::backend {
+
+namespace {
+constexpr EnumName<CeresMethod> kCeresMethodNames[] = {{CeresMethod::kLevenbergMarquardt, "lm"},
+                                                       {CeresMethod::kDogleg, "dogleg"},
+                                                       {CeresMethod::kGaussNewton, "gn"}};
+constexpr EnumName<RobustLoss> kRobustLossNames[] = {
+    {RobustLoss::kNone, "none"}, {RobustLoss::kHuber, "huber"}, {RobustLoss::kCauchy, "cauchy"}};
+}  // namespace
+
+const char* ToString(CeresMethod method) { return NameOf(kCeresMethodNames, method); }
+absl::StatusOr<CeresMethod> CeresMethodFromString(const std::string& name) {
+  return ParseEnum(kCeresMethodNames, name, "Ceres method");
+}
+const char* ToString(RobustLoss loss) { return NameOf(kRobustLossNames, loss); }
+absl::StatusOr<RobustLoss> RobustLossFromString(const std::string& name) {
+  return ParseEnum(kRobustLossNames, name, "robust loss");
+}
 
 absl::Status CeresSolveOptions::Validate() const {
   if (!(loss_scale > 0 && std::isfinite(loss_scale))) {

@@ -1,3 +1,4 @@
+#include "subslam/graph/enum_names.h"
 #include "subslam/backend/ekf_joiner.h"
 
 #include <Eigen/Cholesky>
@@ -12,6 +13,16 @@
 #include "subslam/graph/check.h"
 
 namespace subslam::backend {
+
+namespace {
+constexpr EnumName<EkfFusion> kEkfFusionNames[] = {{EkfFusion::kZeroNoiseConstraint, "zero-noise"},
+                                                   {EkfFusion::kConditionalUpdate, "conditional"}};
+}  // namespace
+
+const char* ToString(EkfFusion fusion) { return NameOf(kEkfFusionNames, fusion); }
+absl::StatusOr<EkfFusion> EkfFusionFromString(const std::string& name) {
+  return ParseEnum(kEkfFusionNames, name, "EKF fusion");
+}
 
 absl::Status EkfJoinerOptions::Validate() const {
   if (absl::Status st = association.Validate(); !st.ok()) return st;

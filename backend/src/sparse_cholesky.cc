@@ -12,8 +12,22 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/enum_names.h"
 
 namespace subslam::backend {
+
+namespace {
+constexpr EnumName<FillReducingOrdering> kOrderingNames[] = {
+    {FillReducingOrdering::kAmd, "amd"},
+    {FillReducingOrdering::kNestedDissection, "nested_dissection"},
+    {FillReducingOrdering::kAmdOrNestedDissection, "auto"}};
+}  // namespace
+
+const char* ToString(FillReducingOrdering o) { return NameOf(kOrderingNames, o); }
+
+absl::StatusOr<FillReducingOrdering> FillReducingOrderingFromString(const std::string& name) {
+  return ParseEnum(kOrderingNames, name, "fill-reducing ordering");
+}
 
 namespace {
 

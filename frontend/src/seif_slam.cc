@@ -13,6 +13,7 @@
 #include "subslam/frontend/internal/single_map_common.h"
 #include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/enum_names.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -26,28 +27,22 @@ bool IsZero(const Eigen::MatrixBase<Derived>& block) {
 
 }  // namespace
 
-const char* ToString(MeanRecovery recovery) {
-  return recovery == MeanRecovery::kExact ? "exact" : "relaxation";
-}
+namespace {
+constexpr EnumName<MeanRecovery> kMeanRecoveryNames[] = {{MeanRecovery::kExact, "exact"},
+                                                         {MeanRecovery::kRelaxation, "relaxation"}};
+constexpr EnumName<CovarianceRecovery> kCovarianceRecoveryNames[] = {
+    {CovarianceRecovery::kExact, "exact"}, {CovarianceRecovery::kMarkovBlanket, "markov-blanket"}};
+}  // namespace
 
-const char* ToString(CovarianceRecovery recovery) {
-  return recovery == CovarianceRecovery::kExact ? "exact" : "markov-blanket";
-}
+const char* ToString(MeanRecovery recovery) { return NameOf(kMeanRecoveryNames, recovery); }
+const char* ToString(CovarianceRecovery recovery) { return NameOf(kCovarianceRecoveryNames, recovery); }
 
 absl::StatusOr<MeanRecovery> MeanRecoveryFromString(const std::string& name) {
-  for (MeanRecovery r : {MeanRecovery::kExact, MeanRecovery::kRelaxation}) {
-    if (name == ToString(r)) return r;
-  }
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown mean recovery \"", name, "\" (expected exact or relaxation)"));
+  return ParseEnum(kMeanRecoveryNames, name, "mean recovery");
 }
 
 absl::StatusOr<CovarianceRecovery> CovarianceRecoveryFromString(const std::string& name) {
-  for (CovarianceRecovery r : {CovarianceRecovery::kExact, CovarianceRecovery::kMarkovBlanket}) {
-    if (name == ToString(r)) return r;
-  }
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown covariance recovery \"", name, "\" (expected exact or markov-blanket)"));
+  return ParseEnum(kCovarianceRecoveryNames, name, "covariance recovery");
 }
 
 absl::Status SeifOptions::Validate() const {

@@ -4,6 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/enum_names.h"
 
 namespace subslam::frontend {
 
@@ -32,18 +33,15 @@ absl::Status SubmapPolicyOptions::Validate() const {
   return absl::OkStatus();
 }
 
-const char* ToString(CloseReason reason) {
-  switch (reason) {
-    case CloseReason::kKeepOpen: return "keep_open";
-    case CloseReason::kElapsedTime: return "elapsed_time";
-    case CloseReason::kPoseUncertainty: return "pose_uncertainty";
-    case CloseReason::kDiversity: return "particle_diversity";
-    case CloseReason::kFeatureCount: return "feature_count";
-    case CloseReason::kLandmarkDensity: return "landmark_density";
-    case CloseReason::kEndOfRun: return "end_of_run";
-  }
-  return "?";
-}
+namespace {
+constexpr EnumName<CloseReason> kCloseReasonNames[] = {
+    {CloseReason::kKeepOpen, "keep_open"},         {CloseReason::kElapsedTime, "elapsed_time"},
+    {CloseReason::kPoseUncertainty, "pose_uncertainty"}, {CloseReason::kDiversity, "particle_diversity"},
+    {CloseReason::kFeatureCount, "feature_count"}, {CloseReason::kLandmarkDensity, "landmark_density"},
+    {CloseReason::kEndOfRun, "end_of_run"}};
+}  // namespace
+
+const char* ToString(CloseReason reason) { return NameOf(kCloseReasonNames, reason); }
 
 SubmapPolicy::SubmapPolicy(const SubmapPolicyOptions& options, double sigma_range_m,
                            double sigma_bearing_rad)

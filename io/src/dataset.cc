@@ -1,25 +1,20 @@
 #include "subslam/io/dataset.h"
 
 #include "absl/strings/str_cat.h"
+#include "subslam/graph/enum_names.h"
 #include "subslam/models/unicycle_model.h"
 
 namespace subslam::io {
 
-const char* ToString(MotionModelType type) {
-  switch (type) {
-    case MotionModelType::kUnicycle:
-      return "unicycle";
-    case MotionModelType::kAckermann:
-      return "ackermann";
-  }
-  return "unknown";
-}
+namespace {
+constexpr EnumName<MotionModelType> kMotionModelNames[] = {{MotionModelType::kUnicycle, "unicycle"},
+                                                           {MotionModelType::kAckermann, "ackermann"}};
+}  // namespace
+
+const char* ToString(MotionModelType type) { return NameOf(kMotionModelNames, type); }
 
 absl::StatusOr<MotionModelType> MotionModelTypeFromString(const std::string& name) {
-  if (name == "unicycle") return MotionModelType::kUnicycle;
-  if (name == "ackermann") return MotionModelType::kAckermann;
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown motion model \"", name, "\" (expected unicycle or ackermann)"));
+  return ParseEnum(kMotionModelNames, name, "motion model");
 }
 
 std::unique_ptr<models::MotionModel> MotionConfig::MakeModel() const {

@@ -19,6 +19,7 @@
 #include "subslam/pipeline/submap_slam.h"
 #include "subslam/frontend/dead_reckoning.h"
 #include "subslam/frontend/ekf_local_mapper.h"
+#include "subslam/graph/enum_names.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/models/gating.h"
 #include "subslam/io/run_output_writer.h"
@@ -391,26 +392,17 @@ absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, 
 
 }  // namespace
 
-const char* ToString(Frontend frontend) {
-  switch (frontend) {
-    case Frontend::kOdometry: return "odometry";
-    case Frontend::kEkfSlam: return "ekfslam";
-    case Frontend::kFastSlam: return "fastslam";
-    case Frontend::kRbpf: return "rbpf";
-    case Frontend::kEkfLocal: return "ekf";
-    case Frontend::kSeif: return "seif";
-    case Frontend::kIseif: return "iseif";
-  }
-  return "?";
-}
+namespace {
+constexpr EnumName<Frontend> kFrontendNames[] = {
+    {Frontend::kOdometry, "odometry"}, {Frontend::kEkfSlam, "ekfslam"}, {Frontend::kFastSlam, "fastslam"},
+    {Frontend::kSeif, "seif"},         {Frontend::kIseif, "iseif"},     {Frontend::kRbpf, "rbpf"},
+    {Frontend::kEkfLocal, "ekf"}};
+}  // namespace
+
+const char* ToString(Frontend frontend) { return NameOf(kFrontendNames, frontend); }
 
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name) {
-  for (Frontend f : {Frontend::kOdometry, Frontend::kEkfSlam, Frontend::kFastSlam, Frontend::kRbpf,
-                     Frontend::kEkfLocal, Frontend::kSeif, Frontend::kIseif}) {
-    if (name == ToString(f)) return f;
-  }
-  return absl::InvalidArgumentError(absl::StrCat(
-      "unknown front-end \"", name, "\" (expected odometry, ekfslam, fastslam, seif, iseif, rbpf or ekf)"));
+  return ParseEnum(kFrontendNames, name, "front-end");
 }
 
 absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {

@@ -4,31 +4,23 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/enum_names.h"
 
 #include <algorithm>
 #include <exception>
 
 namespace subslam::pipeline {
 
-const char* ToString(Backend backend) {
-  switch (backend) {
-    case Backend::kNone: return "none";
-    case Backend::kEif: return "eif";
-    case Backend::kCeres: return "ceres";
-    case Backend::kEkf: return "ekf";
-    case Backend::kTreeEkf: return "tree-ekf";
-    case Backend::kTreeEif: return "tree-eif";
-  }
-  return "?";
-}
+namespace {
+constexpr EnumName<Backend> kBackendNames[] = {{Backend::kNone, "none"},       {Backend::kEif, "eif"},
+                                               {Backend::kCeres, "ceres"},     {Backend::kEkf, "ekf"},
+                                               {Backend::kTreeEkf, "tree-ekf"}, {Backend::kTreeEif, "tree-eif"}};
+}  // namespace
+
+const char* ToString(Backend backend) { return NameOf(kBackendNames, backend); }
 
 absl::StatusOr<Backend> BackendFromString(const std::string& name) {
-  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf,
-                    Backend::kTreeEif}) {
-    if (name == ToString(b)) return b;
-  }
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown back-end \"", name, "\" (expected none, eif, ceres, ekf, tree-ekf or tree-eif)"));
+  return ParseEnum(kBackendNames, name, "back-end");
 }
 
 absl::Status BackendOptions::Validate() const {

@@ -20,7 +20,11 @@
 namespace subslam::backend {
 
 enum class CeresMethod { kLevenbergMarquardt, kDogleg, kGaussNewton };
+const char* ToString(CeresMethod method);  // lm, dogleg, gn
+absl::StatusOr<CeresMethod> CeresMethodFromString(const std::string& name);
 enum class RobustLoss { kNone, kHuber, kCauchy };
+const char* ToString(RobustLoss loss);  // none, huber, cauchy
+absl::StatusOr<RobustLoss> RobustLossFromString(const std::string& name);
 
 struct CeresSolveOptions {
   CeresMethod method = CeresMethod::kLevenbergMarquardt;

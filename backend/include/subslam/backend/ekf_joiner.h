@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "subslam/backend/landmark_revision.h"
 #include "subslam/backend/map_joiner.h"
 #include "subslam/backend/submap_association.h"
@@ -47,6 +48,8 @@
 namespace subslam::backend {
 
 enum class EkfFusion { kZeroNoiseConstraint, kConditionalUpdate };
+const char* ToString(EkfFusion fusion);  // zero-noise, conditional
+absl::StatusOr<EkfFusion> EkfFusionFromString(const std::string& name);
 
 struct EkfJoinerOptions {
   SubmapAssociationOptions association;

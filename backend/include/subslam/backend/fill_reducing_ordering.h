@@ -6,8 +6,6 @@
 #include <string_view>
 
 #include "absl/status/statusor.h"
-#include "absl/strings/str_cat.h"
-#include "absl/strings/string_view.h"
 
 namespace subslam::backend {
 
@@ -33,40 +31,8 @@ namespace subslam::backend {
 //    cost more than the factorisations.)
 enum class FillReducingOrdering { kAmd, kNestedDissection, kAmdOrNestedDissection };
 
-inline std::string_view ToString(FillReducingOrdering o) {
-  switch (o) {
-    case FillReducingOrdering::kAmd:
-      return "amd";
-    case FillReducingOrdering::kNestedDissection:
-      return "nested_dissection";
-    case FillReducingOrdering::kAmdOrNestedDissection:
-      return "auto";
-  }
-  return "?";
-}
-
-inline absl::StatusOr<FillReducingOrdering> FillReducingOrderingFromString(std::string_view name) {
-  for (FillReducingOrdering o : {FillReducingOrdering::kAmd, FillReducingOrdering::kNestedDissection,
-                                 FillReducingOrdering::kAmdOrNestedDissection}) {
-    if (name == ToString(o)) return o;
-  }
-  return absl::InvalidArgumentError(
-      absl::StrCat("unknown fill-reducing ordering '", std::string(name), "' (amd | nested_dissection | auto)"));
-}
-
-// Abseil flag hooks (found by argument-dependent lookup): a flag of this type accepts
-// the names above and rejects anything else at parse time.
-inline bool AbslParseFlag(absl::string_view text, FillReducingOrdering* o, std::string* error) {
-  absl::StatusOr<FillReducingOrdering> parsed =
-      FillReducingOrderingFromString(std::string_view(text.data(), text.size()));
-  if (!parsed.ok()) {
-    *error = std::string(parsed.status().message());
-    return false;
-  }
-  *o = *parsed;
-  return true;
-}
-inline std::string AbslUnparseFlag(FillReducingOrdering o) { return std::string(ToString(o)); }
+const char* ToString(FillReducingOrdering o);  // amd, nested_dissection, auto
+absl::StatusOr<FillReducingOrdering> FillReducingOrderingFromString(const std::string& name);
 
 }  // namespace subslam::backend
 
