@@ -18,7 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "cli_reference.h"
-#include "enum_flags.h"
+#include "backend_flags.h"
 #include "keep_freed_memory_flag.h"
 #include "subslam/pipeline/join_pipeline.h"
 #include "subslam/pipeline/run_pipeline.h"
@@ -34,7 +34,6 @@ const subslam::frontend::EkfSlamOptions kEkfDefaults;
 const subslam::frontend::FastSlamOptions kFastSlamDefaults;
 const subslam::frontend::SeifOptions kSeifDefaults;
 const subslam::frontend::SubmapPolicyOptions kPolicyDefaults;
-const subslam::backend::EifJoinerOptions kEifDefaults;
 }  // namespace
 
 ABSL_FLAG(std::string, dataset, "", "data-set directory holding dataset.json");
@@ -81,116 +80,7 @@ ABSL_FLAG(bool, correct_shared_ancestry, kFastSlamDefaults.correct_shared_ancest
           "R the weighted share of pose noise that pairs of particles hold through common "
           "ancestors (the spread's bias and the mean's Monte Carlo error); false: the mixture's "
           "own moments");
-ABSL_FLAG(double, sigma_signature, kFastSlamDefaults.sigma_signature,
-          "fastslam / rbpf: sigma of the signature cue (0: cue off)");
-ABSL_FLAG(std::string, backend, "none",
-          "rbpf / ekf: how local maps are joined: none (chained end to start) | eif | ceres "
-          "(EIF association, then a Ceres solve of the whole graph at the end) | ekf (dense "
-          "EKF map joining, the baseline) | tree-ekf | tree-eif (binary-tree joining)");
-ABSL_FLAG(std::string, ekf_fusion, "zero-noise",
-          "ekf back-end: how matched features are fused: zero-noise (HybridSLAM: augment, "
-          "constrain copy = landmark, drop the copy) | conditional (the EIF's update in "
-          "covariance form)");
-ABSL_FLAG(bool, tree_batch, false,
-          "tree-ekf / tree-eif: keep the leaves and build the tree level by level at the end "
-          "(default: running, a binary counter that joins pairs as they complete)");
-ABSL_FLAG(bool, ekf_keep_anchors, true,
-          "ekf back-end: keep every anchor in the state (false: marginalise each start "
-          "anchor once joined, as the papers' baseline)");
-ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | dogleg | gn (Gauss-Newton)");
-ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
-ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
-ABSL_FLAG(int, ceres_every, 0, "ceres: also solve the graph every K joins during the run (0: at the end only)");
-ABSL_FLAG(bool, join_in_background, subslam::pipeline::BackendOptions{}.background,
-          "run: join each closed local map on a thread of its own while the front-end builds the "
-          "next (the online pose one join behind; while a join runs, rbpf leaves it a core; the "
-          "final trajectory and map are unchanged); false: join inside the scan that closed the "
-          "map, the online pose using its joined anchor at once");
-ABSL_FLAG(double, join_anchor_radius, kEifDefaults.association.anchor_search_radius_m,
-          "eif: earlier local maps with an anchor within this of the start anchor give "
-          "association candidates [m] (2·TH1)");
-ABSL_FLAG(double, join_landmark_radius, kEifDefaults.association.landmark_search_radius_m,
-          "eif: candidate landmarks within this of a feature [m] (TH2)");
-ABSL_FLAG(double, join_gate, kEifDefaults.association.gate_probability, "eif: association gate probability (chi2)");
-ABSL_FLAG(bool, join_jcbb, kEifDefaults.association.joint_compatibility,
-          "eif: joint compatibility (JCBB) for the local map's features; false: nearest neighbour");
-ABSL_FLAG(int, join_min_loop_pairings, kEifDefaults.association.min_loop_pairings,
-          "accept a loop closure (pairings with landmarks the last local maps did not see) only "
-          "with at least this many pairings (<= 1: always)");
-ABSL_FLAG(bool, join_loop_ambiguity, kEifDefaults.association.loop_ambiguity_test,
-          "eif: drop a loop closure when another jointly compatible hypothesis, without its loop "
-          "pairings, pairs as many features with old landmarks (JCBB)");
-ABSL_FLAG(bool, join_keep_certain_loop_pairings, kEifDefaults.association.keep_certain_loop_pairings,
-          "when the loop tests drop a closure, keep the pairings whose landmark is known relative to "
-          "the start anchor to 3 sigma below --join_loop_test_sigma (no chance fit)");
-ABSL_FLAG(double, join_loop_test_sigma, kEifDefaults.association.loop_test_min_sigma_radius_m,
-          "apply --join_min_loop_pairings only when 3 sigma of the start anchor's position is at "
-          "least this [m]");
-ABSL_FLAG(bool, join_merge, kEifDefaults.revision.merge,
-          "every back-end: merge two global landmarks once the estimate shows they are one "
-          "point (chi2 test on their difference with their joint marginal; never two that one "
-          "local map holds apart; mutual best partners, unambiguous, their relative position "
-          "known to 3 sigma below --join_loop_test_sigma)");
-ABSL_FLAG(bool, join_merge_unresolved, kEifDefaults.revision.merge_unresolved,
-          "also merge a pair that a single local map could not tell apart (the test with each "
-          "landmark's typical feature covariance)");
-ABSL_FLAG(double, join_merge_gate, kEifDefaults.revision.merge_probability,
-          "merge test: chi2 (2 dof) acceptance probability of 'the same point'");
-ABSL_FLAG(bool, join_split, kEifDefaults.revision.split,
-          "every back-end: split a feature whose residual fails its outlier test off to a "
-          "landmark of its own (ekf / tree-ekf: by joining every map again)");
-ABSL_FLAG(double, join_split_level, kEifDefaults.revision.split_probability,
-          "split test: family-wise confidence over the features tested in a pass (Bonferroni)");
-ABSL_FLAG(int, join_revise_every, kEifDefaults.revision.every_joins,
-          "also run the merge and split tests every K joins (besides after relinearisations, "
-          "whole-map joins and at the end; 0: not on a schedule)");
-ABSL_FLAG(int, join_loop_confirmation_maps, kEifDefaults.loop_confirmation_maps,
-          "eif: undo a loop closure made under an uncertain anchor unless one of this many next "
-          "local maps pairs a feature with another old landmark (0: off)");
-ABSL_FLAG(bool, validate_joins, kEifDefaults.validate_joins,
-          "eif: test each join's normalised residual against chi2 and undo a failing one "
-          "(the map is joined again without associations)");
-ABSL_FLAG(int, relinearize_every, kEifDefaults.relinearize_every,
-          "eif: relinearise to convergence every K joins (0: never during the run)");
-ABSL_FLAG(bool, eif_incremental, kEifDefaults.incremental_factorization,
-          "eif: update the factor of the information matrix by each join's rank update "
-          "(false: refactorise it at every join)");
-ABSL_FLAG(subslam::backend::FillReducingOrdering, eif_ordering, kEifDefaults.ordering,
-          "eif: fill-reducing ordering of a full factorisation: amd | nested_dissection (METIS) | "
-          "auto (nested dissection where AMD's factor would cost >= 50 flops per entry)");
-ABSL_FLAG(bool, eif_bound_marginals, kEifDefaults.bound_candidate_marginals,
-          "eif: skip the covariance recovery of association candidates that fail the gate "
-          "even under an upper bound on their marginal (same decisions, less work)");
-ABSL_FLAG(double, relinearize_tolerance, kEifDefaults.relinearize_tolerance,
-          "eif: a relinearisation iterates until no state entry moves by more than this (m, rad)");
-ABSL_FLAG(double, relinearize_step_chi2, kEifDefaults.relinearize_step_chi2,
-          "eif: ... or until the step's squared Mahalanobis length (dx' Lambda dx, chi-square "
-          "units) falls below this (0: off)");
-ABSL_FLAG(bool, relinearize_predict, kEifDefaults.predict_convergence,
-          "eif: stop a relinearisation when the next Gauss-Newton step, solved with the last "
-          "factor, is below half --relinearize_tolerance or a quarter of "
-          "--relinearize_step_chi2 (saves the confirming factorisation)");
-ABSL_FLAG(int, max_relinearizations, kEifDefaults.max_relinearizations,
-          "eif: at most this many iterations per relinearisation");
-ABSL_FLAG(int, relinearize_max_rises, kEifDefaults.divergence_rises,
-          "eif: cost rises in a row that end a relinearisation at its best iterate "
-          "(1: monotone Gauss-Newton, 0: never)");
-ABSL_FLAG(double, relinearize_heading_change, kEifDefaults.relinearize_heading_change,
-          "eif: also relinearise after a join when an anchor's heading has moved this far [rad] "
-          "from where one of its factors was linearised (0: off, the default)");
-ABSL_FLAG(double, relinearize_linearization_chi2, kEifDefaults.relinearize_linearization_chi2,
-          "eif: relinearise after a join when some factor's linear model is off at the current "
-          "estimate by more than this, whitened by its local map's covariance (chi2 units; 0: off)");
-ABSL_FLAG(bool, single_linearization, false,
-          "eif: the single-linearisation EIF of Combined SLAM: no relinearisation at "
-          "all, whatever the relinearize_* flags say");
-ABSL_FLAG(bool, relinearize_at_end, kEifDefaults.relinearize_at_end,
-          "eif: relinearise to convergence after the last join (ceres: off, Ceres solves there)");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
-ABSL_FLAG(bool, known_association, false,
-          "associate by the true ids (simulations; a study option, as Combined SLAM §7): "
-          "run: every front-end pairs detections by their truth_id and the back-end joins "
-          "local-map features by theirs; join: features by their truth_id");
 ABSL_FLAG(int, seif_max_active, kSeifDefaults.max_active_landmarks,
           "seif / iseif: sparsification bound on the active landmarks (0: never sparsify)");
 ABSL_FLAG(std::string, seif_recovery, subslam::frontend::ToString(kSeifDefaults.recovery),
@@ -298,99 +188,10 @@ int Simulate() {
   return 0;
 }
 
-subslam::backend::LandmarkRevisionOptions RevisionOptionsFromFlags() {
-  subslam::backend::LandmarkRevisionOptions o;
-  o.merge = absl::GetFlag(FLAGS_join_merge);
-  o.merge_unresolved = absl::GetFlag(FLAGS_join_merge_unresolved);
-  o.merge_probability = absl::GetFlag(FLAGS_join_merge_gate);
-  o.split = absl::GetFlag(FLAGS_join_split);
-  o.split_probability = absl::GetFlag(FLAGS_join_split_level);
-  o.every_joins = absl::GetFlag(FLAGS_join_revise_every);
-  return o;
-}
-
-subslam::backend::EifJoinerOptions EifOptionsFromFlags() {
-  subslam::backend::EifJoinerOptions o;
-  o.association.anchor_search_radius_m = absl::GetFlag(FLAGS_join_anchor_radius);
-  o.association.landmark_search_radius_m = absl::GetFlag(FLAGS_join_landmark_radius);
-  o.association.gate_probability = absl::GetFlag(FLAGS_join_gate);
-  o.association.joint_compatibility = absl::GetFlag(FLAGS_join_jcbb);
-  o.association.min_loop_pairings = absl::GetFlag(FLAGS_join_min_loop_pairings);
-  o.association.loop_ambiguity_test = absl::GetFlag(FLAGS_join_loop_ambiguity);
-  o.association.keep_certain_loop_pairings = absl::GetFlag(FLAGS_join_keep_certain_loop_pairings);
-  o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
-  o.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
-  o.revision = RevisionOptionsFromFlags();
-  o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
-  o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);
-  o.relinearize_at_end = absl::GetFlag(FLAGS_relinearize_at_end);
-  o.relinearize_tolerance = absl::GetFlag(FLAGS_relinearize_tolerance);
-  o.relinearize_step_chi2 = absl::GetFlag(FLAGS_relinearize_step_chi2);
-  o.max_relinearizations = absl::GetFlag(FLAGS_max_relinearizations);
-  o.predict_convergence = absl::GetFlag(FLAGS_relinearize_predict);
-  o.divergence_rises = absl::GetFlag(FLAGS_relinearize_max_rises);
-  o.relinearize_heading_change = absl::GetFlag(FLAGS_relinearize_heading_change);
-  o.relinearize_linearization_chi2 = absl::GetFlag(FLAGS_relinearize_linearization_chi2);
-  o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);
-  o.bound_candidate_marginals = absl::GetFlag(FLAGS_eif_bound_marginals);
-  o.ordering = absl::GetFlag(FLAGS_eif_ordering);
-  o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
-  o.association.known_association = absl::GetFlag(FLAGS_known_association);
-  if (absl::GetFlag(FLAGS_single_linearization)) o = o.SingleLinearization();
-  return o;
-}
-
-// Association options are the EIF's, so both joiners associate alike.
-absl::StatusOr<subslam::backend::EkfJoinerOptions> EkfJoinOptionsFromFlags() {
-  subslam::backend::EkfJoinerOptions o;
-  o.association = EifOptionsFromFlags().association;
-  o.revision = RevisionOptionsFromFlags();  // (the EIF's single linearisation turns its own off)
-  absl::StatusOr<subslam::backend::EkfFusion> fusion = subslam::backend::EkfFusionFromString(absl::GetFlag(FLAGS_ekf_fusion));
-  if (!fusion.ok()) return fusion.status();
-  o.fusion = *fusion;
-  o.keep_anchors = absl::GetFlag(FLAGS_ekf_keep_anchors);
-  if (absl::Status s = o.Validate(); !s.ok()) return s;
-  return o;
-}
-
-absl::StatusOr<subslam::backend::CeresSolveOptions> CeresOptionsFromFlags() {
-  subslam::backend::CeresSolveOptions o;
-  absl::StatusOr<subslam::backend::CeresMethod> method =
-      subslam::backend::CeresMethodFromString(absl::GetFlag(FLAGS_ceres_method));
-  if (!method.ok()) return method.status();
-  o.method = *method;
-  absl::StatusOr<subslam::backend::RobustLoss> loss =
-      subslam::backend::RobustLossFromString(absl::GetFlag(FLAGS_ceres_loss));
-  if (!loss.ok()) return loss.status();
-  o.loss = *loss;
-  o.loss_scale = absl::GetFlag(FLAGS_ceres_loss_scale);
-  if (absl::Status s = o.Validate(); !s.ok()) return s;
-  return o;
-}
-
-absl::StatusOr<subslam::pipeline::BackendOptions> BackendOptionsFromFlags() {
-  subslam::pipeline::BackendOptions o;
-  auto kind = subslam::pipeline::BackendFromString(absl::GetFlag(FLAGS_backend));
-  if (!kind.ok()) return kind.status();
-  o.kind = *kind;
-  o.eif = EifOptionsFromFlags();
-  auto ekf = EkfJoinOptionsFromFlags();
-  if (!ekf.ok()) return ekf.status();
-  o.ekf = *ekf;
-  o.tree.running = !absl::GetFlag(FLAGS_tree_batch);
-  auto ceres = CeresOptionsFromFlags();
-  if (!ceres.ok()) return ceres.status();
-  o.ceres = *ceres;
-  o.ceres_every = absl::GetFlag(FLAGS_ceres_every);
-  o.background = absl::GetFlag(FLAGS_join_in_background);
-  if (absl::Status st = o.Validate(); !st.ok()) return st;
-  return o;
-}
-
 int Join() {
   const std::string path = absl::GetFlag(FLAGS_submaps);
   if (path.empty()) return Fail(absl::InvalidArgumentError("join needs --submaps FILE"));
-  auto backend = BackendOptionsFromFlags();
+  auto backend = subslam::cli::BackendOptionsFromFlags();
   if (!backend.ok()) return Fail(backend.status());
   if (backend->kind == subslam::pipeline::Backend::kNone) {
     return Fail(absl::InvalidArgumentError("join needs --backend eif, ceres, ekf, tree-ekf or tree-eif"));
@@ -452,7 +253,7 @@ int Run() {
   options.ekf.landmarks = landmarks;
   options.fastslam.landmarks = landmarks;
   options.seif.landmarks = landmarks;
-  auto backend = BackendOptionsFromFlags();
+  auto backend = subslam::cli::BackendOptionsFromFlags();
   if (!backend.ok()) return Fail(backend.status());
   options.backend = *backend;
   options.policy.min_duration_s = absl::GetFlag(FLAGS_submap_min_duration);

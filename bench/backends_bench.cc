@@ -4,9 +4,8 @@
 //
 //   build/bench/backends_bench [--scenario combined-2km --seed 1 | --dataset DIR]
 //       [--frontend ekf|rbpf] [--known_association] [--backends eif,ceres,ekf,tree-ekf,tree-eif]
-//       [--growth_km 1,2,4,8,16] [--eif_relinearize_heading RAD] [--eif_relinearize_at_end=false]
-//       [--eif_relinearize_linearization_chi2 X] [--eif_single_linearization]
-//       [--out results.json]
+//       [--growth_km 1,2,4,8,16] [back-end flags: --single_linearization, --relinearize_*,
+//       --eif_ordering, --join_*, … as `subslam` takes them, docs/cli.md] [--out results.json]
 //
 // Side by side: the local maps are built once (front-end, no back-end), then each
 // back-end joins them with the same association options (RunJoin); printed: anchors
@@ -30,7 +29,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "subslam/pipeline/join_pipeline.h"
-#include "enum_flags.h"
+#include "backend_flags.h"
 #include "keep_freed_memory_flag.h"
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/backend/eif_joiner.h"
@@ -43,32 +42,11 @@ ABSL_FLAG(std::string, scenario, "combined-2km", "simulated scenario (ignored wi
 ABSL_FLAG(uint64_t, seed, 1, "scenario seed");
 ABSL_FLAG(std::string, dataset, "", "a data-set directory instead of a scenario (e.g. Victoria Park)");
 ABSL_FLAG(std::string, frontend, "ekf", "local maps from: ekf | rbpf");
-ABSL_FLAG(bool, known_association, false, "associate by truth id (simulated data only)");
 ABSL_FLAG(std::string, backends, "eif,ceres,ekf,tree-ekf,tree-eif", "back-ends, comma-separated");
 ABSL_FLAG(std::string, growth_km, "1,2,4,8,16", "random-world path lengths for the growth table (empty: skip)");
 ABSL_FLAG(std::string, growth_backends, "eif,ekf,tree-ekf,tree-eif", "back-ends of the growth table");
 ABSL_FLAG(double, growth_dense_max_km, 4.0,
           "growth table: dense back-ends (ekf, tree-ekf) only up to this path length (their covariance is O(N^2))");
-ABSL_FLAG(double, eif_relinearize_heading, subslam::backend::EifJoinerOptions{}.relinearize_heading_change,
-          "eif (and the EIF that associates for ceres and tree-eif): relinearise when an "
-          "anchor's heading moved this far [rad] (0: off; --eif_single_linearization for "
-          "the single linearisation)");
-ABSL_FLAG(double, eif_relinearize_linearization_chi2,
-          subslam::backend::EifJoinerOptions{}.relinearize_linearization_chi2,
-          "eif: relinearise when some factor's whitened linearisation error exceeds this (0: off)");
-ABSL_FLAG(bool, eif_single_linearization, false,
-          "eif: no relinearisation at all (overrides the other eif_relinearize flags), as "
-          "Combined SLAM's Table 1");
-ABSL_FLAG(bool, eif_relinearize_at_end, subslam::backend::EifJoinerOptions{}.relinearize_at_end,
-          "eif: Gauss-Newton to convergence after the last join");
-ABSL_FLAG(double, eif_relinearize_step_chi2, subslam::backend::EifJoinerOptions{}.relinearize_step_chi2,
-          "eif: Gauss-Newton also stops when the step's dx' Lambda dx falls below this (0: off)");
-ABSL_FLAG(bool, eif_relinearize_predict, subslam::backend::EifJoinerOptions{}.predict_convergence,
-          "eif: Gauss-Newton stops when its next step, solved with the factor at hand, is below "
-          "the thresholds (without the confirming factorisation)");
-ABSL_FLAG(subslam::backend::FillReducingOrdering, eif_ordering, subslam::backend::EifJoinerOptions{}.ordering,
-          "eif: fill-reducing ordering of a full factorisation: amd | nested_dissection (METIS) | "
-          "auto (nested dissection where AMD's factor would cost >= 50 flops per entry)");
 ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {
@@ -97,18 +75,12 @@ absl::StatusOr<Input> Record(subslam::io::Dataset dataset, subslam::pipeline::Fr
   return in;
 }
 
+// The back-end `kind` as the shared back-end flags configure it (--join_*,
+// --relinearize_*, --single_linearization, --eif_ordering, --known_association, …; see
+// docs/cli.md), checked in main.
 subslam::pipeline::BackendOptions Options(Backend kind) {
-  subslam::pipeline::BackendOptions o;
+  subslam::pipeline::BackendOptions o = *subslam::cli::BackendOptionsFromFlags();
   o.kind = kind;
-  o.eif.association.known_association = absl::GetFlag(FLAGS_known_association);
-  o.eif.relinearize_heading_change = absl::GetFlag(FLAGS_eif_relinearize_heading);
-  o.eif.relinearize_at_end = absl::GetFlag(FLAGS_eif_relinearize_at_end);
-  o.eif.relinearize_step_chi2 = absl::GetFlag(FLAGS_eif_relinearize_step_chi2);
-  o.eif.predict_convergence = absl::GetFlag(FLAGS_eif_relinearize_predict);
-  o.eif.relinearize_linearization_chi2 = absl::GetFlag(FLAGS_eif_relinearize_linearization_chi2);
-  o.eif.ordering = absl::GetFlag(FLAGS_eif_ordering);
-  if (absl::GetFlag(FLAGS_eif_single_linearization)) o.eif = o.eif.SingleLinearization();
-  o.ekf.association = o.eif.association;
   return o;
 }
 
@@ -300,6 +272,10 @@ int main(int argc, char** argv) {
   std::vector<Backend> kinds, growth_kinds;
   if (!ParseBackends(absl::GetFlag(FLAGS_backends), &kinds) ||
       !ParseBackends(absl::GetFlag(FLAGS_growth_backends), &growth_kinds)) {
+    return 2;
+  }
+  if (absl::StatusOr<subslam::pipeline::BackendOptions> backend = subslam::cli::BackendOptionsFromFlags(); !backend.ok()) {
+    std::fprintf(stderr, "%s\n", std::string(backend.status().message()).c_str());
     return 2;
   }
   absl::StatusOr<subslam::pipeline::Frontend> frontend = subslam::pipeline::FrontendFromString(absl::GetFlag(FLAGS_frontend));
