@@ -10,6 +10,7 @@
 //     growing size, first and last tenth of each run (flat = constant time).
 //
 //   seif_bench [--runs 50] [--filters ekfslam,seif,iseif] [--known_association]
+//              [--seif_pose_covariance exact] [front-end flags as `subslam run` takes them]
 //              [--growth_landmarks 300,1200,4800] [--out FILE]
 #include <cmath>
 #include <cstdio>
@@ -25,6 +26,8 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
+#include "backend_flags.h"  // --known_association
+#include "frontend_flags.h"
 #include "keep_freed_memory_flag.h"
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/eval/nees.h"
@@ -34,16 +37,6 @@ ABSL_FLAG(std::string, scenario, "iseif-circle", "the Monte Carlo scenario");
 ABSL_FLAG(int, runs, 50, "Monte Carlo runs (seeds first_seed … first_seed + runs − 1)");
 ABSL_FLAG(uint64_t, first_seed, 1, "first seed");
 ABSL_FLAG(std::string, filters, "ekfslam,seif,iseif", "filters, comma-separated");
-ABSL_FLAG(bool, known_association, false, "seif / iseif: associate by true ids (ekfslam always uses NN)");
-ABSL_FLAG(int, seif_max_active, subslam::frontend::SeifOptions{}.max_active_landmarks, "sparsification bound");
-ABSL_FLAG(std::string, seif_recovery, "relaxation", "relaxation | exact");
-ABSL_FLAG(std::string, seif_pose_covariance, "exact",
-          "the reported pose covariance that NEES judges: exact (the filter's own marginal) | markov-blanket");
-ABSL_FLAG(int, iseif_period, subslam::frontend::SeifOptions{}.iterated.period_scans, "iseif: period [scans]");
-ABSL_FLAG(int, iseif_max_iterations, subslam::frontend::SeifOptions{}.iterated.max_iterations, "iseif: iterations");
-ABSL_FLAG(double, iseif_stop, subslam::frontend::SeifOptions{}.iterated.stop_change, "iseif: adaptive stop");
-ABSL_FLAG(int, iseif_exact_recoveries, subslam::frontend::SeifOptions{}.iterated.exact_recoveries,
-          "iseif: linearisations followed by an exact mean recovery");
 ABSL_FLAG(std::string, growth_landmarks, "300,1200,4800,19200",
           "random-world sizes (landmarks) for the growth table (empty: skip)");
 ABSL_FLAG(std::string, growth_filters, "seif,iseif", "filters of the growth table");
@@ -61,27 +54,17 @@ std::vector<std::string> SplitList(const std::string& s) {
   return out;
 }
 
-// The run options of a filter named on the command line, with the SEIF flags applied
-// (RunPipeline validates the values).
+// The run options of a filter named on the command line, with the front-end flags applied
+// as `subslam run` applies them (--seif_*, --iseif_*, --known_association, …; docs/cli.md);
+// RunPipeline validates the values. EKF-SLAM, the reference, always associates by nearest
+// neighbour.
 absl::StatusOr<subslam::pipeline::RunOptions> OptionsFor(const std::string& name) {
   subslam::pipeline::RunOptions o;
   absl::StatusOr<Frontend> frontend = subslam::pipeline::FrontendFromString(name);
   if (!frontend.ok()) return frontend.status();
   o.frontend = *frontend;
-  absl::StatusOr<subslam::frontend::MeanRecovery> recovery =
-      subslam::frontend::MeanRecoveryFromString(absl::GetFlag(FLAGS_seif_recovery));
-  if (!recovery.ok()) return recovery.status();
-  absl::StatusOr<subslam::frontend::CovarianceRecovery> pose_covariance =
-      subslam::frontend::CovarianceRecoveryFromString(absl::GetFlag(FLAGS_seif_pose_covariance));
-  if (!pose_covariance.ok()) return pose_covariance.status();
-  o.seif.landmarks.known_association = absl::GetFlag(FLAGS_known_association);
-  o.seif.max_active_landmarks = absl::GetFlag(FLAGS_seif_max_active);
-  o.seif.recovery = *recovery;
-  o.seif.pose_covariance = *pose_covariance;
-  o.seif.iterated.period_scans = absl::GetFlag(FLAGS_iseif_period);
-  o.seif.iterated.max_iterations = absl::GetFlag(FLAGS_iseif_max_iterations);
-  o.seif.iterated.stop_change = absl::GetFlag(FLAGS_iseif_stop);
-  o.seif.iterated.exact_recoveries = absl::GetFlag(FLAGS_iseif_exact_recoveries);
+  if (absl::Status st = subslam::cli::SetFrontendOptionsFromFlags(&o); !st.ok()) return st;
+  o.ekf.landmarks.known_association = false;
   return o;
 }
 
