@@ -89,152 +89,230 @@ void SubmapAssociator::SplitFeature(int from, int to, double signature) {
   }
 }
 
-SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_anchor,
-                                              const SubmapGraph& graph,
-                                              const JointCovarianceFn& joint_covariance,
-                                              bool anchor_prefilter,
-                                              const PairCovarianceFn& pair_covariance,
-                                              const PairBoundFn& pair_bound) const {
-  const int n = s.num_landmarks();
-  SubmapAssociation out;
-  out.landmark_of_feature.assign(n, -1);
-  if (options_.known_association) {
-    for (int i = 0; i < n; ++i) {
-      const std::optional<int>& t = s.landmarks[i].truth_id;
-      if (!t.has_value() || *t < 0) continue;  // unknown or false alarm: a new landmark
-      auto it = landmark_of_truth_.find(*t);
-      if (it != landmark_of_truth_.end()) out.landmark_of_feature[i] = it->second;
-    }
-    return out;
-  }
-  const auto timed_covariance = [&](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
-    const absl::Time t0 = absl::Now();
-    Eigen::MatrixXd m = joint_covariance(anchors, landmarks);
-    out.covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
-    return m;
-  };
-  const Pose2 P_s = graph.anchors()[start_anchor];
-  const Eigen::Matrix3d Sigma_s = timed_covariance({start_anchor}, {});
-  out.start_anchor_covariance = Sigma_s;
-  const double sigma_xy =
-      std::sqrt(std::max(0.0, Sigma_s.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff()));
-  out.start_position_sigma_m = sigma_xy;
+namespace {
+
+// A local map placed in the world by its start anchor P_s: where each feature lands, and
+// how far from it a landmark may lie and still be a candidate (the landmark search radius
+// grown by 3σ of the anchor's position and heading at the feature's distance).
+struct PlacedMap {
+  Pose2 P_s;
+  double sigma_xy = 0.0;
+  std::vector<Eigen::Vector2d> world;
+  std::vector<double> r2;
+
+  bool Near(const Eigen::Vector2d& landmark, int i) const { return !((landmark - world[i]).norm() > r2[i]); }
+};
+
+PlacedMap Place(const LocalSubmap& s, const Pose2& P_s, const Eigen::Matrix3d& Sigma_s, double landmark_radius) {
+  PlacedMap m;
+  m.P_s = P_s;
+  m.sigma_xy = std::sqrt(std::max(0.0, Sigma_s.topLeftCorner<2, 2>().eigenvalues().real().maxCoeff()));
   const double sigma_theta = std::sqrt(std::max(0.0, Sigma_s(2, 2)));
+  const int n = s.num_landmarks();
+  m.world.resize(n);
+  m.r2.resize(n);
+  for (int i = 0; i < n; ++i) {
+    m.world[i] = TransformFrom(P_s, s.landmark(i));
+    m.r2[i] = landmark_radius + 3.0 * (m.sigma_xy + sigma_theta * s.landmark(i).norm());
+  }
+  return m;
+}
+
+// Step 1: the landmarks near some feature, among those of local maps with an anchor
+// within `anchor_radius` (+ 3σ) of the start anchor (all of them without the prefilter).
+std::vector<int> NearbyLandmarks(const SubmapGraph& graph, const PlacedMap& m, bool anchor_prefilter,
+                                 double anchor_radius) {
   std::vector<char> is_candidate(graph.num_landmarks(), anchor_prefilter ? 0 : 1);
-  const double r1 = options_.anchor_search_radius_m + 3.0 * sigma_xy;
+  const double r1 = anchor_radius + 3.0 * m.sigma_xy;
   for (const SubmapFactor& f : graph.factors()) {
     if (!anchor_prefilter) break;
-    const bool near = (graph.anchors()[f.start_anchor].translation() - P_s.translation()).norm() <= r1 ||
-                      (graph.anchors()[f.end_anchor].translation() - P_s.translation()).norm() <= r1;
+    const bool near = (graph.anchors()[f.start_anchor].translation() - m.P_s.translation()).norm() <= r1 ||
+                      (graph.anchors()[f.end_anchor].translation() - m.P_s.translation()).norm() <= r1;
     if (!near) continue;
     for (int j : f.landmark_of_feature) is_candidate[j] = 1;
-  }
-  std::vector<Eigen::Vector2d> world(n);
-  std::vector<double> r2(n);
-  for (int i = 0; i < n; ++i) {
-    world[i] = TransformFrom(P_s, s.landmark(i));
-    r2[i] = options_.landmark_search_radius_m + 3.0 * (sigma_xy + sigma_theta * s.landmark(i).norm());
   }
   std::vector<int> candidates;
   for (int j = 0; j < graph.num_landmarks(); ++j) {
     if (!is_candidate[j]) continue;
-    for (int i = 0; i < n; ++i) {
-      if ((graph.landmarks()[j] - world[i]).norm() <= r2[i]) {
+    for (size_t i = 0; i < m.world.size(); ++i) {
+      if ((graph.landmarks()[j] - m.world[i]).norm() <= m.r2[i]) {
         candidates.push_back(j);
         break;
       }
     }
   }
-  out.candidates = static_cast<int>(candidates.size());
-  const double gate2 = models::ChiSquareQuantile(options_.gate_probability, 2);
-  const double gate3 = models::ChiSquareQuantile(options_.gate_probability, 3);
-  // Step 3's test of feature i against landmark j with innovation ν and covariance S:
-  // the score (d², plus the signature term when both have one) if it passes the gate
-  // (widened by `gate_scale`).
-  const auto gated_score = [&](int i, int j, const Eigen::Vector2d& nu, const Eigen::Matrix2d& S,
-                               double gate_scale) -> std::optional<double> {
+  return candidates;
+}
+
+// Step 3's test of feature i against landmark j with innovation ν and covariance S: the
+// score (d², plus the signature term when both have one) if it passes the gate (widened
+// by `gate_scale`).
+class GateTest {
+ public:
+  GateTest(const LocalSubmap& s, const SubmapAssociator& associator)
+      : s_(s),
+        associator_(associator),
+        gate2_(models::ChiSquareQuantile(associator.options().gate_probability, 2)),
+        gate3_(models::ChiSquareQuantile(associator.options().gate_probability, 3)) {}
+
+  std::optional<double> operator()(int i, int j, const Eigen::Vector2d& nu, const Eigen::Matrix2d& S,
+                                   double gate_scale) const {
     const std::optional<double> d2 = models::MahalanobisSquared2(nu, S);
     if (!d2.has_value()) return std::nullopt;
-    double score = *d2, gate = gate2;
-    const double sig_l = MeanSignature(j);
-    if (options_.sigma_signature > 0 && std::isfinite(s.landmarks[i].signature) && std::isfinite(sig_l)) {
-      const double ds = (s.landmarks[i].signature - sig_l) / options_.sigma_signature;
+    double score = *d2, gate = gate2_;
+    const double sig_l = associator_.MeanSignature(j);
+    const double sigma_signature = associator_.options().sigma_signature;
+    if (sigma_signature > 0 && std::isfinite(s_.landmarks[i].signature) && std::isfinite(sig_l)) {
+      const double ds = (s_.landmarks[i].signature - sig_l) / sigma_signature;
       score += ds * ds;
-      gate = gate3;
+      gate = gate3_;
     }
     if (score >= gate * gate_scale) return std::nullopt;
     return score;
-  };
-  if (pair_bound && pair_covariance) {
-    const absl::Time t0 = absl::Now();
-    const std::vector<std::optional<Matrix5d>> bounds = pair_bound(start_anchor, candidates);
-    out.covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
-    std::vector<int> kept;
-    for (size_t c = 0; c < candidates.size(); ++c) {
-      const int j = candidates[c];
-      bool may_pass = !bounds[c].has_value();
-      Eigen::Matrix<double, 2, 5> J;
-      Matrix23d J_frame;
-      Eigen::Matrix2d J_point;
-      const Eigen::Vector2d predicted = TransformTo(P_s, graph.landmarks()[j], &J_frame, &J_point);
-      J << J_frame, J_point;
-      for (int i = 0; i < n && !may_pass; ++i) {
-        if ((graph.landmarks()[j] - world[i]).norm() > r2[i]) continue;
-        const Eigen::Matrix2d S_upper = J * *bounds[c] * J.transpose() + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
-        // The relative slack keeps a pairing that the bound and the exact test would put
-        // on either side of the gate through rounding alone.
-        may_pass = gated_score(i, j, predicted - s.landmark(i), S_upper, 1.0 + 1e-9).has_value();
-      }
-      if (may_pass) kept.push_back(j);
+  }
+
+ private:
+  const LocalSubmap& s_;
+  const SubmapAssociator& associator_;
+  double gate2_, gate3_;
+};
+
+// Step 2: the candidates that could pass the gate with some feature under the joiner's
+// upper bound on their marginal (a candidate without a bound is kept).
+std::vector<int> PossiblyCompatible(const std::vector<int>& candidates,
+                                    const std::vector<std::optional<Matrix5d>>& bounds, const PlacedMap& m,
+                                    const SubmapGraph& graph, const LocalSubmap& s, const GateTest& gate) {
+  std::vector<int> kept;
+  for (size_t c = 0; c < candidates.size(); ++c) {
+    const int j = candidates[c];
+    bool may_pass = !bounds[c].has_value();
+    Eigen::Matrix<double, 2, 5> J;
+    Matrix23d J_frame;
+    Eigen::Matrix2d J_point;
+    const Eigen::Vector2d predicted = TransformTo(m.P_s, graph.landmarks()[j], &J_frame, &J_point);
+    J << J_frame, J_point;
+    for (int i = 0; i < s.num_landmarks() && !may_pass; ++i) {
+      if (!m.Near(graph.landmarks()[j], i)) continue;
+      const Eigen::Matrix2d S_upper = J * *bounds[c] * J.transpose() + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+      // The relative slack keeps a pairing that the bound and the exact test would put
+      // on either side of the gate through rounding alone.
+      may_pass = gate(i, j, predicted - s.landmark(i), S_upper, 1.0 + 1e-9).has_value();
     }
-    out.candidates_bounded_out = static_cast<int>(candidates.size() - kept.size());
-    candidates.swap(kept);
+    if (may_pass) kept.push_back(j);
   }
-  if (candidates.empty()) return out;
-  const int c_count = static_cast<int>(candidates.size());
-  // The marginal of [P_s, L_c] for each candidate: from the joiner's pairwise blocks when
-  // it has them (no cross-covariances between candidates are formed), else from the
-  // joint covariance of all candidates.
-  std::vector<Matrix5d> pair(c_count);
-  Eigen::MatrixXd full_joint;
-  if (pair_covariance) {
-    const absl::Time t0 = absl::Now();
-    pair = pair_covariance(start_anchor, candidates);
-    out.covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
-  } else {
-    full_joint = timed_covariance({start_anchor}, candidates);
-    for (int c = 0; c < c_count; ++c) {
-      pair[c].topLeftCorner<3, 3>() = full_joint.topLeftCorner<3, 3>();
-      pair[c].topRightCorner<3, 2>() = full_joint.block<3, 2>(0, 3 + 2 * c);
-      pair[c].bottomLeftCorner<2, 3>() = full_joint.block<2, 3>(3 + 2 * c, 0);
-      pair[c].bottomRightCorner<2, 2>() = full_joint.block<2, 2>(3 + 2 * c, 3 + 2 * c);
-    }
-  }
-  // Individual compatibility of each (feature, candidate) pair.
-  std::vector<Matrix23d> J_frame(c_count);
-  std::vector<Eigen::Matrix2d> J_point(c_count);
-  std::vector<Eigen::Vector2d> predicted(c_count);
-  for (int c = 0; c < c_count; ++c) {
-    predicted[c] = TransformTo(P_s, graph.landmarks()[candidates[c]], &J_frame[c], &J_point[c]);
-  }
-  // Candidate c's covariance in the start anchor's frame (through [P_s, L_c]'s marginal),
-  // and a pairing's innovation covariance: that plus the feature's.
-  const auto relative = [&](int c) -> Eigen::Matrix2d {
+  return kept;
+}
+
+// The candidates seen from the start anchor: each one's predicted position in its frame,
+// the Jacobians of that prediction, and the marginal of [P_s, L_c] it is taken through.
+struct CandidateGeometry {
+  std::vector<Matrix5d> pair;
+  Eigen::MatrixXd full_joint;  // [P_s, every candidate], when no pairwise blocks were given
+  std::vector<Matrix23d> J_frame;
+  std::vector<Eigen::Matrix2d> J_point;
+  std::vector<Eigen::Vector2d> predicted;
+
+  // Candidate c's covariance in the start anchor's frame.
+  Eigen::Matrix2d Relative(int c) const {
     Eigen::Matrix<double, 2, 5> J;
     J << J_frame[c], J_point[c];
     return J * pair[c] * J.transpose();
-  };
-  const auto individual = [&](int i, int c) -> Eigen::Matrix2d {
-    return relative(c) + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
-  };
+  }
+};
+
+// Landmarks a recent local map saw (pairings with any other close a loop) and, with
+// keep_certain_loop_pairings, the candidates whose position relative to the start anchor
+// is known to 3σ below the loop test's radius (kept when the tests drop a closure). The
+// loop tests apply while the start anchor is uncertain (`regime`).
+struct LoopFlags {
+  bool regime = false;
+  std::vector<char> recent, certain;
+};
+
+LoopFlags FlagLoopLandmarks(const SubmapAssociationOptions& o, const SubmapGraph& graph, double sigma_xy,
+                            const std::vector<int>& candidates, const CandidateGeometry& geometry) {
+  LoopFlags flags;
+  flags.regime = o.min_loop_pairings > 1 && 3.0 * sigma_xy >= o.loop_test_min_sigma_radius_m;
+  if (!flags.regime) return flags;
+  flags.recent.assign(graph.num_landmarks(), 0);
+  flags.certain.assign(graph.num_landmarks(), 0);
+  const int first_recent = static_cast<int>(graph.factors().size()) - o.recent_maps;
+  for (int f = std::max(0, first_recent); f < static_cast<int>(graph.factors().size()); ++f) {
+    for (int j : graph.factors()[f].landmark_of_feature) flags.recent[j] = 1;
+  }
+  const double radius = o.loop_test_min_sigma_radius_m / 3.0;
+  for (int c = 0; c < static_cast<int>(candidates.size()) && o.keep_certain_loop_pairings; ++c) {
+    const Eigen::Matrix2d r = geometry.Relative(c);
+    // The larger eigenvalue of the symmetric 2 × 2 block.
+    const double largest = 0.5 * (r(0, 0) + r(1, 1)) + std::hypot(0.5 * (r(0, 0) - r(1, 1)), r(0, 1));
+    flags.certain[candidates[c]] = largest < radius * radius ? 1 : 0;
+  }
+  return flags;
+}
+
+// The joiner's joint covariance, its time added to the association's record.
+class TimedCovariance {
+ public:
+  TimedCovariance(const SubmapAssociator::JointCovarianceFn& joint_covariance, double* seconds)
+      : joint_covariance_(joint_covariance), seconds_(seconds) {}
+  Eigen::MatrixXd operator()(const std::vector<int>& anchors, const std::vector<int>& landmarks) const {
+    const absl::Time t0 = absl::Now();
+    Eigen::MatrixXd m = joint_covariance_(anchors, landmarks);
+    *seconds_ += absl::ToDoubleSeconds(absl::Now() - t0);
+    return m;
+  }
+
+ private:
+  const SubmapAssociator::JointCovarianceFn& joint_covariance_;
+  double* seconds_;
+};
+
+// The marginal of [P_s, L_c] for each candidate — from the joiner's pairwise blocks when
+// it has them (no cross-covariances between candidates are formed), else from the joint
+// covariance of all candidates — and each candidate's prediction from P_s.
+CandidateGeometry Geometry(int start_anchor, const std::vector<int>& candidates, const Pose2& P_s,
+                           const SubmapGraph& graph, const SubmapAssociator::PairCovarianceFn& pair_covariance,
+                           const TimedCovariance& timed_covariance, double* covariance_seconds) {
+  const int c_count = static_cast<int>(candidates.size());
+  CandidateGeometry g;
+  g.pair.resize(c_count);
+  if (pair_covariance) {
+    const absl::Time t0 = absl::Now();
+    g.pair = pair_covariance(start_anchor, candidates);
+    *covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
+  } else {
+    g.full_joint = timed_covariance({start_anchor}, candidates);
+    for (int c = 0; c < c_count; ++c) {
+      g.pair[c].topLeftCorner<3, 3>() = g.full_joint.topLeftCorner<3, 3>();
+      g.pair[c].topRightCorner<3, 2>() = g.full_joint.block<3, 2>(0, 3 + 2 * c);
+      g.pair[c].bottomLeftCorner<2, 3>() = g.full_joint.block<2, 3>(3 + 2 * c, 0);
+      g.pair[c].bottomRightCorner<2, 2>() = g.full_joint.block<2, 2>(3 + 2 * c, 3 + 2 * c);
+    }
+  }
+  g.J_frame.resize(c_count);
+  g.J_point.resize(c_count);
+  g.predicted.resize(c_count);
+  for (int c = 0; c < c_count; ++c) {
+    g.predicted[c] = TransformTo(P_s, graph.landmarks()[candidates[c]], &g.J_frame[c], &g.J_point[c]);
+  }
+  return g;
+}
+
+// Step 3: individual compatibility of each (feature, candidate) pair; each feature's
+// compatible candidates by increasing score.
+association::AssociationProblem IndividualCompatibility(const LocalSubmap& s, const std::vector<int>& candidates,
+                                                        const PlacedMap& m, const SubmapGraph& graph,
+                                                        const CandidateGeometry& geometry, const GateTest& gate) {
+  const int n = s.num_landmarks();
   association::AssociationProblem problem;
   problem.candidates.resize(n);
-  for (int c = 0; c < c_count; ++c) {
+  for (int c = 0; c < static_cast<int>(candidates.size()); ++c) {
     const int j = candidates[c];
     for (int i = 0; i < n; ++i) {
-      if ((graph.landmarks()[j] - world[i]).norm() > r2[i]) continue;
-      const Eigen::Vector2d nu = predicted[c] - s.landmark(i);
-      const std::optional<double> score = gated_score(i, j, nu, individual(i, c), 1.0);
+      if (!m.Near(graph.landmarks()[j], i)) continue;
+      const Eigen::Vector2d nu = geometry.predicted[c] - s.landmark(i);
+      const Eigen::Matrix2d S = geometry.Relative(c) + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+      const std::optional<double> score = gate(i, j, nu, S, 1.0);
       if (score.has_value()) problem.candidates[i].push_back({c, *score, nu});
     }
   }
@@ -243,121 +321,160 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
       return a.d2 < b.d2 || (a.d2 == b.d2 && a.landmark < b.landmark);
     });
   }
-  // Landmarks a recent local map saw; pairings with any other close a loop. The loop
-  // tests apply while the start anchor is uncertain.
-  const bool loop_regime =
-      options_.min_loop_pairings > 1 && 3.0 * sigma_xy >= options_.loop_test_min_sigma_radius_m;
-  // By landmark: seen by a recent map; and (keep_certain_loop_pairings) a candidate whose
-  // position relative to the start anchor is known to 3σ below the test's radius, kept
-  // when the tests drop a closure.
-  std::vector<char> recent, certain;
-  if (loop_regime) {
-    recent.assign(graph.num_landmarks(), 0);
-    certain.assign(graph.num_landmarks(), 0);
-    const int first_recent = static_cast<int>(graph.factors().size()) - options_.recent_maps;
-    for (int f = std::max(0, first_recent); f < static_cast<int>(graph.factors().size()); ++f) {
-      for (int j : graph.factors()[f].landmark_of_feature) recent[j] = 1;
-    }
-    const double radius = options_.loop_test_min_sigma_radius_m / 3.0;
-    for (int c = 0; c < c_count && options_.keep_certain_loop_pairings; ++c) {
-      const Eigen::Matrix2d r = relative(c);
-      // The larger eigenvalue of the symmetric 2 × 2 block.
-      const double largest = 0.5 * (r(0, 0) + r(1, 1)) + std::hypot(0.5 * (r(0, 0) - r(1, 1)), r(0, 1));
-      certain[candidates[c]] = largest < radius * radius ? 1 : 0;
+  return problem;
+}
+
+// Step 4: JCBB over the individually compatible pairings, with the joint covariance of P_s
+// and those candidates only; then the loop-closure ambiguity test: with the hypothesis'
+// loop pairings struck out, does another jointly compatible hypothesis still pair as many
+// features with old landmarks? Then the corridor offers two explanations and the loop
+// closure waits (its uncertain pairings are dropped).
+association::AssociationResult JointlyCompatible(const SubmapAssociationOptions& o, const LocalSubmap& s,
+                                                 int start_anchor, const std::vector<int>& candidates,
+                                                 const CandidateGeometry& geometry, const LoopFlags& loop,
+                                                 const TimedCovariance& timed_covariance,
+                                                 association::AssociationProblem* problem, SubmapAssociation* out) {
+  const int c_count = static_cast<int>(candidates.size());
+  std::vector<int> slot(c_count, -1), compatible;
+  for (const auto& list : problem->candidates) {
+    for (const association::AssociationCandidate& cand : list) {
+      if (slot[cand.landmark] < 0) {
+        slot[cand.landmark] = static_cast<int>(compatible.size());
+        compatible.push_back(candidates[cand.landmark]);
+      }
     }
   }
-  association::AssociationResult result;
-  if (options_.joint_compatibility) {
-    // The joint covariance of P_s and the individually compatible candidates only.
-    std::vector<int> slot(c_count, -1), compatible;
-    for (const auto& list : problem.candidates) {
-      for (const association::AssociationCandidate& cand : list) {
-        if (slot[cand.landmark] < 0) {
-          slot[cand.landmark] = static_cast<int>(compatible.size());
-          compatible.push_back(candidates[cand.landmark]);
-        }
-      }
+  Eigen::MatrixXd Sigma;
+  if (geometry.full_joint.size() > 0) {
+    std::vector<int> rows(3 + 2 * compatible.size());  // of full_joint, per slot
+    rows[0] = 0, rows[1] = 1, rows[2] = 2;
+    for (int c = 0; c < c_count; ++c) {
+      if (slot[c] < 0) continue;
+      rows[3 + 2 * slot[c]] = 3 + 2 * c;
+      rows[4 + 2 * slot[c]] = 4 + 2 * c;
     }
-    Eigen::MatrixXd Sigma;
-    if (full_joint.size() > 0) {
-      std::vector<int> rows(3 + 2 * compatible.size());  // of full_joint, per slot
-      rows[0] = 0, rows[1] = 1, rows[2] = 2;
-      for (int c = 0; c < c_count; ++c) {
-        if (slot[c] < 0) continue;
-        rows[3 + 2 * slot[c]] = 3 + 2 * c;
-        rows[4 + 2 * slot[c]] = 4 + 2 * c;
-      }
-      Sigma = full_joint(rows, rows);
-    } else if (!compatible.empty()) {
-      Sigma = timed_covariance({start_anchor}, compatible);
+    Sigma = geometry.full_joint(rows, rows);
+  } else if (!compatible.empty()) {
+    Sigma = timed_covariance({start_anchor}, compatible);
+  }
+  // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate]; J_a Σ J_bᵀ is
+  // computed once per pair of candidates (JCBB asks for it at every node).
+  const int c_n = static_cast<int>(compatible.size());
+  std::vector<Eigen::Matrix2d> projected(static_cast<size_t>(c_n) * c_n);
+  std::vector<char> projected_known(static_cast<size_t>(c_n) * c_n, 0);
+  const std::vector<Matrix23d>& J_frame = geometry.J_frame;
+  const std::vector<Eigen::Matrix2d>& J_point = geometry.J_point;
+  problem->covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
+    const size_t key = static_cast<size_t>(slot[a]) * c_n + slot[b];
+    if (!projected_known[key]) {
+      const int oa = 3 + 2 * slot[a], ob = 3 + 2 * slot[b];
+      projected[key] = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
+                       J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
+                       J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
+                       J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
+      projected_known[key] = 1;
     }
-    // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate]; J_a Σ J_bᵀ is
-    // computed once per pair of candidates (JCBB asks for it at every node).
-    const int c_n = static_cast<int>(compatible.size());
-    std::vector<Eigen::Matrix2d> projected(static_cast<size_t>(c_n) * c_n);
-    std::vector<char> projected_known(static_cast<size_t>(c_n) * c_n, 0);
-    problem.covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
-      const size_t key = static_cast<size_t>(slot[a]) * c_n + slot[b];
-      if (!projected_known[key]) {
-        const int oa = 3 + 2 * slot[a], ob = 3 + 2 * slot[b];
-        projected[key] = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
-                         J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
-                         J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
-                         J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
-        projected_known[key] = 1;
-      }
-      return projected[key] + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
-    };
-    result = association::JointCompatibility(problem, options_.gate_probability, options_.jcbb_max_nodes);
-    out.jcbb_truncated = result.truncated;
-    // Loop-closure ambiguity: with the hypothesis' loop pairings struck out, does another
-    // jointly compatible hypothesis still pair as many features with old landmarks? Then
-    // the corridor offers two explanations and the loop closure waits.
-    const auto closes_loop = [&](int c) { return c >= 0 && !recent[candidates[c]]; };
-    const auto loop_pairings_of = [&](const association::AssociationResult& r) {
-      return static_cast<int>(std::count_if(r.landmark_of_detection.begin(), r.landmark_of_detection.end(), closes_loop));
-    };
-    if (options_.loop_ambiguity_test && loop_regime && loop_pairings_of(result) >= options_.min_loop_pairings) {
-      association::AssociationProblem alternative = problem;
-      for (int i = 0; i < n; ++i) {
-        const int c = result.landmark_of_detection[i];
-        if (!closes_loop(c)) continue;
-        std::erase_if(alternative.candidates[i], [c](const association::AssociationCandidate& x) { return x.landmark == c; });
-      }
-      const association::AssociationResult other =
-          association::JointCompatibility(alternative, options_.gate_probability, options_.jcbb_max_nodes);
-      if (loop_pairings_of(other) >= options_.min_loop_pairings) {
-        for (int& c : result.landmark_of_detection) {
-          if (closes_loop(c) && !certain[candidates[c]]) c = -1;
-        }
-        out.loop_ambiguous = true;
-      }
+    return projected[key] + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
+  };
+  association::AssociationResult result = association::JointCompatibility(*problem, o.gate_probability, o.jcbb_max_nodes);
+  out->jcbb_truncated = result.truncated;
+  const auto closes_loop = [&](int c) { return c >= 0 && !loop.recent[candidates[c]]; };
+  const auto loop_pairings_of = [&](const association::AssociationResult& r) {
+    return static_cast<int>(std::count_if(r.landmark_of_detection.begin(), r.landmark_of_detection.end(), closes_loop));
+  };
+  if (o.loop_ambiguity_test && loop.regime && loop_pairings_of(result) >= o.min_loop_pairings) {
+    association::AssociationProblem alternative = *problem;
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      const int c = result.landmark_of_detection[i];
+      if (!closes_loop(c)) continue;
+      std::erase_if(alternative.candidates[i], [c](const association::AssociationCandidate& x) { return x.landmark == c; });
     }
+    const association::AssociationResult other =
+        association::JointCompatibility(alternative, o.gate_probability, o.jcbb_max_nodes);
+    if (loop_pairings_of(other) >= o.min_loop_pairings) {
+      for (int& c : result.landmark_of_detection) {
+        if (closes_loop(c) && !loop.certain[candidates[c]]) c = -1;
+      }
+      out->loop_ambiguous = true;
+    }
+  }
+  return result;
+}
+
+// A loop closure — pairings with landmarks no recent local map saw — is accepted only
+// with at least min_loop_pairings of them, when the start anchor is uncertain (3σ at
+// least loop_test_min_sigma_radius_m): after a long drift the gates are wide and a
+// hypothesis with one or two old landmarks is easily compatible by chance.
+void ApplyLoopPairingTest(const SubmapAssociationOptions& o, const LoopFlags& flags, SubmapAssociation* out) {
+  if (!flags.regime) return;
+  int loop_pairings = 0;
+  for (int j : out->landmark_of_feature) loop_pairings += (j >= 0 && !flags.recent[j]) ? 1 : 0;
+  if (loop_pairings > 0 && loop_pairings < o.min_loop_pairings) {
+    for (int& j : out->landmark_of_feature) {
+      if (j >= 0 && !flags.recent[j] && !flags.certain[j]) j = -1;
+    }
+    out->loop_pairings_dropped = loop_pairings;
   } else {
-    result = association::NearestNeighbour(problem);
+    for (size_t i = 0; i < out->landmark_of_feature.size(); ++i) {
+      const int j = out->landmark_of_feature[i];
+      if (j >= 0 && !flags.recent[j]) out->uncertain_loop_features.push_back(static_cast<int>(i));
+    }
   }
+}
+
+}  // namespace
+
+SubmapAssociation SubmapAssociator::AssociateByTruth(const LocalSubmap& s) const {
+  SubmapAssociation out;
+  out.landmark_of_feature.assign(s.num_landmarks(), -1);
+  for (int i = 0; i < s.num_landmarks(); ++i) {
+    const std::optional<int>& t = s.landmarks[i].truth_id;
+    if (!t.has_value() || *t < 0) continue;  // unknown or false alarm: a new landmark
+    auto it = landmark_of_truth_.find(*t);
+    if (it != landmark_of_truth_.end()) out.landmark_of_feature[i] = it->second;
+  }
+  return out;
+}
+
+SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_anchor,
+                                              const SubmapGraph& graph,
+                                              const JointCovarianceFn& joint_covariance,
+                                              bool anchor_prefilter,
+                                              const PairCovarianceFn& pair_covariance,
+                                              const PairBoundFn& pair_bound) const {
+  if (options_.known_association) return AssociateByTruth(s);
+  const int n = s.num_landmarks();
+  SubmapAssociation out;
+  out.landmark_of_feature.assign(n, -1);
+  const TimedCovariance timed_covariance(joint_covariance, &out.covariance_seconds);
+  const Eigen::Matrix3d Sigma_s = timed_covariance({start_anchor}, {});
+  out.start_anchor_covariance = Sigma_s;
+  const PlacedMap placed = Place(s, graph.anchors()[start_anchor], Sigma_s, options_.landmark_search_radius_m);
+  out.start_position_sigma_m = placed.sigma_xy;
+  std::vector<int> candidates = NearbyLandmarks(graph, placed, anchor_prefilter, options_.anchor_search_radius_m);
+  out.candidates = static_cast<int>(candidates.size());
+  const GateTest gate(s, *this);
+  if (pair_bound && pair_covariance) {
+    const absl::Time t0 = absl::Now();
+    const std::vector<std::optional<Matrix5d>> bounds = pair_bound(start_anchor, candidates);
+    out.covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
+    std::vector<int> kept = PossiblyCompatible(candidates, bounds, placed, graph, s, gate);
+    out.candidates_bounded_out = static_cast<int>(candidates.size() - kept.size());
+    candidates.swap(kept);
+  }
+  if (candidates.empty()) return out;
+  const CandidateGeometry geometry = Geometry(start_anchor, candidates, placed.P_s, graph, pair_covariance,
+                                              timed_covariance, &out.covariance_seconds);
+  association::AssociationProblem problem = IndividualCompatibility(s, candidates, placed, graph, geometry, gate);
+  const LoopFlags loop = FlagLoopLandmarks(options_, graph, placed.sigma_xy, candidates, geometry);
+  association::AssociationResult result =
+      options_.joint_compatibility
+          ? JointlyCompatible(options_, s, start_anchor, candidates, geometry, loop, timed_covariance, &problem, &out)
+          : association::NearestNeighbour(problem);
   for (int i = 0; i < n; ++i) {
     if (result.landmark_of_detection[i] >= 0) out.landmark_of_feature[i] = candidates[result.landmark_of_detection[i]];
   }
-  // A loop closure — pairings with landmarks no recent local map saw — is accepted only
-  // with at least min_loop_pairings of them, when the start anchor is uncertain (3σ at
-  // least loop_test_min_sigma_radius_m): after a long drift the gates are wide and a
-  // hypothesis with one or two old landmarks is easily compatible by chance.
-  if (loop_regime) {
-    int loop_pairings = 0;
-    for (int j : out.landmark_of_feature) loop_pairings += (j >= 0 && !recent[j]) ? 1 : 0;
-    if (loop_pairings > 0 && loop_pairings < options_.min_loop_pairings) {
-      for (int& j : out.landmark_of_feature) {
-        if (j >= 0 && !recent[j] && !certain[j]) j = -1;
-      }
-      out.loop_pairings_dropped = loop_pairings;
-    } else {
-      for (int i = 0; i < n; ++i) {
-        const int j = out.landmark_of_feature[i];
-        if (j >= 0 && !recent[j]) out.uncertain_loop_features.push_back(i);
-      }
-    }
-  }
+  ApplyLoopPairingTest(options_, loop, &out);
   return out;
 }
 

@@ -157,6 +157,9 @@ class SubmapAssociator {
   std::vector<int> TruthIds(int num_landmarks) const;
 
  private:
+  // Known association: each feature to the landmark of its true id, if there is one.
+  SubmapAssociation AssociateByTruth(const LocalSubmap& submap) const;
+
   SubmapAssociationOptions options_;
   std::vector<double> signature_sum_;  // per landmark
   std::vector<int> signature_count_;
