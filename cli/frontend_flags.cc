@@ -104,6 +104,21 @@ ABSL_FLAG(bool, submap_delay_ambiguous, PolicyDefaults().delay_while_ambiguous,
 namespace subslam::cli {
 
 absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options) {
+  absl::StatusOr<association::AssociationMethod> method =
+      association::AssociationMethodFromString(absl::GetFlag(FLAGS_association));
+  if (!method.ok()) return method.status();
+  options->ekf.association = *method;
+  options->seif.association = *method;
+  // The gates, known association and existence model every front-end shares.
+  frontend::LandmarkOptions landmarks;
+  landmarks.gate_probability = absl::GetFlag(FLAGS_gate);
+  landmarks.new_landmark_probability = absl::GetFlag(FLAGS_new_landmark_gate);
+  landmarks.existence.detection_probability = absl::GetFlag(FLAGS_existence_alpha);
+  landmarks.existence.false_alarm_probability = absl::GetFlag(FLAGS_existence_beta);
+  landmarks.known_association = absl::GetFlag(FLAGS_known_association);
+  options->ekf.landmarks = landmarks;
+  options->fastslam.landmarks = landmarks;
+  options->seif.landmarks = landmarks;
   options->policy.min_duration_s = absl::GetFlag(FLAGS_submap_min_duration);
   options->policy.max_duration_s = absl::GetFlag(FLAGS_submap_max_duration);
   options->policy.max_features = absl::GetFlag(FLAGS_submap_max_features);

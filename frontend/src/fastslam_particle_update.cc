@@ -66,234 +66,301 @@ double FastSlam::SignatureLogLikelihood(const LandmarkGaussian& l, double signat
   return -0.5 * ds * ds / var - 0.5 * std::log(2.0 * std::numbers::pi * var);
 }
 
-void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
-                              const std::vector<double>& signature, int* decisions, Scratch* scratch,
-                              std::mt19937_64* rng) const {
-  std::vector<Prediction>& predictions = scratch->predictions;
-  std::vector<GatedPair>& pairs = scratch->pairs;
-  std::vector<double>& min_d2 = scratch->min_d2;
-  std::vector<GatedPair>& near_pairs = scratch->near_pairs;
-  std::vector<std::pair<int, double>>& likelihoods = scratch->likelihoods;
-  const Eigen::Matrix2d R = sensor_.NoiseCovariance();
-  const double reach = sensor_.config().max_range_m + 10.0;
-  const int n = static_cast<int>(particle->landmarks.size());
-  const int m = static_cast<int>(z.size());
-  Eigen::Matrix3d Sigma;  // of the proposal, below
-  const Pose2 x0 = CurrentPose(*particle, &Sigma);
-  predictions.resize(n);
-  // Cheap visibility cull before the atan2 of Observe: within reach, and inside the
-  // field of view widened by kFovMarginRad (cos of the bearing off the FOV's centre).
-  const double c_axis = std::cos(x0.theta + fov_center_), s_axis = std::sin(x0.theta + fov_center_);
-  const models::RangeBearingConfig& rb = sensor_.config();
-  const auto predict = [&](int i) {
-    Prediction& pr = predictions[i];
-    const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
-    Eigen::Matrix2d H_l;
-    pr.z[0] = sensor_.ObserveRange(x0, l.mean, &pr.H_pose, &H_l);
-    pr.z[1] = NAN;  // the bearing (an atan2) only for pairs that pass the range gate
-    pr.Z = H_l * l.covariance * H_l.transpose() + R;
-  };
-  const auto predict_bearing = [&](int i) {
-    Prediction& pr = predictions[i];
-    if (std::isnan(pr.z[1])) pr.z[1] = models::RangeBearingModel::Bearing(x0, particle->landmarks[i].gaussian->mean);
-  };
-  for (int i = 0; i < n; ++i) {
-    Prediction& pr = predictions[i];
-    const LandmarkGaussian& l = *particle->landmarks[i].gaussian;
-    pr.used = pr.gated = false;
-    const Eigen::Vector2d d = l.mean - x0.translation();
-    const double d2 = d.squaredNorm();
-    const double along = c_axis * d.x() + s_axis * d.y(), distance = std::sqrt(d2);
-    pr.in_reach = d2 < reach * reach && along >= fov_cos_limit_ * distance;
-    if (!pr.in_reach) continue;
-    // Expected (for the missed-detection update): well inside range and field of view,
-    // tested on the cosine of the bearing off the field of view's centre.
-    pr.expected = distance >= rb.min_range_m + options_.landmarks.expect_range_margin_m &&
-                  distance <= rb.max_range_m - options_.landmarks.expect_range_margin_m &&
-                  along >= fov_cos_expected_ * distance;
-    predict(i);
+// One particle's scan update (FastSLAM 2.0), phase by phase: the landmarks in reach and
+// their predictions, the pairing of detections with them (by true id, maximum likelihood
+// or sampled), the proposal N(x0 ⊕ δ, Σ) updated by each pairing in turn with the
+// particle's importance weight, the unexplained detections' weight, and the pose drawn
+// from the proposal.
+class FastSlam::ScanUpdate {
+ public:
+  ScanUpdate(const FastSlam& filter, Particle* particle, const std::vector<Eigen::Vector2d>& z,
+             const std::vector<double>& signature, int* decisions, Scratch* scratch, std::mt19937_64* rng)
+      : f_(filter),
+        o_(filter.options_),
+        particle_(particle),
+        z_(z),
+        signature_(signature),
+        decisions_(decisions),
+        scratch_(scratch),
+        rng_(rng),
+        predictions_(scratch->predictions),
+        R_(filter.sensor_.NoiseCovariance()),
+        n_(static_cast<int>(particle->landmarks.size())),
+        m_(static_cast<int>(z.size())) {
+    x0_ = f_.CurrentPose(*particle_, &Sigma_);
+    predictions_.resize(n_);
   }
-  if (options_.landmarks.known_association) {
-    // Known association: detection j belongs to the particle's landmark with its true id
-    // (predicted even if the particle believes it out of reach), or starts one; a false
-    // alarm or a repeated id (truth_ −1, see Update) is ignored.
-    for (int j = 0; j < m; ++j) {
-      decisions[j] = truth_[j] < 0 ? kIgnore : kNew;
-      if (decisions[j] == kIgnore) continue;
-      for (int i = 0; i < n; ++i) {
-        if (particle->landmarks[i].gaussian->truth_id != truth_[j]) continue;
-        decisions[j] = i;
-        if (!predictions[i].in_reach) {
-          predictions[i].in_reach = true;
-          predictions[i].expected = false;
-          predict(i);
+
+  // The landmarks in reach — within range and the field of view widened by kFovMarginRad,
+  // culled cheaply before the atan2 of a bearing — their predicted range and covariance,
+  // and whether each is expected (a miss counts).
+  void PredictLandmarksInReach() {
+    const double reach = f_.sensor_.config().max_range_m + 10.0;
+    const double c_axis = std::cos(x0_.theta + f_.fov_center_), s_axis = std::sin(x0_.theta + f_.fov_center_);
+    const models::RangeBearingConfig& rb = f_.sensor_.config();
+    for (int i = 0; i < n_; ++i) {
+      Prediction& pr = predictions_[i];
+      const LandmarkGaussian& l = *particle_->landmarks[i].gaussian;
+      pr.used = pr.gated = false;
+      const Eigen::Vector2d d = l.mean - x0_.translation();
+      const double d2 = d.squaredNorm();
+      const double along = c_axis * d.x() + s_axis * d.y(), distance = std::sqrt(d2);
+      pr.in_reach = d2 < reach * reach && along >= f_.fov_cos_limit_ * distance;
+      if (!pr.in_reach) continue;
+      // Expected (for the missed-detection update): well inside range and field of view,
+      // tested on the cosine of the bearing off the field of view's centre.
+      pr.expected = distance >= rb.min_range_m + o_.landmarks.expect_range_margin_m &&
+                    distance <= rb.max_range_m - o_.landmarks.expect_range_margin_m &&
+                    along >= f_.fov_cos_expected_ * distance;
+      Predict(i);
+    }
+  }
+
+  // Known association: detection j belongs to the particle's landmark with its true id
+  // (predicted even if the particle believes it out of reach), or starts one; a false
+  // alarm or a repeated id (truth_ −1, see Update) is ignored.
+  void PairByTruthIds() {
+    for (int j = 0; j < m_; ++j) {
+      decisions_[j] = f_.truth_[j] < 0 ? kIgnore : kNew;
+      if (decisions_[j] == kIgnore) continue;
+      for (int i = 0; i < n_; ++i) {
+        if (particle_->landmarks[i].gaussian->truth_id != f_.truth_[j]) continue;
+        decisions_[j] = i;
+        if (!predictions_[i].in_reach) {
+          predictions_[i].in_reach = true;
+          predictions_[i].expected = false;
+          Predict(i);
         }
         break;
       }
     }
   }
-  // The proposal N(x0 ⊕ δ, Σ), updated by each associated detection in turn.
-  Eigen::Vector3d delta = Eigen::Vector3d::Zero();
-  double log_w = 0.0;
-  double det_product = 1.0;  // of the associated pairs' S, folded into log_w at the end
-  const auto update_proposal = [&](const Prediction& pr, const PairScore& score) {
-    const Eigen::Matrix<double, 3, 2> K = Sigma * pr.H_pose.transpose() * score.S_inv;
-    delta += K * score.nu;
-    Sigma -= K * pr.H_pose * Sigma;
-    Sigma = 0.5 * (Sigma + Sigma.transpose()).eval();
-  };
-  // Pairs detection j with landmark i, scored at the current proposal for the weight.
-  const auto associate = [&](int j, int i) {
-    Prediction& pr = predictions[i];
-    const PairScore score = Score(pr, *particle->landmarks[i].gaussian, z[j], signature[j], delta, Sigma);
-    pr.used = true;
-    decisions[j] = i;
-    log_w += score.log_likelihood_but_det;
-    det_product *= score.det;
-    if (det_product < 1e-200 || det_product > 1e200) {
-      log_w -= 0.5 * std::log(det_product);
-      det_product = 1.0;
-    }
-    update_proposal(pr, score);
-    ++scratch->associated;
-  };
 
-  // 1. Score every (detection, landmark) pair at the prior proposal, where S depends on
-  //    the landmark only: one 2×2 inverse per landmark, a few flops per pair.
-  for (int i = 0; i < n; ++i) {
-    Prediction& pr = predictions[i];
-    if (!pr.in_reach) continue;
-    pr.S = pr.H_pose * Sigma * pr.H_pose.transpose() + pr.Z;
-    const double det = pr.S.determinant();
-    SUBSLAM_CHECK(det > 0.0) << "predictive covariance not positive definite";
-    pr.S_inv = pr.S.inverse();
-    pr.log_norm = NAN;  // computed when a pair gates
-    pr.det = det;
-  }
-  min_d2.assign(m, INFINITY);
-  near_pairs.clear();
-  pairs.clear();
-  if (options_.landmarks.known_association) {
-    // 2. Known association: the given pairings in detection order, each scored at the
-    //    current proposal.
-    for (int j = 0; j < m; ++j) {
-      const int i = decisions[j];
-      if (i < 0) continue;
-      predict_bearing(i);
-      predictions[i].gated = true;
-      associate(j, i);
+  // Every (detection, landmark) pair is scored at the prior proposal, where S depends on
+  // the landmark only: one 2×2 inverse per landmark, a few flops per pair.
+  void PrepareScores() {
+    for (int i = 0; i < n_; ++i) {
+      Prediction& pr = predictions_[i];
+      if (!pr.in_reach) continue;
+      pr.S = pr.H_pose * Sigma_ * pr.H_pose.transpose() + pr.Z;
+      const double det = pr.S.determinant();
+      SUBSLAM_CHECK(det > 0.0) << "predictive covariance not positive definite";
+      pr.S_inv = pr.S.inverse();
+      pr.log_norm = NAN;  // computed when a pair gates
+      pr.det = det;
     }
-  } else {
-    // The gated pairs, ranked.
-    for (int j = 0; j < m; ++j) {
-      decisions[j] = kIgnore;
-      for (int i = 0; i < n; ++i) {
-        Prediction& pr = predictions[i];
+    scratch_->min_d2.assign(m_, INFINITY);
+    scratch_->near_pairs.clear();
+    scratch_->pairs.clear();
+  }
+
+  // Known association: the given pairings in detection order, each scored at the current
+  // proposal.
+  void AssociateTruthPairs() {
+    for (int j = 0; j < m_; ++j) {
+      const int i = decisions_[j];
+      if (i < 0) continue;
+      PredictBearing(i);
+      predictions_[i].gated = true;
+      Associate(j, i);
+    }
+  }
+
+  // The gated pairs, ranked by `association_score`; the pairs within the new-landmark
+  // gate (`near_pairs`) for the weight of detections left unexplained.
+  void RankGatedPairs() {
+    std::vector<double>& min_d2 = scratch_->min_d2;
+    for (int j = 0; j < m_; ++j) {
+      decisions_[j] = kIgnore;
+      for (int i = 0; i < n_; ++i) {
+        Prediction& pr = predictions_[i];
         if (!pr.in_reach) continue;
         // νᵀS⁻¹ν ≥ ν_r² / S_rr: most pairs are rejected on range alone.
-        const double nu_r = z[j][0] - pr.z[0];
-        if (nu_r * nu_r >= new_landmark_d2_ * pr.S(0, 0)) continue;
-        predict_bearing(i);
-        const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+        const double nu_r = z_[j][0] - pr.z[0];
+        if (nu_r * nu_r >= f_.new_landmark_d2_ * pr.S(0, 0)) continue;
+        PredictBearing(i);
+        const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z_[j], pr.z);
         const double d2 = nu.dot(pr.S_inv * nu);
         min_d2[j] = std::min(min_d2[j], d2);
-        if (d2 >= new_landmark_d2_) continue;
+        if (d2 >= f_.new_landmark_d2_) continue;
         pr.gated = true;
         if (std::isnan(pr.log_norm)) {
           pr.log_norm = -std::log(2.0 * std::numbers::pi) - 0.5 * std::log(pr.det);
         }
         const double ll = pr.log_norm - 0.5 * d2 +
-                          SignatureLogLikelihood(*particle->landmarks[i].gaussian, signature[j]);
-        near_pairs.push_back({ll, j, i});
-        if (d2 >= gate_d2_) continue;
-        const double rank = options_.association_score == AssociationScore::kLikelihood ? ll : -d2;
-        pairs.push_back({rank, j, i});
+                          f_.SignatureLogLikelihood(*particle_->landmarks[i].gaussian, signature_[j]);
+        scratch_->near_pairs.push_back({ll, j, i});
+        if (d2 >= f_.gate_d2_) continue;
+        const double rank = o_.association_score == AssociationScore::kLikelihood ? ll : -d2;
+        scratch_->pairs.push_back({rank, j, i});
       }
     }
-    if (!options_.sample_association) {
-      // 2a. One-to-one greedy assignment, best pair first; then the proposal updates in
-      //     that order, each pair rescored at the current proposal for the weight.
-      std::sort(pairs.begin(), pairs.end(), [](const GatedPair& a, const GatedPair& b) {
-        return a.rank > b.rank || (a.rank == b.rank && (a.detection < b.detection ||
-                                                        (a.detection == b.detection && a.landmark < b.landmark)));
-      });
-      for (const GatedPair& p : pairs) {
-        if (decisions[p.detection] >= 0 || predictions[p.landmark].used) continue;
-        associate(p.detection, p.landmark);
+  }
+
+  // One-to-one greedy assignment, best pair first; the proposal updates in that order,
+  // each pair rescored at the current proposal for the weight.
+  void AssignGreedily() {
+    std::vector<GatedPair>& pairs = scratch_->pairs;
+    std::sort(pairs.begin(), pairs.end(), [](const GatedPair& a, const GatedPair& b) {
+      return a.rank > b.rank || (a.rank == b.rank && (a.detection < b.detection ||
+                                                      (a.detection == b.detection && a.landmark < b.landmark)));
+    });
+    for (const GatedPair& p : pairs) {
+      if (decisions_[p.detection] >= 0 || predictions_[p.landmark].used) continue;
+      Associate(p.detection, p.landmark);
+    }
+  }
+
+  // Data-association sampling, detection by detection: among the still unused gated
+  // landmarks and "new", in proportion to their likelihoods at the current proposal.
+  void SampleAssociations() {
+    std::vector<std::pair<int, double>>& likelihoods = scratch_->likelihoods;
+    for (int j = 0; j < m_; ++j) {
+      likelihoods.clear();
+      double max_ll = f_.log_p0_;
+      for (const GatedPair& p : scratch_->pairs) {
+        if (p.detection != j || predictions_[p.landmark].used) continue;
+        const PairScore score = f_.Score(predictions_[p.landmark], *particle_->landmarks[p.landmark].gaussian, z_[j],
+                                         signature_[j], delta_, Sigma_);
+        if (score.d2 >= f_.gate_d2_) continue;
+        const double ll = score.log_likelihood_but_det - 0.5 * std::log(score.det);
+        likelihoods.push_back({p.landmark, ll});
+        max_ll = std::max(max_ll, ll);
       }
+      if (likelihoods.empty()) continue;
+      double total = std::exp(f_.log_p0_ - max_ll);
+      for (const auto& [i, ll] : likelihoods) total += std::exp(ll - max_ll);
+      double r = std::uniform_real_distribution<double>(0.0, total)(*rng_);
+      for (const auto& [i, ll] : likelihoods) {
+        r -= std::exp(ll - max_ll);
+        if (r < 0) {
+          Associate(j, i);
+          break;
+        }
+      }
+      if (decisions_[j] < 0) decisions_[j] = kNew;  // sampled "new" although something gated
+    }
+  }
+
+  // Unexplained detections: a new landmark beyond the new-landmark gate of every
+  // landmark, with the density p0; otherwise ignored, with the likelihood of its most
+  // likely landmark that no other detection took (at least p0, which is also what a
+  // false alarm or a sampled "new" gets).
+  void ScoreUnexplained() {
+    log_w_ -= 0.5 * std::log(det_product_);
+    for (int j = 0; j < m_; ++j) {
+      if (decisions_[j] >= 0) continue;
+      if (decisions_[j] != kNew && !o_.landmarks.known_association) {
+        decisions_[j] = scratch_->min_d2[j] > f_.new_landmark_d2_ ? kNew : kIgnore;
+      }
+      double log_density = f_.log_p0_;
+      if (decisions_[j] == kIgnore && !o_.landmarks.known_association) {
+        for (const GatedPair& p : scratch_->near_pairs) {
+          if (p.detection == j && !predictions_[p.landmark].used) log_density = std::max(log_density, p.rank);
+        }
+      }
+      log_w_ += log_density;
+      if (decisions_[j] == kIgnore) ++scratch_->ignored;
+    }
+  }
+
+  // The pose drawn from the proposal, the landmarks expected but missed — predicted well
+  // inside the field of view (at the prior pose: the sample moves it by centimetres) and
+  // not even within the new-landmark gate of any detection — and the weight.
+  void SamplePoseAndFinish() {
+    Eigen::Vector3d x = x0_.vector() + delta_;
+    if (Sigma_.trace() > 0.0) {
+      std::normal_distribution<double> normal;
+      const Eigen::Vector3d xi(normal(*rng_), normal(*rng_), normal(*rng_));
+      const Eigen::LLT<Eigen::Matrix3d> llt(Sigma_);
+      if (llt.info() == Eigen::Success) {
+        x += llt.matrixL() * xi;
+      } else {  // positive semi-definite (e.g. no noise on one axis)
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+        eig.computeDirect(Sigma_);
+        x += eig.eigenvectors() * (eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseProduct(xi));
+      }
+    }
+    for (int i = 0; i < n_; ++i) {
+      const Prediction& pr = predictions_[i];
+      particle_->landmarks[i].missed = pr.in_reach && !pr.gated && pr.expected;
+    }
+    SetPose(particle_, Pose2(x[0], x[1], WrapAngle(x[2])));
+    particle_->log_weight += log_w_;
+  }
+
+ private:
+  // Landmark i's predicted range, its Jacobians and the predictive covariance without the
+  // pose; the bearing (an atan2) waits for PredictBearing, for pairs that pass the range gate.
+  void Predict(int i) {
+    Prediction& pr = predictions_[i];
+    const LandmarkGaussian& l = *particle_->landmarks[i].gaussian;
+    Eigen::Matrix2d H_l;
+    pr.z[0] = f_.sensor_.ObserveRange(x0_, l.mean, &pr.H_pose, &H_l);
+    pr.z[1] = NAN;
+    pr.Z = H_l * l.covariance * H_l.transpose() + R_;
+  }
+  void PredictBearing(int i) {
+    Prediction& pr = predictions_[i];
+    if (std::isnan(pr.z[1])) pr.z[1] = models::RangeBearingModel::Bearing(x0_, particle_->landmarks[i].gaussian->mean);
+  }
+  // Pairs detection j with landmark i, scored at the current proposal for the weight, and
+  // updates the proposal with it.
+  void Associate(int j, int i) {
+    Prediction& pr = predictions_[i];
+    const PairScore score = f_.Score(pr, *particle_->landmarks[i].gaussian, z_[j], signature_[j], delta_, Sigma_);
+    pr.used = true;
+    decisions_[j] = i;
+    log_w_ += score.log_likelihood_but_det;
+    det_product_ *= score.det;
+    if (det_product_ < 1e-200 || det_product_ > 1e200) {
+      log_w_ -= 0.5 * std::log(det_product_);
+      det_product_ = 1.0;
+    }
+    const Eigen::Matrix<double, 3, 2> K = Sigma_ * pr.H_pose.transpose() * score.S_inv;
+    delta_ += K * score.nu;
+    Sigma_ -= K * pr.H_pose * Sigma_;
+    Sigma_ = 0.5 * (Sigma_ + Sigma_.transpose()).eval();
+    ++scratch_->associated;
+  }
+
+  const FastSlam& f_;
+  const FastSlamOptions& o_;
+  Particle* particle_;
+  const std::vector<Eigen::Vector2d>& z_;
+  const std::vector<double>& signature_;
+  int* decisions_;
+  Scratch* scratch_;
+  std::mt19937_64* rng_;
+  std::vector<Prediction>& predictions_;
+  const Eigen::Matrix2d R_;
+  const int n_, m_;
+  Pose2 x0_;
+  Eigen::Matrix3d Sigma_;                          // of the proposal
+  Eigen::Vector3d delta_ = Eigen::Vector3d::Zero();  // its shift from x0
+  double log_w_ = 0.0;
+  double det_product_ = 1.0;  // of the associated pairs' S, folded into log_w at the end
+};
+
+void FastSlam::UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
+                              const std::vector<double>& signature, int* decisions, Scratch* scratch,
+                              std::mt19937_64* rng) const {
+  ScanUpdate update(*this, particle, z, signature, decisions, scratch, rng);
+  update.PredictLandmarksInReach();
+  if (options_.landmarks.known_association) update.PairByTruthIds();
+  update.PrepareScores();
+  if (options_.landmarks.known_association) {
+    update.AssociateTruthPairs();
+  } else {
+    update.RankGatedPairs();
+    if (options_.sample_association) {
+      update.SampleAssociations();
     } else {
-      // 2b. Data-association sampling, detection by detection: among the still unused
-      //     gated landmarks and "new", in proportion to their likelihoods at the current
-      //     proposal.
-      for (int j = 0; j < m; ++j) {
-        likelihoods.clear();
-        double max_ll = log_p0_;
-        for (const GatedPair& p : pairs) {
-          if (p.detection != j || predictions[p.landmark].used) continue;
-          const PairScore score =
-              Score(predictions[p.landmark], *particle->landmarks[p.landmark].gaussian, z[j], signature[j], delta, Sigma);
-          if (score.d2 >= gate_d2_) continue;
-          const double ll = score.log_likelihood_but_det - 0.5 * std::log(score.det);
-          likelihoods.push_back({p.landmark, ll});
-          max_ll = std::max(max_ll, ll);
-        }
-        if (likelihoods.empty()) continue;
-        double total = std::exp(log_p0_ - max_ll);
-        for (const auto& [i, ll] : likelihoods) total += std::exp(ll - max_ll);
-        double r = std::uniform_real_distribution<double>(0.0, total)(*rng);
-        for (const auto& [i, ll] : likelihoods) {
-          r -= std::exp(ll - max_ll);
-          if (r < 0) {
-            associate(j, i);
-            break;
-          }
-        }
-        if (decisions[j] < 0) decisions[j] = kNew;  // sampled "new" although something gated
-      }
+      update.AssignGreedily();
     }
   }
-  log_w -= 0.5 * std::log(det_product);
-  // 3. Unexplained detections: a new landmark beyond the new-landmark gate of every
-  //    landmark, with the density p0; otherwise ignored, with the likelihood of its most
-  //    likely landmark that no other detection took (at least p0, which is also what a
-  //    false alarm or a sampled "new" gets).
-  for (int j = 0; j < m; ++j) {
-    if (decisions[j] >= 0) continue;
-    if (decisions[j] != kNew && !options_.landmarks.known_association) {
-      decisions[j] = min_d2[j] > new_landmark_d2_ ? kNew : kIgnore;
-    }
-    double log_density = log_p0_;
-    if (decisions[j] == kIgnore && !options_.landmarks.known_association) {
-      for (const GatedPair& p : near_pairs) {
-        if (p.detection == j && !predictions[p.landmark].used) log_density = std::max(log_density, p.rank);
-      }
-    }
-    log_w += log_density;
-    if (decisions[j] == kIgnore) ++scratch->ignored;
-  }
-  // Sample the pose from the proposal.
-  Eigen::Vector3d x = x0.vector() + delta;
-  if (Sigma.trace() > 0.0) {
-    std::normal_distribution<double> normal;
-    const Eigen::Vector3d xi(normal(*rng), normal(*rng), normal(*rng));
-    const Eigen::LLT<Eigen::Matrix3d> llt(Sigma);
-    if (llt.info() == Eigen::Success) {
-      x += llt.matrixL() * xi;
-    } else {  // positive semi-definite (e.g. no noise on one axis)
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-      eig.computeDirect(Sigma);
-      x += eig.eigenvectors() * (eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseProduct(xi));
-    }
-  }
-  // Expected but missed: predicted well inside the field of view (at the prior pose:
-  // the sample moves it by centimetres) and not even within the new-landmark gate of
-  // any detection.
-  for (int i = 0; i < n; ++i) {
-    const Prediction& pr = predictions[i];
-    particle->landmarks[i].missed = pr.in_reach && !pr.gated && pr.expected;
-  }
-  SetPose(particle, Pose2(x[0], x[1], WrapAngle(x[2])));
-  particle->log_weight += log_w;
+  update.ScoreUnexplained();
+  update.SamplePoseAndFinish();
 }
 
 void FastSlam::Vote(int m) {

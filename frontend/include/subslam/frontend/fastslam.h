@@ -262,6 +262,7 @@ class FastSlam final : public OnlineEstimator {
                   double signature, const Eigen::Vector3d& delta,
                   const Eigen::Matrix3d& Sigma) const;
   double SignatureLogLikelihood(const LandmarkGaussian& l, double signature) const;
+  class ScanUpdate;  // one particle's scan update, phase by phase (fastslam_particle_update.cc)
   // Per-thread scratch of UpdateParticle, reused across scans, and its counts.
   struct alignas(64) Scratch {  // a cache line apart: written by different threads
     std::vector<Prediction> predictions;  // of the particle's landmarks
