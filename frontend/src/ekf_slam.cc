@@ -116,22 +116,10 @@ void EkfSlam::Update(const Scan& scan) {
 
   // Known association: the landmark each detection's true id names (−1: none yet, a new
   // one), or kDropped for a false alarm or an id already detected in this scan.
-  constexpr int kDropped = -2;
-  std::vector<int> known_landmark(m, -1), truth_of_detection(m, -1);
-  if (options_.landmarks.known_association) {
-    for (int j = 0; j < m; ++j) {
-      const int truth = scan.detections[detection_index[j]].truth_id;
-      const auto earlier = truth_of_detection.begin() + j;
-      if (truth < 0 || std::find(truth_of_detection.begin(), earlier, truth) != earlier) {
-        known_landmark[j] = kDropped;
-        continue;
-      }
-      truth_of_detection[j] = truth;
-      for (int i = 0; i < num_landmarks() && known_landmark[j] < 0; ++i) {
-        if (landmarks_[i].truth_id == truth) known_landmark[j] = i;
-      }
-    }
-  }
+  std::vector<int> truth_of_detection(m, -1);
+  const std::vector<int> known_landmark =
+      options_.landmarks.known_association ? KnownLandmarks(scan, detection_index, &truth_of_detection)
+                                           : std::vector<int>(m, -1);
 
   // 1. Predicted measurements and individual compatibility.
   std::vector<Prediction> predictions;
@@ -213,53 +201,86 @@ void EkfSlam::Update(const Scan& scan) {
       if (c.landmark == l) pairs.push_back({j, &c});
     }
   }
-  if (!pairs.empty()) {
-    StageTimer timer(&times_, "update");
-    const int k = static_cast<int>(pairs.size());
-    std::vector<const Prediction*> pred(k);
-    for (int a = 0; a < k; ++a) {
-      pred[a] = &predictions[prediction_of_landmark[pairs[a].second->landmark]];
-    }
-    Eigen::MatrixXd PHt(dim_, 2 * k);
-    Eigen::MatrixXd landmark_columns(dim_, 2);
-    Eigen::VectorXd nu(2 * k);
-    for (int a = 0; a < k; ++a) {
-      LandmarkColumns(Offset(pred[a]->landmark), landmark_columns);
-      PHt.middleCols<2>(2 * a).noalias() = P_.topLeftCorner(dim_, 3) * pred[a]->H_pose.transpose();
-      PHt.middleCols<2>(2 * a).noalias() += landmark_columns * pred[a]->H_landmark.transpose();
-      nu.segment<2>(2 * a) = pairs[a].second->innovation;
-    }
-    Eigen::MatrixXd S(2 * k, 2 * k);
-    for (int a = 0; a < k; ++a) {
-      for (int b = 0; b < k; ++b) {
-        S.block<2, 2>(2 * a, 2 * b) =
-            pred[a]->H_pose * PHt.block<3, 2>(0, 2 * b) +
-            pred[a]->H_landmark * PHt.block<2, 2>(Offset(pred[a]->landmark), 2 * b);
-      }
-      S.block<2, 2>(2 * a, 2 * a) += R;
-    }
-    S = 0.5 * (S + S.transpose()).eval();
-    Eigen::LLT<Eigen::MatrixXd> llt(S);
-    SUBSLAM_CHECK(llt.info() == Eigen::Success) << "joint innovation covariance not PD";
-    // W = PHᵀ L⁻ᵀ, so that K ν = W (L⁻¹ ν) and K S Kᵀ = W Wᵀ.
-    Eigen::MatrixXd Wt = PHt.transpose();
-    llt.matrixL().solveInPlace(Wt);
-    Eigen::VectorXd whitened = nu;
-    llt.matrixL().solveInPlace(whitened);
-    // −log N(ν; 0, S) = ½ (‖L⁻¹ν‖² + log det S + 2k log 2π), log det S = 2 Σ log L_ii.
-    counters_.innovation_neg_log_likelihood +=
-        0.5 * whitened.squaredNorm() + llt.matrixLLT().diagonal().array().log().sum() +
-        k * std::log(2.0 * std::numbers::pi);
-    counters_.innovation_dof += 2 * k;
-    x_.head(dim_).noalias() += Wt.transpose() * whitened;
-    x_[2] = WrapAngle(x_[2]);
-    // Lower triangle only: mirroring the whole matrix would cost as much as the update.
-    P_.topLeftCorner(dim_, dim_).selfadjointView<Eigen::Lower>().rankUpdate(Wt.transpose(), -1.0);
-    SyncPoseRows();
-    counters_.associated += k;
-  }
-
+  if (!pairs.empty()) UpdateWithPairings(pairs, predictions, prediction_of_landmark, R);
   // 3. Existence, new landmarks, deletion of false alarms.
+  ManageLandmarks(z, detection_index, pairs, predictions, gated, association.landmark_of_detection,
+                  known_landmark, truth_of_detection, min_d2);
+}
+
+std::vector<int> EkfSlam::KnownLandmarks(const Scan& scan, const std::vector<int>& detection_index,
+                                        std::vector<int>* truth_of_detection) const {
+  const int m = static_cast<int>(detection_index.size());
+  std::vector<int> known_landmark(m, -1);
+  for (int j = 0; j < m; ++j) {
+    const int truth = scan.detections[detection_index[j]].truth_id;
+    const auto earlier = truth_of_detection->begin() + j;
+    if (truth < 0 || std::find(truth_of_detection->begin(), earlier, truth) != earlier) {
+      known_landmark[j] = kDropped;
+      continue;
+    }
+    (*truth_of_detection)[j] = truth;
+    for (int i = 0; i < num_landmarks() && known_landmark[j] < 0; ++i) {
+      if (landmarks_[i].truth_id == truth) known_landmark[j] = i;
+    }
+  }
+  return known_landmark;
+}
+
+void EkfSlam::UpdateWithPairings(
+    const std::vector<std::pair<int, const association::AssociationCandidate*>>& pairs,
+    const std::vector<Prediction>& predictions, const std::vector<int>& prediction_of_landmark,
+    const Eigen::Matrix2d& R) {
+  StageTimer timer(&times_, "update");
+  const int k = static_cast<int>(pairs.size());
+  std::vector<const Prediction*> pred(k);
+  for (int a = 0; a < k; ++a) {
+    pred[a] = &predictions[prediction_of_landmark[pairs[a].second->landmark]];
+  }
+  Eigen::MatrixXd PHt(dim_, 2 * k);
+  Eigen::MatrixXd landmark_columns(dim_, 2);
+  Eigen::VectorXd nu(2 * k);
+  for (int a = 0; a < k; ++a) {
+    LandmarkColumns(Offset(pred[a]->landmark), landmark_columns);
+    PHt.middleCols<2>(2 * a).noalias() = P_.topLeftCorner(dim_, 3) * pred[a]->H_pose.transpose();
+    PHt.middleCols<2>(2 * a).noalias() += landmark_columns * pred[a]->H_landmark.transpose();
+    nu.segment<2>(2 * a) = pairs[a].second->innovation;
+  }
+  Eigen::MatrixXd S(2 * k, 2 * k);
+  for (int a = 0; a < k; ++a) {
+    for (int b = 0; b < k; ++b) {
+      S.block<2, 2>(2 * a, 2 * b) =
+          pred[a]->H_pose * PHt.block<3, 2>(0, 2 * b) +
+          pred[a]->H_landmark * PHt.block<2, 2>(Offset(pred[a]->landmark), 2 * b);
+    }
+    S.block<2, 2>(2 * a, 2 * a) += R;
+  }
+  S = 0.5 * (S + S.transpose()).eval();
+  Eigen::LLT<Eigen::MatrixXd> llt(S);
+  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "joint innovation covariance not PD";
+  // W = PHᵀ L⁻ᵀ, so that K ν = W (L⁻¹ ν) and K S Kᵀ = W Wᵀ.
+  Eigen::MatrixXd Wt = PHt.transpose();
+  llt.matrixL().solveInPlace(Wt);
+  Eigen::VectorXd whitened = nu;
+  llt.matrixL().solveInPlace(whitened);
+  // −log N(ν; 0, S) = ½ (‖L⁻¹ν‖² + log det S + 2k log 2π), log det S = 2 Σ log L_ii.
+  counters_.innovation_neg_log_likelihood +=
+      0.5 * whitened.squaredNorm() + llt.matrixLLT().diagonal().array().log().sum() +
+      k * std::log(2.0 * std::numbers::pi);
+  counters_.innovation_dof += 2 * k;
+  x_.head(dim_).noalias() += Wt.transpose() * whitened;
+  x_[2] = WrapAngle(x_[2]);
+  // Lower triangle only: mirroring the whole matrix would cost as much as the update.
+  P_.topLeftCorner(dim_, dim_).selfadjointView<Eigen::Lower>().rankUpdate(Wt.transpose(), -1.0);
+  SyncPoseRows();
+  counters_.associated += k;
+}
+
+void EkfSlam::ManageLandmarks(const std::vector<Eigen::Vector2d>& z, const std::vector<int>& detection_index,
+                              const std::vector<std::pair<int, const association::AssociationCandidate*>>& pairs,
+                              const std::vector<Prediction>& predictions, const std::vector<bool>& gated,
+                              const std::vector<int>& landmark_of_detection, const std::vector<int>& known_landmark,
+                              const std::vector<int>& truth_of_detection, const std::vector<double>& min_d2) {
+  const int m = static_cast<int>(z.size());
   StageTimer timer(&times_, "map_management");
   for (const auto& [j, c] : pairs) {
     UpdateExistence(&landmarks_[c->landmark], true);
@@ -272,7 +293,7 @@ void EkfSlam::Update(const Scan& scan) {
     }
   }
   for (int j = 0; j < m; ++j) {
-    if (association.landmark_of_detection[j] >= 0 || known_landmark[j] == kDropped) continue;
+    if (landmark_of_detection[j] >= 0 || known_landmark[j] == kDropped) continue;
     if (min_d2[j] > new_landmark_d2_) {
       AddLandmark(z[j], truth_of_detection[j]);
       scan_features_[detection_index[j]] = landmarks_.back().id;

@@ -123,6 +123,22 @@ class EkfSlam final : public OnlineEstimator {
   int Offset(int landmark) const { return 3 + 2 * landmark; }
   void Reserve(int dim);
   void AddLandmark(const Eigen::Vector2d& z, int truth_id);
+  // Known association: each usable detection's landmark by its true id (−1: none yet, a
+  // new one; kDropped: a false alarm or an id already detected in this scan), and the id.
+  static constexpr int kDropped = -2;
+  std::vector<int> KnownLandmarks(const Scan& scan, const std::vector<int>& detection_index,
+                                  std::vector<int>* truth_of_detection) const;
+  // The batch EKF update with every (detection, landmark) pairing of a scan.
+  void UpdateWithPairings(const std::vector<std::pair<int, const association::AssociationCandidate*>>& pairs,
+                          const std::vector<Prediction>& predictions, const std::vector<int>& prediction_of_landmark,
+                          const Eigen::Matrix2d& R);
+  // Existence of the paired and of the expected but missed landmarks, new landmarks for
+  // detections beyond every gate, and the periodic cull of tentative landmarks.
+  void ManageLandmarks(const std::vector<Eigen::Vector2d>& z, const std::vector<int>& detection_index,
+                       const std::vector<std::pair<int, const association::AssociationCandidate*>>& pairs,
+                       const std::vector<Prediction>& predictions, const std::vector<bool>& gated,
+                       const std::vector<int>& landmark_of_detection, const std::vector<int>& known_landmark,
+                       const std::vector<int>& truth_of_detection, const std::vector<double>& min_d2);
   void RemoveLandmarks(const std::vector<int>& sorted_indices);
   Eigen::Matrix2d CrossCovariance(const Prediction& a, const Prediction& b) const;
   // Covariance access under the storage invariant (see P_).
