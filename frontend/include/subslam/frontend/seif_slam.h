@@ -215,6 +215,24 @@ class SeifSlam final : public OnlineEstimator {
   // Linearises the pairings at μ, adds Hᵀ R⁻¹ H and Hᵀ R⁻¹ (ν + Hμ); returns what it
   // added so that an iterated update can take it back.
   Linearization ApplyMeasurements(const std::vector<std::pair<int, Eigen::Vector2d>>& pairs);
+  // The scan update's steps (seif_measurement_update.cc): the landmarks within reach of
+  // the pose (a 3 × 3 block of grid cells); association by true id or by the gates (NN or
+  // JCBB on the candidates' local covariances), marking the landmarks a detection gated
+  // and the detections that start a landmark; the measurement update, relinearised to
+  // convergence on ISEIF's period; existence, new landmarks and culls (returns the new ones).
+  std::vector<int> LandmarksInReach(const Pose2& p) const;
+  void AssociateByTruth(const Scan& scan, const std::vector<int>& detection_index,
+                        std::vector<int>* landmark_of_detection, std::vector<bool>* creates,
+                        absl::flat_hash_map<int, bool>* gated) const;
+  void AssociateByGates(const Pose2& p, const std::vector<Eigen::Vector2d>& z, const std::vector<int>& in_reach,
+                        const Eigen::Matrix2d& R, std::vector<int>* landmark_of_detection,
+                        std::vector<bool>* creates, absl::flat_hash_map<int, bool>* gated);
+  void MeasurementUpdate(const std::vector<std::pair<int, Eigen::Vector2d>>& pairs,
+                         const std::vector<int>& touched);
+  std::vector<int> ManageLandmarks(const Scan& scan, const std::vector<int>& detection_index,
+                                   const std::vector<Eigen::Vector2d>& z, const Pose2& p,
+                                   const std::vector<int>& landmark_of_detection, const std::vector<bool>& creates,
+                                   const std::vector<int>& in_reach, const absl::flat_hash_map<int, bool>& gated);
   void Retract(const Linearization& lin);
   void Sparsify();
   void Marginalize(int landmark);
