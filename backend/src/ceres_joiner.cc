@@ -26,7 +26,7 @@ CeresJoiner::CeresJoiner(const Pose2& initial_pose, const CeresJoinerOptions& op
       solve_options_(options.solve),
       solve_every_(options.solve_every) {}
 
-absl::Status CeresJoiner::Join(const LocalSubmap& submap) {
+absl::Status CeresJoiner::JoinLocalMap(const LocalSubmap& submap) {
   if (absl::Status st = eif_.Join(submap); !st.ok()) return st;
   ++joins_;
   if (solve_every_ > 0 && joins_ % solve_every_ == 0) return SolveAndAdopt();

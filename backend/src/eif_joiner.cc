@@ -112,7 +112,7 @@ void EifJoiner::SetState(const Eigen::VectorXd& x) {
   }
 }
 
-absl::Status EifJoiner::Join(const LocalSubmap& s) {
+absl::Status EifJoiner::JoinLocalMap(const LocalSubmap& s) {
   if (absl::Status v = s.Validate(); !v.ok()) return v;
   if (s.t_start < last_t_end_ - 1e-9) {
     return absl::InvalidArgumentError(absl::StrCat("local map ", s.id, " starts at ", s.t_start,

@@ -240,7 +240,7 @@ std::vector<int> EkfJoiner::AssociateAt(const LocalSubmap& s, int start, bool an
   return std::move(a.landmark_of_feature);
 }
 
-absl::Status EkfJoiner::Join(const LocalSubmap& s) {
+absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
   if (absl::Status v = s.Validate(); !v.ok()) return v;
   if (s.t_start < last_t_end_ - 1e-9) {
     return absl::InvalidArgumentError(absl::StrCat("local map ", s.id, " starts at ", s.t_start,

@@ -3,6 +3,7 @@
 #include <numeric>
 
 #include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
 #include "subslam/graph/check.h"
 
 namespace subslam::backend {
@@ -44,6 +45,20 @@ std::span<const JoinerCounters::Field> JoinerCounters::Fields() {
 JoinerCounters& JoinerCounters::operator+=(const JoinerCounters& o) {
   for (const Field& f : Fields()) this->*f.member += o.*f.member;
   return *this;
+}
+
+JoinerCounters JoinerCounters::operator-(const JoinerCounters& o) const {
+  JoinerCounters d = *this;
+  for (const Field& f : Fields()) d.*f.member -= o.*f.member;
+  return d;
+}
+
+absl::Status MapJoiner::Join(const LocalSubmap& submap) {
+  const JoinerCounters before = counters();
+  const absl::Time start = absl::Now();
+  absl::Status status = JoinLocalMap(submap);
+  last_join_ = {submap.id, absl::ToDoubleSeconds(absl::Now() - start), status, counters() - before};
+  return status;
 }
 
 std::vector<Eigen::Matrix3d> MapJoiner::AnchorCovariances() const {

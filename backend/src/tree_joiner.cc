@@ -14,7 +14,7 @@ TreeJoiner::TreeJoiner(std::unique_ptr<MapJoiner> prototype, const TreeJoinerOpt
   SUBSLAM_CHECK(prototype_->NewEmpty(Pose2()) != nullptr) << prototype_->Name() << " cannot be a tree node";
 }
 
-absl::Status TreeJoiner::Join(const LocalSubmap& submap) {
+absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
   if (finished_) return absl::FailedPreconditionError("the tree is finished");
   if (!status_.ok()) return status_;
   // A leaf lives in the frame of its start anchor; the leftmost in the world frame.

@@ -8,6 +8,7 @@
 #include <set>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
@@ -73,6 +74,25 @@ AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph) {
   return c;
 }
 
+namespace {
+
+// joins.csv: one row per join, its map, wall time and the change of every counter.
+std::string JoinsCsv(const std::vector<backend::JoinSummary>& joins) {
+  std::string csv = "map_id,seconds";
+  for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) absl::StrAppend(&csv, ",", f.name);
+  csv += "\n";
+  for (const backend::JoinSummary& j : joins) {
+    absl::StrAppend(&csv, j.map_id, ",", absl::StrFormat("%.6f", j.seconds));
+    for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) {
+      absl::StrAppend(&csv, ",", j.counts.*f.member);
+    }
+    csv += "\n";
+  }
+  return csv;
+}
+
+}  // namespace
+
 absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options) {
   if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
   if (options.backend.kind == Backend::kNone) return absl::InvalidArgumentError("join needs a back-end");
@@ -87,6 +107,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
       return absl::Status(st.code(), absl::StrCat("joining local map ", s.id, ": ", st.message()));
     }
     joining += absl::Now() - join_start;
+    r.joins.push_back(joiner->last_join());
     r.anchors_online.push_back({s.t_end, joiner->LastAnchor(), joiner->LastAnchorCovariance()});
   }
   const absl::Time start = absl::Now() - joining;  // the online records are not timed
@@ -170,6 +191,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     if (auto s = io::WriteTrajectoryCsv((out / "anchors_online.csv").string(), r.anchors_online); !s.ok()) return s;
     if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
     if (auto s = joiner->graph().WriteG2o((out / "graph.g2o").string()); !s.ok()) return s;
+    if (auto s = io::WriteTextFile((out / "joins.csv").string(), JoinsCsv(r.joins)); !s.ok()) return s;
     if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;
   }
   return r;

@@ -1,6 +1,8 @@
 // The submap pipeline with the EIF back-end, end to end on simulated data.
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include <boost/math/distributions/binomial.hpp>
 #include <cmath>
 #include <optional>
@@ -306,6 +308,39 @@ TEST(SubmapPipeline, JoinOnRecordedSubmaps) {
   absl::StatusOr<std::vector<LocalSubmap>> back = io::ReadSubmapsJsonl(path);
   ASSERT_TRUE(back.ok());
   EXPECT_TRUE(RunJoin(*back, options).ok());
+}
+
+// Each join's summary: one per local map, in order, its counters' changes adding up to the
+// joiner's totals before Finish (which adds only its own relinearisations and revisions),
+// and joins.csv holds them.
+TEST(SubmapPipeline, JoinSummariesAddUpToTheCounters) {
+  const io::Dataset d = Simulate(3);
+  const std::vector<LocalSubmap> maps = EkfLocalMaps(d);
+  ASSERT_FALSE(maps.empty());
+  JoinOptions options;
+  options.initial_pose = d.initial_pose;
+  options.out_dir = ::testing::TempDir() + "/subslam_join_summaries";
+  absl::StatusOr<JoinResult> j = RunJoin(maps, options);
+  ASSERT_TRUE(j.ok()) << j.status();
+  ASSERT_EQ(j->joins.size(), maps.size());
+  long new_landmarks = 0, associated = 0;
+  for (size_t k = 0; k < maps.size(); ++k) {
+    EXPECT_EQ(j->joins[k].map_id, maps[k].id);
+    EXPECT_TRUE(j->joins[k].status.ok());
+    EXPECT_EQ(j->joins[k].counts.joins, 1);
+    EXPECT_EQ(j->joins[k].counts.associated + j->joins[k].counts.new_landmarks, maps[k].num_landmarks());
+    new_landmarks += j->joins[k].counts.new_landmarks;
+    associated += j->joins[k].counts.associated;
+  }
+  EXPECT_EQ(new_landmarks, j->report["counts"]["new_landmarks"].get<long>());
+  EXPECT_EQ(associated, j->report["counts"]["associated_features"].get<long>());
+  std::ifstream csv(options.out_dir + "/joins.csv");
+  std::string line;
+  int rows = 0;
+  ASSERT_TRUE(std::getline(csv, line));
+  EXPECT_EQ(line.rfind("map_id,seconds,maps,associated_features,new_landmarks", 0), 0u) << line;
+  while (std::getline(csv, line)) ++rows;
+  EXPECT_EQ(rows, static_cast<int>(maps.size()));
 }
 
 // The online anchors of a join (each as the join that made it left it): the last equals

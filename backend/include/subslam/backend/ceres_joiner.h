@@ -31,7 +31,6 @@ class CeresJoiner final : public MapJoiner {
   CeresJoiner(const Pose2& initial_pose, const CeresJoinerOptions& options);
 
   std::string Name() const override { return "ceres"; }
-  absl::Status Join(const LocalSubmap& submap) override;
   // The EIF's Finish (its revision passes; no Gauss-Newton), then a Ceres solve.
   absl::Status Finish() override;
 
@@ -54,6 +53,9 @@ class CeresJoiner final : public MapJoiner {
 
   // Ceres's summary of the last solve (nullopt before the first).
   const std::optional<CeresSolveReport>& last_solve() const { return last_solve_; }
+
+ protected:
+  absl::Status JoinLocalMap(const LocalSubmap& submap) override;
 
  private:
   absl::Status SolveAndAdopt();

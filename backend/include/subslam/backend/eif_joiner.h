@@ -206,9 +206,6 @@ class EifJoiner final : public MapJoiner {
   EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options);
   ~EifJoiner();
 
-  // Joins the next local map (its start anchor is the last anchor). Errors: an invalid
-  // local map, a start time before the previous end, or a numerically failed factorisation.
-  absl::Status Join(const LocalSubmap& submap) override;
   // Relinearises to convergence if relinearize_at_end.
   absl::Status Finish() override;
   std::string Name() const override { return "eif"; }
@@ -278,6 +275,11 @@ class EifJoiner final : public MapJoiner {
   std::unique_ptr<MapJoiner> NewEmpty(const Pose2& initial_pose) const override;
   std::unique_ptr<MapJoiner> Clone() const override;
   absl::Status JoinMap(const MapJoiner& right) override;
+
+ protected:
+  // Joins the next local map (its start anchor is the last anchor). Errors: an invalid
+  // local map, a start time before the previous end, or a numerically failed factorisation.
+  absl::Status JoinLocalMap(const LocalSubmap& submap) override;
 
  private:
   struct Factor {

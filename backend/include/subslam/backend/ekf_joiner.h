@@ -72,7 +72,6 @@ class EkfJoiner final : public MapJoiner {
   EkfJoiner(const Pose2& initial_pose, const EkfJoinerOptions& options);
 
   std::string Name() const override { return "ekf"; }
-  absl::Status Join(const LocalSubmap& submap) override;
   // Revision passes until one changes nothing.
   absl::Status Finish() override;
   absl::Status ReviseAssociation() override;
@@ -99,6 +98,9 @@ class EkfJoiner final : public MapJoiner {
   int anchor_offset(int k) const { return anchor_offset_[k]; }
   int landmark_offset(int j) const { return landmark_offset_[j]; }
   const Eigen::MatrixXd& covariance() const { return P_; }
+
+ protected:
+  absl::Status JoinLocalMap(const LocalSubmap& submap) override;
 
  private:
   // A pose (3) or point (2) block of a Gaussian given in the frame of an anchor.

@@ -68,6 +68,7 @@ struct JoinerCounters {
   long covariance_reach = 0;
 
   JoinerCounters& operator+=(const JoinerCounters& o);
+  JoinerCounters operator-(const JoinerCounters& o) const;  // the change from o
 
   // Every counter with its name in the reports (report.json: "join_" + name in a run's
   // estimator counters, name in `subslam join`'s counts), in one list.
@@ -76,6 +77,16 @@ struct JoinerCounters {
     long JoinerCounters::*member;
   };
   static std::span<const Field> Fields();
+};
+
+// What one join did, as a solver's summary reports one solve: the local map, the wall
+// time, the outcome, and the change of the joiner's counters over it (features associated,
+// new landmarks, Gauss-Newton iterations, merges, loop-closure decisions, …).
+struct JoinSummary {
+  int map_id = -1;
+  double seconds = 0.0;
+  absl::Status status;
+  JoinerCounters counts;
 };
 
 // What a joiner reports beyond JoinerCounters and its stage times, named as report.json
@@ -91,9 +102,11 @@ class MapJoiner {
   virtual ~MapJoiner() = default;
 
   virtual std::string Name() const = 0;
-  // Joins the next local map (its start anchor is the last anchor). Errors: an invalid
-  // local map, a start time before the previous end, or a numerical failure.
-  virtual absl::Status Join(const LocalSubmap& submap) = 0;
+  // Joins the next local map (its start anchor is the last anchor) and records what the
+  // join did (last_join()). Errors: an invalid local map, a start time before the
+  // previous end, or a numerical failure.
+  absl::Status Join(const LocalSubmap& submap);
+  const JoinSummary& last_join() const { return last_join_; }
   // Called once after the last join (relinearisation at the end, if configured).
   virtual absl::Status Finish() = 0;
 
@@ -154,6 +167,13 @@ class MapJoiner {
   virtual absl::Status JoinMap(const MapJoiner& /*right*/) {
     return absl::UnimplementedError(Name() + " cannot join whole maps");
   }
+
+ protected:
+  // The join itself, which each joiner implements (Join wraps it with its summary).
+  virtual absl::Status JoinLocalMap(const LocalSubmap& submap) = 0;
+
+ private:
+  JoinSummary last_join_;
 };
 
 // Revision passes on `joiner` until one changes nothing (at most `max_passes`: merges and

@@ -45,7 +45,6 @@ class TreeJoiner final : public MapJoiner {
   TreeJoiner(std::unique_ptr<MapJoiner> prototype, const TreeJoinerOptions& options);
 
   std::string Name() const override { return "tree-" + prototype_->Name(); }
-  absl::Status Join(const LocalSubmap& submap) override;
   // Joins what remains into one map (and lets the root finish, e.g. relinearise).
   absl::Status Finish() override;
 
@@ -68,6 +67,9 @@ class TreeJoiner final : public MapJoiner {
 
   int num_nodes() const { return static_cast<int>(nodes_.size()); }
   int tree_joins() const { return tree_joins_; }  // JoinMap calls that built the tree
+
+ protected:
+  absl::Status JoinLocalMap(const LocalSubmap& submap) override;
 
  private:
   struct Node {

@@ -8,6 +8,8 @@
 //                   initial pose, fixed) and the end of map k − 1, at that time;
 //   landmarks.csv   the global map (id,x,y,cov_xx,cov_xy,cov_yy);
 //   graph.g2o       the submap graph in g2o text (see SubmapGraph::WriteG2o: marginal blocks);
+//   joins.csv       one row per join: map_id,seconds, then the change of every joiner
+//                   counter over it (JoinerCounters::Fields' names);
 //   report.json     configuration, counts, time per stage, and — when ground truth is given —
 //                   anchor and landmark errors.
 #ifndef SUBSLAM_PIPELINE_JOIN_PIPELINE_H_
@@ -80,6 +82,7 @@ struct JoinResult {
   std::vector<LandmarkEstimate> landmarks;
   double wall_seconds = 0.0;  // joining and Finish (a Ceres solve included), not the online records
   AssociationVsTruth association;  // against the local maps' truth ids
+  std::vector<backend::JoinSummary> joins;  // what each join did, in order
   nlohmann::json report;
 };
 
