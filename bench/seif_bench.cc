@@ -24,6 +24,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "backend_flags.h"  // --known_association
@@ -90,6 +91,112 @@ json RowJson(const MonteCarloRow& r) {
 
 }  // namespace
 
+// One filter's Monte Carlo over `runs` seeds of `scenario`: the mean RMS errors, the
+// average NEES against its bounds, failures, time and ISEIF's iterations per update.
+static absl::StatusOr<MonteCarloRow> RunMonteCarlo(const std::string& name, const std::string& scenario, int runs) {
+  const absl::StatusOr<subslam::pipeline::RunOptions> options = OptionsFor(name);
+  if (!options.ok()) return options.status();
+  MonteCarloRow row;
+  row.filter = name;
+  double iterations = 0, iterated_updates = 0;
+  for (int k = 0; k < runs; ++k) {
+    subslam::sim::ScenarioOptions so;
+    so.seed = absl::GetFlag(FLAGS_first_seed) + k;
+    absl::StatusOr<subslam::io::Dataset> d = subslam::sim::SimulateScenario(scenario, so);
+    if (!d.ok()) return d.status();
+    absl::StatusOr<subslam::pipeline::RunResult> r = subslam::pipeline::RunPipeline(*std::move(d), *options);
+    if (!r.ok()) {
+      return absl::Status(r.status().code(), absl::StrCat(name, " seed ", so.seed, ": ", r.status().message()));
+    }
+    ++row.runs;
+    row.rms_x += r->errors->rms_x_m;
+    row.rms_y += r->errors->rms_y_m;
+    row.rms_heading_deg += r->errors->rms_heading_rad * 180.0 / M_PI;
+    row.landmark_rms_x += r->map_errors->rms_x_m;
+    row.landmark_rms_y += r->map_errors->rms_y_m;
+    row.seconds += r->wall_seconds;
+    row.failed_runs += r->errors->failed ? 1 : 0;
+    const std::vector<double>& nees = r->errors->nees;
+    if (row.nees_sum.size() < nees.size()) {
+      row.nees_sum.resize(nees.size(), 0.0);
+      row.nees_count.resize(nees.size(), 0);
+    }
+    for (size_t s = 0; s < nees.size(); ++s) {
+      if (!std::isfinite(nees[s])) continue;
+      row.nees_sum[s] += nees[s];
+      ++row.nees_count[s];
+    }
+    const json& counters = r->report["estimator_counters"];
+    if (counters.contains("iterations")) {
+      iterations += counters["iterations"].get<double>();
+      iterated_updates += counters["iterated_updates"].get<double>();
+    }
+  }
+  for (double* v : {&row.rms_x, &row.rms_y, &row.rms_heading_deg, &row.landmark_rms_x, &row.landmark_rms_y}) {
+    *v /= row.runs;
+  }
+  // Average NEES over the runs at each step where every run has one (the bounds
+  // are for exactly `runs` samples).
+  const subslam::eval::NeesBounds bounds = subslam::eval::AverageNeesBounds(3, row.runs);
+  int steps = 0, inside = 0;
+  double sum = 0;
+  for (size_t s = 0; s < row.nees_sum.size(); ++s) {
+    if (row.nees_count[s] != row.runs) continue;
+    const double average = row.nees_sum[s] / row.runs;
+    ++steps;
+    sum += average;
+    inside += bounds.Contains(average) ? 1 : 0;
+  }
+  row.mean_average_nees = steps > 0 ? sum / steps : std::numeric_limits<double>::quiet_NaN();
+  row.steps_inside = steps > 0 ? static_cast<double>(inside) / steps : 0.0;
+  row.iterations_per_update = iterated_updates > 0 ? iterations / iterated_updates : 0.0;
+  return row;
+}
+
+// SEIF's time per step on `random` worlds of constant density (300 landmarks per
+// 200 m × 200 m) and growing size: printed, and the rows in `out`.
+static absl::Status RunGrowth(const std::vector<std::string>& sizes, json* out) {
+  std::printf("\nrandom worlds, 300 landmarks per 200 m x 200 m, path 5 x the world side, seed 1\n");
+  std::printf("| filter | landmarks | world [m] | steps | map size | time [s] | us/step | "
+              "us/step first tenth | us/step last tenth |\n");
+  std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+  json growth = json::array();
+  std::vector<std::string> filters = SplitList(absl::GetFlag(FLAGS_growth_filters));
+  for (const std::string& size_text : sizes) {
+    int landmarks = 0;
+    if (!absl::SimpleAtoi(size_text, &landmarks) || landmarks <= 0) {
+      return absl::InvalidArgumentError(absl::StrCat("bad --growth_landmarks entry \"", size_text, "\""));
+    }
+    subslam::sim::ScenarioOptions so;
+    so.random_landmarks = landmarks;
+    so.random_world_size_m = 200.0 * std::sqrt(landmarks / 300.0);
+    so.random_path_length_m = 5.0 * so.random_world_size_m;
+    absl::StatusOr<subslam::io::Dataset> d = subslam::sim::SimulateScenario("random", so);
+    if (!d.ok()) return d.status();
+    std::vector<std::string> row_filters = filters;
+    if (landmarks <= absl::GetFlag(FLAGS_growth_ekf_max_landmarks)) row_filters.push_back("ekfslam");
+    for (const std::string& name : row_filters) {
+      const absl::StatusOr<subslam::pipeline::RunOptions> options = OptionsFor(name);
+      if (!options.ok()) return options.status();
+      absl::StatusOr<subslam::pipeline::RunResult> r = subslam::pipeline::RunPipeline(*d, *options);
+      if (!r.ok()) return absl::Status(r.status().code(), absl::StrCat(name, ": ", r.status().message()));
+      const std::vector<double>& tenth = r->wall_seconds_by_tenth;
+      const double per_tenth_steps = r->steps / 10.0;
+      const double first = tenth.empty() ? 0 : tenth.front() / per_tenth_steps * 1e6;
+      const double last = tenth.size() < 2 ? 0 : (tenth.back() - tenth[tenth.size() - 2]) / per_tenth_steps * 1e6;
+      std::printf("| %s | %d | %.0f | %d | %zu | %.3f | %.1f | %.1f | %.1f |\n", name.c_str(), landmarks,
+                  so.random_world_size_m, r->steps, r->landmarks.size(), r->wall_seconds,
+                  r->wall_seconds / r->steps * 1e6, first, last);
+      growth.push_back({{"filter", name}, {"landmarks", landmarks}, {"world_m", so.random_world_size_m},
+                        {"steps", r->steps}, {"map_size", r->landmarks.size()},
+                        {"seconds", r->wall_seconds}, {"us_per_step_first_tenth", first},
+                        {"us_per_step_last_tenth", last}});
+    }
+  }
+  *out = growth;
+  return absl::OkStatus();
+}
+
 int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
   subslam::pipeline::ApplyKeepFreedMemoryFlag();
@@ -100,72 +207,13 @@ int main(int argc, char** argv) {
   // 1. Monte Carlo.
   std::vector<MonteCarloRow> rows;
   for (const std::string& name : SplitList(absl::GetFlag(FLAGS_filters))) {
-    const absl::StatusOr<subslam::pipeline::RunOptions> options = OptionsFor(name);
-    if (!options.ok()) {
-      std::fprintf(stderr, "%s\n", std::string(options.status().message()).c_str());
-      return 2;
+    absl::StatusOr<MonteCarloRow> row = RunMonteCarlo(name, scenario, runs);
+    if (!row.ok()) {
+      std::fprintf(stderr, "%s\n", std::string(row.status().message()).c_str());
+      return 1;
     }
-    MonteCarloRow row;
-    row.filter = name;
-    double iterations = 0, iterated_updates = 0;
-    for (int k = 0; k < runs; ++k) {
-      subslam::sim::ScenarioOptions so;
-      so.seed = absl::GetFlag(FLAGS_first_seed) + k;
-      absl::StatusOr<subslam::io::Dataset> d = subslam::sim::SimulateScenario(scenario, so);
-      if (!d.ok()) {
-        std::fprintf(stderr, "%s\n", std::string(d.status().message()).c_str());
-        return 1;
-      }
-      absl::StatusOr<subslam::pipeline::RunResult> r = subslam::pipeline::RunPipeline(*std::move(d), *options);
-      if (!r.ok()) {
-        std::fprintf(stderr, "%s seed %llu: %s\n", name.c_str(), static_cast<unsigned long long>(so.seed),
-                     std::string(r.status().message()).c_str());
-        return 1;
-      }
-      ++row.runs;
-      row.rms_x += r->errors->rms_x_m;
-      row.rms_y += r->errors->rms_y_m;
-      row.rms_heading_deg += r->errors->rms_heading_rad * 180.0 / M_PI;
-      row.landmark_rms_x += r->map_errors->rms_x_m;
-      row.landmark_rms_y += r->map_errors->rms_y_m;
-      row.seconds += r->wall_seconds;
-      row.failed_runs += r->errors->failed ? 1 : 0;
-      const std::vector<double>& nees = r->errors->nees;
-      if (row.nees_sum.size() < nees.size()) {
-        row.nees_sum.resize(nees.size(), 0.0);
-        row.nees_count.resize(nees.size(), 0);
-      }
-      for (size_t s = 0; s < nees.size(); ++s) {
-        if (!std::isfinite(nees[s])) continue;
-        row.nees_sum[s] += nees[s];
-        ++row.nees_count[s];
-      }
-      const json& counters = r->report["estimator_counters"];
-      if (counters.contains("iterations")) {
-        iterations += counters["iterations"].get<double>();
-        iterated_updates += counters["iterated_updates"].get<double>();
-      }
-    }
-    for (double* v : {&row.rms_x, &row.rms_y, &row.rms_heading_deg, &row.landmark_rms_x, &row.landmark_rms_y}) {
-      *v /= row.runs;
-    }
-    // Average NEES over the runs at each step where every run has one (the bounds
-    // are for exactly `runs` samples).
-    const subslam::eval::NeesBounds bounds = subslam::eval::AverageNeesBounds(3, row.runs);
-    int steps = 0, inside = 0;
-    double sum = 0;
-    for (size_t s = 0; s < row.nees_sum.size(); ++s) {
-      if (row.nees_count[s] != row.runs) continue;
-      const double average = row.nees_sum[s] / row.runs;
-      ++steps;
-      sum += average;
-      inside += bounds.Contains(average) ? 1 : 0;
-    }
-    row.mean_average_nees = steps > 0 ? sum / steps : std::numeric_limits<double>::quiet_NaN();
-    row.steps_inside = steps > 0 ? static_cast<double>(inside) / steps : 0.0;
-    row.iterations_per_update = iterated_updates > 0 ? iterations / iterated_updates : 0.0;
-    rows.push_back(row);
-    std::fprintf(stderr, "%s done: %.1f s\n", name.c_str(), row.seconds);
+    rows.push_back(*row);
+    std::fprintf(stderr, "%s done: %.1f s\n", name.c_str(), row->seconds);
   }
   if (!rows.empty()) {
     const subslam::eval::NeesBounds bounds = subslam::eval::AverageNeesBounds(3, runs);
@@ -189,55 +237,13 @@ int main(int argc, char** argv) {
                           {"nees_bounds", {bounds.lower, bounds.upper}}};
   }
 
-  // 2. Growth on random worlds of constant density (300 landmarks per 200 m × 200 m).
+  // 2. Growth on random worlds of constant density.
   const std::vector<std::string> sizes = SplitList(absl::GetFlag(FLAGS_growth_landmarks));
   if (!sizes.empty()) {
-    std::printf("\nrandom worlds, 300 landmarks per 200 m x 200 m, path 5 x the world side, seed 1\n");
-    std::printf("| filter | landmarks | world [m] | steps | map size | time [s] | us/step | "
-                "us/step first tenth | us/step last tenth |\n");
-    std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
-    json growth = json::array();
-    std::vector<std::string> filters = SplitList(absl::GetFlag(FLAGS_growth_filters));
-    for (const std::string& size_text : sizes) {
-      int landmarks = 0;
-      if (!absl::SimpleAtoi(size_text, &landmarks) || landmarks <= 0) {
-        std::fprintf(stderr, "bad --growth_landmarks entry \"%s\"\n", size_text.c_str());
-        return 2;
-      }
-      subslam::sim::ScenarioOptions so;
-      so.random_landmarks = landmarks;
-      so.random_world_size_m = 200.0 * std::sqrt(landmarks / 300.0);
-      so.random_path_length_m = 5.0 * so.random_world_size_m;
-      absl::StatusOr<subslam::io::Dataset> d = subslam::sim::SimulateScenario("random", so);
-      if (!d.ok()) {
-        std::fprintf(stderr, "%s\n", std::string(d.status().message()).c_str());
-        return 1;
-      }
-      std::vector<std::string> row_filters = filters;
-      if (landmarks <= absl::GetFlag(FLAGS_growth_ekf_max_landmarks)) row_filters.push_back("ekfslam");
-      for (const std::string& name : row_filters) {
-        const absl::StatusOr<subslam::pipeline::RunOptions> options = OptionsFor(name);
-        if (!options.ok()) {
-          std::fprintf(stderr, "%s\n", std::string(options.status().message()).c_str());
-          return 2;
-        }
-        absl::StatusOr<subslam::pipeline::RunResult> r = subslam::pipeline::RunPipeline(*d, *options);
-        if (!r.ok()) {
-          std::fprintf(stderr, "%s: %s\n", name.c_str(), std::string(r.status().message()).c_str());
-          return 1;
-        }
-        const std::vector<double>& tenth = r->wall_seconds_by_tenth;
-        const double per_tenth_steps = r->steps / 10.0;
-        const double first = tenth.empty() ? 0 : tenth.front() / per_tenth_steps * 1e6;
-        const double last = tenth.size() < 2 ? 0 : (tenth.back() - tenth[tenth.size() - 2]) / per_tenth_steps * 1e6;
-        std::printf("| %s | %d | %.0f | %d | %zu | %.3f | %.1f | %.1f | %.1f |\n", name.c_str(), landmarks,
-                    so.random_world_size_m, r->steps, r->landmarks.size(), r->wall_seconds,
-                    r->wall_seconds / r->steps * 1e6, first, last);
-        growth.push_back({{"filter", name}, {"landmarks", landmarks}, {"world_m", so.random_world_size_m},
-                          {"steps", r->steps}, {"map_size", r->landmarks.size()},
-                          {"seconds", r->wall_seconds}, {"us_per_step_first_tenth", first},
-                          {"us_per_step_last_tenth", last}});
-      }
+    json growth;
+    if (absl::Status st = RunGrowth(sizes, &growth); !st.ok()) {
+      std::fprintf(stderr, "%s\n", std::string(st.message()).c_str());
+      return 1;
     }
     out["growth"] = growth;
   }
