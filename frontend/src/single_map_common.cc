@@ -3,12 +3,6 @@
 #include <cmath>
 
 namespace subslam::frontend::internal {
-namespace {
-
-bool InOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
-
-}  // namespace
-
 UsableDetections DetectionsInRange(const Scan& scan, const models::RangeBearingConfig& sensor) {
   UsableDetections out;
   for (size_t k = 0; k < scan.detections.size(); ++k) {
