@@ -61,7 +61,7 @@ const std::vector<FlagGroup>& FlagGroups() {
        {"frontend", "association", "gate", "new_landmark_gate", "existence_*"}},
       {"Particle filter (`fastslam`, `rbpf`)", "",
        {"particles", "filter_seed", "threads", "sample_association", "landmark_iterations",
-        "resample_ess", "correct_shared_ancestry", "sigma_signature"}},
+        "resample_ess", "correct_shared_ancestry", "sigma_signature", "sensor_yaw_sigma"}},
       {"SEIF and ISEIF (`seif`, `iseif`)", "", {"seif_*", "iseif_*"}},
       {"Local maps (`rbpf`, `ekf`)",
        "When a local map is closed and what it exports (frontend/submap_policy.h).",

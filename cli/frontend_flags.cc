@@ -101,6 +101,10 @@ ABSL_FLAG(int, submap_density_visible, PolicyDefaults().density_min_visible,
 ABSL_FLAG(bool, submap_delay_ambiguous, PolicyDefaults().delay_while_ambiguous,
           "rbpf: postpone closing while the particles disagree about identities");
 
+ABSL_FLAG(double, sensor_yaw_sigma, FastSlamDefaults().sensor_yaw_sigma,
+          "fastslam / rbpf: sigma [rad] of the sensor yaw each particle draws at the start of a local map "
+          "and adds to every bearing, so that each map estimates an uncalibrated yaw (0: off)");
+
 namespace subslam::cli {
 
 absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options) {
@@ -137,6 +141,7 @@ absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options) {
   options->fastslam.landmark_update_iterations = absl::GetFlag(FLAGS_landmark_iterations);
   options->fastslam.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   options->fastslam.correct_shared_ancestry = absl::GetFlag(FLAGS_correct_shared_ancestry);
+  options->fastslam.sensor_yaw_sigma = absl::GetFlag(FLAGS_sensor_yaw_sigma);
   options->seif.max_active_landmarks = absl::GetFlag(FLAGS_seif_max_active);
   auto recovery = frontend::MeanRecoveryFromString(absl::GetFlag(FLAGS_seif_recovery));
   if (!recovery.ok()) return recovery.status();

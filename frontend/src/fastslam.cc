@@ -47,6 +47,9 @@ absl::Status FastSlamOptions::Validate() const {
                                                    moment_matching.repair_relative_floor));
   }
   if (num_threads < 0) return absl::InvalidArgumentError("num_threads must be >= 0 (0: every core)");
+  if (!(sensor_yaw_sigma >= 0.0 && std::isfinite(sensor_yaw_sigma))) {
+    return absl::InvalidArgumentError("sensor_yaw_sigma must be finite and >= 0");
+  }
   if (landmarks.known_association && sample_association) {
     return absl::InvalidArgumentError("known_association and sample_association exclude each other");
   }
@@ -78,6 +81,8 @@ FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
     std::seed_seq seq{options_.seed, static_cast<uint64_t>(p)};
     particle_rngs_.emplace_back(seq);
   }
+  std::seed_seq yaw_seq{options_.seed, static_cast<uint64_t>(options_.num_particles)};  // a stream of its own
+  yaw_rng_.seed(yaw_seq);
   Reset(start);
 }
 
@@ -89,6 +94,10 @@ void FastSlam::Reset(const Pose2& start) {
   for (Particle& p : particles_) {
     SetPose(&p, start);
     p.log_weight = log_w;
+  }
+  if (options_.sensor_yaw_sigma > 0.0) {
+    std::normal_distribution<double> normal(0.0, options_.sensor_yaw_sigma);
+    for (Particle& p : particles_) p.sensor_yaw = normal(yaw_rng_);
   }
   pose_cache_valid_ = moments_valid_ = false;
   scan_features_.clear();
@@ -186,7 +195,13 @@ void FastSlam::Update(const Scan& scan) {
           owner_[p] = t;
           Particle& particle = particles_[p];
           int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
-          UpdateParticle(&particle, z_, signature_, decisions, &scratch, &particle_rngs_[p]);
+          if (options_.sensor_yaw_sigma > 0.0) {
+            std::vector<Eigen::Vector2d> zp = z_;
+            for (Eigen::Vector2d& v : zp) v[1] = WrapAngle(v[1] + particle.sensor_yaw);
+            UpdateParticle(&particle, zp, signature_, decisions, &scratch, &particle_rngs_[p]);
+          } else {
+            UpdateParticle(&particle, z_, signature_, decisions, &scratch, &particle_rngs_[p]);
+          }
           for (int j = 0; j < m; ++j) {
             decision_label_[p * m + j] =
                 decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
@@ -215,8 +230,14 @@ void FastSlam::Update(const Scan& scan) {
     pool_->Run([&](int t) {
       for (int p = 0; p < P; ++p) {
         if (owner_[p] != t) continue;
-        ApplyDecisions(&particles_[p], z_, signature_, decisions_.data() + static_cast<size_t>(p) * m,
-                       &scratch_[t]);
+        if (options_.sensor_yaw_sigma > 0.0) {
+          std::vector<Eigen::Vector2d> zp = z_;
+          for (Eigen::Vector2d& v : zp) v[1] = WrapAngle(v[1] + particles_[p].sensor_yaw);
+          ApplyDecisions(&particles_[p], zp, signature_, decisions_.data() + static_cast<size_t>(p) * m, &scratch_[t]);
+        } else {
+          ApplyDecisions(&particles_[p], z_, signature_, decisions_.data() + static_cast<size_t>(p) * m,
+                         &scratch_[t]);
+        }
       }
     }, threads);
     for (Scratch& scratch : scratch_) {

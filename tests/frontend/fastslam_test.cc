@@ -52,8 +52,8 @@ TEST(FastSlam, SameSeedSameRunBitForBit) {
 }
 
 // The particle update runs on several threads, and the run is the same bit for bit for
-// any number of them — trajectory, map and counters — with clutter (creations and culls)
-// and data-association sampling too.
+// any number of them — trajectory, map and counters — with clutter (creations and culls),
+// data-association sampling, and the particles' sensor yaws too.
 TEST(FastSlam, ThreadCountDoesNotChangeTheRun) {
   sim::ScenarioOptions so;
   so.seed = 6;
@@ -63,10 +63,12 @@ TEST(FastSlam, ThreadCountDoesNotChangeTheRun) {
   absl::StatusOr<io::Dataset> simulated = sim::SimulateScenario("hybrid-120m", so);
   ASSERT_TRUE(simulated.ok());
   const io::Dataset& d = *simulated;
-  for (bool sample_association : {false, true}) {
+  for (const auto& [sample_association, sensor_yaw_sigma] : {std::pair{false, 0.0}, std::pair{true, 0.0},
+                                                               std::pair{false, 0.01}}) {
     FastSlamOptions options;
     options.num_particles = 37;  // not a multiple of the chunk or the thread count
     options.sample_association = sample_association;
+    options.sensor_yaw_sigma = sensor_yaw_sigma;
     options.num_threads = 1;
     FastSlam one(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
     const Trajectory t1 = RunFilter(&one, d);
@@ -335,6 +337,11 @@ TEST(FastSlamOptions, ValidationRejectsNonsense) {
   EXPECT_FALSE(o.Validate().ok());
   o = {};
   o.num_threads = -1;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.sensor_yaw_sigma = -0.01;
+  EXPECT_FALSE(o.Validate().ok());
+  o.sensor_yaw_sigma = NAN;
   EXPECT_FALSE(o.Validate().ok());
   // A repair floor below what LocalSubmap::Validate accepts would abort at export.
   o = {};

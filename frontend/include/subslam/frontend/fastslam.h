@@ -117,6 +117,14 @@ struct FastSlamOptions {
   // draws from its own random stream, seeded from `seed` and the slot.
   // 0: std::thread::hardware_concurrency().
   int num_threads = 1;
+  // The sensor's yaw on the vehicle as a static parameter of each local map: at Reset()
+  // every particle draws a yaw ψ ~ N(0, σ²) [rad] and adds it to every bearing it sees, so
+  // the weights select the yaw the map's own detections support (each map estimates it
+  // afresh: local maps stay independent). 0: bearings taken as calibrated. Opt-in: it
+  // corrects an uncalibrated sensor (docs/limits.md), but within a map the particles'
+  // yaws collapse to a few values, whose spread the exported covariance then no longer
+  // carries.
+  double sensor_yaw_sigma = 0.0;
 
   absl::Status Validate() const;
 };
@@ -220,6 +228,7 @@ class FastSlam final : public OnlineEstimator {
     double cos_theta = 1.0, sin_theta = 0.0;  // of pose.theta
     double log_weight = 0.0;  // normalised: Σ exp(log_weight) = 1 after each scan
     int lineage = -1;         // index of the ancestor at the first scan after Reset()
+    double sensor_yaw = 0.0;  // the sensor yaw [rad] it assumes (sensor_yaw_sigma), from Reset()
     std::vector<LandmarkRecord> landmarks;
   };
   struct PairScore {
@@ -298,6 +307,7 @@ class FastSlam final : public OnlineEstimator {
   std::vector<Particle> particles_, resampled_;
   std::mt19937_64 rng_;                         // resampling
   std::vector<std::mt19937_64> particle_rngs_;  // one stream per particle slot
+  std::mt19937_64 yaw_rng_;  // the particles' sensor yaws (sensor_yaw_sigma)
   std::unique_ptr<WorkerPool> pool_;
   int thread_limit_ = 0;
   std::vector<Scratch> scratch_;                // one per thread
