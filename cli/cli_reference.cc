@@ -152,7 +152,11 @@ std::string CliReferenceMarkdown() {
     md += "| flag | default | meaning |\n| --- | --- | --- |\n";
     for (const absl::CommandLineFlag* flag : grouped[g]) {
       const std::string default_value = flag->DefaultValue();
-      const std::string shown = default_value.empty() ? "(none)" : "`" + Cell(default_value) + "`";
+      std::string shown = "(none)";
+      if (!default_value.empty()) {
+        shown = "`";
+        Append(shown, {Cell(default_value), "`"});
+      }
       Append(md, {"| `--", std::string(flag->Name()), "` | ", shown, " | ", Cell(flag->Help()),
                   " |\n"});
     }
