@@ -109,6 +109,13 @@ void FastSlam::Reset(const Pose2& start) {
   genealogy_.Reset();
 }
 
+const std::vector<Eigen::Vector2d>& FastSlam::DetectionsSeenBy(const Particle& particle, Scratch* scratch) const {
+  if (options_.sensor_yaw_sigma == 0.0) return z_;
+  scratch->z_seen = z_;
+  for (Eigen::Vector2d& z : scratch->z_seen) z[1] = WrapAngle(z[1] + particle.sensor_yaw);
+  return scratch->z_seen;
+}
+
 void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
   if (dt <= 0.0) return;
   if (resample_pending_) {
@@ -195,13 +202,8 @@ void FastSlam::Update(const Scan& scan) {
           owner_[p] = t;
           Particle& particle = particles_[p];
           int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
-          if (options_.sensor_yaw_sigma > 0.0) {
-            std::vector<Eigen::Vector2d> zp = z_;
-            for (Eigen::Vector2d& v : zp) v[1] = WrapAngle(v[1] + particle.sensor_yaw);
-            UpdateParticle(&particle, zp, signature_, decisions, &scratch, &particle_rngs_[p]);
-          } else {
-            UpdateParticle(&particle, z_, signature_, decisions, &scratch, &particle_rngs_[p]);
-          }
+          UpdateParticle(&particle, DetectionsSeenBy(particle, &scratch), signature_, decisions, &scratch,
+                         &particle_rngs_[p]);
           for (int j = 0; j < m; ++j) {
             decision_label_[p * m + j] =
                 decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
@@ -230,14 +232,8 @@ void FastSlam::Update(const Scan& scan) {
     pool_->Run([&](int t) {
       for (int p = 0; p < P; ++p) {
         if (owner_[p] != t) continue;
-        if (options_.sensor_yaw_sigma > 0.0) {
-          std::vector<Eigen::Vector2d> zp = z_;
-          for (Eigen::Vector2d& v : zp) v[1] = WrapAngle(v[1] + particles_[p].sensor_yaw);
-          ApplyDecisions(&particles_[p], zp, signature_, decisions_.data() + static_cast<size_t>(p) * m, &scratch_[t]);
-        } else {
-          ApplyDecisions(&particles_[p], z_, signature_, decisions_.data() + static_cast<size_t>(p) * m,
-                         &scratch_[t]);
-        }
+        ApplyDecisions(&particles_[p], DetectionsSeenBy(particles_[p], &scratch_[t]), signature_,
+                       decisions_.data() + static_cast<size_t>(p) * m, &scratch_[t]);
       }
     }, threads);
     for (Scratch& scratch : scratch_) {

@@ -252,10 +252,7 @@ StageTimes SubmapSlam::stage_times() const {
   WaitForJoins();
   StageTimes times = mapper_->stage_times();
   if (joiner_) {
-    for (const auto& [stage, seconds] : joiner_->stage_times()) {
-      // The Ceres back-end's own stage keeps its name.
-      times[stage.starts_with("ceres_") ? stage : "join_" + stage] = seconds;
-    }
+    for (const auto& [stage, seconds] : joiner_->stage_times()) times["join_" + stage] = seconds;
   }
   return times;
 }

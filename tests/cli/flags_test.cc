@@ -18,6 +18,7 @@ ABSL_DECLARE_FLAG(std::string, backend);
 ABSL_DECLARE_FLAG(bool, single_linearization);
 ABSL_DECLARE_FLAG(bool, join_merge);
 ABSL_DECLARE_FLAG(std::string, ceres_method);
+ABSL_DECLARE_FLAG(std::string, ekf_fusion);
 ABSL_DECLARE_FLAG(int, ceres_every);
 
 namespace subslam::cli {
@@ -75,10 +76,15 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   EXPECT_EQ(o->ceres_every, 5);
 }
 
-TEST(BackendFlags, AnUnknownBackEndIsAnError) {
-  absl::FlagSaver restore;
-  absl::SetFlag(&FLAGS_backend, "gtsam");
-  EXPECT_FALSE(BackendOptionsFromFlags().ok());
+TEST(BackendFlags, AnUnknownNameIsAnErrorThatNamesIt) {
+  for (const auto& [flag, bad] : {std::pair{&FLAGS_backend, "gtsam"}, std::pair{&FLAGS_ceres_method, "bfgs"},
+                                  std::pair{&FLAGS_ekf_fusion, "average"}}) {
+    absl::FlagSaver restore;
+    absl::SetFlag(flag, bad);
+    const absl::StatusOr<pipeline::BackendOptions> o = BackendOptionsFromFlags();
+    ASSERT_FALSE(o.ok()) << bad;
+    EXPECT_NE(o.status().message().find(bad), std::string_view::npos) << o.status();
+  }
 }
 
 }  // namespace

@@ -105,7 +105,7 @@ TEST(DeadReckoning, MonteCarloPoseNeesInsideChiSquareBounds) {
   EXPECT_EQ(r.failed_runs, 0);
 }
 
-// The acceptance run: hybrid-120m, seed 1, α = 1, β = 0. The single-run pose
+// The default scenario's run: hybrid-120m, seed 1, α = 1, β = 0. The single-run pose
 // NEES must lie inside the per-step two-sided 95% χ²₃ interval at ≥ 90% of the steps
 // (95% for an exactly consistent filter).
 TEST(EkfSlam, Hybrid120mSeed1IsConsistent) {

@@ -120,7 +120,7 @@ TEST(RunPipeline, InnovationLikelihoodFindsAMisalignedSensor) {
   EXPECT_LT(right, nll_per_dof(-0.06));
 }
 
-// The acceptance run on real data: EKF-SLAM on Victoria Park, aligned against
+// The single-map baseline on real data: EKF-SLAM on Victoria Park, aligned against
 // GPS, far below dead reckoning.
 TEST(RunPipeline, VictoriaParkEkfSlamBeatsDeadReckoning) {
   const std::string dir = testing::VictoriaParkDir();

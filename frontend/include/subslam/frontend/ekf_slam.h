@@ -1,7 +1,7 @@
 // EKF-SLAM with unknown data association (known association: a study option, see
 // EkfSlamOptions::known_association): the single-map baseline (Smith, Self &
-// Cheeseman; as used in HybridSLAM §4 and FMJ §II), and the base of the EKF local
-// mapper of later issues.
+// Cheeseman; as used in HybridSLAM §4 and FMJ §II), and the filter inside the EKF local
+// mapper (ekf_local_mapper.h).
 //
 // State [pose (3), landmark 1 (2), …] with a dense covariance (conventions.h).
 //  * Predict: the motion model on the pose block only — O(n).

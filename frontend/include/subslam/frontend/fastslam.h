@@ -279,9 +279,13 @@ class FastSlam final : public OnlineEstimator {
     std::vector<double> min_d2;
     std::vector<GatedPair> near_pairs;  // every pair inside the new-landmark gate, ranked by log-likelihood
     std::vector<std::pair<int, double>> likelihoods;
+    std::vector<Eigen::Vector2d> z_seen;  // the scan's detections with the particle's sensor yaw
     long associated = 0, ignored = 0;
     long landmark_copies = 0, landmarks_created = 0, landmarks_culled = 0;
   };
+  // The scan's detections as `particle` sees them: z_, or with sensor_yaw_sigma its sensor
+  // yaw added to every bearing (in scratch->z_seen).
+  const std::vector<Eigen::Vector2d>& DetectionsSeenBy(const Particle& particle, Scratch* scratch) const;
   // Associates the scan for one particle, samples its pose and updates its weight;
   // touches only the particle, its decisions, `scratch` and `rng` (safe to run for
   // different particles in parallel).

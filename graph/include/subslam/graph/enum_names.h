@@ -37,9 +37,11 @@ const char* NameOf(const EnumName<E> (&table)[N], E value) {
 // The value named `name` in `table`; `what` names the enum in the error.
 template <typename E, size_t N>
 absl::StatusOr<E> ParseEnum(const EnumName<E> (&table)[N], std::string_view name, std::string_view what) {
+  for (const EnumName<E>& entry : table) {
+    if (name == entry.name) return entry.value;
+  }
   std::string expected;
   for (size_t i = 0; i < N; ++i) {
-    if (name == table[i].name) return table[i].value;
     if (i > 0) expected += i + 1 == N ? " or " : ", ";
     expected += table[i].name;
   }
