@@ -3,6 +3,8 @@
 //   subslam simulate --scenario NAME [--seed S] --out DIR [scenario flags]
 //   subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf
 //               --out DIR [estimator and noise flags]
+//   subslam study NAME --out DIR [--trials N] [--workers W] [--shard K/N]
+//   subslam study merge DIR... --out DIR
 //   subslam scenarios
 //
 // Every flag is listed by `subslam --help`.
@@ -27,6 +29,8 @@
 #include "subslam/io/dataset_reader.h"
 #include "subslam/io/dataset_writer.h"
 #include "subslam/sim/simulator.h"
+#include "subslam/study/study.h"
+#include "subslam/study/study_runner.h"
 
 // Flag defaults come from the option structs, so the tool and the library agree.
 namespace {
@@ -65,6 +69,10 @@ ABSL_FLAG(std::optional<double>, max_range, std::nullopt, "ignore detections bey
 ABSL_FLAG(std::optional<double>, sensor_yaw, std::nullopt,
           "add this to every bearing [rad]: the sensor's yaw on the vehicle, a calibration "
           "(Victoria Park: -0.019, bench/sensor_yaw_calibration)");
+ABSL_FLAG(int, trials, 0, "study: trials per method and setting (0: the paper's)");
+ABSL_FLAG(int, workers, 0, "study: runs at a time, one thread each (0: every core)");
+ABSL_FLAG(std::vector<std::string>, methods, {}, "study: only these methods, comma-separated (default: all)");
+ABSL_FLAG(std::string, shard, "1/1", "study: run slice K of N (K/N); `subslam study merge` combines the slices");
 ABSL_FLAG(bool, progress, true, "show a progress line on a terminal");
 ABSL_FLAG(bool, quiet, false, "do not print the summary table");
 
@@ -201,12 +209,53 @@ int Run() {
   return 0;
 }
 
+// `subslam study NAME` or `subslam study merge DIR...`.
+int Study(const std::vector<char*>& args) {
+  if (args.size() < 3) {
+    return Fail(absl::InvalidArgumentError(absl::StrCat(
+        "study needs a name (", absl::StrJoin(subslam::study::StudyNames(), ", "), ") or merge DIR...")));
+  }
+  const std::string out = absl::GetFlag(FLAGS_out);
+  if (std::string(args[2]) == "merge") {
+    std::vector<std::string> dirs(args.begin() + 3, args.end());
+    if (absl::Status s = subslam::study::MergeStudy(dirs, out); !s.ok()) return Fail(s);
+    if (!absl::GetFlag(FLAGS_quiet)) std::printf("merged %zu slices -> %s/summary.md\n", dirs.size(), out.c_str());
+    return 0;
+  }
+  if (args.size() != 3) return Fail(absl::InvalidArgumentError("study takes one study name"));
+  auto study = subslam::study::MakeStudy(args[2]);
+  if (!study.ok()) return Fail(study.status());
+  subslam::study::StudyOptions options;
+  options.trials = absl::GetFlag(FLAGS_trials);
+  options.workers = absl::GetFlag(FLAGS_workers);
+  options.methods = absl::GetFlag(FLAGS_methods);
+  auto shard = subslam::study::ShardFromString(absl::GetFlag(FLAGS_shard));
+  if (!shard.ok()) return Fail(shard.status());
+  options.shard = *shard;
+  options.out_dir = out;
+  options.progress = absl::GetFlag(FLAGS_progress);
+  if (absl::Status s = subslam::study::RunStudy(**study, options); !s.ok()) return Fail(s);
+  if (!absl::GetFlag(FLAGS_quiet)) {
+    if (options.shard.count == 1) {
+      std::FILE* f = std::fopen((out + "/summary.md").c_str(), "r");
+      for (int c; f != nullptr && (c = std::fgetc(f)) != EOF;) std::putchar(c);
+      if (f != nullptr) std::fclose(f);
+      std::printf("\noutputs: %s/{summary.md,summary.json,runs.csv,timings.csv,config.json}\n", out.c_str());
+    } else {
+      std::printf("slice %d/%d -> %s/runs.csv; combine the slices with `subslam study merge DIR... --out DIR`\n",
+                  options.shard.index, options.shard.count, out.c_str());
+    }
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(subslam::pipeline::CliUsage());
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);
   subslam::pipeline::ApplyKeepFreedMemoryFlag();
+  if (args.size() >= 2 && std::string(args[1]) == "study") return Study(args);
   if (args.size() != 2) {
     std::fprintf(stderr, "%s\n", absl::ProgramUsageMessage().data());
     return 2;

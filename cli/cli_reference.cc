@@ -12,7 +12,7 @@
 namespace subslam::pipeline {
 namespace {
 
-constexpr std::array<CliCommand, 5> kCommands = {{
+constexpr std::array<CliCommand, 7> kCommands = {{
     {"simulate", "subslam simulate --scenario NAME [--seed S] --out DIR",
      "Simulates a named scenario (docs/scenarios.md) and writes it as a data-set directory "
      "(docs/formats.md, \"Data-set directory\"), with the true poses, the true landmarks and "
@@ -32,6 +32,14 @@ constexpr std::array<CliCommand, 5> kCommands = {{
      "the same input. With `--dataset` or `--scenario`/`--seed` it takes the initial pose and "
      "the ground truth from there and scores the association against the features' true ids. "
      "Writes the anchors, the map, the submap graph (`graph.g2o`) and `report.json`."},
+    {"study", "subslam study hybridslam --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N]",
+     "Runs a paper's experiment (docs/reproducing.md): every method, setting and trial, on every "
+     "core, and writes the per-run table (`runs.csv`), the paper's table beside ours "
+     "(`summary.md`, the same figures in `summary.json`), the run times (`timings.csv`) and the "
+     "exact configuration (`config.json`). `--shard K/N` runs one slice of the runs."},
+    {"study merge", "subslam study merge DIR... --out DIR",
+     "Combines the slices of a study run with `--shard K/N` (every K once) into the same outputs "
+     "a single run writes, byte for byte."},
     {"scenarios", "subslam scenarios", "Lists the simulated scenarios, one name per line."},
     {"cli-reference", "subslam cli-reference",
      "Prints this reference in Markdown; docs/cli.md is its output."},
@@ -53,6 +61,7 @@ const std::vector<FlagGroup>& FlagGroups() {
        {"dataset", "scenario", "seed", "submaps", "out", "known_association", "sensor_yaw",
         "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "progress", "quiet",
         "keep_freed_memory"}},
+      {"Studies", "`subslam study` (docs/reproducing.md).", {"trials", "methods", "workers", "shard"}},
       {"Simulation", "Shape the simulated worlds (docs/scenarios.md).",
        {"world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks",
         "path_length", "lattice_spacing", "noise_scale", "signature"}},

@@ -1,0 +1,73 @@
+// A paper's experiment as a list of independent runs (docs/reproducing.md).
+//
+// A study names its methods and settings, expands them into runs (method × setting ×
+// trial, each trial with its own seed), measures one run at a time, and summarises the
+// per-run table into the paper's table. A run's result depends only on its method,
+// setting and seed — never on which process or thread ran it, or in what order — so the
+// runs can be spread over cores (StudyRunner) or machines (`--shard K/N`, then
+// MergeStudy) and the summary is byte for byte the same.
+#ifndef SUBSLAM_STUDY_STUDY_H_
+#define SUBSLAM_STUDY_STUDY_H_
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/status/statusor.h"
+#include "subslam/study/run_table.h"
+
+namespace subslam::study {
+
+struct StudyRun {
+  int index = 0;        // position in Study::Runs(), the key of runs.csv
+  std::string method;   // e.g. "hybrid"
+  std::vector<std::pair<std::string, double>> setting;  // in Study::setting_names() order
+  int trial = 0;        // 1-based
+  uint64_t seed = 0;    // the scenario seed of this trial (the world and the noise)
+};
+
+// What one run measured: values of Study::metric_names() (deterministic: runs.csv) and of
+// Study::timing_names() (wall-clock seconds: timings.csv, not part of the summary).
+struct RunMeasurement {
+  std::vector<std::string> metrics;
+  std::vector<double> timings;
+};
+
+class Study {
+ public:
+  virtual ~Study() = default;
+
+  virtual std::string name() const = 0;
+  // The paper (by title), its table or section, and what the study measures.
+  virtual std::string title() const = 0;
+  virtual int paper_trials() const = 0;  // trials per method and setting in the paper
+  virtual std::vector<std::string> method_names() const = 0;
+  virtual std::vector<std::string> setting_names() const = 0;
+  virtual std::vector<std::string> metric_names() const = 0;
+  virtual std::vector<std::string> timing_names() const { return {}; }
+
+  // Every run of the study with `trials` trials per method and setting.
+  virtual std::vector<StudyRun> Runs(int trials) const = 0;
+  virtual absl::StatusOr<RunMeasurement> Execute(const StudyRun& run) const = 0;
+
+  // The exact configuration (config.json): each method's options as the equivalent
+  // `subslam run` flags, and how a trial's seed and world are chosen.
+  virtual nlohmann::json Configuration() const = 0;
+
+  // The study's table from the per-run table: summary.json (a list "rows", one object
+  // per method and setting) and its Markdown rendering (summary.md).
+  virtual absl::StatusOr<nlohmann::json> Summarise(const RunTable& runs) const = 0;
+  virtual std::string SummaryMarkdown(const nlohmann::json& summary) const = 0;
+};
+
+// The studies by name: hybridslam, … (StudyNames()).
+std::vector<std::string> StudyNames();
+absl::StatusOr<std::unique_ptr<Study>> MakeStudy(const std::string& name);
+
+}  // namespace subslam::study
+
+#endif  // SUBSLAM_STUDY_STUDY_H_

@@ -1,0 +1,204 @@
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_replace.h"
+#include "subslam/study/binomial_interval.h"
+#include "subslam/study/run_table.h"
+#include "subslam/study/study.h"
+#include "subslam/study/study_runner.h"
+
+namespace subslam::study {
+namespace {
+
+using nlohmann::json;
+
+std::string Slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string FreshDir(const std::string& name) {
+  const std::string dir = absl::StrCat(::testing::TempDir(), "/study_test_", name);
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+TEST(RunTable, NumbersReadBackToTheSameDouble) {
+  for (double v : {0.1, 1.0 / 3.0, 2.0, -1e-300, 6.02214076e23, 0.49872910268551146}) {
+    EXPECT_EQ(std::stod(FormatNumber(v)), v) << FormatNumber(v);
+  }
+  EXPECT_EQ(FormatNumber(0.02), "0.02");
+  EXPECT_EQ(FormatNumber(std::nan("")), "nan");
+  RunTable t({"run", "x"});
+  ASSERT_TRUE(t.Add({"1", FormatNumber(1.0 / 3.0)}).ok());
+  ASSERT_TRUE(t.Add({"0", "nan"}).ok());
+  const std::string path = FreshDir("table.csv");
+  ASSERT_TRUE(t.Write(path).ok());
+  absl::StatusOr<RunTable> back = RunTable::Read(path);
+  ASSERT_TRUE(back.ok()) << back.status();
+  ASSERT_TRUE(back->SortBy("run").ok());
+  EXPECT_TRUE(std::isnan(*back->Number(0, "x")));
+  EXPECT_EQ(*back->Number(1, "x"), 1.0 / 3.0);
+}
+
+TEST(RunTable, BadInputGetsAClearError) {
+  RunTable t({"run", "method"});
+  EXPECT_FALSE(t.Add({"1"}).ok());
+  EXPECT_FALSE(t.Add({"1", "a,b"}).ok());
+  ASSERT_TRUE(t.Add({"1", "ekf"}).ok());
+  absl::StatusOr<double> not_number = t.Number(0, "method");
+  ASSERT_FALSE(not_number.ok());
+  EXPECT_NE(not_number.status().message().find("column method"), std::string::npos) << not_number.status();
+  EXPECT_FALSE(t.Number(0, "nope").ok());
+  const std::string path = FreshDir("short_row.csv");
+  std::ofstream(path) << "run,method\n0,ekf\n1\n";
+  absl::StatusOr<RunTable> read = RunTable::Read(path);
+  ASSERT_FALSE(read.ok());
+  EXPECT_NE(read.status().message().find(path + ":3:"), std::string::npos) << read.status();
+}
+
+// At the ends the Clopper-Pearson bounds have closed forms: 0 of n gives an upper bound
+// 1 − (α/2)^(1/n), n of n a lower bound (α/2)^(1/n); and k of n mirrors n − k of n.
+TEST(BinomialInterval, MatchesTheClosedFormsAndSymmetry) {
+  for (int n : {1, 2, 20, 100}) {
+    EXPECT_NEAR(BinomialInterval(0, n).low, 0.0, 1e-12);
+    EXPECT_NEAR(BinomialInterval(0, n).high, 1.0 - std::pow(0.025, 1.0 / n), 1e-9);
+    EXPECT_NEAR(BinomialInterval(n, n).low, std::pow(0.025, 1.0 / n), 1e-9);
+    EXPECT_NEAR(BinomialInterval(n, n).high, 1.0, 1e-12);
+  }
+  const ProportionInterval a = BinomialInterval(87, 100), b = BinomialInterval(13, 100);
+  EXPECT_NEAR(a.low, 1.0 - b.high, 1e-9);
+  EXPECT_NEAR(a.high, 1.0 - b.low, 1e-9);
+  EXPECT_LT(a.low, 0.87);
+  EXPECT_GT(a.high, 0.87);
+}
+
+TEST(Shard, ParsesKOfN) {
+  absl::StatusOr<Shard> s = ShardFromString("2/3");
+  ASSERT_TRUE(s.ok());
+  EXPECT_EQ(s->index, 2);
+  EXPECT_EQ(s->count, 3);
+  for (const char* bad : {"0/3", "4/3", "1", "a/b", "1/0", ""}) EXPECT_FALSE(ShardFromString(bad).ok()) << bad;
+}
+
+StudyOptions Options(const std::string& dir, int workers, Shard shard = {}) {
+  StudyOptions o;
+  o.trials = 1;
+  o.methods = {"ekf", "rbpf-eif"};
+  o.workers = workers;
+  o.shard = shard;
+  o.out_dir = dir;
+  return o;
+}
+
+// The study's outputs depend only on its runs: one process with two workers, and slices of
+// 2 and of 3 run one worker each and merged, give the same bytes.
+TEST(HybridSlamStudy, SlicesMergeToTheSingleRunsBytes) {
+  absl::StatusOr<std::unique_ptr<Study>> study = MakeStudy("hybridslam");
+  ASSERT_TRUE(study.ok());
+  const std::string single = FreshDir("single");
+  ASSERT_TRUE(RunStudy(**study, Options(single, 2)).ok());
+  for (int n : {2, 3}) {
+    std::vector<std::string> slices;
+    for (int k = n; k >= 1; --k) {  // merged in any order
+      slices.push_back(FreshDir(absl::StrCat("slice", k, "of", n)));
+      ASSERT_TRUE(RunStudy(**study, Options(slices.back(), 1, {k, n})).ok());
+      EXPECT_FALSE(std::filesystem::exists(slices.back() + "/summary.json")) << "a slice has no summary";
+    }
+    const std::string merged = FreshDir(absl::StrCat("merged", n));
+    ASSERT_TRUE(MergeStudy(slices, merged).ok());
+    for (const char* file : {"runs.csv", "summary.json", "summary.md", "config.json"}) {
+      EXPECT_EQ(Slurp(merged + "/" + file), Slurp(single + "/" + file)) << file << ", " << n << " slices";
+    }
+    // Bad merges: a slice missing, a slice twice.
+    EXPECT_FALSE(MergeStudy({slices[0]}, FreshDir("bad")).ok());
+    std::vector<std::string> twice = slices;
+    twice.push_back(slices[0]);
+    EXPECT_FALSE(MergeStudy(twice, FreshDir("bad")).ok());
+  }
+
+  // The table's shape and ranges: one row per method and setting, the paper's figure
+  // beside the EKF row, none beside ours.
+  const json summary = json::parse(Slurp(single + "/summary.json"));
+  ASSERT_EQ(summary["rows"].size(), 8u);
+  for (const json& row : summary["rows"]) {
+    SCOPED_TRACE(row.dump());
+    EXPECT_EQ(row["trials"], 1);
+    EXPECT_GE(row["successes"].get<int>(), 0);
+    EXPECT_LE(row["successes"].get<int>(), 1);
+    EXPECT_LE(row["success_rate_ci95"][0].get<double>(), row["success_rate"].get<double>());
+    EXPECT_GE(row["success_rate_ci95"][1].get<double>(), row["success_rate"].get<double>());
+    EXPECT_EQ(row["paper_success_rate"].is_null(), row["method"] == "rbpf-eif");
+    EXPECT_GT(row["median_rms_online_m"].get<double>(), 0.0);
+    EXPECT_LT(row["median_rms_online_m"].get<double>(), 20.0);
+    EXPECT_GT(row["landmarks_seen"].get<int>(), 20);  // of 35 in the world
+    EXPECT_LE(row["landmarks_seen"].get<int>(), 35);
+  }
+  EXPECT_NE(Slurp(single + "/summary.md").find("| ekf | 1 / 1: 100 % (3–100), paper 79 % |"), std::string::npos)
+      << Slurp(single + "/summary.md");
+}
+
+TEST(StudyRunner, BadRequestsGetAClearError) {
+  EXPECT_FALSE(MakeStudy("nope").ok());
+  absl::StatusOr<std::unique_ptr<Study>> study = MakeStudy("hybridslam");
+  ASSERT_TRUE(study.ok());
+  StudyOptions o = Options(FreshDir("bad_method"), 1);
+  o.methods = {"ekf", "gtsam"};
+  absl::Status s = RunStudy(**study, o);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("gtsam"), std::string::npos) << s;
+  o.methods.clear();
+  o.out_dir.clear();
+  EXPECT_FALSE(RunStudy(**study, o).ok());
+  EXPECT_FALSE(MergeStudy({FreshDir("absent")}, FreshDir("bad")).ok());
+}
+
+// Every method's recorded command (config.json), run with the tool, measures what the
+// study measured for it: the configuration a user reads is the one that ran.
+TEST(HybridSlamStudy, EachMethodIsItsRecordedCommand) {
+  absl::StatusOr<std::unique_ptr<Study>> study = MakeStudy("hybridslam");
+  ASSERT_TRUE(study.ok());
+  const std::string dir = FreshDir("commands");
+  StudyOptions o;
+  o.trials = 1;
+  o.shard = {1, 4};  // with one trial: one run of each of the five methods
+  o.out_dir = dir;
+  ASSERT_TRUE(RunStudy(**study, o).ok());
+  absl::StatusOr<RunTable> runs = RunTable::Read(dir + "/runs.csv");
+  ASSERT_TRUE(runs.ok());
+  ASSERT_EQ(runs->num_rows(), 5);
+  const json config = json::parse(Slurp(dir + "/config.json"));
+  for (int r = 0; r < runs->num_rows(); ++r) {
+    const std::string method = *runs->Text(r, "method");
+    SCOPED_TRACE(method);
+    std::string command;
+    for (const json& m : config["configuration"]["methods"]) {
+      if (m["method"] == method) command = m["command"];
+    }
+    ASSERT_FALSE(command.empty());
+    const std::string out = FreshDir(absl::StrCat("command_", method));
+    command = absl::StrReplaceAll(command, {{"subslam ", absl::StrCat(SUBSLAM_TOOL, " ")},
+                                            {"TRIAL", *runs->Text(r, "trial")},
+                                            {"ALPHA", *runs->Text(r, "alpha")},
+                                            {"BETA", *runs->Text(r, "beta")}});
+    ASSERT_EQ(std::system(absl::StrCat(command, " --quiet --progress=false --out ", out).c_str()), 0) << command;
+    const json metrics = json::parse(Slurp(out + "/report.json"))["metrics"];
+    const json& online = metrics.contains("trajectory_online") ? metrics["trajectory_online"] : metrics["trajectory"];
+    EXPECT_EQ(online["rms_position_m"].get<double>(), *runs->Number(r, "rms_online_m"));
+    EXPECT_EQ(metrics["trajectory"]["rms_position_m"].get<double>(), *runs->Number(r, "rms_final_m"));
+    EXPECT_EQ(online["failed_10_sigma_test"].get<bool>() ? 0.0 : 1.0, *runs->Number(r, "success"));
+    EXPECT_EQ(metrics["map"]["duplicates"].get<double>(), *runs->Number(r, "duplicates"));
+  }
+}
+
+}  // namespace
+}  // namespace subslam::study
