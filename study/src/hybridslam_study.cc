@@ -27,6 +27,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "studies.h"
+#include "study_method.h"
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/sim/simulator.h"
 #include "subslam/study/binomial_interval.h"
@@ -38,16 +39,6 @@ namespace {
 using nlohmann::json;
 
 constexpr std::array<std::pair<double, double>, 4> kSettings = {{{1.0, 0.00}, {0.7, 0.02}, {0.4, 0.04}, {0.1, 0.06}}};
-
-struct Method {
-  std::string name;
-  std::string description;
-  // The `subslam run` flags this method adds to the trial's scenario flags; `configure`
-  // sets the same options in RunOptions (a test runs both and compares).
-  std::string flags;
-  std::function<void(pipeline::RunOptions*)> configure;
-  std::optional<std::array<double, 4>> paper;  // Table 1, per setting, in [0, 1]
-};
 
 // Local maps closed every 10 s and at no other criterion (§5.1: "Sub-maps were fused at
 // 10-second intervals").
@@ -65,56 +56,49 @@ void PaperParticleFilter(pipeline::RunOptions* o) {
   o->fastslam.sample_association = true;
 }
 
-const std::vector<Method>& Methods() {
-  static const auto* methods = new std::vector<Method>{
+const std::vector<StudyMethod>& Methods() {
+  static const auto* methods = new std::vector<StudyMethod>{
       {"fastslam", "single-map FastSLAM 2.0, 500 particles, data-association sampling",
-       "--frontend fastslam --particles 500 --sample_association --threads 1",
+       "--frontend fastslam --particles 500 --sample_association",
        [](pipeline::RunOptions* o) {
          o->frontend = pipeline::Frontend::kFastSlam;
          PaperParticleFilter(o);
-       },
-       std::array<double, 4>{0.0, 0.0, 0.0, 0.0}},
+       }},
       {"ekf", "EKF local maps closed every 10 s, dense EKF joining",
-       absl::StrCat("--frontend ekf ", kTenSecondFlags, " --backend ekf --join_in_background=false"),
+       absl::StrCat("--frontend ekf ", kTenSecondFlags, " --backend ekf"),
        [](pipeline::RunOptions* o) {
          o->frontend = pipeline::Frontend::kEkfLocal;
          TenSecondMaps(o);
          o->backend.kind = pipeline::Backend::kEkf;
-       },
-       std::array<double, 4>{0.79, 0.76, 0.72, 0.30}},
+       }},
       {"hybrid", "FastSLAM 2.0 local maps (500 particles, data-association sampling) closed every 10 s, dense EKF joining",
-       absl::StrCat("--frontend rbpf --particles 500 --sample_association ", kTenSecondFlags,
-                    " --backend ekf --join_in_background=false --threads 1"),
+       absl::StrCat("--frontend rbpf --particles 500 --sample_association ", kTenSecondFlags, " --backend ekf"),
        [](pipeline::RunOptions* o) {
          o->frontend = pipeline::Frontend::kRbpf;
          PaperParticleFilter(o);
          TenSecondMaps(o);
          o->backend.kind = pipeline::Backend::kEkf;
-       },
-       std::array<double, 4>{0.87, 0.89, 0.83, 0.63}},
-      {"rbpf-eif", "subslam's defaults: RBPF local maps, sparse EIF joining",
-       "--frontend rbpf --backend eif --join_in_background=false --threads 1",
+       }},
+      {"rbpf-eif", "subslam's defaults: RBPF local maps, sparse EIF joining", "--frontend rbpf --backend eif",
        [](pipeline::RunOptions* o) {
          o->frontend = pipeline::Frontend::kRbpf;
          o->backend.kind = pipeline::Backend::kEif;
-       },
-       std::nullopt},
-      {"rbpf-ceres", "RBPF local maps, the submap graph solved by Ceres",
-       "--frontend rbpf --backend ceres --join_in_background=false --threads 1",
+       }},
+      {"rbpf-ceres", "RBPF local maps, the submap graph solved by Ceres", "--frontend rbpf --backend ceres",
        [](pipeline::RunOptions* o) {
          o->frontend = pipeline::Frontend::kRbpf;
          o->backend.kind = pipeline::Backend::kCeres;
-       },
-       std::nullopt},
+       }},
   };
   return *methods;
 }
 
-const Method* FindMethod(const std::string& name) {
-  for (const Method& m : Methods()) {
-    if (m.name == name) return &m;
-  }
-  return nullptr;
+// Table 1, per setting; the paper has no row for ours.
+std::optional<std::array<double, 4>> PaperSuccessRates(const std::string& method) {
+  if (method == "fastslam") return std::array<double, 4>{0.0, 0.0, 0.0, 0.0};
+  if (method == "ekf") return std::array<double, 4>{0.79, 0.76, 0.72, 0.30};
+  if (method == "hybrid") return std::array<double, 4>{0.87, 0.89, 0.83, 0.63};
+  return std::nullopt;
 }
 
 std::string Bit(bool b) { return b ? "1" : "0"; }
@@ -128,9 +112,7 @@ class HybridSlamStudy final : public Study {
   }
   int paper_trials() const override { return 100; }
   std::vector<std::string> method_names() const override {
-    std::vector<std::string> names;
-    for (const Method& m : Methods()) names.push_back(m.name);
-    return names;
+    return MethodNames(Methods());
   }
   std::vector<std::string> setting_names() const override { return {"alpha", "beta"}; }
   std::vector<std::string> metric_names() const override {
@@ -143,7 +125,7 @@ class HybridSlamStudy final : public Study {
     std::vector<StudyRun> runs;
     for (const auto& [alpha, beta] : kSettings) {
       for (int trial = 1; trial <= trials; ++trial) {
-        for (const Method& method : Methods()) {
+        for (const StudyMethod& method : Methods()) {
           runs.push_back({static_cast<int>(runs.size()), method.name, {{"alpha", alpha}, {"beta", beta}}, trial,
                           static_cast<uint64_t>(trial)});
         }
@@ -153,7 +135,7 @@ class HybridSlamStudy final : public Study {
   }
 
   absl::StatusOr<RunMeasurement> Execute(const StudyRun& run) const override {
-    const Method* method = FindMethod(run.method);
+    const StudyMethod* method = FindMethod(Methods(), run.method);
     if (method == nullptr || run.setting.size() != 2) return absl::InvalidArgumentError("not a run of this study");
     sim::ScenarioOptions scenario;
     scenario.seed = run.seed;
@@ -167,11 +149,7 @@ class HybridSlamStudy final : public Study {
         if (d.truth_id >= 0) seen.insert(d.truth_id);
       }
     }
-    pipeline::RunOptions options;
-    options.fastslam.num_threads = 1;
-    options.backend.background = false;
-    method->configure(&options);
-    absl::StatusOr<pipeline::RunResult> r = pipeline::RunPipeline(*std::move(dataset), options);
+    absl::StatusOr<pipeline::RunResult> r = RunMethod(*method, *std::move(dataset));
     if (!r.ok()) return r.status();
     if (!r->errors || !r->map_errors) return absl::InternalError("the run has no ground-truth metrics");
     const eval::TrajectoryErrors& online = r->errors_online ? *r->errors_online : *r->errors;
@@ -194,14 +172,8 @@ class HybridSlamStudy final : public Study {
   }
 
   json Configuration() const override {
-    json methods = json::array();
-    for (const Method& m : Methods()) {
-      methods.push_back({{"method", m.name},
-                         {"description", m.description},
-                         {"command", absl::StrCat("subslam run --scenario hybrid-120m --seed TRIAL --alpha ALPHA "
-                                                  "--beta BETA ",
-                                                  m.flags)}});
-    }
+    const json methods =
+        MethodsJson(Methods(), "subslam run --scenario hybrid-120m --seed TRIAL --alpha ALPHA --beta BETA");
     json settings = json::array();
     for (const auto& [alpha, beta] : kSettings) settings.push_back({{"alpha", alpha}, {"beta", beta}});
     return {{"scenario", "hybrid-120m"},
@@ -213,11 +185,12 @@ class HybridSlamStudy final : public Study {
             {"methods", methods}};
   }
 
-  absl::StatusOr<json> Summarise(const RunTable& runs) const override {
+  absl::StatusOr<json> Summarise(const RunTable& runs, const RunTable& /*series*/) const override {
     json rows = json::array();
     for (size_t s = 0; s < kSettings.size(); ++s) {
       const auto [alpha, beta] = kSettings[s];
-      for (const Method& method : Methods()) {
+      for (const StudyMethod& method : Methods()) {
+        const std::optional<std::array<double, 4>> paper = PaperSuccessRates(method.name);
         const std::vector<int> group =
             RowsWhere(runs, {{"method", method.name}, {"alpha", FormatNumber(alpha)}, {"beta", FormatNumber(beta)}});
         if (group.empty()) continue;
@@ -241,7 +214,7 @@ class HybridSlamStudy final : public Study {
                     {"successes", successes},
                     {"success_rate", static_cast<double>(successes) / trials},
                     {"success_rate_ci95", {ci.low, ci.high}},
-                    {"paper_success_rate", method.paper ? json((*method.paper)[s]) : json(nullptr)},
+                    {"paper_success_rate", paper ? json((*paper)[s]) : json(nullptr)},
                     {"successes_final", static_cast<int>(Sum(*success_final))},
                     {"median_rms_online_m", Median(*rms_online)},
                     {"median_rms_final_m", Median(*rms_final)},
@@ -267,7 +240,7 @@ class HybridSlamStudy final : public Study {
     absl::StrAppend(&md, "\n| --- |");
     for (size_t s = 0; s < kSettings.size(); ++s) absl::StrAppend(&md, " --- |");
     absl::StrAppend(&md, "\n");
-    for (const Method& method : Methods()) {
+    for (const StudyMethod& method : Methods()) {
       std::string line = absl::StrCat("| ", method.name, " |");
       bool any = false;
       for (size_t s = 0; s < kSettings.size(); ++s) {

@@ -8,7 +8,10 @@
 
 namespace subslam::study {
 
-std::unique_ptr<Study> MakeHybridSlamStudy();  // hybridslam_study.cc
+std::unique_ptr<Study> MakeHybridSlamStudy();    // hybridslam_study.cc
+std::unique_ptr<Study> MakeCombinedSlamStudy();  // combined_slam_study.cc
+std::unique_ptr<Study> MakeFmjStudy();           // fmj_study.cc
+std::unique_ptr<Study> MakeIseifStudy();         // iseif_study.cc
 
 }  // namespace subslam::study
 

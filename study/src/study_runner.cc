@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <set>
@@ -38,6 +39,12 @@ std::vector<std::string> RunColumns(const Study& study) {
   columns.push_back("trial");
   columns.push_back("seed");
   for (const std::string& name : study.metric_names()) columns.push_back(name);
+  return columns;
+}
+
+std::vector<std::string> SeriesColumns(const Study& study) {
+  std::vector<std::string> columns = {"run"};
+  for (const std::string& name : study.series_names()) columns.push_back(name);
   return columns;
 }
 
@@ -110,14 +117,55 @@ class ProgressLine {
   absl::Time start_;
 };
 
-// Writes the summary of a complete runs.csv in `dir`.
+// timings.md: per method, the median and minimum of each timing column.
+std::string TimingsMarkdown(const Study& study, const RunTable& runs, const RunTable& timings) {
+  std::string md = absl::StrCat("# ", study.name(), ": run times\n\nWall-clock seconds per run (median / minimum over ",
+                                "the runs), each run on one thread; they vary with the machine and its load.\n\n| method |");
+  std::string rule = "| --- |";
+  for (size_t c = 1; c < timings.columns().size(); ++c) {
+    absl::StrAppend(&md, " ", timings.columns()[c], " |");
+    absl::StrAppend(&rule, " --- |");
+  }
+  absl::StrAppend(&md, "\n", rule, "\n");
+  std::map<std::string, std::string> method_of_run;
+  for (int r = 0; r < runs.num_rows(); ++r) method_of_run[runs.rows()[r][0]] = runs.rows()[r][1];
+  for (const std::string& method : study.method_names()) {
+    std::vector<std::vector<double>> values(timings.columns().size());
+    for (const auto& row : timings.rows()) {
+      if (method_of_run[row[0]] != method) continue;
+      for (size_t c = 1; c < row.size(); ++c) values[c].push_back(std::strtod(row[c].c_str(), nullptr));
+    }
+    if (values[1].empty()) continue;
+    absl::StrAppend(&md, "| ", method, " |");
+    for (size_t c = 1; c < values.size(); ++c) {
+      std::sort(values[c].begin(), values[c].end());
+      const size_t n = values[c].size();
+      const double median = n % 2 ? values[c][n / 2] : 0.5 * (values[c][n / 2 - 1] + values[c][n / 2]);
+      absl::StrAppend(&md, absl::StrFormat(" %.4g / %.4g |", median, values[c].front()));
+    }
+    absl::StrAppend(&md, "\n");
+  }
+  if (!study.paper_timings().empty()) absl::StrAppend(&md, "\n", study.paper_timings(), "\n");
+  return md;
+}
+
+// Writes the summary of a complete study in `dir` (from its files as read back).
 absl::Status Summarise(const Study& study, const std::string& dir) {
   absl::StatusOr<RunTable> runs = RunTable::Read(dir + "/runs.csv");
   if (!runs.ok()) return runs.status();
-  absl::StatusOr<json> summary = study.Summarise(*runs);
+  RunTable series({});
+  if (!study.series_names().empty()) {
+    absl::StatusOr<RunTable> read = RunTable::Read(dir + "/series.csv");
+    if (!read.ok()) return read.status();
+    series = *std::move(read);
+  }
+  absl::StatusOr<RunTable> timings = RunTable::Read(dir + "/timings.csv");
+  if (!timings.ok()) return timings.status();
+  absl::StatusOr<json> summary = study.Summarise(*runs, series);
   if (!summary.ok()) return summary.status();
   if (absl::Status s = WriteText(dir + "/summary.json", summary->dump(2) + "\n"); !s.ok()) return s;
-  return WriteText(dir + "/summary.md", study.SummaryMarkdown(*summary));
+  if (absl::Status s = WriteText(dir + "/summary.md", study.SummaryMarkdown(*summary)); !s.ok()) return s;
+  return WriteText(dir + "/timings.md", TimingsMarkdown(study, *runs, *timings));
 }
 
 }  // namespace
@@ -179,7 +227,11 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
         stop = true;
         return;
       }
-      if (m->metrics.size() != study.metric_names().size() || m->timings.size() != study.timing_names().size()) {
+      const bool series_ok = std::all_of(m->series.begin(), m->series.end(), [&](const std::vector<std::string>& row) {
+        return row.size() == study.series_names().size();
+      });
+      if (m->metrics.size() != study.metric_names().size() || m->timings.size() != study.timing_names().size() ||
+          !series_ok) {
         if (first_error.ok()) first_error = absl::InternalError(absl::StrCat(Describe(runs[i]), ": wrong number of values"));
         stop = true;
         return;
@@ -195,6 +247,7 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
 
   RunTable table(RunColumns(study));
   RunTable timings(TimingColumns(study));
+  RunTable series(SeriesColumns(study));
   for (size_t i = 0; i < runs.size(); ++i) {
     if (!measured[i]) continue;
     const StudyRun& run = runs[i];
@@ -207,8 +260,16 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
     std::vector<std::string> timing = {absl::StrCat(run.index), FormatNumber(wall[i])};
     for (double t : measured[i]->timings) timing.push_back(FormatNumber(t));
     if (absl::Status s = timings.Add(std::move(timing)); !s.ok()) return s;
+    for (std::vector<std::string>& values : measured[i]->series) {
+      std::vector<std::string> row = {absl::StrCat(run.index)};
+      for (std::string& value : values) row.push_back(std::move(value));
+      if (absl::Status s = series.Add(std::move(row)); !s.ok()) return s;
+    }
   }
   if (absl::Status s = table.Write(options.out_dir + "/runs.csv"); !s.ok()) return s;
+  if (!study.series_names().empty()) {
+    if (absl::Status s = series.Write(options.out_dir + "/series.csv"); !s.ok()) return s;
+  }
   if (absl::Status s = timings.Write(options.out_dir + "/timings.csv"); !s.ok()) return s;
   if (!first_error.ok()) {
     return absl::Status(first_error.code(),
@@ -226,7 +287,7 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   std::unique_ptr<Study> study;
   std::set<int> slices;
   int count = 0;
-  std::optional<RunTable> runs, timings;
+  std::optional<RunTable> runs, timings, series;
   for (const std::string& dir : shard_dirs) {
     absl::StatusOr<json> config = ReadJson(dir + "/config.json");
     if (!config.ok()) return config.status();
@@ -258,6 +319,17 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
     if (!runs) {
       runs.emplace(part->columns());
       timings.emplace(part_timings->columns());
+      series.emplace(SeriesColumns(*study));
+    }
+    if (!study->series_names().empty()) {
+      absl::StatusOr<RunTable> part_series = RunTable::Read(dir + "/series.csv");
+      if (!part_series.ok()) return part_series.status();
+      if (part_series->columns() != series->columns()) {
+        return absl::InvalidArgumentError(absl::StrCat(dir, "/series.csv: columns are not the study's"));
+      }
+      for (const auto& row : part_series->rows()) {
+        if (absl::Status s = series->Add(row); !s.ok()) return s;
+      }
     }
     for (const auto& row : part->rows()) {
       if (absl::Status s = runs->Add(row); !s.ok()) return s;
@@ -275,6 +347,7 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   }
   if (absl::Status s = runs->SortBy("run"); !s.ok()) return s;
   if (absl::Status s = timings->SortBy("run"); !s.ok()) return s;
+  if (absl::Status s = series->SortBy("run"); !s.ok()) return s;  // stable: each run's rows keep their order
   std::vector<StudyRun> expected;
   try {
     expected = SelectedRuns(*study, (*reference).at("trials").get<int>(),
@@ -299,6 +372,9 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   if (absl::Status s = WriteText(out_dir + "/config.json", config.dump(2) + "\n"); !s.ok()) return s;
   if (absl::Status s = runs->Write(out_dir + "/runs.csv"); !s.ok()) return s;
   if (absl::Status s = timings->Write(out_dir + "/timings.csv"); !s.ok()) return s;
+  if (!study->series_names().empty()) {
+    if (absl::Status s = series->Write(out_dir + "/series.csv"); !s.ok()) return s;
+  }
   return Summarise(*study, out_dir);
 }
 

@@ -30,10 +30,12 @@ struct StudyRun {
   uint64_t seed = 0;    // the scenario seed of this trial (the world and the noise)
 };
 
-// What one run measured: values of Study::metric_names() (deterministic: runs.csv) and of
-// Study::timing_names() (wall-clock seconds: timings.csv, not part of the summary).
+// What one run measured: values of Study::metric_names() (deterministic: runs.csv), rows
+// of Study::series_names() (values over the run's time, deterministic: series.csv), and
+// values of Study::timing_names() (wall-clock seconds: timings.csv, not in the summary).
 struct RunMeasurement {
   std::vector<std::string> metrics;
+  std::vector<std::vector<std::string>> series;
   std::vector<double> timings;
 };
 
@@ -48,7 +50,10 @@ class Study {
   virtual std::vector<std::string> method_names() const = 0;
   virtual std::vector<std::string> setting_names() const = 0;
   virtual std::vector<std::string> metric_names() const = 0;
+  virtual std::vector<std::string> series_names() const { return {}; }
   virtual std::vector<std::string> timing_names() const { return {}; }
+  // What the paper reports for the timings, for timings.md (empty: nothing).
+  virtual std::string paper_timings() const { return ""; }
 
   // Every run of the study with `trials` trials per method and setting.
   virtual std::vector<StudyRun> Runs(int trials) const = 0;
@@ -58,9 +63,10 @@ class Study {
   // `subslam run` flags, and how a trial's seed and world are chosen.
   virtual nlohmann::json Configuration() const = 0;
 
-  // The study's table from the per-run table: summary.json (a list "rows", one object
-  // per method and setting) and its Markdown rendering (summary.md).
-  virtual absl::StatusOr<nlohmann::json> Summarise(const RunTable& runs) const = 0;
+  // The study's table from the per-run table and the series (a table with no columns
+  // when the study has none): summary.json (a list "rows", one object per method and
+  // setting) and its Markdown rendering (summary.md).
+  virtual absl::StatusOr<nlohmann::json> Summarise(const RunTable& runs, const RunTable& series) const = 0;
   virtual std::string SummaryMarkdown(const nlohmann::json& summary) const = 0;
 };
 

@@ -2,8 +2,10 @@
 // (docs/formats.md, "Study outputs") to a directory:
 //   config.json   the study, its trial count, the slice, and Study::Configuration();
 //   runs.csv      one row per run: run, method, the setting, trial, seed, the metrics;
+//   series.csv    (studies with series) run and the series columns, rows in time order;
 //   timings.csv   run, wall_s and the study's timing columns (wall clock: differs from
 //                 run to run, so kept out of runs.csv and the summary);
+//   timings.md    median and minimum of each timing per method, and the paper's figures;
 //   summary.json, summary.md   the study's table — written when every run is present
 //                 (one slice of 1, or after MergeStudy).
 // The summary is computed from runs.csv as read back from the file, so the same runs

@@ -1,0 +1,38 @@
+#include "study_method.h"
+
+#include "absl/strings/str_cat.h"
+
+namespace subslam::study {
+
+absl::StatusOr<pipeline::RunResult> RunMethod(const StudyMethod& method, io::Dataset dataset) {
+  pipeline::RunOptions options;
+  options.fastslam.num_threads = 1;
+  options.backend.background = false;
+  method.configure(&options);
+  return pipeline::RunPipeline(std::move(dataset), options);
+}
+
+const StudyMethod* FindMethod(const std::vector<StudyMethod>& methods, const std::string& name) {
+  for (const StudyMethod& m : methods) {
+    if (m.name == name) return &m;
+  }
+  return nullptr;
+}
+
+std::vector<std::string> MethodNames(const std::vector<StudyMethod>& methods) {
+  std::vector<std::string> names;
+  for (const StudyMethod& m : methods) names.push_back(m.name);
+  return names;
+}
+
+nlohmann::json MethodsJson(const std::vector<StudyMethod>& methods, const std::string& trial_command) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const StudyMethod& m : methods) {
+    list.push_back({{"method", m.name},
+                    {"description", m.description},
+                    {"command", absl::StrCat(trial_command, " ", m.flags, " ", kOneThreadFlags)}});
+  }
+  return list;
+}
+
+}  // namespace subslam::study

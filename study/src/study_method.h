@@ -1,0 +1,42 @@
+// A method of a study: a named configuration of `subslam run`, kept in two forms that a
+// test holds equal — the options it sets and the equivalent command-line flags that
+// config.json records for a reader to rerun.
+#ifndef SUBSLAM_STUDY_SRC_STUDY_METHOD_H_
+#define SUBSLAM_STUDY_SRC_STUDY_METHOD_H_
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "absl/status/statusor.h"
+#include "subslam/io/dataset.h"
+#include "subslam/pipeline/run_pipeline.h"
+
+namespace subslam::study {
+
+struct StudyMethod {
+  std::string name;
+  std::string description;
+  std::string flags;  // `subslam run` flags beyond the trial's scenario flags
+  std::function<void(pipeline::RunOptions*)> configure;
+};
+
+// Every study run uses one thread and joins in the foreground (the online pose holds each
+// join as soon as its map closes); these are the flags that say so.
+inline constexpr char kOneThreadFlags[] = "--threads 1 --join_in_background=false";
+
+// Runs `method` on `dataset` with one thread and foreground joins.
+absl::StatusOr<pipeline::RunResult> RunMethod(const StudyMethod& method, io::Dataset dataset);
+
+const StudyMethod* FindMethod(const std::vector<StudyMethod>& methods, const std::string& name);
+std::vector<std::string> MethodNames(const std::vector<StudyMethod>& methods);
+
+// config.json's "methods": name, description and `command` = `trial_command` + flags +
+// kOneThreadFlags.
+nlohmann::json MethodsJson(const std::vector<StudyMethod>& methods, const std::string& trial_command);
+
+}  // namespace subslam::study
+
+#endif  // SUBSLAM_STUDY_SRC_STUDY_METHOD_H_
