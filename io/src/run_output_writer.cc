@@ -1,5 +1,6 @@
 #include "subslam/io/run_output_writer.h"
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 
@@ -39,6 +40,54 @@ absl::Status WriteLandmarksCsv(const std::string& path,
     absl::StrAppendFormat(&text, "%d,%.10g,%.10g,%.10g,%.10g,%.10g\n", l.id, l.position.x(),
                           l.position.y(), l.covariance(0, 0), l.covariance(0, 1),
                           l.covariance(1, 1));
+  }
+  return WriteTextFile(path, text);
+}
+
+namespace {
+
+void AppendTumPose(double t, const Pose2& pose, std::string* text) {
+  absl::StrAppendFormat(text, "%.6f %.10g %.10g 0 0 0 %.10g %.10g\n", t, pose.x, pose.y, std::sin(pose.theta / 2),
+                        std::cos(pose.theta / 2));
+}
+
+}  // namespace
+
+absl::Status WriteTumTrajectory(const std::string& path, const Trajectory& trajectory) {
+  std::string text;
+  text.reserve(trajectory.size() * 80);
+  for (const PoseEstimate& p : trajectory) AppendTumPose(p.t, p.pose, &text);
+  return WriteTextFile(path, text);
+}
+
+absl::Status WriteTumTrajectory(const std::string& path, const std::vector<TimedPose>& poses) {
+  std::string text;
+  text.reserve(poses.size() * 80);
+  for (const TimedPose& p : poses) AppendTumPose(p.t, p.pose, &text);
+  return WriteTextFile(path, text);
+}
+
+absl::Status WriteTruthTrajectoryCsv(const std::string& path, const std::vector<TimedPose>& poses) {
+  std::string text = "t,x,y,theta\n";
+  text.reserve(poses.size() * 60);
+  for (const TimedPose& p : poses) {
+    absl::StrAppendFormat(&text, "%.6f,%.10g,%.10g,%.10g\n", p.t, p.pose.x, p.pose.y, p.pose.theta);
+  }
+  return WriteTextFile(path, text);
+}
+
+absl::Status WriteTruthLandmarksCsv(const std::string& path, const std::vector<TruthLandmark>& landmarks) {
+  std::string text = "id,x,y\n";
+  for (const TruthLandmark& l : landmarks) absl::StrAppendFormat(&text, "%d,%.10g,%.10g\n", l.id, l.p.x(), l.p.y());
+  return WriteTextFile(path, text);
+}
+
+absl::Status WriteGpsCsv(const std::string& path, const std::vector<TimedPoint>& fixes,
+                         const std::vector<bool>& rejected) {
+  std::string text = "t,x,y,rejected\n";
+  for (size_t i = 0; i < fixes.size(); ++i) {
+    absl::StrAppendFormat(&text, "%.6f,%.10g,%.10g,%d\n", fixes[i].t, fixes[i].p.x(), fixes[i].p.y(),
+                          i < rejected.size() && rejected[i] ? 1 : 0);
   }
   return WriteTextFile(path, text);
 }

@@ -1,5 +1,7 @@
 #include "subslam/pipeline/join_pipeline.h"
 
+#include "joins_csv.h"
+
 #include "report_json.h"
 
 #include <filesystem>
@@ -74,24 +76,6 @@ AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph) {
   return c;
 }
 
-namespace {
-
-// joins.csv: one row per join, its map, wall time and the change of every counter.
-std::string JoinsCsv(const std::vector<backend::JoinSummary>& joins) {
-  std::string csv = "map_id,seconds";
-  for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) absl::StrAppend(&csv, ",", f.name);
-  csv += "\n";
-  for (const backend::JoinSummary& j : joins) {
-    absl::StrAppend(&csv, j.map_id, ",", absl::StrFormat("%.6f", j.seconds));
-    for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) {
-      absl::StrAppend(&csv, ",", j.counts.*f.member);
-    }
-    csv += "\n";
-  }
-  return csv;
-}
-
-}  // namespace
 
 absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options) {
   if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
@@ -192,6 +176,18 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
     if (auto s = joiner->graph().WriteG2o((out / "graph.g2o").string()); !s.ok()) return s;
     if (auto s = io::WriteTextFile((out / "joins.csv").string(), JoinsCsv(r.joins)); !s.ok()) return s;
+    if (auto s = io::WriteTumTrajectory((out / "anchors.tum").string(), r.anchors); !s.ok()) return s;
+    if (!options.truth_poses.empty()) {
+      if (auto s = io::WriteTruthTrajectoryCsv((out / "truth_trajectory.csv").string(), options.truth_poses); !s.ok()) {
+        return s;
+      }
+    }
+    if (!options.truth_landmarks.empty()) {
+      if (auto s = io::WriteTruthLandmarksCsv((out / "truth_landmarks.csv").string(), options.truth_landmarks);
+          !s.ok()) {
+        return s;
+      }
+    }
     if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;
   }
   return r;

@@ -1,5 +1,6 @@
 #include "subslam/pipeline/run_pipeline.h"
 
+#include "joins_csv.h"
 #include "report_json.h"
 
 #include <sys/resource.h>
@@ -367,24 +368,71 @@ json Report(const io::Dataset& dataset, const RunOptions& options, const Checked
   return report;
 }
 
+// The per-step pose errors against the truth (pose_errors.csv): t, then for the online and
+// the final trajectory the position error [m], heading error [rad] and NEES (nan where the
+// covariance is singular).
+std::string PoseErrorsCsv(const RunResult& r, const std::vector<io::TimedPose>& truth) {
+  const eval::TrajectoryErrors& online = r.errors_online ? *r.errors_online : *r.errors;
+  std::string text = "t,online_position_error_m,online_heading_error_rad,online_nees,final_position_error_m,"
+                     "final_heading_error_rad,final_nees\n";
+  text.reserve(r.online.size() * 90);
+  for (size_t k = 0; k < r.online.size() && k < r.final_trajectory.size(); ++k) {
+    const Pose2 t = eval::InterpolatePose(truth, r.online[k].t);
+    const auto errors = [&](const PoseEstimate& e, const eval::TrajectoryErrors& m) {
+      return absl::StrFormat("%.6g,%.6g,%.6g", (e.pose.translation() - t.translation()).norm(),
+                             std::abs(WrapAngle(e.pose.theta - t.theta)), k < m.nees.size() ? m.nees[k] : NAN);
+    };
+    absl::StrAppend(&text, absl::StrFormat("%.6f", r.online[k].t), ",", errors(r.online[k], online), ",",
+                    errors(r.final_trajectory[k], *r.errors), "\n");
+  }
+  return text;
+}
+
 // Writes the outputs other than the online trajectory (already being written by
-// `online_written`) into `out`: the final trajectory and the local maps on another
-// thread, the map and the report here.
-absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, bool local_maps,
-                          std::future<absl::Status> online_written) {
+// `online_written`) into `out`: the final trajectory, the TUM files and the local maps on
+// another thread; the map, the ground truth, the errors, the joins and the report here.
+absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, const io::Dataset& dataset,
+                          const SubmapSlam* chain, std::future<absl::Status> online_written) {
   // The files are independent, and formatting the trajectories is most of the time. The
   // report is serialised first (nlohmann's serialiser reads the C locale, not to be shared).
   const std::string report_text = r.report.dump(2) + "\n";
+  const bool local_maps = chain != nullptr;
   std::future<absl::Status> final_written = WriteInBackground([&r, &out, local_maps] {
     absl::Status s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory);
+    if (s.ok()) s = io::WriteTumTrajectory((out / "trajectory_online.tum").string(), r.online);
+    if (s.ok()) s = io::WriteTumTrajectory((out / "trajectory_final.tum").string(), r.final_trajectory);
     if (s.ok() && local_maps) s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps);
     return s;
   });
-  absl::Status here = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks);
-  if (here.ok()) here = io::WriteTextFile((out / "report.json").string(), report_text);
-  const absl::Status online_status = online_written.get();
-  const absl::Status final_status = final_written.get();
-  for (const absl::Status& st : {online_status, final_status, here}) {
+  std::vector<absl::Status> here;
+  here.push_back(io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks));
+  if (!dataset.truth_poses.empty()) {
+    here.push_back(io::WriteTruthTrajectoryCsv((out / "truth_trajectory.csv").string(), dataset.truth_poses));
+    here.push_back(io::WriteTumTrajectory((out / "truth.tum").string(), dataset.truth_poses));
+    if (r.errors) here.push_back(io::WriteTextFile((out / "pose_errors.csv").string(), PoseErrorsCsv(r, dataset.truth_poses)));
+  }
+  if (!dataset.truth_landmarks.empty()) {
+    here.push_back(io::WriteTruthLandmarksCsv((out / "truth_landmarks.csv").string(), dataset.truth_landmarks));
+  }
+  if (r.gps_final) {
+    // The fixes in the final trajectory's frame, by the alignment the metric found.
+    const Pose2 estimate_T_gps = Inverse(r.gps_final->gps_T_estimate);
+    std::vector<io::TimedPoint> aligned = dataset.gps;
+    for (io::TimedPoint& fix : aligned) {
+      const Pose2 p = Compose(estimate_T_gps, Pose2{fix.p.x(), fix.p.y(), 0.0});
+      fix.p = {p.x, p.y};
+    }
+    std::vector<bool> rejected(aligned.size(), false);
+    for (int i : eval::GrossGpsFaults(dataset.gps)) rejected[i] = true;
+    here.push_back(io::WriteGpsCsv((out / "gps_aligned.csv").string(), aligned, rejected));
+  }
+  if (chain != nullptr && chain->joiner() != nullptr) {
+    here.push_back(io::WriteTextFile((out / "joins.csv").string(), JoinsCsv(chain->joins())));
+  }
+  here.push_back(io::WriteTextFile((out / "report.json").string(), report_text));
+  here.push_back(online_written.get());
+  here.push_back(final_written.get());
+  for (const absl::Status& st : here) {
     if (!st.ok()) return st;
   }
   return absl::OkStatus();
@@ -469,7 +517,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   json metrics = Evaluate(dataset, options, chain, &r);
   r.report = Report(dataset, options, *checked, *estimator, r, std::move(metrics));
   if (out_dir.has_value()) {
-    if (absl::Status st = WriteOutputs(*out_dir, r, chain != nullptr, std::move(online_written)); !st.ok()) {
+    if (absl::Status st = WriteOutputs(*out_dir, r, dataset, chain, std::move(online_written)); !st.ok()) {
       return st;
     }
   }

@@ -169,7 +169,9 @@ void SubmapSlam::JoinOne(const LocalSubmap& s) {
     status_ = absl::StrContains(st.message(), map)
                   ? st
                   : absl::Status(st.code(), absl::StrCat("joining ", map, ": ", st.message()));
+    return;
   }
+  joins_.push_back(joiner_->last_join());
 }
 
 Pose2 SubmapSlam::Anchor(int k) const { return joiner_ ? joiner_->anchor(k) : chain_[k]; }

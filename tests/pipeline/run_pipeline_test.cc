@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -40,6 +42,29 @@ TEST(RunPipeline, WritesOutputsWithMetrics) {
   EXPECT_TRUE(j["metrics"]["map"].contains("rms_m"));
   EXPECT_TRUE(j["time_seconds"]["stages"].contains("update"));
   EXPECT_FALSE(SummaryTable(*r).empty());
+
+  // The TUM trajectory (t x y z qx qy qz qw) is the online one, its heading a rotation
+  // about z; the ground truth and the per-step errors are beside it.
+  std::ifstream tum(options.out_dir + "/trajectory_online.tum");
+  std::vector<std::array<double, 8>> poses;
+  for (std::array<double, 8> p; tum >> p[0] >> p[1] >> p[2] >> p[3] >> p[4] >> p[5] >> p[6] >> p[7];) poses.push_back(p);
+  ASSERT_EQ(poses.size(), r->online.size());
+  for (size_t k = 0; k < poses.size(); k += 97) {
+    EXPECT_NEAR(poses[k][1], r->online[k].pose.x, 1e-6);
+    EXPECT_NEAR(poses[k][3], 0.0, 0.0);
+    EXPECT_NEAR(2 * std::atan2(poses[k][6], poses[k][7]), r->online[k].pose.theta, 1e-8);
+  }
+  for (const char* f : {"truth.tum", "truth_trajectory.csv", "truth_landmarks.csv", "trajectory_final.tum"}) {
+    EXPECT_TRUE(fs::exists(fs::path(options.out_dir) / f)) << f;
+  }
+  std::ifstream errors(options.out_dir + "/pose_errors.csv");
+  std::string line;
+  std::getline(errors, line);
+  EXPECT_EQ(line, "t,online_position_error_m,online_heading_error_rad,online_nees,final_position_error_m,"
+                  "final_heading_error_rad,final_nees");
+  size_t lines = 0;
+  while (std::getline(errors, line)) ++lines;
+  EXPECT_EQ(lines, r->online.size());
 }
 
 TEST(RunPipeline, SimulatedFilesGiveTheSameRunAsMemory) {

@@ -112,6 +112,11 @@ class SubmapSlam final : public frontend::OnlineEstimator {
     WaitForJoins();
     return joiner_.get();
   }
+  // What each join did, in join order (empty for kNone).
+  const std::vector<backend::JoinSummary>& joins() const {
+    WaitForJoins();
+    return joins_;
+  }
   static constexpr int kFeatureIdStride = 1000000;
 
  private:
@@ -144,6 +149,7 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   };
   std::vector<StepRecord> steps_;
   int last_scan_map_id_ = 0;
+  std::vector<backend::JoinSummary> joins_;  // written by the joining thread, as status_
   absl::Status status_;  // written by the joining thread while a join is pending
   // Background joins: the map being joined (set until its join is done), guarded by
   // join_mutex_; the joiner and status_ belong to the joining thread while it is set.

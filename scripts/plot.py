@@ -1,0 +1,330 @@
+#!/usr/bin/python3
+"""Figures of a subslam output directory, drawn with matplotlib (Debian's python3-matplotlib).
+
+  scripts/plot.py DIR [DIR ...] [--formats png,svg]
+
+DIR is what `subslam run`, `subslam join` or `subslam study` wrote (docs/formats.md); the
+figures go into DIR/plots/, each as PNG and SVG:
+
+  run    map          the map with 95 % ellipses over the true landmarks, the estimated
+                      (online and final) against the true trajectory, or the GPS track
+         nees         pose NEES over time, online and final, with the single-run 95 % χ²₃ band
+         errors       position error over time, online and final
+         joins        time per join (local-map front-ends with a back-end)
+  join   map, joins   the anchors and the map, as for a run; time per join
+  study  hybridslam:  success rate per method and setting with 95 % intervals and the paper's
+                      figures (success)
+         others:      ANEES against time with the χ² band for the number of runs (anees),
+                      mean consistency index (consistency), RMS position error (rms)
+         every study: median run time per method (timings)
+
+Every landmark ellipse, curve and bar carries an SVG id (e.g. landmark-ellipse-7,
+anees-rbpf-eif), so that a figure's content can be checked, not only its existence.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.patches import Ellipse  # noqa: E402
+
+# χ² quantiles (tables of the χ² distribution): the two-sided 95 % interval of one 3-dof
+# NEES, and the 95 % contour of a 2-dof Gaussian.
+CHI2_3DOF_025 = 0.2158
+CHI2_3DOF_975 = 9.3484
+CHI2_2DOF_95 = 5.9915
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    return rows
+
+
+def number(text):
+    return float("nan") if text in ("nan", "-nan") else float(text)
+
+
+def column(rows, name):
+    return [number(r[name]) for r in rows]
+
+
+def save(fig, out_dir, name, formats):
+    os.makedirs(out_dir, exist_ok=True)
+    written = []
+    for fmt in formats:
+        path = os.path.join(out_dir, f"{name}.{fmt}")
+        fig.savefig(path, dpi=130, bbox_inches="tight")
+        written.append(path)
+    plt.close(fig)
+    return written
+
+
+def ellipse(x, y, cxx, cxy, cyy, **kw):
+    """The 95 % ellipse of a 2-D Gaussian."""
+    trace, det = cxx + cyy, cxx * cyy - cxy * cxy
+    disc = math.sqrt(max(trace * trace / 4 - det, 0.0))
+    l1, l2 = trace / 2 + disc, max(trace / 2 - disc, 0.0)
+    angle = 0.5 * math.degrees(math.atan2(2 * cxy, cxx - cyy))
+    s = math.sqrt(CHI2_2DOF_95)
+    return Ellipse((x, y), 2 * s * math.sqrt(l1), 2 * s * math.sqrt(l2), angle=angle, **kw)
+
+
+def draw_map(ax, d, trajectories):
+    truth_landmarks = os.path.join(d, "truth_landmarks.csv")
+    if os.path.exists(truth_landmarks):
+        rows = read_csv(truth_landmarks)
+        pts = ax.scatter(column(rows, "x"), column(rows, "y"), marker="x", color="black", s=18, zorder=3,
+                         label=f"true landmarks ({len(rows)})")
+        pts.set_gid("truth-landmarks")
+    truth = os.path.join(d, "truth_trajectory.csv")
+    if os.path.exists(truth):
+        rows = read_csv(truth)
+        (line,) = ax.plot(column(rows, "x"), column(rows, "y"), color="black", lw=1.0, label="true trajectory")
+        line.set_gid("truth-trajectory")
+    gps = os.path.join(d, "gps_aligned.csv")
+    if os.path.exists(gps):
+        rows = read_csv(gps)
+        good = [r for r in rows if r["rejected"] == "0"]
+        bad = [r for r in rows if r["rejected"] != "0"]
+        ax.scatter(column(good, "x"), column(good, "y"), s=2, color="0.5", label=f"GPS, aligned ({len(good)})",
+                   zorder=1).set_gid("gps")
+        if bad:
+            ax.scatter(column(bad, "x"), column(bad, "y"), s=20, color="red", marker="s",
+                       label=f"GPS faults dropped ({len(bad)})", zorder=2).set_gid("gps-rejected")
+    for name, label, style in trajectories:
+        path = os.path.join(d, name)
+        if not os.path.exists(path):
+            continue
+        rows = read_csv(path)
+        (line,) = ax.plot(column(rows, "x"), column(rows, "y"), lw=1.0, label=label, **style)
+        line.set_gid(name.replace(".csv", ""))
+    rows = read_csv(os.path.join(d, "landmarks.csv"))
+    for r in rows:
+        e = ellipse(number(r["x"]), number(r["y"]), number(r["cov_xx"]), number(r["cov_xy"]), number(r["cov_yy"]),
+                    fill=False, edgecolor="tab:blue", lw=0.8, zorder=4)
+        e.set_gid(f"landmark-ellipse-{r['id']}")
+        ax.add_patch(e)
+    ax.scatter(column(rows, "x"), column(rows, "y"), s=6, color="tab:blue", zorder=4,
+               label=f"estimated landmarks ({len(rows)}), 95 % ellipses").set_gid("landmarks")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.grid(True, lw=0.3)
+    ax.legend(loc="best", fontsize=7)
+
+
+def draw_joins(d, out, formats, title):
+    path = os.path.join(d, "joins.csv")
+    if not os.path.exists(path):
+        return []
+    rows = read_csv(path)
+    if not rows:
+        return []
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    (line,) = ax.plot(column(rows, "map_id"), [1e3 * s for s in column(rows, "seconds")], lw=0.8)
+    line.set_gid("join-seconds")
+    ax.set_xlabel("local map")
+    ax.set_ylabel("join time [ms]")
+    ax.set_title(title, fontsize=9)
+    ax.grid(True, lw=0.3)
+    return save(fig, out, "joins", formats)
+
+
+def plot_run(d, out, formats):
+    report = json.load(open(os.path.join(d, "report.json")))
+    title = f"{report.get('source', d)}: {report['configuration'].get('frontend', '')}"
+    written = []
+    fig, ax = plt.subplots(figsize=(8, 8))
+    draw_map(ax, d, [("trajectory_online.csv", "online estimate", {"color": "tab:orange", "alpha": 0.7}),
+                     ("trajectory_final.csv", "final estimate", {"color": "tab:green"})])
+    ax.set_title(title, fontsize=9)
+    written += save(fig, out, "map", formats)
+
+    errors = os.path.join(d, "pose_errors.csv")
+    if os.path.exists(errors):
+        rows = read_csv(errors)
+        t = column(rows, "t")
+        fig, ax = plt.subplots(figsize=(8, 3.5))
+        for kind, color in (("online", "tab:orange"), ("final", "tab:green")):
+            (line,) = ax.plot(t, column(rows, f"{kind}_nees"), lw=0.6, color=color, label=f"{kind} pose NEES")
+            line.set_gid(f"nees-{kind}")
+        band = ax.axhspan(CHI2_3DOF_025, CHI2_3DOF_975, color="0.85", zorder=0, label="95 % χ²₃ band")
+        band.set_gid("nees-band")
+        ax.set_yscale("log")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("NEES")
+        ax.set_title(title, fontsize=9)
+        ax.grid(True, lw=0.3)
+        ax.legend(fontsize=7)
+        written += save(fig, out, "nees", formats)
+
+        fig, ax = plt.subplots(figsize=(8, 3.5))
+        for kind, color in (("online", "tab:orange"), ("final", "tab:green")):
+            (line,) = ax.plot(t, column(rows, f"{kind}_position_error_m"), lw=0.8, color=color, label=kind)
+            line.set_gid(f"error-{kind}")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("position error [m]")
+        ax.set_title(title, fontsize=9)
+        ax.grid(True, lw=0.3)
+        ax.legend(fontsize=7)
+        written += save(fig, out, "errors", formats)
+    written += draw_joins(d, out, formats, title)
+    return written
+
+
+def plot_join(d, out, formats):
+    report = json.load(open(os.path.join(d, "report.json")))
+    title = f"subslam join: {report['configuration'].get('backend', '')}"
+    fig, ax = plt.subplots(figsize=(8, 8))
+    draw_map(ax, d, [("anchors.csv", "anchors (start of each local map)", {"color": "tab:green", "marker": ".",
+                                                                          "ms": 3})])
+    ax.set_title(title, fontsize=9)
+    return save(fig, out, "map", formats) + draw_joins(d, out, formats, title)
+
+
+def setting_label(row, names):
+    return ", ".join(f"{n} {row[n]:g}" for n in names)
+
+
+def plot_hybridslam(summary, out, formats):
+    rows = summary["rows"]
+    settings = []
+    for r in rows:
+        if (r["alpha"], r["beta"]) not in settings:
+            settings.append((r["alpha"], r["beta"]))
+    methods = []
+    for r in rows:
+        if r["method"] not in methods:
+            methods.append(r["method"])
+    fig, ax = plt.subplots(figsize=(9, 4))
+    width = 0.8 / len(methods)
+    for m, method in enumerate(methods):
+        for s, (alpha, beta) in enumerate(settings):
+            row = next((r for r in rows if r["method"] == method and (r["alpha"], r["beta"]) == (alpha, beta)), None)
+            if row is None:
+                continue
+            x = s + (m - (len(methods) - 1) / 2) * width
+            rate = 100 * row["success_rate"]
+            lo, hi = (100 * v for v in row["success_rate_ci95"])
+            bar = ax.bar(x, rate, width, color=f"C{m}", label=method if s == 0 else None)
+            bar.patches[0].set_gid(f"success-{method}-{s}")
+            ax.errorbar(x, rate, yerr=[[rate - lo], [hi - rate]], color="black", capsize=2, lw=0.8)
+            if row["paper_success_rate"] is not None:
+                ax.plot(x, 100 * row["paper_success_rate"], marker="_", ms=14, mew=2.5, color="red",
+                        label="the paper" if (m, s) == (1, 0) else None)
+    ax.set_xticks(range(len(settings)))
+    ax.set_xticklabels([f"α {a:.1f}, β {b:.2f}" for a, b in settings])
+    ax.set_ylabel("success rate [%] (95 % interval)")
+    ax.set_ylim(0, 105)
+    ax.set_title(f"{summary['title']}\n{rows[0]['trials']} trials per bar", fontsize=8)
+    ax.legend(fontsize=7, ncol=6, loc="upper center", bbox_to_anchor=(0.5, -0.1))
+    ax.grid(True, axis="y", lw=0.3)
+    return save(fig, out, "success", formats)
+
+
+def plot_monte_carlo(summary, setting_names, out, formats):
+    rows = summary["rows"]
+    groups = []
+    for r in rows:
+        key = tuple(r[n] for n in setting_names)
+        if key not in groups:
+            groups.append(key)
+    written = []
+    for key in groups:
+        suffix = "".join(f"-{n}{v:g}" for n, v in zip(setting_names, key))
+        group = [r for r in rows if tuple(r[n] for n in setting_names) == key]
+        label = setting_label(group[0], setting_names)
+        for name, field, ylabel, log in (("anees", "anees", "pose ANEES (3 dof)", True),
+                                         ("consistency", "mean_ci", "mean consistency index", True),
+                                         ("rms", "rms_position_m", "RMS position error [m]", False)):
+            fig, ax = plt.subplots(figsize=(9, 4))
+            for m, r in enumerate(group):
+                c = r["curve"]
+                (line,) = ax.plot(c["t_s"], c[field], color=f"C{m}", lw=1.0, label=r["method"])
+                line.set_gid(f"{name}-{r['method']}")
+            if name == "anees":
+                c = group[0]["curve"]
+                band = ax.fill_between(c["t_s"], c["band_low"], c["band_high"], color="0.8", zorder=0,
+                                       label=f"95 % χ² band, {group[0]['trials']} runs")
+                band.set_gid("anees-band")
+            if name == "consistency":
+                ax.axhline(1.0, color="black", lw=0.8, ls="--", label="CI = 1")
+            if log:
+                ax.set_yscale("log")
+            ax.set_xlabel("t [s]")
+            ax.set_ylabel(ylabel)
+            ax.set_title(f"{summary['title']}" + (f"\n{label}" if label else ""), fontsize=8)
+            ax.grid(True, lw=0.3)
+            ax.legend(fontsize=7, ncol=2)
+            written += save(fig, out, f"{name}{suffix}", formats)
+    return written
+
+
+def plot_timings(d, out, formats, title):
+    runs = {r["run"]: r["method"] for r in read_csv(os.path.join(d, "runs.csv"))}
+    by_method = {}
+    for r in read_csv(os.path.join(d, "timings.csv")):
+        by_method.setdefault(runs[r["run"]], []).append(number(r["wall_s"]))
+    if not by_method:
+        return []
+    fig, ax = plt.subplots(figsize=(8, 3.5))
+    for m, (method, values) in enumerate(by_method.items()):
+        values.sort()
+        median = values[len(values) // 2] if len(values) % 2 else 0.5 * (values[len(values) // 2 - 1] +
+                                                                           values[len(values) // 2])
+        bar = ax.bar(m, median, color=f"C{m}")
+        bar.patches[0].set_gid(f"timing-{method}")
+    ax.set_xticks(range(len(by_method)))
+    ax.set_xticklabels(list(by_method), fontsize=8)
+    ax.set_yscale("log")
+    ax.set_ylabel("median wall time per run [s]")
+    ax.set_title(title, fontsize=8)
+    ax.grid(True, axis="y", lw=0.3)
+    return save(fig, out, "timings", formats)
+
+
+def plot_study(d, out, formats):
+    config = json.load(open(os.path.join(d, "config.json")))
+    summary_path = os.path.join(d, "summary.json")
+    if not os.path.exists(summary_path):
+        raise SystemExit(f"{d}: no summary.json (a slice? merge the slices with `subslam study merge` first)")
+    summary = json.load(open(summary_path))
+    settings = list(config["configuration"].get("settings", {}))
+    if config["study"] == "hybridslam":
+        written = plot_hybridslam(summary, out, formats)
+    else:
+        written = plot_monte_carlo(summary, settings, out, formats)
+    return written + plot_timings(d, out, formats, f"{config['study']}: run times")
+
+
+def plot(d, formats):
+    out = os.path.join(d, "plots")
+    if os.path.exists(os.path.join(d, "config.json")) and os.path.exists(os.path.join(d, "runs.csv")):
+        return plot_study(d, out, formats)
+    if os.path.exists(os.path.join(d, "trajectory_online.csv")):
+        return plot_run(d, out, formats)
+    if os.path.exists(os.path.join(d, "anchors.csv")):
+        return plot_join(d, out, formats)
+    raise SystemExit(f"{d}: not an output directory of subslam run, join or study")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("dirs", nargs="+", help="output directories of subslam run, join or study")
+    parser.add_argument("--formats", default="png,svg", help="comma-separated (default png,svg)")
+    args = parser.parse_args()
+    for d in args.dirs:
+        for path in plot(d, args.formats.split(",")):
+            print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
