@@ -3,7 +3,7 @@
 //   subslam simulate --scenario NAME [--seed S] --out DIR [scenario flags]
 //   subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf
 //               --out DIR [estimator and noise flags]
-//   subslam study NAME --out DIR [--trials N] [--workers W] [--shard K/N]
+//   subslam study NAME --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N] [--dataset DIR]
 //   subslam study merge DIR... --out DIR
 //   subslam scenarios
 //
@@ -229,6 +229,7 @@ int Study(const std::vector<char*>& args) {
   options.trials = absl::GetFlag(FLAGS_trials);
   options.workers = absl::GetFlag(FLAGS_workers);
   options.methods = absl::GetFlag(FLAGS_methods);
+  options.dataset_dir = absl::GetFlag(FLAGS_dataset);
   auto shard = subslam::study::ShardFromString(absl::GetFlag(FLAGS_shard));
   if (!shard.ok()) return Fail(shard.status());
   options.shard = *shard;

@@ -32,11 +32,12 @@ constexpr std::array<CliCommand, 7> kCommands = {{
      "the same input. With `--dataset` or `--scenario`/`--seed` it takes the initial pose and "
      "the ground truth from there and scores the association against the features' true ids. "
      "Writes the anchors, the map, the submap graph (`graph.g2o`) and `report.json`."},
-    {"study", "subslam study hybridslam --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N]",
+    {"study", "subslam study hybridslam|combined-slam|fmj|iseif --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N] [--dataset DIR]",
      "Runs a paper's experiment (docs/reproducing.md): every method, setting and trial, on every "
      "core, and writes the per-run table (`runs.csv`), the paper's table beside ours "
      "(`summary.md`, the same figures in `summary.json`), the run times (`timings.csv`) and the "
-     "exact configuration (`config.json`). `--shard K/N` runs one slice of the runs."},
+     "exact configuration (`config.json`). `--shard K/N` runs one slice of the runs. `iseif` with "
+     "`--dataset` (Victoria Park) adds the paper's real-data table."},
     {"study merge", "subslam study merge DIR... --out DIR",
      "Combines the slices of a study run with `--shard K/N` (every K once) into the same outputs "
      "a single run writes, byte for byte."},

@@ -121,7 +121,7 @@ class HybridSlamStudy final : public Study {
             "duplicates",     "landmarks_seen", "local_maps"};
   }
 
-  std::vector<StudyRun> Runs(int trials) const override {
+  std::vector<StudyRun> Runs(int trials, const std::string& /*dataset_dir*/) const override {
     std::vector<StudyRun> runs;
     for (const auto& [alpha, beta] : kSettings) {
       for (int trial = 1; trial <= trials; ++trial) {

@@ -8,6 +8,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "subslam/eval/nees.h"
+#include "subslam/io/dataset_reader.h"
 #include "subslam/sim/simulator.h"
 #include "table_statistics.h"
 
@@ -41,7 +42,12 @@ class MonteCarloStudy final : public Study {
   std::string name() const override { return spec_.name; }
   std::string title() const override { return spec_.title; }
   int paper_trials() const override { return spec_.paper_trials; }
-  std::vector<std::string> method_names() const override { return MethodNames(spec_.methods); }
+  std::vector<std::string> method_names() const override {
+    std::vector<std::string> names = MethodNames(spec_.methods);
+    for (const std::string& name : MethodNames(spec_.dataset_methods)) names.push_back(name);
+    return names;
+  }
+  bool uses_dataset() const override { return !spec_.dataset_methods.empty(); }
   std::vector<std::string> setting_names() const override { return spec_.setting_names; }
   std::vector<std::string> metric_names() const override {
     return {"rms_online_m", "rms_final_m", "rms_x_m",   "rms_y_m",   "rms_heading_rad", "final_error_m",
@@ -54,7 +60,7 @@ class MonteCarloStudy final : public Study {
   }
   std::string paper_timings() const override { return spec_.paper_timings; }
 
-  std::vector<StudyRun> Runs(int trials) const override {
+  std::vector<StudyRun> Runs(int trials, const std::string& dataset_dir) const override {
     std::vector<StudyRun> runs;
     for (const std::vector<double>& setting : Combinations(spec_.settings)) {
       for (int trial = 1; trial <= trials; ++trial) {
@@ -65,10 +71,18 @@ class MonteCarloStudy final : public Study {
         }
       }
     }
+    if (!dataset_dir.empty()) {
+      for (const StudyMethod& method : spec_.dataset_methods) {
+        StudyRun run{static_cast<int>(runs.size()), method.name, {}, 1, 0, dataset_dir};
+        for (size_t s = 0; s < spec_.setting_names.size(); ++s) run.setting.push_back({spec_.setting_names[s], NAN});
+        runs.push_back(std::move(run));
+      }
+    }
     return runs;
   }
 
   absl::StatusOr<RunMeasurement> Execute(const StudyRun& run) const override {
+    if (!run.dataset.empty()) return ExecuteOnDataset(run);
     const StudyMethod* method = FindMethod(spec_.methods, run.method);
     if (method == nullptr) return absl::InvalidArgumentError("not a run of this study");
     sim::ScenarioOptions scenario;
@@ -111,10 +125,37 @@ class MonteCarloStudy final : public Study {
       m.series.push_back({FormatNumber(nominal), FormatNumber(online.nees[k]), FormatNumber(error)});
       ++sample;
     }
-    // Joining times from the run's stage timers: association (with the covariance
-    // recovery it needs), the global map's update, and the rest of joining.
+    m.timings = JoinTimings(*r);
+    return m;
+  }
+
+  // A run on the real data set: its error against the aligned GPS (x and y in the GPS
+  // frame; the other metrics need a true pose, so nan).
+  absl::StatusOr<RunMeasurement> ExecuteOnDataset(const StudyRun& run) const {
+    const StudyMethod* method = FindMethod(spec_.dataset_methods, run.method);
+    if (method == nullptr) return absl::InvalidArgumentError("not a data-set run of this study");
+    absl::StatusOr<io::Dataset> dataset = io::ReadDataset(run.dataset);
+    if (!dataset.ok()) return dataset.status();
+    absl::StatusOr<pipeline::RunResult> r = RunMethod(*method, *std::move(dataset));
+    if (!r.ok()) return r.status();
+    if (!r->gps_final || !r->gps_online) {
+      return absl::InvalidArgumentError(absl::StrCat(run.dataset, ": the data set has no GPS to measure against"));
+    }
+    const std::string nan = "nan";
+    RunMeasurement m;
+    m.metrics = {FormatNumber(r->gps_online->rms_m), FormatNumber(r->gps_final->rms_m),
+                 FormatNumber(r->gps_final->rms_x_m), FormatNumber(r->gps_final->rms_y_m), nan, nan, nan, nan, nan,
+                 nan, nan, nan, absl::StrCat(r->local_maps.size())};
+    m.timings = JoinTimings(*r);
+    return m;
+  }
+
+  // The estimator's time and its joining split into association (with the covariance
+  // recovery it needs), the global map's update, and the rest of joining, from the run's
+  // stage timers.
+  static std::vector<double> JoinTimings(const pipeline::RunResult& r) {
     double association = 0.0, update = 0.0, other = 0.0;
-    for (const auto& [stage, seconds] : r->report["time_seconds"]["stages"].items()) {
+    for (const auto& [stage, seconds] : r.report["time_seconds"]["stages"].items()) {
       if (stage.rfind("join_", 0) != 0) continue;
       const double s = seconds.get<double>();
       if (stage == "join_association" || stage == "join_covariance_recovery") {
@@ -125,8 +166,7 @@ class MonteCarloStudy final : public Study {
         other += s;
       }
     }
-    m.timings = {r->wall_seconds, association, update, other};
-    return m;
+    return {r.wall_seconds, association, update, other};
   }
 
   json Configuration() const override {
@@ -136,13 +176,17 @@ class MonteCarloStudy final : public Study {
     }
     json settings = json::object();
     for (size_t s = 0; s < spec_.settings.size(); ++s) settings[spec_.setting_names[s]] = spec_.settings[s];
-    return {{"scenario", spec_.scenario},
+    json config = {{"scenario", spec_.scenario},
             {"settings", settings},
             {"seeds", "trial k (1-based) uses --seed k: its own world, noise and detections, the same for every "
                       "method"},
             {"series", absl::StrFormat("the online pose every %s s: its NEES (3 dof) and position error",
                                        FormatNumber(spec_.series_period_s))},
             {"methods", MethodsJson(spec_.methods, command)}};
+    if (!spec_.dataset_methods.empty()) {
+      config["dataset_methods"] = MethodsJson(spec_.dataset_methods, "subslam run --dataset DATASET");
+    }
+    return config;
   }
 
   absl::StatusOr<json> Summarise(const RunTable& runs, const RunTable& series) const override {
@@ -158,6 +202,24 @@ class MonteCarloStudy final : public Study {
         rows.push_back(*std::move(row));
       }
     }
+    for (const StudyMethod& method : spec_.dataset_methods) {
+      const std::vector<int> group = RowsWhere(runs, {{"method", method.name}});
+      if (group.empty()) continue;
+      absl::StatusOr<std::vector<double>> online = Values(runs, group, "rms_online_m"),
+                                          final_rms = Values(runs, group, "rms_final_m"),
+                                          x = Values(runs, group, "rms_x_m"), y = Values(runs, group, "rms_y_m");
+      for (const auto* v : {&online, &final_rms, &x, &y}) {
+        if (!v->ok()) return v->status();
+      }
+      rows.push_back({{"method", method.name},
+                      {"dataset", true},
+                      {"trials", static_cast<int>(group.size())},
+                      {"gps_rms_online_m", Median(*online)},
+                      {"gps_rms_m", Median(*final_rms)},
+                      {"gps_rms_x_m", Median(*x)},
+                      {"gps_rms_y_m", Median(*y)},
+                      {"paper", spec_.paper_dataset_finding ? spec_.paper_dataset_finding(method.name) : ""}});
+    }
     if (rows.empty()) return absl::InvalidArgumentError("runs.csv holds no run of this study");
     return json{{"study", name()}, {"title", title()}, {"rows", rows}};
   }
@@ -172,6 +234,7 @@ class MonteCarloStudy final : public Study {
     absl::StrAppend(&md, "| method", settings_header, " | runs | ANEES inside the band | mean CI < 1 | max mean CI | 10σ "
                     "successes | local maps | the paper |\n", Rule(8 + spec_.setting_names.size()));
     for (const json& row : summary["rows"]) {
+      if (row.contains("dataset")) continue;
       absl::StrAppend(&md, absl::StrFormat("| %s%s | %d | %.1f %% of %d times | %.1f %% | %.2f | %d / %d | %.0f | %s |\n",
                                            row["method"].get<std::string>(), SettingCells(row), row["trials"].get<int>(),
                                            100 * row["anees_inside_band"].get<double>(), row["anees_times"].get<int>(),
@@ -185,6 +248,7 @@ class MonteCarloStudy final : public Study {
                     " | pose x [m] | pose y [m] | heading [°] | landmark x [m] | landmark y [m] | online RMS [m] | final "
                     "RMS [m] |\n", Rule(8 + spec_.setting_names.size()));
     for (const json& row : summary["rows"]) {
+      if (row.contains("dataset")) continue;
       absl::StrAppend(&md, absl::StrFormat("| %s%s | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f |\n",
                                            row["method"].get<std::string>(), SettingCells(row),
                                            row["mean_rms_x_m"].get<double>(), row["mean_rms_y_m"].get<double>(),
@@ -192,6 +256,21 @@ class MonteCarloStudy final : public Study {
                                            row["mean_map_rms_x_m"].get<double>(), row["mean_map_rms_y_m"].get<double>(),
                                            row["median_rms_online_m"].get<double>(),
                                            row["median_rms_final_m"].get<double>()));
+    }
+    bool dataset_header = false;
+    for (const json& row : summary["rows"]) {
+      if (!row.contains("dataset")) continue;
+      if (!dataset_header) {
+        absl::StrAppend(&md, "\n", spec_.dataset_title,
+                        " (aligned RMS against the GPS, gross GPS faults dropped; docs/formats.md):\n\n| method | "
+                        "final x [m] | final y [m] | final [m] | online [m] | the paper |\n| --- | --- | --- | --- | "
+                        "--- | --- |\n");
+        dataset_header = true;
+      }
+      absl::StrAppend(&md, absl::StrFormat("| %s | %.2f | %.2f | %.2f | %.2f | %s |\n", row["method"].get<std::string>(),
+                                           row["gps_rms_x_m"].get<double>(), row["gps_rms_y_m"].get<double>(),
+                                           row["gps_rms_m"].get<double>(), row["gps_rms_online_m"].get<double>(),
+                                           row["paper"].get<std::string>()));
     }
     return md;
   }

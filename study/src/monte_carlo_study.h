@@ -1,5 +1,5 @@
 // A Monte Carlo consistency study: methods run on a simulated scenario over trials (and,
-// optionally, settings of the scenario), measured by the pose NEES of the online estimate
+// optionally, settings of the scenario) — and, for some, on a real data set — measured by the pose NEES of the online estimate
 // averaged over the runs against time with its χ² band, the consistency index, RMS errors
 // of the pose and the map, and the joining times. Combined SLAM §7, Fast Map Joining §IV
 // and ISEIF §4 are studies of this shape (combined_slam_study.cc, fmj_study.cc,
@@ -34,6 +34,11 @@ struct MonteCarloSpec {
   // tables), in words; and what it reports for the timings.
   std::function<std::string(const std::string& method, const std::vector<double>& setting)> paper_finding;
   std::string paper_timings;
+  // Runs on a real data set (given with --dataset), one per method, measured against its
+  // GPS (aligned RMS); the paper's figures for them, per method, in words.
+  std::string dataset_title;
+  std::vector<StudyMethod> dataset_methods;
+  std::function<std::string(const std::string& method)> paper_dataset_finding;
 };
 
 std::unique_ptr<Study> MakeMonteCarloStudy(MonteCarloSpec spec);

@@ -74,8 +74,9 @@ absl::StatusOr<json> ReadJson(const std::string& path) {
 
 // The runs of `trials` trials of `methods` (all when empty), with their indices in
 // Study::Runs().
-std::vector<StudyRun> SelectedRuns(const Study& study, int trials, const std::vector<std::string>& methods) {
-  std::vector<StudyRun> runs = study.Runs(trials);
+std::vector<StudyRun> SelectedRuns(const Study& study, int trials, const std::vector<std::string>& methods,
+                                   const std::string& dataset_dir) {
+  std::vector<StudyRun> runs = study.Runs(trials, dataset_dir);
   if (!methods.empty()) {
     std::erase_if(runs, [&](const StudyRun& run) {
       return std::find(methods.begin(), methods.end(), run.method) == methods.end();
@@ -84,9 +85,10 @@ std::vector<StudyRun> SelectedRuns(const Study& study, int trials, const std::ve
   return runs;
 }
 
-json ConfigJson(const Study& study, int trials, const std::vector<std::string>& methods, const Shard& shard,
-                int runs_total) {
+json ConfigJson(const Study& study, int trials, const std::vector<std::string>& methods,
+                const std::string& dataset_dir, const Shard& shard, int runs_total) {
   return {{"study", study.name()},
+          {"dataset", dataset_dir},
           {"title", study.title()},
           {"trials", trials},
           {"methods", methods.empty() ? study.method_names() : methods},
@@ -191,7 +193,10 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
                                                      "\" (methods: ", absl::StrJoin(known, ", "), ")"));
     }
   }
-  const std::vector<StudyRun> all = SelectedRuns(study, trials, options.methods);
+  if (!options.dataset_dir.empty() && !study.uses_dataset()) {
+    return absl::InvalidArgumentError(absl::StrCat("study ", study.name(), " has no runs on a real data set (--dataset)"));
+  }
+  const std::vector<StudyRun> all = SelectedRuns(study, trials, options.methods, options.dataset_dir);
   std::vector<StudyRun> runs;
   for (const StudyRun& run : all) {
     if (run.index % options.shard.count == options.shard.index - 1) runs.push_back(run);
@@ -201,7 +206,7 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
   if (ec) return absl::InternalError(absl::StrCat(options.out_dir, ": ", ec.message()));
   const int total_runs = static_cast<int>(all.size());
   if (absl::Status s = WriteText(options.out_dir + "/config.json",
-                                 ConfigJson(study, trials, options.methods, options.shard, total_runs).dump(2) + "\n");
+                                 ConfigJson(study, trials, options.methods, options.dataset_dir, options.shard, total_runs).dump(2) + "\n");
       !s.ok()) {
     return s;
   }
@@ -351,7 +356,8 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   std::vector<StudyRun> expected;
   try {
     expected = SelectedRuns(*study, (*reference).at("trials").get<int>(),
-                            (*reference).at("methods").get<std::vector<std::string>>());
+                            (*reference).at("methods").get<std::vector<std::string>>(),
+                            (*reference).at("dataset").get<std::string>());
   } catch (const json::exception& e) {
     return absl::InvalidArgumentError(absl::StrCat(shard_dirs.front(), "/config.json: ", e.what()));
   }

@@ -13,6 +13,7 @@
 #include "subslam/study/run_table.h"
 #include "subslam/study/study.h"
 #include "subslam/study/study_runner.h"
+#include "test_util.h"
 
 namespace subslam::study {
 namespace {
@@ -242,6 +243,35 @@ TEST(StudyRunner, BadRequestsGetAClearError) {
   o.out_dir.clear();
   EXPECT_FALSE(RunStudy(**study, o).ok());
   EXPECT_FALSE(MergeStudy({FreshDir("absent")}, FreshDir("bad")).ok());
+  o.out_dir = FreshDir("dataset_for_hybridslam");
+  o.dataset_dir = "/somewhere";
+  s = RunStudy(**study, o);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("real data set"), std::string::npos) << s;
+}
+
+// The ISEIF study's real-data table (Victoria Park, the paper's Table 3): SEIF's and
+// ISEIF's errors against the GPS below the paper's (7.53 / 5.38 m and 4.71 / 4.83 m).
+TEST(IseifStudy, VictoriaParkTableBelowThePapersErrors) {
+  const std::string vp = testing::VictoriaParkDir();
+  if (!std::filesystem::exists(vp + "/dataset.json")) GTEST_SKIP() << "no Victoria Park data at " << vp;
+  absl::StatusOr<std::unique_ptr<Study>> study = MakeStudy("iseif");
+  ASSERT_TRUE(study.ok());
+  StudyOptions o;
+  o.trials = 1;
+  o.methods = {"seif-vp", "iseif-vp"};
+  o.dataset_dir = vp;
+  o.out_dir = FreshDir("iseif_vp");
+  ASSERT_TRUE(RunStudy(**study, o).ok());
+  const json summary = json::parse(Slurp(o.out_dir + "/summary.json"));
+  ASSERT_EQ(summary["rows"].size(), 2u);
+  for (const json& row : summary["rows"]) {
+    SCOPED_TRACE(row.dump());
+    EXPECT_TRUE(row["dataset"].get<bool>());
+    EXPECT_LT(row["gps_rms_x_m"].get<double>(), 4.71);
+    EXPECT_LT(row["gps_rms_y_m"].get<double>(), 4.83);
+  }
+  EXPECT_NE(Slurp(o.out_dir + "/summary.md").find("Victoria Park"), std::string::npos);
 }
 
 // Every method's recorded command (config.json), run with the tool, measures what the

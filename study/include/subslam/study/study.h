@@ -28,6 +28,7 @@ struct StudyRun {
   std::vector<std::pair<std::string, double>> setting;  // in Study::setting_names() order
   int trial = 0;        // 1-based
   uint64_t seed = 0;    // the scenario seed of this trial (the world and the noise)
+  std::string dataset;  // a real data set's directory, for runs on one (else empty)
 };
 
 // What one run measured: values of Study::metric_names() (deterministic: runs.csv), rows
@@ -55,8 +56,11 @@ class Study {
   // What the paper reports for the timings, for timings.md (empty: nothing).
   virtual std::string paper_timings() const { return ""; }
 
-  // Every run of the study with `trials` trials per method and setting.
-  virtual std::vector<StudyRun> Runs(int trials) const = 0;
+  // Whether the study has runs on a real data set (given as `dataset_dir` to Runs()).
+  virtual bool uses_dataset() const { return false; }
+  // Every run of the study with `trials` trials per method and setting, and, when the
+  // study uses one and `dataset_dir` is not empty, its runs on that data set.
+  virtual std::vector<StudyRun> Runs(int trials, const std::string& dataset_dir) const = 0;
   virtual absl::StatusOr<RunMeasurement> Execute(const StudyRun& run) const = 0;
 
   // The exact configuration (config.json): each method's options as the equivalent

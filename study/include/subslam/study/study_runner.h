@@ -34,6 +34,7 @@ struct StudyOptions {
   int workers = 0;    // runs at a time, each on one thread; 0: every core
   Shard shard;
   std::vector<std::string> methods;  // only these of Study::method_names(); empty: all
+  std::string dataset_dir;  // the real data set of a study that uses one (iseif: Victoria Park)
   std::string out_dir;     // required
   bool progress = false;   // a progress line on stderr (when it is a terminal)
 };
