@@ -151,30 +151,21 @@ def plot_run(d, out, formats):
     if os.path.exists(errors):
         rows = read_csv(errors)
         t = column(rows, "t")
-        fig, ax = plt.subplots(figsize=(8, 3.5))
-        for kind, color in (("online", "tab:orange"), ("final", "tab:green")):
-            (line,) = ax.plot(t, column(rows, f"{kind}_nees"), lw=0.6, color=color, label=f"{kind} pose NEES")
-            line.set_gid(f"nees-{kind}")
-        band = ax.axhspan(CHI2_3DOF_025, CHI2_3DOF_975, color="0.85", zorder=0, label="95 % χ²₃ band")
-        band.set_gid("nees-band")
-        ax.set_yscale("log")
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("NEES")
-        ax.set_title(title, fontsize=9)
-        ax.grid(True, lw=0.3)
-        ax.legend(fontsize=7)
-        written += save(fig, out, "nees", formats)
-
-        fig, ax = plt.subplots(figsize=(8, 3.5))
-        for kind, color in (("online", "tab:orange"), ("final", "tab:green")):
-            (line,) = ax.plot(t, column(rows, f"{kind}_position_error_m"), lw=0.8, color=color, label=kind)
-            line.set_gid(f"error-{kind}")
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("position error [m]")
-        ax.set_title(title, fontsize=9)
-        ax.grid(True, lw=0.3)
-        ax.legend(fontsize=7)
-        written += save(fig, out, "errors", formats)
+        for name, field, ylabel in (("nees", "nees", "pose NEES"), ("errors", "position_error_m", "position error [m]")):
+            fig, ax = plt.subplots(figsize=(8, 3.5))
+            for kind, color in (("online", "tab:orange"), ("final", "tab:green")):
+                (line,) = ax.plot(t, column(rows, f"{kind}_{field}"), lw=0.7, color=color, label=f"{kind}")
+                line.set_gid(f"{name}-{kind}")
+            if name == "nees":
+                band = ax.axhspan(CHI2_3DOF_025, CHI2_3DOF_975, color="0.85", zorder=0, label="95 % χ²₃ band")
+                band.set_gid("nees-band")
+                ax.set_yscale("log")
+            ax.set_xlabel("t [s]")
+            ax.set_ylabel(ylabel)
+            ax.set_title(title, fontsize=9)
+            ax.grid(True, lw=0.3)
+            ax.legend(fontsize=7)
+            written += save(fig, out, name, formats)
     written += draw_joins(d, out, formats, title)
     return written
 

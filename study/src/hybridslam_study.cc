@@ -149,10 +149,9 @@ class HybridSlamStudy final : public Study {
         if (d.truth_id >= 0) seen.insert(d.truth_id);
       }
     }
-    absl::StatusOr<pipeline::RunResult> r = RunMethod(*method, *std::move(dataset));
+    absl::StatusOr<pipeline::RunResult> r = RunMethodWithTruth(*method, *std::move(dataset));
     if (!r.ok()) return r.status();
-    if (!r->errors || !r->map_errors) return absl::InternalError("the run has no ground-truth metrics");
-    const eval::TrajectoryErrors& online = r->errors_online ? *r->errors_online : *r->errors;
+    const eval::TrajectoryErrors& online = OnlineErrors(*r);
     const eval::MapErrors& map = *r->map_errors;
     RunMeasurement m;
     m.metrics = {Bit(!online.failed),

@@ -93,10 +93,9 @@ class MonteCarloStudy final : public Study {
     absl::StatusOr<io::Dataset> dataset = sim::SimulateScenario(spec_.scenario, scenario);
     if (!dataset.ok()) return dataset.status();
     const std::vector<io::TimedPose> truth = dataset->truth_poses;
-    absl::StatusOr<pipeline::RunResult> r = RunMethod(*method, *std::move(dataset));
+    absl::StatusOr<pipeline::RunResult> r = RunMethodWithTruth(*method, *std::move(dataset));
     if (!r.ok()) return r.status();
-    if (!r->errors || !r->map_errors) return absl::InternalError("the run has no ground-truth metrics");
-    const eval::TrajectoryErrors& online = r->errors_online ? *r->errors_online : *r->errors;
+    const eval::TrajectoryErrors& online = OnlineErrors(*r);
     const eval::TrajectoryErrors& final_errors = *r->errors;
     RunMeasurement m;
     m.metrics = {FormatNumber(online.rms_position_m),

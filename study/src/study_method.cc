@@ -12,6 +12,16 @@ absl::StatusOr<pipeline::RunResult> RunMethod(const StudyMethod& method, io::Dat
   return pipeline::RunPipeline(std::move(dataset), options);
 }
 
+absl::StatusOr<pipeline::RunResult> RunMethodWithTruth(const StudyMethod& method, io::Dataset dataset) {
+  absl::StatusOr<pipeline::RunResult> r = RunMethod(method, std::move(dataset));
+  if (r.ok() && (!r->errors || !r->map_errors)) return absl::InternalError("the run has no ground-truth metrics");
+  return r;
+}
+
+const eval::TrajectoryErrors& OnlineErrors(const pipeline::RunResult& r) {
+  return r.errors_online ? *r.errors_online : *r.errors;
+}
+
 const StudyMethod* FindMethod(const std::vector<StudyMethod>& methods, const std::string& name) {
   for (const StudyMethod& m : methods) {
     if (m.name == name) return &m;

@@ -29,6 +29,12 @@ inline constexpr char kOneThreadFlags[] = "--threads 1 --join_in_background=fals
 
 // Runs `method` on `dataset` with one thread and foreground joins.
 absl::StatusOr<pipeline::RunResult> RunMethod(const StudyMethod& method, io::Dataset dataset);
+// The same on a simulated data set: an error if the run has no trajectory and map metrics.
+absl::StatusOr<pipeline::RunResult> RunMethodWithTruth(const StudyMethod& method, io::Dataset dataset);
+
+// The errors of the online estimate: what a filter reports at each step (for the
+// single-map filters the final trajectory is the online one).
+const eval::TrajectoryErrors& OnlineErrors(const pipeline::RunResult& r);
 
 const StudyMethod* FindMethod(const std::vector<StudyMethod>& methods, const std::string& name);
 std::vector<std::string> MethodNames(const std::vector<StudyMethod>& methods);
