@@ -16,7 +16,8 @@ figures go into DIR/plots/, each as PNG and SVG:
                       figures (success)
          others:      ANEES against time with the χ² band for the number of runs (anees),
                       mean consistency index (consistency), RMS position error (rms)
-         every study: median run time per method (timings)
+         every study: median run time per method (timings); cumulative joining time against
+                      the local maps joined, per method (join_times)
 
 Every landmark ellipse, curve and bar carries an SVG id (e.g. landmark-ellipse-7,
 anees-rbpf-eif), so that a figure's content can be checked, not only its existence.
@@ -281,6 +282,41 @@ def plot_timings(d, out, formats, title):
     return save(fig, out, "timings", formats)
 
 
+def plot_join_times(d, out, formats, title, setting_names):
+    """Cumulative joining time against the local maps joined, median over each group's runs (up to the
+    number of maps every run of the group has)."""
+    path = os.path.join(d, "join_times.csv")
+    if not os.path.exists(path):
+        return []
+    runs = {r["run"]: r for r in read_csv(os.path.join(d, "runs.csv"))}
+    cumulative = {}  # run -> [cumulative seconds after join j]
+    for r in read_csv(path):
+        c = cumulative.setdefault(r["run"], [])
+        c.append((c[-1] if c else 0.0) + number(r["seconds"]))
+    groups = {}
+    for run, c in cumulative.items():
+        row = runs[run]
+        key = row["method"] + "".join(f" {n} {row[n]}" for n in setting_names if row.get(n, "nan") != "nan")
+        groups.setdefault(key, []).append(c)
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for g, (key, curves) in enumerate(groups.items()):
+        length = min(len(c) for c in curves)  # the joins every run of the group made
+        median = []
+        for j in range(length):
+            values = sorted(c[j] for c in curves)
+            n = len(values)
+            median.append(values[n // 2] if n % 2 else 0.5 * (values[n // 2 - 1] + values[n // 2]))
+        (line,) = ax.plot(range(1, length + 1), median, color=f"C{g}", lw=1.0, label=key)
+        line.set_gid("join-time-" + key.replace(" ", "-"))
+    ax.set_yscale("log")
+    ax.set_xlabel("local maps joined")
+    ax.set_ylabel("joining time so far [s] (median over runs)")
+    ax.set_title(title, fontsize=8)
+    ax.grid(True, lw=0.3)
+    ax.legend(fontsize=7)
+    return save(fig, out, "join_times", formats)
+
+
 def plot_study(d, out, formats):
     config = json.load(open(os.path.join(d, "config.json")))
     summary_path = os.path.join(d, "summary.json")
@@ -292,7 +328,8 @@ def plot_study(d, out, formats):
         written = plot_hybridslam(summary, out, formats)
     else:
         written = plot_monte_carlo(summary, settings, out, formats)
-    return written + plot_timings(d, out, formats, f"{config['study']}: run times")
+    return (written + plot_timings(d, out, formats, f"{config['study']}: run times") +
+            plot_join_times(d, out, formats, f"{config['study']}: joining time", settings))
 
 
 def plot(d, formats):

@@ -427,7 +427,7 @@ absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, 
     here.push_back(io::WriteGpsCsv((out / "gps_aligned.csv").string(), aligned, rejected));
   }
   if (chain != nullptr && chain->joiner() != nullptr) {
-    here.push_back(io::WriteTextFile((out / "joins.csv").string(), JoinsCsv(chain->joins())));
+    here.push_back(io::WriteTextFile((out / "joins.csv").string(), JoinsCsv(r.joins)));
   }
   here.push_back(io::WriteTextFile((out / "report.json").string(), report_text));
   here.push_back(online_written.get());
@@ -508,6 +508,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
       r.local_maps.push_back(std::move(s));
       r.close_reasons.push_back(frontend::ToString(c.reason));
     }
+    r.joins = chain->joins();
   }
   r.peak_rss_kb = PeakRssKb();
   // Single-map filters have nothing to re-express; the submap pipeline re-expresses

@@ -125,6 +125,7 @@ class MonteCarloStudy final : public Study {
       ++sample;
     }
     m.timings = JoinTimings(*r);
+    for (const backend::JoinSummary& join : r->joins) m.join_seconds.push_back(join.seconds);
     return m;
   }
 

@@ -253,6 +253,7 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
   RunTable table(RunColumns(study));
   RunTable timings(TimingColumns(study));
   RunTable series(SeriesColumns(study));
+  RunTable join_times({"run", "join", "seconds"});
   for (size_t i = 0; i < runs.size(); ++i) {
     if (!measured[i]) continue;
     const StudyRun& run = runs[i];
@@ -265,6 +266,13 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
     std::vector<std::string> timing = {absl::StrCat(run.index), FormatNumber(wall[i])};
     for (double t : measured[i]->timings) timing.push_back(FormatNumber(t));
     if (absl::Status s = timings.Add(std::move(timing)); !s.ok()) return s;
+    for (size_t j = 0; j < measured[i]->join_seconds.size(); ++j) {
+      if (absl::Status s = join_times.Add({absl::StrCat(run.index), absl::StrCat(j),
+                                           FormatNumber(measured[i]->join_seconds[j])});
+          !s.ok()) {
+        return s;
+      }
+    }
     for (std::vector<std::string>& values : measured[i]->series) {
       std::vector<std::string> row = {absl::StrCat(run.index)};
       for (std::string& value : values) row.push_back(std::move(value));
@@ -276,6 +284,9 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
     if (absl::Status s = series.Write(options.out_dir + "/series.csv"); !s.ok()) return s;
   }
   if (absl::Status s = timings.Write(options.out_dir + "/timings.csv"); !s.ok()) return s;
+  if (join_times.num_rows() > 0) {
+    if (absl::Status s = join_times.Write(options.out_dir + "/join_times.csv"); !s.ok()) return s;
+  }
   if (!first_error.ok()) {
     return absl::Status(first_error.code(),
                         absl::StrCat(first_error.message(), " (the ", table.num_rows(), " runs measured are in ",
@@ -293,6 +304,7 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   std::set<int> slices;
   int count = 0;
   std::optional<RunTable> runs, timings, series;
+  RunTable join_times({"run", "join", "seconds"});
   for (const std::string& dir : shard_dirs) {
     absl::StatusOr<json> config = ReadJson(dir + "/config.json");
     if (!config.ok()) return config.status();
@@ -320,6 +332,13 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
     if (!part.ok()) return part.status();
     absl::StatusOr<RunTable> part_timings = RunTable::Read(dir + "/timings.csv");
     if (!part_timings.ok()) return part_timings.status();
+    if (std::filesystem::exists(dir + "/join_times.csv")) {
+      absl::StatusOr<RunTable> part_joins = RunTable::Read(dir + "/join_times.csv");
+      if (!part_joins.ok()) return part_joins.status();
+      for (const auto& row : part_joins->rows()) {
+        if (absl::Status s = join_times.Add(row); !s.ok()) return s;
+      }
+    }
     if (part->columns() != RunColumns(*study)) return absl::InvalidArgumentError(absl::StrCat(dir, "/runs.csv: columns are not the study's"));
     if (!runs) {
       runs.emplace(part->columns());
@@ -353,6 +372,7 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   if (absl::Status s = runs->SortBy("run"); !s.ok()) return s;
   if (absl::Status s = timings->SortBy("run"); !s.ok()) return s;
   if (absl::Status s = series->SortBy("run"); !s.ok()) return s;  // stable: each run's rows keep their order
+  if (absl::Status s = join_times.SortBy("run"); !s.ok()) return s;
   std::vector<StudyRun> expected;
   try {
     expected = SelectedRuns(*study, (*reference).at("trials").get<int>(),
@@ -378,6 +398,9 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   if (absl::Status s = WriteText(out_dir + "/config.json", config.dump(2) + "\n"); !s.ok()) return s;
   if (absl::Status s = runs->Write(out_dir + "/runs.csv"); !s.ok()) return s;
   if (absl::Status s = timings->Write(out_dir + "/timings.csv"); !s.ok()) return s;
+  if (join_times.num_rows() > 0) {
+    if (absl::Status s = join_times.Write(out_dir + "/join_times.csv"); !s.ok()) return s;
+  }
   if (!study->series_names().empty()) {
     if (absl::Status s = series->Write(out_dir + "/series.csv"); !s.ok()) return s;
   }

@@ -76,6 +76,9 @@ class PlotTest(unittest.TestCase):
             self.assertTrue({"anees-fmj", "anees-ekfslam", "anees-band"} <= ids, ids)
             self.assertNotIn("anees-fmj-fixed", ids)
         self.assertTrue({"timing-fmj", "timing-ekfslam"} <= svg_ids(os.path.join(study, "plots", "timings.svg")))
+        # Only fmj joins local maps: one joining-time curve per case.
+        self.assertEqual({i for i in svg_ids(os.path.join(study, "plots", "join_times.svg")) if i.startswith("join-time-")},
+                         {"join-time-fmj-fmj_case-1", "join-time-fmj-fmj_case-2"})
 
     def test_hybridslam_study_has_a_bar_per_method_and_setting(self):
         study = os.path.join(ARGS.work, "hybridslam")

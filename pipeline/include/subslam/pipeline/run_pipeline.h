@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
+#include "subslam/backend/map_joiner.h"
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
@@ -104,6 +105,7 @@ struct RunResult {
   // them), why each was closed, and their consistency against ground truth.
   std::vector<LocalSubmap> local_maps;
   std::vector<std::string> close_reasons;
+  std::vector<backend::JoinSummary> joins;  // with a back-end: what each join did, in order
   std::optional<LocalMapSummary> local_map_summary;
   int impure_features = 0;  // exported features built from detections of ≥ 2 true landmarks
   nlohmann::json report;

@@ -33,11 +33,13 @@ struct StudyRun {
 
 // What one run measured: values of Study::metric_names() (deterministic: runs.csv), rows
 // of Study::series_names() (values over the run's time, deterministic: series.csv), and
-// values of Study::timing_names() (wall-clock seconds: timings.csv, not in the summary).
+// values of Study::timing_names() and the time of each join (wall-clock seconds:
+// timings.csv and join_times.csv, not in the summary).
 struct RunMeasurement {
   std::vector<std::string> metrics;
   std::vector<std::vector<std::string>> series;
   std::vector<double> timings;
+  std::vector<double> join_seconds;  // wall-clock time of each join, in order (join_times.csv)
 };
 
 class Study {

@@ -6,6 +6,7 @@
 //   timings.csv   run, wall_s and the study's timing columns (wall clock: differs from
 //                 run to run, so kept out of runs.csv and the summary);
 //   timings.md    median and minimum of each timing per method, and the paper's figures;
+//   join_times.csv  (runs that join local maps) run, join (0-based), seconds;
 //   summary.json, summary.md   the study's table — written when every run is present
 //                 (one slice of 1, or after MergeStudy).
 // The summary is computed from runs.csv as read back from the file, so the same runs
