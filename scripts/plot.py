@@ -250,6 +250,12 @@ def plot_monte_carlo(summary, setting_names, out, formats):
                 ax.axhline(1.0, color="black", lw=0.8, ls="--", label="CI = 1")
             if log:
                 ax.set_yscale("log")
+                # A diverged filter's NEES reaches 1e30; clip so the consistent ones stay readable.
+                cap = 1e3 * (max(group[0]["curve"]["band_high"]) if name == "anees" else 1.0)
+                if max(max(r["curve"][field], default=0.0) for r in group) > cap:
+                    ax.set_ylim(top=cap)
+                    ax.text(0.99, 0.98, f"clipped at {cap:.3g}", transform=ax.transAxes, ha="right", va="top",
+                            fontsize=7)
             ax.set_xlabel("t [s]")
             ax.set_ylabel(ylabel)
             ax.set_title(f"{summary['title']}" + (f"\n{label}" if label else ""), fontsize=8)

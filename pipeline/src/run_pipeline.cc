@@ -389,8 +389,8 @@ std::string PoseErrorsCsv(const RunResult& r, const std::vector<io::TimedPose>& 
 }
 
 // Writes the outputs other than the online trajectory (already being written by
-// `online_written`) into `out`: the final trajectory, the TUM files and the local maps on
-// another thread; the map, the ground truth, the errors, the joins and the report here.
+// `online_written`) into `out`: the final trajectory and the local maps on one thread, the
+// TUM files on another; the map, the ground truth, the errors, the joins and the report here.
 absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, const io::Dataset& dataset,
                           const SubmapSlam* chain, std::future<absl::Status> online_written) {
   // The files are independent, and formatting the trajectories is most of the time. The
@@ -399,9 +399,12 @@ absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, 
   const bool local_maps = chain != nullptr;
   std::future<absl::Status> final_written = WriteInBackground([&r, &out, local_maps] {
     absl::Status s = io::WriteTrajectoryCsv((out / "trajectory_final.csv").string(), r.final_trajectory);
-    if (s.ok()) s = io::WriteTumTrajectory((out / "trajectory_online.tum").string(), r.online);
-    if (s.ok()) s = io::WriteTumTrajectory((out / "trajectory_final.tum").string(), r.final_trajectory);
     if (s.ok() && local_maps) s = io::WriteSubmapsJsonl((out / "submaps.jsonl").string(), r.local_maps);
+    return s;
+  });
+  std::future<absl::Status> tum_written = WriteInBackground([&r, &out] {
+    absl::Status s = io::WriteTumTrajectory((out / "trajectory_online.tum").string(), r.online);
+    if (s.ok()) s = io::WriteTumTrajectory((out / "trajectory_final.tum").string(), r.final_trajectory);
     return s;
   });
   std::vector<absl::Status> here;
@@ -432,6 +435,7 @@ absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, 
   here.push_back(io::WriteTextFile((out / "report.json").string(), report_text));
   here.push_back(online_written.get());
   here.push_back(final_written.get());
+  here.push_back(tum_written.get());
   for (const absl::Status& st : here) {
     if (!st.ok()) return st;
   }

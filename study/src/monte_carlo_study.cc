@@ -235,7 +235,7 @@ class MonteCarloStudy final : public Study {
                     "successes | local maps | the paper |\n", Rule(8 + spec_.setting_names.size()));
     for (const json& row : summary["rows"]) {
       if (row.contains("dataset")) continue;
-      absl::StrAppend(&md, absl::StrFormat("| %s%s | %d | %.1f %% of %d times | %.1f %% | %.2f | %d / %d | %.0f | %s |\n",
+      absl::StrAppend(&md, absl::StrFormat("| %s%s | %d | %.1f %% of %d times | %.1f %% | %.3g | %d / %d | %.0f | %s |\n",
                                            row["method"].get<std::string>(), SettingCells(row), row["trials"].get<int>(),
                                            100 * row["anees_inside_band"].get<double>(), row["anees_times"].get<int>(),
                                            100 * row["mean_ci_below_one"].get<double>(),
