@@ -5,10 +5,13 @@
 //               --out DIR [estimator and noise flags]
 //   subslam study NAME --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N] [--dataset DIR]
 //   subslam study merge DIR... --out DIR
+//   subslam plot DIR...
 //   subslam scenarios
 //
 // Every flag is listed by `subslam --help`.
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <optional>
 #include <string>
@@ -73,6 +76,7 @@ ABSL_FLAG(int, trials, 0, "study: trials per method and setting (0: the paper's)
 ABSL_FLAG(int, workers, 0, "study: runs at a time, one thread each (0: every core)");
 ABSL_FLAG(std::vector<std::string>, methods, {}, "study: only these methods, comma-separated (default: all)");
 ABSL_FLAG(std::string, shard, "1/1", "study: run slice K of N (K/N); `subslam study merge` combines the slices");
+ABSL_FLAG(bool, plots, true, "study: draw the study's figures when it is complete (`subslam plot`)");
 ABSL_FLAG(bool, progress, true, "show a progress line on a terminal");
 ABSL_FLAG(bool, quiet, false, "do not print the summary table");
 
@@ -209,6 +213,45 @@ int Run() {
   return 0;
 }
 
+// scripts/plot.py: SUBSLAM_PLOT_SCRIPT if set; else beside an installed tool
+// (<prefix>/share/subslam/plot.py); else the source tree's.
+std::string PlotScript() {
+  if (const char* path = std::getenv("SUBSLAM_PLOT_SCRIPT"); path != nullptr && *path != '\0') return path;
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const std::filesystem::path installed = exe.parent_path().parent_path() / "share" / "subslam" / "plot.py";
+    if (std::filesystem::exists(installed)) return installed.string();
+  }
+  return SUBSLAM_SOURCE_PLOT_SCRIPT;
+}
+
+std::string ShellQuoted(const std::string& text) {
+  std::string quoted = "'";
+  for (char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
+}
+
+// `subslam plot DIR...`: the figures of run, join and study directories (scripts/plot.py,
+// run by Debian's Python with python3-matplotlib).
+int Plot(const std::vector<std::string>& dirs, bool list_files) {
+  if (dirs.empty()) return Fail(absl::InvalidArgumentError("plot needs the output directories to draw"));
+  const std::string script = PlotScript();
+  if (!std::filesystem::exists(script)) {
+    return Fail(absl::NotFoundError(absl::StrCat("the plot script ", script, " is missing (set SUBSLAM_PLOT_SCRIPT)")));
+  }
+  std::string command = absl::StrCat("/usr/bin/python3 ", ShellQuoted(script));
+  for (const std::string& dir : dirs) absl::StrAppend(&command, " ", ShellQuoted(dir));
+  if (!list_files) absl::StrAppend(&command, " > /dev/null");
+  std::fflush(stdout);
+  const int status = std::system(command.c_str());
+  if (status != 0) {
+    return Fail(absl::InternalError(absl::StrCat("plotting with ", script, " failed (its message is above; it runs "
+                                                 "/usr/bin/python3 with python3-matplotlib)")));
+  }
+  return 0;
+}
+
 // `subslam study NAME` or `subslam study merge DIR...`.
 int Study(const std::vector<char*>& args) {
   if (args.size() < 3) {
@@ -220,7 +263,7 @@ int Study(const std::vector<char*>& args) {
     std::vector<std::string> dirs(args.begin() + 3, args.end());
     if (absl::Status s = subslam::study::MergeStudy(dirs, out); !s.ok()) return Fail(s);
     if (!absl::GetFlag(FLAGS_quiet)) std::printf("merged %zu slices -> %s/summary.md\n", dirs.size(), out.c_str());
-    return 0;
+    return absl::GetFlag(FLAGS_plots) ? Plot({out}, /*list_files=*/false) : 0;
   }
   if (args.size() != 3) return Fail(absl::InvalidArgumentError("study takes one study name"));
   auto study = subslam::study::MakeStudy(args[2]);
@@ -241,12 +284,14 @@ int Study(const std::vector<char*>& args) {
       std::FILE* f = std::fopen((out + "/summary.md").c_str(), "r");
       for (int c; f != nullptr && (c = std::fgetc(f)) != EOF;) std::putchar(c);
       if (f != nullptr) std::fclose(f);
-      std::printf("\noutputs: %s/{summary.md,summary.json,runs.csv,timings.csv,config.json}\n", out.c_str());
+      std::printf("\noutputs: %s/{summary.md,summary.json,runs.csv,timings.csv,config.json}%s\n", out.c_str(),
+                  absl::GetFlag(FLAGS_plots) ? ", plots/" : "");
     } else {
       std::printf("slice %d/%d -> %s/runs.csv; combine the slices with `subslam study merge DIR... --out DIR`\n",
                   options.shard.index, options.shard.count, out.c_str());
     }
   }
+  if (options.shard.count == 1 && absl::GetFlag(FLAGS_plots)) return Plot({out}, /*list_files=*/false);
   return 0;
 }
 
@@ -257,6 +302,9 @@ int main(int argc, char** argv) {
   std::vector<char*> args = absl::ParseCommandLine(argc, argv);
   subslam::pipeline::ApplyKeepFreedMemoryFlag();
   if (args.size() >= 2 && std::string(args[1]) == "study") return Study(args);
+  if (args.size() >= 2 && std::string(args[1]) == "plot") {
+    return Plot(std::vector<std::string>(args.begin() + 2, args.end()), !absl::GetFlag(FLAGS_quiet));
+  }
   if (args.size() != 2) {
     std::fprintf(stderr, "%s\n", absl::ProgramUsageMessage().data());
     return 2;

@@ -12,7 +12,7 @@
 namespace subslam::pipeline {
 namespace {
 
-constexpr std::array<CliCommand, 7> kCommands = {{
+constexpr std::array<CliCommand, 8> kCommands = {{
     {"simulate", "subslam simulate --scenario NAME [--seed S] --out DIR",
      "Simulates a named scenario (docs/scenarios.md) and writes it as a data-set directory "
      "(docs/formats.md, \"Data-set directory\"), with the true poses, the true landmarks and "
@@ -41,6 +41,11 @@ constexpr std::array<CliCommand, 7> kCommands = {{
     {"study merge", "subslam study merge DIR... --out DIR",
      "Combines the slices of a study run with `--shard K/N` (every K once) into the same outputs "
      "a single run writes, byte for byte."},
+    {"plot", "subslam plot DIR...",
+     "Draws the figures of `subslam run`, `join` and `study` output directories into `DIR/plots/` "
+     "(PNG and SVG) with matplotlib: the map with 95 % ellipses over the true landmarks or the GPS "
+     "track, the trajectories, the pose NEES with its χ² band, the time per join, each study's "
+     "figures (scripts/plot.py lists them). A complete study draws its own unless `--plots=false`."},
     {"scenarios", "subslam scenarios", "Lists the simulated scenarios, one name per line."},
     {"cli-reference", "subslam cli-reference",
      "Prints this reference in Markdown; docs/cli.md is its output."},
@@ -62,7 +67,7 @@ const std::vector<FlagGroup>& FlagGroups() {
        {"dataset", "scenario", "seed", "submaps", "out", "known_association", "sensor_yaw",
         "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "progress", "quiet",
         "keep_freed_memory"}},
-      {"Studies", "`subslam study` (docs/reproducing.md).", {"trials", "methods", "workers", "shard"}},
+      {"Studies", "`subslam study` (docs/reproducing.md).", {"trials", "methods", "workers", "shard", "plots"}},
       {"Simulation", "Shape the simulated worlds (docs/scenarios.md).",
        {"world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks",
         "path_length", "lattice_spacing", "noise_scale", "signature"}},

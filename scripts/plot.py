@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Figures of a subslam output directory, drawn with matplotlib (Debian's python3-matplotlib).
 
-  scripts/plot.py DIR [DIR ...] [--formats png,svg]
+  scripts/plot.py DIR [DIR ...] [--formats png,svg]     (or: subslam plot DIR ...)
 
 DIR is what `subslam run`, `subslam join` or `subslam study` wrote (docs/formats.md); the
 figures go into DIR/plots/, each as PNG and SVG:

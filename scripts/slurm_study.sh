@@ -4,7 +4,8 @@
 #
 #   scripts/slurm_study.sh STUDY OUT N [subslam study flags, e.g. --trials 20]
 #
-# Prints the two job ids; the table is then in OUT/merged/summary.md. Extra sbatch options
+# Prints the two job ids; the table is then in OUT/merged/summary.md (`subslam plot
+# OUT/merged` draws its figures where matplotlib is installed). Extra sbatch options
 # (partition, account, CPUs per task) go in SBATCH_OPTIONS, e.g.
 #   SBATCH_OPTIONS="--partition=short --cpus-per-task=4" scripts/slurm_study.sh hybridslam /scratch/hs 50
 set -euo pipefail
@@ -23,5 +24,5 @@ slices=()
 for ((k = 1; k <= N; ++k)); do slices+=("$OUT/slice_$k"); done
 merge=$(sbatch --parsable --dependency="afterok:$array" --job-name=subslam-merge --chdir="$OUT" \
         --output="$OUT/subslam-merge-%j.out" ${SBATCH_OPTIONS:-} \
-        --wrap="$SUBSLAM study merge ${slices[*]} --out $OUT/merged")
+        --wrap="$SUBSLAM study merge ${slices[*]} --plots=false --out $OUT/merged")
 echo "slices: job $array (array 1-$N); merge: job $merge -> $OUT/merged/summary.md"

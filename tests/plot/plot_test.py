@@ -1,6 +1,7 @@
 #!/usr/bin/python3
-"""scripts/plot.py on real outputs: the figures hold what they claim (one ellipse per
-estimated landmark, one curve per method, the χ² band), not only that the files exist.
+"""`subslam plot` (scripts/plot.py) on real outputs, and the figures a complete study draws
+itself: they hold what they claim (one ellipse per estimated landmark, one curve per
+method, the χ² band), not only that the files exist.
 
   plot_test.py --tool build/apps/subslam --data tests/data/hybrid_60s --work DIR
 """
@@ -13,8 +14,6 @@ import sys
 import unittest
 import xml.etree.ElementTree as ET
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-PLOT = os.path.join(ROOT, "scripts", "plot.py")
 ARGS = None
 
 
@@ -43,7 +42,7 @@ class PlotTest(unittest.TestCase):
             "--progress=false", "--out", cls.run_dir)
 
     def test_run_map_has_one_ellipse_per_landmark(self):
-        out = run(PLOT, self.run_dir)
+        out = run(ARGS.tool, "plot", self.run_dir)
         for name in ("map", "nees", "errors", "joins"):
             self.assertIn(os.path.join(self.run_dir, "plots", f"{name}.svg"), out)
             self.assertTrue(os.path.getsize(os.path.join(self.run_dir, "plots", f"{name}.png")) > 0)
@@ -61,7 +60,7 @@ class PlotTest(unittest.TestCase):
         join_dir = os.path.join(ARGS.work, "join")
         run(ARGS.tool, "join", "--submaps", os.path.join(self.run_dir, "submaps.jsonl"), "--backend", "eif",
             "--dataset", ARGS.data, "--quiet", "--out", join_dir)
-        run(PLOT, join_dir)
+        run(ARGS.tool, "plot", join_dir, "--quiet")
         ids = svg_ids(os.path.join(join_dir, "plots", "map.svg"))
         self.assertIn("anchors", ids)
         self.assertEqual(len([i for i in ids if i.startswith("landmark-ellipse-")]),
@@ -70,7 +69,6 @@ class PlotTest(unittest.TestCase):
     def test_monte_carlo_study_has_one_curve_per_method_and_the_band(self):
         study = os.path.join(ARGS.work, "fmj")
         run(ARGS.tool, "study", "fmj", "--trials", "2", "--methods", "fmj,ekfslam", "--quiet", "--out", study)
-        run(PLOT, study)
         for case in (1, 2):
             ids = svg_ids(os.path.join(study, "plots", f"anees-fmj_case{case}.svg"))
             self.assertTrue({"anees-fmj", "anees-ekfslam", "anees-band"} <= ids, ids)
@@ -83,7 +81,6 @@ class PlotTest(unittest.TestCase):
     def test_hybridslam_study_has_a_bar_per_method_and_setting(self):
         study = os.path.join(ARGS.work, "hybridslam")
         run(ARGS.tool, "study", "hybridslam", "--trials", "1", "--methods", "ekf", "--quiet", "--out", study)
-        run(PLOT, study)
         ids = svg_ids(os.path.join(study, "plots", "success.svg"))
         self.assertEqual({i for i in ids if i.startswith("success-")}, {f"success-ekf-{s}" for s in range(4)})
 
@@ -91,7 +88,8 @@ class PlotTest(unittest.TestCase):
         study = os.path.join(ARGS.work, "slice")
         run(ARGS.tool, "study", "fmj", "--trials", "1", "--methods", "ekfslam", "--shard", "1/2", "--quiet",
             "--out", study)
-        p = subprocess.run([PLOT, study], capture_output=True, text=True)
+        self.assertFalse(os.path.exists(os.path.join(study, "plots")))
+        p = subprocess.run([ARGS.tool, "plot", study], capture_output=True, text=True)
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("merge", p.stderr)
 
