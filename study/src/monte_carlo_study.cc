@@ -97,6 +97,7 @@ class MonteCarloStudy final : public Study {
     if (!r.ok()) return r.status();
     const eval::TrajectoryErrors& online = OnlineErrors(*r);
     const eval::TrajectoryErrors& final_errors = *r->errors;
+    const auto MapFigure = [&](double v) { return r->map_errors->matched > 0 ? FormatNumber(v) : std::string("nan"); };
     RunMeasurement m;
     m.metrics = {FormatNumber(online.rms_position_m),
                  FormatNumber(final_errors.rms_position_m),
@@ -107,9 +108,9 @@ class MonteCarloStudy final : public Study {
                  FormatNumber(online.mean_nees),
                  FormatNumber(online.fraction_nees_in_bounds),
                  Bit(!online.failed),
-                 FormatNumber(r->map_errors->rms_m),
-                 FormatNumber(r->map_errors->rms_x_m),
-                 FormatNumber(r->map_errors->rms_y_m),
+                 MapFigure(r->map_errors->rms_m),
+                 MapFigure(r->map_errors->rms_x_m),
+                 MapFigure(r->map_errors->rms_y_m),
                  absl::StrCat(r->local_maps.size())};
     // The online pose every series_period_s (the first step at or after each multiple of
     // the period after the first step, whose pose is given): its NEES and position error.
@@ -249,13 +250,13 @@ class MonteCarloStudy final : public Study {
                     "RMS [m] |\n", Rule(8 + spec_.setting_names.size()));
     for (const json& row : summary["rows"]) {
       if (row.contains("dataset")) continue;
-      absl::StrAppend(&md, absl::StrFormat("| %s%s | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f |\n",
-                                           row["method"].get<std::string>(), SettingCells(row),
-                                           row["mean_rms_x_m"].get<double>(), row["mean_rms_y_m"].get<double>(),
-                                           row["mean_rms_heading_deg"].get<double>(),
-                                           row["mean_map_rms_x_m"].get<double>(), row["mean_map_rms_y_m"].get<double>(),
-                                           row["median_rms_online_m"].get<double>(),
-                                           row["median_rms_final_m"].get<double>()));
+      absl::StrAppend(&md, "| ", row["method"].get<std::string>(), SettingCells(row));
+      for (const char* key : {"mean_rms_x_m", "mean_rms_y_m", "mean_rms_heading_deg", "mean_map_rms_x_m",
+                              "mean_map_rms_y_m", "median_rms_online_m", "median_rms_final_m"}) {
+        const bool known = row[key].is_number() && !std::isnan(row[key].get<double>());  // null in summary.json
+        absl::StrAppend(&md, " | ", known ? absl::StrFormat("%.3f", row[key].get<double>()) : "–");
+      }
+      absl::StrAppend(&md, " |\n");
     }
     bool dataset_header = false;
     for (const json& row : summary["rows"]) {
@@ -301,7 +302,17 @@ class MonteCarloStudy final : public Study {
       if (!values.ok()) return values.status();
       v[column] = *std::move(values);
     }
-    const auto mean = [](const std::vector<double>& x) { return x.empty() ? 0.0 : Sum(x) / x.size(); };
+    // NaN (null in summary.json) where no run has the value, e.g. a map's error without a map.
+    const auto mean = [](const std::vector<double>& x) {
+      double sum = 0.0;
+      int n = 0;
+      for (double v : x) {
+        if (std::isnan(v)) continue;
+        sum += v;
+        ++n;
+      }
+      return n > 0 ? sum / n : std::nan("");
+    };
     // The series of the group's runs, per sample time (in time order).
     std::map<std::string, bool> in_group;
     for (int r : group) in_group[runs.rows()[r][0]] = true;
