@@ -13,7 +13,7 @@ BUILD_TYPE="${BUILD_TYPE:-Release}"
 JOBS="${JOBS:-$(nproc)}"
 
 PACKAGES=(cmake g++ make ccache libceres-dev libeigen3-dev libsuitesparse-dev libabsl-dev
-          libgtest-dev libbenchmark-dev libboost-dev nlohmann-json3-dev python3-matplotlib)
+          libgtest-dev libbenchmark-dev libboost-dev nlohmann-json3-dev libtbb-dev python3-matplotlib)
 
 missing=()
 for p in "${PACKAGES[@]}"; do

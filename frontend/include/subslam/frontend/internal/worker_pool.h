@@ -1,55 +1,38 @@
-// A fixed set of threads that run one function in parallel, fork-join style: Run(body)
-// calls body(t) once for every t in [0, threads()) — t = 0 on the calling thread, the
-// others on persistent workers — and returns when every call has returned. The body
-// shares out its work (e.g. by an atomic counter); t indexes per-thread scratch.
+// Runs one function in parallel, fork-join style, on oneTBB's scheduler: Run(body) calls
+// body(t) once for every t in [0, threads()) and returns when every call has returned.
+// The body shares out its work (e.g. by an atomic counter); t indexes per-thread scratch,
+// and no two calls with the same t run at once. Calls may run one after another on one
+// thread (when the others are busy elsewhere), so a body must not wait for another.
 // Internal, not part of the API.
 //
-// Runs come every few hundred microseconds in a filter (one per scan), where a sleeping
-// worker's wake-up costs as much as the work: a worker therefore spins for up to
-// `spin` after a run (and the caller for the workers' completion) before it sleeps on a
-// condition variable. Run() must not be called concurrently or from inside a body.
+// The calls run in a task arena of threads() slots on TBB's shared workers, which sleep
+// when there is no work instead of spinning — a filter beside other busy processes keeps
+// its speed, and idle workers cost no CPU. Run() must not be called concurrently or from
+// inside a body.
 #ifndef SUBSLAM_FRONTEND_INTERNAL_WORKER_POOL_H_
 #define SUBSLAM_FRONTEND_INTERNAL_WORKER_POOL_H_
 
-#include <atomic>
-#include <chrono>
-#include <condition_variable>
 #include <functional>
-#include <mutex>
-#include <thread>
-#include <vector>
+
+#include <oneapi/tbb/task_arena.h>
 
 namespace subslam::frontend {
 
 class WorkerPool {
  public:
-  // threads ≥ 1: the calling thread plus threads − 1 workers.
-  explicit WorkerPool(int threads, std::chrono::microseconds spin = std::chrono::microseconds(500));
-  ~WorkerPool();
+  // threads ≥ 1: at most this many calls run at once.
+  explicit WorkerPool(int threads);
   WorkerPool(const WorkerPool&) = delete;
   WorkerPool& operator=(const WorkerPool&) = delete;
 
-  int threads() const { return static_cast<int>(workers_.size()) + 1; }
-  // body(t) for t in [0, active) (0 or more than threads(): every thread); with one
-  // active thread the workers are not woken, and a worker that sits a run out sleeps
-  // until the next instead of spinning (its core is meant for another thread).
+  int threads() const { return threads_; }
+  // body(t) for t in [0, active) (0 or more than threads(): every t); with one active
+  // index the body runs on the calling thread alone.
   void Run(const std::function<void(int t)>& body, int active = 0);
 
  private:
-  void Work(int t);
-  // Spins until done() or `spin_` has passed; true if done() came true.
-  template <typename Done>
-  bool SpinUntil(Done done) const;
-
-  std::vector<std::thread> workers_;
-  std::chrono::microseconds spin_;
-  std::mutex mutex_;
-  std::condition_variable start_, finished_;
-  const std::function<void(int)>* body_ = nullptr;  // written before generation_ moves
-  int active_ = 0;                                   // likewise
-  std::atomic<long> generation_{0};                 // changed under mutex_
-  std::atomic<int> pending_{0};                     // workers still in the current run
-  bool stop_ = false;                               // guarded by mutex_
+  int threads_;
+  oneapi::tbb::task_arena arena_;
 };
 
 }  // namespace subslam::frontend
