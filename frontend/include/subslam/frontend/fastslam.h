@@ -113,9 +113,9 @@ struct FastSlamOptions {
   // max_feature_sigma_ratio rule leaves out.
   bool correct_shared_ancestry = true;
   // Threads for the per-particle part of a scan (association, the proposal, the pose
-  // sample, the landmark updates). The results do not depend on it: each particle slot
-  // draws from its own random stream, seeded from `seed` and the slot.
-  // 0: std::thread::hardware_concurrency().
+  // sample, the landmark updates), run on oneTBB's shared workers, which sleep when idle.
+  // The results do not depend on it: each particle slot draws from its own random
+  // stream, seeded from `seed` and the slot. 0: std::thread::hardware_concurrency().
   int num_threads = 1;
   // The sensor's yaw on the vehicle as a static parameter of each local map: at Reset()
   // every particle draws a yaw ψ ~ N(0, σ²) [rad] and adds it to every bearing it sees, so
