@@ -127,7 +127,7 @@ class HybridSlamStudy final : public Study {
       for (int trial = 1; trial <= trials; ++trial) {
         for (const StudyMethod& method : Methods()) {
           runs.push_back({static_cast<int>(runs.size()), method.name, {{"alpha", alpha}, {"beta", beta}}, trial,
-                          static_cast<uint64_t>(trial)});
+                          static_cast<uint64_t>(trial), ""});
         }
       }
     }

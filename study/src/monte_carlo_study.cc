@@ -65,7 +65,7 @@ class MonteCarloStudy final : public Study {
     for (const std::vector<double>& setting : Combinations(spec_.settings)) {
       for (int trial = 1; trial <= trials; ++trial) {
         for (const StudyMethod& method : spec_.methods) {
-          StudyRun run{static_cast<int>(runs.size()), method.name, {}, trial, static_cast<uint64_t>(trial)};
+          StudyRun run{static_cast<int>(runs.size()), method.name, {}, trial, static_cast<uint64_t>(trial), ""};
           for (size_t s = 0; s < setting.size(); ++s) run.setting.push_back({spec_.setting_names[s], setting[s]});
           runs.push_back(std::move(run));
         }
