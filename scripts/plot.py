@@ -27,6 +27,7 @@ import csv
 import json
 import math
 import os
+import statistics
 import sys
 
 import matplotlib
@@ -274,10 +275,7 @@ def plot_timings(d, out, formats, title):
         return []
     fig, ax = plt.subplots(figsize=(8, 3.5))
     for m, (method, values) in enumerate(by_method.items()):
-        values.sort()
-        median = values[len(values) // 2] if len(values) % 2 else 0.5 * (values[len(values) // 2 - 1] +
-                                                                           values[len(values) // 2])
-        bar = ax.bar(m, median, color=f"C{m}")
+        bar = ax.bar(m, statistics.median(values), color=f"C{m}")
         bar.patches[0].set_gid(f"timing-{method}")
     ax.set_xticks(range(len(by_method)))
     ax.set_xticklabels(list(by_method), fontsize=8)
@@ -307,11 +305,7 @@ def plot_join_times(d, out, formats, title, setting_names):
     fig, ax = plt.subplots(figsize=(8, 4))
     for g, (key, curves) in enumerate(groups.items()):
         length = min(len(c) for c in curves)  # the joins every run of the group made
-        median = []
-        for j in range(length):
-            values = sorted(c[j] for c in curves)
-            n = len(values)
-            median.append(values[n // 2] if n % 2 else 0.5 * (values[n // 2 - 1] + values[n // 2]))
+        median = [statistics.median(c[j] for c in curves) for j in range(length)]
         (line,) = ax.plot(range(1, length + 1), median, color=f"C{g}", lw=1.0, label=key)
         line.set_gid("join-time-" + key.replace(" ", "-"))
     ax.set_yscale("log")

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <map>
+#include <set>
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
@@ -314,8 +315,8 @@ class MonteCarloStudy final : public Study {
       return n > 0 ? sum / n : std::nan("");
     };
     // The series of the group's runs, per sample time (in time order).
-    std::map<std::string, bool> in_group;
-    for (int r : group) in_group[runs.rows()[r][0]] = true;
+    std::set<std::string> in_group;  // the group's run indices
+    for (int r : group) in_group.insert(runs.rows()[r][0]);
     std::map<double, std::vector<std::pair<double, double>>> by_time;  // t → (nees, error) per run
     for (int r = 0; r < series.num_rows(); ++r) {
       if (!in_group.contains(series.rows()[r][0])) continue;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +21,7 @@
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
+#include "table_statistics.h"
 
 namespace subslam::study {
 namespace {
@@ -132,18 +134,16 @@ std::string TimingsMarkdown(const Study& study, const RunTable& runs, const RunT
   std::map<std::string, std::string> method_of_run;
   for (int r = 0; r < runs.num_rows(); ++r) method_of_run[runs.rows()[r][0]] = runs.rows()[r][1];
   for (const std::string& method : study.method_names()) {
-    std::vector<std::vector<double>> values(timings.columns().size());
-    for (const auto& row : timings.rows()) {
-      if (method_of_run[row[0]] != method) continue;
-      for (size_t c = 1; c < row.size(); ++c) values[c].push_back(std::strtod(row[c].c_str(), nullptr));
+    std::vector<int> rows;
+    for (int r = 0; r < timings.num_rows(); ++r) {
+      if (method_of_run[timings.rows()[r][0]] == method) rows.push_back(r);
     }
-    if (values[1].empty()) continue;
+    if (rows.empty()) continue;
     absl::StrAppend(&md, "| ", method, " |");
-    for (size_t c = 1; c < values.size(); ++c) {
-      std::sort(values[c].begin(), values[c].end());
-      const size_t n = values[c].size();
-      const double median = n % 2 ? values[c][n / 2] : 0.5 * (values[c][n / 2 - 1] + values[c][n / 2]);
-      absl::StrAppend(&md, absl::StrFormat(" %.4g / %.4g |", median, values[c].front()));
+    for (size_t c = 1; c < timings.columns().size(); ++c) {
+      const std::vector<double> values = Values(timings, rows, timings.columns()[c]).value_or(std::vector<double>{});
+      const double fastest = values.empty() ? std::nan("") : *std::min_element(values.begin(), values.end());
+      absl::StrAppend(&md, absl::StrFormat(" %.4g / %.4g |", Median(values), fastest));
     }
     absl::StrAppend(&md, "\n");
   }

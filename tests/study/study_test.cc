@@ -250,6 +250,44 @@ TEST(StudyRunner, BadRequestsGetAClearError) {
   EXPECT_NE(s.message().find("real data set"), std::string::npos) << s;
 }
 
+// A merge refuses slices that do not make one study, naming the file: unreadable or
+// different configurations, a slice cut short, a table of other columns.
+TEST(StudyMerge, RefusesSlicesThatDoNotBelongTogether) {
+  absl::StatusOr<std::unique_ptr<Study>> study = MakeStudy("fmj");
+  ASSERT_TRUE(study.ok());
+  std::vector<std::string> slices;
+  for (int k = 1; k <= 2; ++k) {
+    StudyOptions o;
+    o.trials = 1;
+    o.methods = {"ekfslam"};
+    o.workers = 1;
+    o.shard = {k, 2};
+    o.out_dir = FreshDir(absl::StrCat("merge_slice", k));
+    ASSERT_TRUE(RunStudy(**study, o).ok());
+    slices.push_back(o.out_dir);
+  }
+  ASSERT_TRUE(MergeStudy(slices, FreshDir("merge_good")).ok());
+  // Slice 2 altered one way at a time, in a copy.
+  const auto expect_refused = [&](const std::string& name, const std::string& file, const std::string& content,
+                                  const std::string& message) {
+    SCOPED_TRACE(name);
+    const std::string altered = FreshDir(absl::StrCat("merge_", name));
+    std::filesystem::copy(slices[1], altered);
+    std::ofstream(altered + "/" + file) << content;
+    const absl::Status s = MergeStudy({slices[0], altered}, FreshDir("merge_bad"));
+    ASSERT_FALSE(s.ok());
+    EXPECT_NE(s.message().find(message), std::string::npos) << s;
+  };
+  const std::string config = Slurp(slices[1] + "/config.json");
+  const std::string runs = Slurp(slices[1] + "/runs.csv");
+  expect_refused("not_json", "config.json", "{\"study\": ", "config.json");
+  json other = json::parse(config);
+  other["trials"] = 2;
+  expect_refused("other_trials", "config.json", other.dump(), "another study, trial count or configuration");
+  expect_refused("cut_short", "runs.csv", runs.substr(0, runs.rfind('\n', runs.size() - 2) + 1), "slices hold");
+  expect_refused("other_columns", "runs.csv", "run,method\n", "columns are not the study's");
+}
+
 // The ISEIF study's real-data table (Victoria Park, the paper's Table 3): SEIF's and
 // ISEIF's errors against the GPS below the paper's (7.53 / 5.38 m and 4.71 / 4.83 m).
 TEST(IseifStudy, VictoriaParkTableBelowThePapersErrors) {
