@@ -5,6 +5,7 @@
 //               --out DIR [estimator and noise flags]
 //   subslam study NAME --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N] [--dataset DIR]
 //   subslam study merge DIR... --out DIR
+//   subslam solve --graph FILE [--format g2o|toro|isam|gtsam] [--noise …] [--methods A,B] --out DIR
 //   subslam plot DIR...
 //   subslam scenarios
 //
@@ -22,12 +23,15 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "absl/time/clock.h"
 #include "cli_reference.h"
 #include "backend_flags.h"
 #include "frontend_flags.h"
 #include "keep_freed_memory_flag.h"
 #include "subslam/pipeline/join_pipeline.h"
 #include "subslam/pipeline/run_pipeline.h"
+#include "subslam/pipeline/solve_pipeline.h"
+#include "subslam/posegraph/graph_format.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/io/dataset_reader.h"
 #include "subslam/io/dataset_writer.h"
@@ -77,6 +81,17 @@ ABSL_FLAG(int, workers, 0, "study: runs at a time, one thread each (0: every cor
 ABSL_FLAG(std::vector<std::string>, methods, {}, "study: only these methods, comma-separated (default: all)");
 ABSL_FLAG(std::string, shard, "1/1", "study: run slice K of N (K/N); `subslam study merge` combines the slices");
 ABSL_FLAG(bool, plots, true, "study: draw the study's figures when it is complete (`subslam plot`)");
+ABSL_FLAG(std::string, graph, "", "solve: the graph file (g2o, TORO, iSAM or GTSAM text)");
+ABSL_FLAG(std::string, format, "",
+          "solve: the graph file's format, g2o | toro | isam | gtsam (default: from the extension: .g2o, "
+          ".graph/.toro, .isam)");
+ABSL_FLAG(std::string, noise, "",
+          "solve: read the file's noise numbers as covariance | information | sqrt-information (default: the "
+          "format's: g2o and toro information, isam sqrt-information, gtsam covariance)");
+ABSL_FLAG(std::string, initial, "dead-reckoning",
+          "solve: start from dead-reckoning | file (the file's vertex estimates)");
+ABSL_FLAG(int, poses_per_map, subslam::pipeline::SolveOptions{}.poses_per_map,
+          "solve: poses per local map of the submap route (methods submaps, submaps-lm)");
 ABSL_FLAG(bool, progress, true, "show a progress line on a terminal");
 ABSL_FLAG(bool, quiet, false, "do not print the summary table");
 
@@ -213,6 +228,68 @@ int Run() {
   return 0;
 }
 
+int Plot(const std::vector<std::string>& dirs, bool list_files);
+
+// `subslam solve --graph FILE --out DIR`: every chosen solver on one graph.
+int Solve() {
+  const std::string path = absl::GetFlag(FLAGS_graph);
+  if (path.empty()) return Fail(absl::InvalidArgumentError("solve needs --graph FILE"));
+  subslam::posegraph::GraphReadOptions read;
+  if (const std::string f = absl::GetFlag(FLAGS_format); !f.empty()) {
+    auto format = subslam::posegraph::GraphFormatFromString(f);
+    if (!format.ok()) return Fail(format.status());
+    read.format = *format;
+  } else {
+    auto format = subslam::posegraph::GraphFormatFromPath(path);
+    if (!format.ok()) return Fail(format.status());
+    read.format = *format;
+  }
+  if (const std::string n = absl::GetFlag(FLAGS_noise); !n.empty()) {
+    auto noise = subslam::posegraph::NoiseConventionFromString(n);
+    if (!noise.ok()) return Fail(noise.status());
+    read.noise = *noise;
+  }
+  const absl::Time t0 = absl::Now();
+  auto graph = subslam::posegraph::ReadGraph(path, read);
+  if (!graph.ok()) return Fail(graph.status());
+  const double read_seconds = absl::ToDoubleSeconds(absl::Now() - t0);
+  subslam::pipeline::SolveOptions options;
+  options.methods = absl::GetFlag(FLAGS_methods);
+  const std::string initial = absl::GetFlag(FLAGS_initial);
+  if (initial != "dead-reckoning" && initial != "file") {
+    return Fail(absl::InvalidArgumentError("--initial must be dead-reckoning or file"));
+  }
+  options.initial_from_file = initial == "file";
+  options.poses_per_map = absl::GetFlag(FLAGS_poses_per_map);
+  auto backend = subslam::cli::BackendOptionsFromFlags();
+  if (!backend.ok()) return Fail(backend.status());
+  options.eif = backend->eif;
+  options.ceres.method = backend->ceres.method;
+  options.ceres.loss = backend->ceres.loss;
+  options.ceres.loss_scale = backend->ceres.loss_scale;
+  options.out_dir = absl::GetFlag(FLAGS_out);
+  const subslam::posegraph::NoiseConvention noise =
+      read.noise.value_or(subslam::posegraph::DefaultNoise(*read.format));
+  options.source = {{"file", path},
+                    {"format", subslam::posegraph::ToString(*read.format)},
+                    {"noise", subslam::posegraph::ToString(noise)},
+                    {"read_seconds", read_seconds}};
+  auto result = subslam::pipeline::RunSolve(*graph, options);
+  if (!result.ok()) return Fail(result.status());
+  if (!absl::GetFlag(FLAGS_quiet)) {
+    std::printf("subslam solve: %s (%s, noise as %s): %zu poses, %zu points, %d measurements; read in %.3f s\n%s",
+                path.c_str(), subslam::posegraph::ToString(*read.format), subslam::posegraph::ToString(noise),
+                graph->poses.size(), graph->points.size(), graph->num_measurements(), read_seconds,
+                subslam::pipeline::SolveTable(*result).c_str());
+    if (!options.out_dir.empty()) {
+      std::printf("outputs: %s/{report.json,METHOD.g2o}%s\n", options.out_dir.c_str(),
+                  absl::GetFlag(FLAGS_plots) ? ", plots/" : "");
+    }
+  }
+  if (!options.out_dir.empty() && absl::GetFlag(FLAGS_plots)) return Plot({options.out_dir}, /*list_files=*/false);
+  return 0;
+}
+
 // scripts/plot.py: SUBSLAM_PLOT_SCRIPT if set; else beside an installed tool
 // (<prefix>/share/subslam/plot.py); else the source tree's.
 std::string PlotScript() {
@@ -313,6 +390,7 @@ int main(int argc, char** argv) {
   if (command == "simulate") return Simulate();
   if (command == "run") return Run();
   if (command == "join") return Join();
+  if (command == "solve") return Solve();
   if (command == "cli-reference") {
     std::printf("%s", subslam::pipeline::CliReferenceMarkdown().c_str());
     return 0;

@@ -12,7 +12,7 @@
 namespace subslam::pipeline {
 namespace {
 
-constexpr std::array<CliCommand, 8> kCommands = {{
+constexpr std::array<CliCommand, 9> kCommands = {{
     {"simulate", "subslam simulate --scenario NAME [--seed S] --out DIR",
      "Simulates a named scenario (docs/scenarios.md) and writes it as a data-set directory "
      "(docs/formats.md, \"Data-set directory\"), with the true poses, the true landmarks and "
@@ -32,6 +32,14 @@ constexpr std::array<CliCommand, 8> kCommands = {{
      "the same input. With `--dataset` or `--scenario`/`--seed` it takes the initial pose and "
      "the ground truth from there and scores the association against the features' true ids. "
      "Writes the anchors, the map, the submap graph (`graph.g2o`) and `report.json`."},
+    {"solve",
+     "subslam solve --graph FILE [--format g2o|toro|isam|gtsam] [--noise covariance|information|sqrt-information] "
+     "[--methods lm,dogleg,gn,eif,submaps,submaps-lm] [--initial dead-reckoning|file] --out DIR",
+     "Reads a pose-landmark graph in a standard format (docs/formats.md, \"Graph files\"), runs the chosen "
+     "solvers on it from the same start — Ceres batch Levenberg-Marquardt, Dogleg and Gauss-Newton, the "
+     "incremental EIF, and the submap route with and without a final Levenberg-Marquardt — and prints each "
+     "one's error (½Σ rᵀΩr and χ²), iterations, time and peak memory. Writes each solution as `METHOD.g2o`, "
+     "`report.json` and the figures."},
     {"study", "subslam study hybridslam|combined-slam|fmj|iseif --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N] [--dataset DIR]",
      "Runs a paper's experiment (docs/reproducing.md): every method, setting and trial, on every "
      "core, and writes the per-run table (`runs.csv`), the paper's table beside ours "
@@ -68,6 +76,8 @@ const std::vector<FlagGroup>& FlagGroups() {
         "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "progress", "quiet",
         "keep_freed_memory"}},
       {"Studies", "`subslam study` (docs/reproducing.md).", {"trials", "methods", "workers", "shard", "plots"}},
+      {"Graphs", "`subslam solve` (docs/formats.md, \"Graph files\").",
+       {"graph", "format", "noise", "initial", "poses_per_map"}},
       {"Simulation", "Shape the simulated worlds (docs/scenarios.md).",
        {"world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks",
         "path_length", "lattice_spacing", "noise_scale", "signature"}},

@@ -1,0 +1,193 @@
+// The g2o 2-D text format (graph_format.h): vertices with estimates, FIX, and the edges
+// EDGE_SE2, EDGE_SE2_XY and EDGE_BEARING_SE2_XY with information matrices.
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "graph_text.h"
+
+namespace subslam::posegraph::internal {
+namespace {
+
+// g2o vertices share one id space: an id used for a pose cannot name a point.
+absl::Status CheckKind(const GraphLine& line, int field, long id, const PoseGraph& graph, bool want_pose) {
+  if (want_pose && graph.FindPoint(id) >= 0) return line.FieldError(field, absl::StrCat("names point ", id, ", not a pose"));
+  if (!want_pose && graph.FindPose(id) >= 0) return line.FieldError(field, absl::StrCat("names pose ", id, ", not a point"));
+  return absl::OkStatus();
+}
+
+// Fields first … first + count − 1 as numbers.
+absl::StatusOr<std::vector<double>> Numbers(const GraphLine& line, int first, int count) {
+  std::vector<double> values;
+  for (int f = first; f < first + count; ++f) {
+    auto v = line.Number(f);
+    if (!v.ok()) return v.status();
+    values.push_back(*v);
+  }
+  return values;
+}
+
+absl::StatusOr<Eigen::MatrixXd> Information(const GraphLine& line, int first, int n, NoiseConvention noise) {
+  auto upper = Numbers(line, first, n * (n + 1) / 2);
+  if (!upper.ok()) return upper.status();
+  auto information = InformationFromUpperTriangle(*upper, n, noise);
+  if (!information.ok()) return line.Error(absl::StrCat("noise: ", information.status().message()));
+  return information;
+}
+
+}  // namespace
+
+absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* graph) {
+  const absl::string_view tag = line.tag();
+  if (tag == "VERTEX_SE2" || tag == "VERTEX_XY") {
+    const bool pose = tag == "VERTEX_SE2";
+    absl::Status s = pose ? line.Expect({"id", "x", "y", "theta"}) : line.Expect({"id", "x", "y"});
+    if (!s.ok()) return s;
+    auto id = line.Id(1);
+    if (!id.ok()) return id.status();
+    if (s = CheckKind(line, 1, *id, *graph, pose); !s.ok()) return s;
+    auto v = Numbers(line, 2, pose ? 3 : 2);
+    if (!v.ok()) return v.status();
+    if (pose) {
+      PoseVertex& p = graph->poses[graph->PoseIndex(*id)];
+      if (p.has_estimate) return line.FieldError(1, absl::StrCat("vertex ", *id, " is defined twice"));
+      p.estimate = Pose2((*v)[0], (*v)[1], (*v)[2]);
+      p.has_estimate = true;
+    } else {
+      PointVertex& p = graph->points[graph->PointIndex(*id)];
+      if (p.has_estimate) return line.FieldError(1, absl::StrCat("vertex ", *id, " is defined twice"));
+      p.estimate = Eigen::Vector2d((*v)[0], (*v)[1]);
+      p.has_estimate = true;
+    }
+    return absl::OkStatus();
+  }
+  if (tag == "FIX") {
+    if (line.size() == 0) return line.Error("missing field 'id' (field 1)");
+    for (int f = 1; f <= line.size(); ++f) {
+      auto id = line.Id(f);
+      if (!id.ok()) return id.status();
+      const int i = graph->FindPose(*id);
+      if (i < 0) return line.Error(absl::StrCat("field ", f, ": no pose vertex ", *id, " before this line"));
+      graph->poses[i].fixed = true;
+    }
+    return absl::OkStatus();
+  }
+  if (tag == "EDGE_SE2" || tag == "EDGE_SE2_XY" || tag == "EDGE_BEARING_SE2_XY") {
+    absl::Status s;
+    if (tag == "EDGE_SE2") {
+      s = line.Expect({"from", "to", "dx", "dy", "dtheta", "I11", "I12", "I13", "I22", "I23", "I33"});
+    } else if (tag == "EDGE_SE2_XY") {
+      s = line.Expect({"pose", "point", "x", "y", "I11", "I12", "I22"});
+    } else {
+      s = line.Expect({"pose", "point", "bearing", "I"});
+    }
+    if (!s.ok()) return s;
+    auto a = line.Id(1);
+    if (!a.ok()) return a.status();
+    auto b = line.Id(2);
+    if (!b.ok()) return b.status();
+    const bool pose_pose = tag == "EDGE_SE2";
+    if (s = CheckKind(line, 1, *a, *graph, true); !s.ok()) return s;
+    if (s = CheckKind(line, 2, *b, *graph, pose_pose); !s.ok()) return s;
+    if (pose_pose) {
+      auto z = Numbers(line, 3, 3);
+      if (!z.ok()) return z.status();
+      auto information = Information(line, 6, 3, noise);
+      if (!information.ok()) return information.status();
+      if (*a == *b) return line.Error("an edge from a pose to itself");
+      graph->odometry.push_back({graph->PoseIndex(*a), graph->PoseIndex(*b), Pose2((*z)[0], (*z)[1], (*z)[2]),
+                                 *information});
+    } else if (tag == "EDGE_SE2_XY") {
+      auto z = Numbers(line, 3, 2);
+      if (!z.ok()) return z.status();
+      auto information = Information(line, 5, 2, noise);
+      if (!information.ok()) return information.status();
+      graph->point_measurements.push_back(
+          {graph->PoseIndex(*a), graph->PointIndex(*b), Eigen::Vector2d((*z)[0], (*z)[1]), *information});
+    } else {
+      auto z = line.Number(3);
+      if (!z.ok()) return z.status();
+      auto information = Information(line, 4, 1, noise);
+      if (!information.ok()) return information.status();
+      graph->bearing_measurements.push_back({graph->PoseIndex(*a), graph->PointIndex(*b), *z, (*information)(0, 0)});
+    }
+    return absl::OkStatus();
+  }
+  return line.Error(
+      "unknown tag (2-D g2o reads VERTEX_SE2, VERTEX_XY, FIX, EDGE_SE2, EDGE_SE2_XY, EDGE_BEARING_SE2_XY)");
+}
+
+absl::StatusOr<std::string> FormatG2o(const PoseGraph& graph, NoiseConvention noise, bool bearing_range_as_points) {
+  // Points take ids after the largest pose id when the two id spaces overlap.
+  long offset = 0;
+  for (const PointVertex& p : graph.points) {
+    if (graph.FindPose(p.id) >= 0) {
+      for (const PoseVertex& q : graph.poses) offset = std::max(offset, q.id + 1);
+      break;
+    }
+  }
+  std::string out;
+  if (offset > 0) absl::StrAppend(&out, "# point ids are the graph's point ids + ", offset, "\n");
+  if (!graph.bearing_range_measurements.empty()) {
+    if (!bearing_range_as_points) {
+      return absl::InvalidArgumentError("g2o has no bearing-range edge (write them as points, or use isam / gtsam)");
+    }
+    absl::StrAppend(&out, "# bearing-range measurements written as EDGE_SE2_XY: the measured point, with the "
+                          "covariance through the polar-to-Cartesian Jacobian at it\n");
+  }
+  for (const PoseVertex& p : graph.poses) {
+    absl::StrAppend(&out, "VERTEX_SE2 ", p.id);
+    AppendNumbers(&out, {p.estimate.x, p.estimate.y, p.estimate.theta});
+    out += '\n';
+  }
+  for (const PointVertex& p : graph.points) {
+    absl::StrAppend(&out, "VERTEX_XY ", p.id + offset);
+    AppendNumbers(&out, {p.estimate.x(), p.estimate.y()});
+    out += '\n';
+  }
+  for (const PoseVertex& p : graph.poses) {
+    if (p.fixed) absl::StrAppend(&out, "FIX ", p.id, "\n");
+  }
+  for (const MeasurementRef& ref : WritingOrder(graph)) {
+    switch (ref.kind) {
+      case MeasurementRef::kOdometry: {
+        const OdometryMeasurement& m = graph.odometry[ref.index];
+        absl::StrAppend(&out, "EDGE_SE2 ", graph.poses[m.from].id, " ", graph.poses[m.to].id);
+        AppendNumbers(&out, {m.z.x, m.z.y, m.z.theta});
+        AppendNumbers(&out, UpperTriangleFromInformation(m.information, noise));
+        break;
+      }
+      case MeasurementRef::kPoint: {
+        const PointMeasurement& m = graph.point_measurements[ref.index];
+        absl::StrAppend(&out, "EDGE_SE2_XY ", graph.poses[m.pose].id, " ", graph.points[m.point].id + offset);
+        AppendNumbers(&out, {m.z.x(), m.z.y()});
+        AppendNumbers(&out, UpperTriangleFromInformation(m.information, noise));
+        break;
+      }
+      case MeasurementRef::kBearingRange: {
+        const BearingRangeMeasurement& m = graph.bearing_range_measurements[ref.index];
+        const double c = std::cos(m.bearing), s = std::sin(m.bearing);
+        Eigen::Matrix2d J;  // d(x, y) / d(bearing, range)
+        J << -m.range * s, c, m.range * c, s;
+        const Eigen::Matrix2d covariance = J * m.information.inverse() * J.transpose();
+        absl::StrAppend(&out, "EDGE_SE2_XY ", graph.poses[m.pose].id, " ", graph.points[m.point].id + offset);
+        AppendNumbers(&out, {m.range * c, m.range * s});
+        AppendNumbers(&out, UpperTriangleFromInformation(covariance.inverse(), noise));
+        break;
+      }
+      case MeasurementRef::kBearing: {
+        const BearingMeasurement& m = graph.bearing_measurements[ref.index];
+        absl::StrAppend(&out, "EDGE_BEARING_SE2_XY ", graph.poses[m.pose].id, " ",
+                        graph.points[m.point].id + offset);
+        AppendNumbers(&out, {m.bearing});
+        AppendNumbers(&out, UpperTriangleFromInformation(Eigen::Matrix<double, 1, 1>(m.information), noise));
+        break;
+      }
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+}  // namespace subslam::posegraph::internal

@@ -1,0 +1,153 @@
+#include "graph_text.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <charconv>
+#include <cmath>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+
+namespace subslam::posegraph::internal {
+
+absl::Status GraphLine::Expect(std::initializer_list<const char*> names) {
+  names_.assign(names.begin(), names.end());
+  const int want = static_cast<int>(names_.size());
+  if (size() < want) {
+    return Error(absl::StrCat("missing field '", names_[size()], "' (field ", size() + 1, " of ", want, ")"));
+  }
+  if (size() > want) {
+    return Error(absl::StrCat(size() - want, " field(s) beyond the ", want, " expected, from '", fields_[want + 1],
+                              "'"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status GraphLine::Error(absl::string_view message) const {
+  return absl::InvalidArgumentError(absl::StrCat(source_, ":", line_, ": ", fields_.front(), ": ", message));
+}
+
+absl::Status GraphLine::FieldError(int field, absl::string_view message) const {
+  const std::string name = field - 1 < static_cast<int>(names_.size()) ? names_[field - 1] : "?";
+  return Error(absl::StrCat("field '", name, "' (field ", field, ") ", message));
+}
+
+absl::StatusOr<long> GraphLine::Id(int field) const {
+  long id = 0;
+  if (!absl::SimpleAtoi(fields_[field], &id)) {
+    return FieldError(field, absl::StrCat("is not an integer id: '", fields_[field], "'"));
+  }
+  if (id < 0) return FieldError(field, absl::StrCat("is a negative id: ", id));
+  return id;
+}
+
+absl::StatusOr<double> GraphLine::Number(int field) const {
+  double value = 0.0;
+  if (!absl::SimpleAtod(fields_[field], &value)) {
+    return FieldError(field, absl::StrCat("is not a number: '", fields_[field], "'"));
+  }
+  if (!std::isfinite(value)) return FieldError(field, absl::StrCat("is not finite: '", fields_[field], "'"));
+  return value;
+}
+
+absl::StatusOr<Eigen::MatrixXd> InformationFromUpperTriangle(const std::vector<double>& upper, int n,
+                                                             NoiseConvention noise) {
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(n, n);
+  int k = 0;
+  for (int i = 0; i < n; ++i) {
+    for (int j = i; j < n; ++j) {
+      M(i, j) = upper[k++];
+      if (noise != NoiseConvention::kSqrtInformation) M(j, i) = M(i, j);
+    }
+  }
+  Eigen::MatrixXd information;
+  switch (noise) {
+    case NoiseConvention::kInformation:
+      information = M;
+      break;
+    case NoiseConvention::kSqrtInformation:
+      for (int i = 0; i < n; ++i) {
+        if (M(i, i) == 0.0) return absl::InvalidArgumentError("square-root information is singular (a zero diagonal)");
+      }
+      information = M.transpose() * M;
+      break;
+    case NoiseConvention::kCovariance: {
+      Eigen::LLT<Eigen::MatrixXd> llt(M);
+      if (llt.info() != Eigen::Success) return absl::InvalidArgumentError("covariance not positive definite");
+      information = llt.solve(Eigen::MatrixXd::Identity(n, n));
+      information = 0.5 * (information + information.transpose()).eval();
+      break;
+    }
+  }
+  Eigen::LLT<Eigen::MatrixXd> llt(information);
+  if (!information.allFinite() || llt.info() != Eigen::Success) {
+    return absl::InvalidArgumentError(absl::StrCat(ToString(noise), " not positive definite"));
+  }
+  return information;
+}
+
+std::vector<double> UpperTriangleFromInformation(const Eigen::MatrixXd& information, NoiseConvention noise) {
+  const int n = static_cast<int>(information.rows());
+  Eigen::MatrixXd M;
+  switch (noise) {
+    case NoiseConvention::kInformation:
+      M = information;
+      break;
+    case NoiseConvention::kSqrtInformation:
+      M = Eigen::LLT<Eigen::MatrixXd>(information).matrixU();
+      break;
+    case NoiseConvention::kCovariance:
+      M = Eigen::LLT<Eigen::MatrixXd>(information).solve(Eigen::MatrixXd::Identity(n, n));
+      break;
+  }
+  std::vector<double> upper;
+  for (int i = 0; i < n; ++i) {
+    for (int j = i; j < n; ++j) upper.push_back(M(i, j));
+  }
+  return upper;
+}
+
+std::string FormatNumber(double value) {
+  if (value == 0.0) return "0";  // also -0
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, result.ptr);
+}
+
+void AppendNumbers(std::string* out, std::initializer_list<double> values) {
+  for (double v : values) absl::StrAppend(out, " ", FormatNumber(v));
+}
+
+void AppendNumbers(std::string* out, const std::vector<double>& values) {
+  for (double v : values) absl::StrAppend(out, " ", FormatNumber(v));
+}
+
+std::vector<MeasurementRef> WritingOrder(const PoseGraph& graph) {
+  const int num_poses = static_cast<int>(graph.poses.size());
+  std::vector<std::vector<MeasurementRef>> sightings(num_poses);
+  for (int i = 0; i < static_cast<int>(graph.point_measurements.size()); ++i) {
+    sightings[graph.point_measurements[i].pose].push_back({MeasurementRef::kPoint, i});
+  }
+  for (int i = 0; i < static_cast<int>(graph.bearing_range_measurements.size()); ++i) {
+    sightings[graph.bearing_range_measurements[i].pose].push_back({MeasurementRef::kBearingRange, i});
+  }
+  for (int i = 0; i < static_cast<int>(graph.bearing_measurements.size()); ++i) {
+    sightings[graph.bearing_measurements[i].pose].push_back({MeasurementRef::kBearing, i});
+  }
+  std::vector<MeasurementRef> order;
+  std::vector<bool> written(num_poses, false);
+  const auto write_sightings = [&](int pose) {
+    if (written[pose]) return;
+    written[pose] = true;
+    order.insert(order.end(), sightings[pose].begin(), sightings[pose].end());
+  };
+  if (num_poses > 0) write_sightings(0);
+  for (int i = 0; i < static_cast<int>(graph.odometry.size()); ++i) {
+    order.push_back({MeasurementRef::kOdometry, i});
+    write_sightings(graph.odometry[i].to);
+  }
+  for (int pose = 0; pose < num_poses; ++pose) write_sightings(pose);
+  return order;
+}
+
+}  // namespace subslam::posegraph::internal

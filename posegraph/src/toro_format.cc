@@ -1,0 +1,84 @@
+// TORO's 2-D text format (graph_format.h): VERTEX2 and EDGE2, whose information entries
+// come in TORO's order I11 I12 I22 I33 I13 I23. TORO holds poses only.
+#include "absl/strings/str_cat.h"
+#include "graph_text.h"
+
+namespace subslam::posegraph::internal {
+namespace {
+
+// TORO's order of the six information entries, as indices into the upper triangle row
+// by row (I11 I12 I13 I22 I23 I33).
+constexpr int kToroToUpper[6] = {0, 1, 3, 5, 2, 4};
+
+}  // namespace
+
+absl::Status ParseToroLine(GraphLine& line, NoiseConvention noise, PoseGraph* graph) {
+  const absl::string_view tag = line.tag();
+  if (tag == "VERTEX2") {
+    if (absl::Status s = line.Expect({"id", "x", "y", "theta"}); !s.ok()) return s;
+    auto id = line.Id(1);
+    if (!id.ok()) return id.status();
+    double v[3];
+    for (int f = 2; f <= 4; ++f) {
+      auto x = line.Number(f);
+      if (!x.ok()) return x.status();
+      v[f - 2] = *x;
+    }
+    PoseVertex& p = graph->poses[graph->PoseIndex(*id)];
+    if (p.has_estimate) return line.FieldError(1, absl::StrCat("vertex ", *id, " is defined twice"));
+    p.estimate = Pose2(v[0], v[1], v[2]);
+    p.has_estimate = true;
+    return absl::OkStatus();
+  }
+  if (tag == "EDGE2") {
+    if (absl::Status s = line.Expect({"from", "to", "dx", "dy", "dtheta", "I11", "I12", "I22", "I33", "I13", "I23"});
+        !s.ok()) {
+      return s;
+    }
+    auto a = line.Id(1);
+    if (!a.ok()) return a.status();
+    auto b = line.Id(2);
+    if (!b.ok()) return b.status();
+    if (*a == *b) return line.Error("an edge from a pose to itself");
+    double z[3];
+    for (int f = 3; f <= 5; ++f) {
+      auto x = line.Number(f);
+      if (!x.ok()) return x.status();
+      z[f - 3] = *x;
+    }
+    std::vector<double> upper(6);
+    for (int k = 0; k < 6; ++k) {
+      auto x = line.Number(6 + k);
+      if (!x.ok()) return x.status();
+      upper[kToroToUpper[k]] = *x;
+    }
+    auto information = InformationFromUpperTriangle(upper, 3, noise);
+    if (!information.ok()) return line.Error(absl::StrCat("noise: ", information.status().message()));
+    graph->odometry.push_back({graph->PoseIndex(*a), graph->PoseIndex(*b), Pose2(z[0], z[1], z[2]), *information});
+    return absl::OkStatus();
+  }
+  return line.Error("unknown tag (TORO reads VERTEX2 and EDGE2)");
+}
+
+absl::StatusOr<std::string> FormatToro(const PoseGraph& graph, NoiseConvention noise) {
+  if (!graph.points.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat("TORO holds poses only; the graph has ", graph.points.size(),
+                                                   " points (use g2o or isam)"));
+  }
+  std::string out;
+  for (const PoseVertex& p : graph.poses) {
+    absl::StrAppend(&out, "VERTEX2 ", p.id);
+    AppendNumbers(&out, {p.estimate.x, p.estimate.y, p.estimate.theta});
+    out += '\n';
+  }
+  for (const OdometryMeasurement& m : graph.odometry) {
+    absl::StrAppend(&out, "EDGE2 ", graph.poses[m.from].id, " ", graph.poses[m.to].id);
+    AppendNumbers(&out, {m.z.x, m.z.y, m.z.theta});
+    const std::vector<double> upper = UpperTriangleFromInformation(m.information, noise);
+    for (int k = 0; k < 6; ++k) AppendNumbers(&out, {upper[kToroToUpper[k]]});
+    out += '\n';
+  }
+  return out;
+}
+
+}  // namespace subslam::posegraph::internal
