@@ -89,6 +89,9 @@ ABSL_FLAG(int, relinearize_every, EifDefaults().relinearize_every,
 ABSL_FLAG(bool, eif_incremental, EifDefaults().incremental_factorization,
           "eif: update the factor of the information matrix by each join's rank update "
           "(false: refactorise it at every join)");
+ABSL_FLAG(double, eif_recovery_threshold, EifDefaults().recovery_change_threshold,
+          "eif: after a join's incremental update, carry the estimate's change down the elimination tree "
+          "only while it exceeds this (m, rad); 0: solve afresh at every join");
 ABSL_FLAG(subslam::backend::FillReducingOrdering, eif_ordering, EifDefaults().ordering,
           "eif: fill-reducing ordering of a full factorisation: amd | nested_dissection (METIS) | "
           "auto (nested dissection where AMD's factor would cost >= 50 flops per entry)");
@@ -165,6 +168,7 @@ backend::EifJoinerOptions EifOptionsFromFlags() {
   o.relinearize_heading_change = absl::GetFlag(FLAGS_relinearize_heading_change);
   o.relinearize_linearization_chi2 = absl::GetFlag(FLAGS_relinearize_linearization_chi2);
   o.incremental_factorization = absl::GetFlag(FLAGS_eif_incremental);
+  o.recovery_change_threshold = absl::GetFlag(FLAGS_eif_recovery_threshold);
   o.bound_candidate_marginals = absl::GetFlag(FLAGS_eif_bound_marginals);
   o.ordering = absl::GetFlag(FLAGS_eif_ordering);
   o.association.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);

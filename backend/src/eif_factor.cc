@@ -20,6 +20,9 @@
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
+namespace {
+double Square(double v) { return v * v; }
+}  // namespace
 
 EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   const SubmapFactor& record = graph_.factors()[index];
@@ -281,12 +284,44 @@ double EifJoiner::MaxLinearizationError() const {
 }
 
 bool EifJoiner::LinearizationErrorAbove(double chi2) const {
+  // After a partial recovery only the factors on moved variables can have changed.
+  std::vector<int> candidates;
+  if (!changed_all_) {
+    EnsureFactorsOfRow();
+    if (candidate_stamp_.size() < factors_.size()) candidate_stamp_.resize(factors_.size(), 0);
+    const int walk = ++candidate_walks_;
+    for (int row : changed_rows_) {
+      for (int k : factors_of_row_[row]) {
+        if (candidate_stamp_[k] != walk) {
+          candidate_stamp_[k] = walk;
+          candidates.push_back(k);
+        }
+      }
+    }
+  }
+  const int count = changed_all_ ? static_cast<int>(factors_.size()) : static_cast<int>(candidates.size());
   Eigen::VectorXd e;
-  for (const Factor& f : factors_) {
+  for (int c = 0; c < count; ++c) {
+    const Factor& f = factors_[changed_all_ ? c : candidates[c]];
     const SubmapFactor& record = graph_.factors()[f.index];
-    if (anchor_theta_[record.start_anchor] == f.start_theta) continue;  // no error at all
-    // Whitening scales a vector by at most 1 / √λ_min(Q): the unwhitened error (O(n))
-    // settles most factors without the triangular solve (O(n²)).
+    const double dtheta = anchor_theta_[record.start_anchor] - f.start_theta;
+    if (dtheta == 0.0) continue;  // no error at all
+    // A bound without trigonometry: the error of lever v (v₀ at the linearisation) is
+    // (Rᵀ(θ) − Rᵀ(θ₀) − dRᵀ(θ₀)·Δθ) v + dRᵀ(θ₀)(v − v₀) Δθ, of norm at most
+    // ½Δθ²‖v‖ + |Δθ|‖v − v₀‖ (‖d²Rᵀ/dθ²‖ = ‖dRᵀ/dθ‖ = 1); whitening scales a vector by at
+    // most 1 / √λ_min(Q). Most factors are settled here.
+    const Pose2& start = graph_.anchors()[record.start_anchor];
+    const Eigen::Vector2d p_s(start.x, start.y);
+    const auto lever_bound = [&](const Eigen::Vector2d& v, const Eigen::Vector2d& v0) {
+      return 0.5 * dtheta * dtheta * v.norm() + std::abs(dtheta) * (v - v0).norm();
+    };
+    const Pose2& end = graph_.anchors()[record.end_anchor];
+    double bound = Square(lever_bound(Eigen::Vector2d(end.x, end.y) - p_s, f.levers[0]));
+    for (size_t i = 0; i < record.landmark_of_feature.size(); ++i) {
+      bound += Square(lever_bound(graph_.landmarks()[record.landmark_of_feature[i]] - p_s, f.levers[i + 1]));
+    }
+    if (bound <= chi2 * f.covariance_min_eigenvalue) continue;
+    // Then the unwhitened error (O(n)) before the triangular solve (O(n²)).
     UnwhitenedLinearizationError(f, &e);
     if (e.squaredNorm() <= chi2 * f.covariance_min_eigenvalue) continue;
     f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);

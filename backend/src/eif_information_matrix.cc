@@ -237,14 +237,21 @@ absl::Status EifJoiner::FullFactorization() {
 }
 
 absl::Status EifJoiner::Rebuild(bool only_last_factor) {
+  const Eigen::Index old_dim = eta_.size();
   {
     StageTimer timer(&times_, "update");
     // Λ itself is assembled only when a full factorisation needs it (information()).
     if (only_last_factor) {
-      const Eigen::Index old_dim = eta_.size();
       eta_.conservativeResize(dim_);
       eta_.tail(dim_ - old_dim).setZero();
       AddToEta(factors_.back(), &eta_);
+      if (factors_of_row_valid_) {
+        factors_of_row_.resize(dim_);
+        const Factor& f = factors_.back();
+        for (size_t v = 0; v < f.offsets.size(); ++v) {
+          for (int i = 0; i < f.sizes[v]; ++i) factors_of_row_[f.offsets[v] + i].push_back(static_cast<int>(factors_.size()) - 1);
+        }
+      }
     } else {
       // Every factor may have been relinearised: Λ need not have grown, so the marginal
       // bounds are forgotten.
@@ -252,6 +259,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
       eta_ = Eigen::VectorXd::Zero(dim_);
       for (const Factor& f : factors_) AddToEta(f, &eta_);
       lambda_factors_ = 0;
+      factors_of_row_valid_ = false;
     }
   }
   bool incremental = false;
@@ -275,30 +283,67 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
     solver_->stale = false;
     if (!incremental) {
       if (absl::Status st = FullFactorization(); !st.ok()) return st;
+      updates_since_factorization_ = 0;
     }
   }
+  // The guard's schedule: the 1st, 2nd, 4th, … update since the last full factorisation.
+  const long update_number = incremental ? ++updates_since_factorization_ : 0;
+  const bool guarded = incremental && (update_number & (update_number - 1)) == 0;
   Eigen::VectorXd x;
-  {
+  changed_rows_.clear();
+  changed_all_ = true;
+  if (incremental && !guarded && options_.recovery_change_threshold > 0) {
+    // Carry the estimate over the new factor: Λ'Δx = η' − Λ'x with x the estimate before
+    // (the new variables at 0, their spare slots' solution), non-zero on its rows only.
     StageTimer timer(&times_, "recovery");
-    x = solver_->factor.Solve(eta_);
-  }
-  if (incremental) {
-    // Guard on the updated factor: Λx must give back η, or refactorise. Λx = Σ H_f x_f
-    // over the factors' dense blocks (Λ is not assembled).
-    StageTimer timer(&times_, "recovery_check");
-    Eigen::VectorXd Lambda_x = Eigen::VectorXd::Zero(dim_);
-    for (const Factor& f : factors_) AddInformationTimes(f, x, &Lambda_x);
-    const double residual = (Lambda_x - eta_).norm();
-    if (!(residual <= 1e-8 * std::max(1.0, eta_.norm()))) {
-      ++counters_.failed_updates;
-      --counters_.incremental_updates;
-      if (absl::Status st = FullFactorization(); !st.ok()) return st;
+    x = StateVector();
+    x.tail(dim_ - old_dim).setZero();
+    const Factor& f = factors_.back();
+    std::vector<int> rows;
+    Eigen::VectorXd x_local(f.H.rows());
+    for (size_t v = 0, row = 0; v < f.offsets.size(); row += f.sizes[v], ++v) {
+      for (int i = 0; i < f.sizes[v]; ++i) rows.push_back(f.offsets[v] + i);
+      x_local.segment(static_cast<Eigen::Index>(row), f.sizes[v]) = x.segment(f.offsets[v], f.sizes[v]);
+    }
+    const Eigen::VectorXd r = f.b - f.H * x_local;
+    solver_->factor.SolveChange(rows, r, options_.recovery_change_threshold, &x, &changed_rows_);
+    changed_all_ = false;
+  } else {
+    {
+      StageTimer timer(&times_, "recovery");
       x = solver_->factor.Solve(eta_);
+    }
+    if (incremental) {
+      // Guard on the updated factor: Λx must give back η, or refactorise. Λx = Σ H_f x_f
+      // over the factors' dense blocks (Λ is not assembled).
+      StageTimer timer(&times_, "recovery_check");
+      Eigen::VectorXd Lambda_x = Eigen::VectorXd::Zero(dim_);
+      for (const Factor& f : factors_) AddInformationTimes(f, x, &Lambda_x);
+      const double residual = (Lambda_x - eta_).norm();
+      if (!(residual <= 1e-8 * std::max(1.0, eta_.norm()))) {
+        ++counters_.failed_updates;
+        --counters_.incremental_updates;
+        if (absl::Status st = FullFactorization(); !st.ok()) return st;
+        updates_since_factorization_ = 0;
+        x = solver_->factor.Solve(eta_);
+      }
     }
   }
   if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
   SetState(x);
   return absl::OkStatus();
+}
+
+void EifJoiner::EnsureFactorsOfRow() const {
+  if (factors_of_row_valid_) return;
+  factors_of_row_.assign(dim_, {});
+  for (size_t k = 0; k < factors_.size(); ++k) {
+    const Factor& f = factors_[k];
+    for (size_t v = 0; v < f.offsets.size(); ++v) {
+      for (int i = 0; i < f.sizes[v]; ++i) factors_of_row_[f.offsets[v] + i].push_back(static_cast<int>(k));
+    }
+  }
+  factors_of_row_valid_ = true;
 }
 
 }  // namespace subslam::backend

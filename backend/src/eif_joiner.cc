@@ -36,6 +36,10 @@ absl::Status EifJoinerOptions::Validate() const {
   if (relinearize_every < 0) {
     return absl::InvalidArgumentError(absl::StrCat("relinearize_every must be >= 0, got ", relinearize_every));
   }
+  if (!(recovery_change_threshold >= 0 && std::isfinite(recovery_change_threshold))) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("recovery_change_threshold must be finite and >= 0, got ", recovery_change_threshold));
+  }
   if (max_relinearizations < 1) {
     return absl::InvalidArgumentError(absl::StrCat("max_relinearizations must be >= 1, got ", max_relinearizations));
   }
@@ -139,6 +143,8 @@ void EifJoiner::Restore(Snapshot before) {
   associator_ = std::move(before.associator);
   marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
   solver_->stale = true;  // it absorbed the undone factors
+  factors_of_row_valid_ = false;
+  changed_all_ = true;
   counters_ = before.counters;
   touched_.assign(graph_.num_landmarks(), 1);
 }

@@ -238,8 +238,9 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
 absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, const Eigen::MatrixXd& W) {
   if (factor_ == nullptr) return absl::FailedPreconditionError("no factor to update");
   if (new_dim < dim_ || new_dim > capacity_) return absl::OutOfRangeError("no spare slot for the new variables");
-  // The factor changes from here on, also when a later step fails.
-  InvalidateCaches(capacity_);
+  // The factor changes from here on, also when a later step fails (the caller then
+  // factorises afresh, which renews the parents too).
+  InvalidateCaches(capacity_, /*keep_parents=*/true);
   const int k = static_cast<int>(W.cols());
   // C = P W: rows in the factor's order, sorted and unique within each column (a variable
   // listed twice, e.g. two features joined to one landmark, sums its rows).
@@ -299,8 +300,13 @@ absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, c
     cholmod_free_sparse(&E, common_);
     if (!down || common_->status != CHOLMOD_OK) return absl::InternalError("CHOLMOD: downdate failed");
   }
-  // A downdate that lost positive definiteness leaves a non-positive pivot in D.
-  if (!PositiveDiagonal()) return absl::InternalError("CHOLMOD: the updated matrix is not positive definite");
+  // A downdate that lost positive definiteness leaves a non-positive pivot in D; only
+  // the columns on the update's paths changed.
+  std::vector<int> starts = unique_position;
+  for (int v = dim_; v < new_dim; ++v) starts.push_back(position_[v]);
+  if (!RefreshParentsFrom(starts)) {
+    return absl::InternalError("CHOLMOD: the updated matrix is not positive definite");
+  }
   dim_ = new_dim;
   return absl::OkStatus();
 }

@@ -96,10 +96,89 @@ std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector
   return out;
 }
 
-void SparseCholesky::InvalidateCaches(int capacity) {
+void SparseCholesky::InvalidateCaches(int capacity, bool keep_parents) {
   column_cache_.clear();
   selected_.reset();
-  parent_.assign(capacity, -2);
+  if (!keep_parents || static_cast<int>(parent_.size()) != capacity) parent_.assign(capacity, -2);
+}
+
+bool SparseCholesky::RefreshParentsFrom(const std::vector<int>& positions) {
+  // The columns an update changed are those on the paths, in the updated tree, from its
+  // rows to the root: recompute each one's parent on the way up, and check its pivot.
+  const double* Lx = static_cast<const double*>(factor_->x);
+  const int* Lp = static_cast<const int*>(factor_->p);
+  std::vector<int>& stamp = back_stamp_;
+  if (static_cast<int>(stamp.size()) != capacity_) stamp.assign(capacity_, 0);
+  const int this_walk = ++back_walks_;
+  bool positive = true;
+  for (int start : positions) {
+    for (int j = start; j >= 0 && stamp[j] != this_walk;) {
+      stamp[j] = this_walk;
+      positive = positive && Lx[Lp[j]] > 0.0;  // D_jj sits first in column j
+      parent_[j] = -2;
+      j = Parent(j);
+    }
+  }
+  return positive;
+}
+
+void SparseCholesky::SolveChange(const std::vector<int>& rows, const Eigen::VectorXd& r_local, double threshold,
+                                 Eigen::VectorXd* x, std::vector<int>* changed) const {
+  const double* Lx = static_cast<const double*>(factor_->x);
+  const int* Lp = static_cast<const int*>(factor_->p);
+  const int* Li = static_cast<const int*>(factor_->i);
+  const int* Lnz = static_cast<const int*>(factor_->nz);
+  const int* perm = static_cast<const int*>(factor_->Perm);
+  std::vector<double>& d = change_workspace_;
+  if (static_cast<int>(d.size()) != capacity_) d.assign(capacity_, 0.0);
+  std::vector<char>& live = change_live_;
+  if (static_cast<int>(live.size()) != capacity_) live.assign(capacity_, 0);
+  std::vector<int>& stamp = back_stamp_;
+  if (static_cast<int>(stamp.size()) != capacity_) stamp.assign(capacity_, 0);
+  const int this_walk = ++back_walks_;
+  // U: the union of the paths from the rows to the root, ascending.
+  std::vector<int> U;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    SUBSLAM_CHECK(rows[k] >= 0 && rows[k] < dim_) << "variable " << rows[k] << " out of range";
+    d[position_[rows[k]]] += r_local[static_cast<Eigen::Index>(k)];
+    for (int j = position_[rows[k]]; j >= 0 && stamp[j] != this_walk; j = Parent(j)) {
+      stamp[j] = this_walk;
+      U.push_back(j);
+    }
+  }
+  std::sort(U.begin(), U.end());
+  // Forward: y = L⁻¹ P r over U (column j's rows are ancestors of j, so in U), then D⁻¹.
+  for (int j : U) {
+    const double yj = d[j];
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) d[Li[p]] -= Lx[p] * yj;
+  }
+  for (int j : U) d[j] /= Lx[Lp[j]];
+  // Back: Lᵀ Δx = D⁻¹ y from the roots down; Δx_j = z_j − Σ_{i∈L_j} L_ij Δx_i.
+  std::vector<int> entered;
+  for (int j = capacity_ - 1; j >= 0; --j) {
+    const bool on_path = stamp[j] == this_walk;
+    if (!on_path) {
+      const int parent = Parent(j);
+      if (parent < 0 || !live[parent]) continue;
+    }
+    double dj = on_path ? d[j] : 0.0;
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) dj -= Lx[p] * d[Li[p]];
+    d[j] = dj;
+    live[j] = std::abs(dj) > threshold;
+    entered.push_back(j);
+  }
+  for (int j : entered) {
+    const int v = perm[j];
+    if (d[j] != 0.0 && v < dim_) {
+      (*x)[v] += d[j];
+      changed->push_back(v);
+    }
+  }
+  for (int j : entered) {
+    d[j] = 0.0;
+    live[j] = 0;
+  }
+  for (int j : U) d[j] = 0.0;
 }
 
 int SparseCholesky::Parent(int j) const {

@@ -166,7 +166,7 @@ TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
   // (to rounding, amplified by anchors known to 35 m against features to 0.1 m: the
   // undone run refactorised where the other updated its factor)
   for (int k = 0; k < eif.num_anchors(); ++k) {
-    EXPECT_LT((eif.anchor(k).vector() - never.anchor(k).vector()).cwiseAbs().maxCoeff(), 1e-6) << "anchor " << k;
+    EXPECT_LT(PoseDifference(eif.anchor(k), never.anchor(k)).cwiseAbs().maxCoeff(), 1e-6) << "anchor " << k;
   }
   EXPECT_TRUE(MatricesNear(eif.AnchorCovariance(10), never.AnchorCovariance(10), 1e-6));
 }

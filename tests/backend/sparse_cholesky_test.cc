@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <Eigen/LU>
 #include <random>
 
@@ -247,6 +248,61 @@ TEST(SparseCholesky, UpdateWithNewVariablesEqualsRefactorizing) {
   ASSERT_TRUE(L.Update(n + added, rows2, W2).ok());
   EXPECT_TRUE(MatricesNear(grown.ldlt().solve(B), L.Solve(B), 1e-9));
   EXPECT_TRUE(MatricesNear(grown.inverse()(vars, vars), L.InverseBlock(vars), 1e-9));
+}
+
+// SolveChange carries A x = b over an update: with threshold 0 it is the solution of the
+// updated system to rounding, also after several updates with new variables; with a
+// threshold the changes it leaves out are each below it, so the solution stays within a
+// small multiple; every variable it reports changed, and no other, moved.
+TEST(SparseCholesky, SolveChangeCarriesTheSolutionOverUpdates) {
+  for (double threshold : {0.0, 1e-6}) {
+    SCOPED_TRACE(threshold);
+    std::mt19937_64 rng(7);
+    const int n = 60;
+    Eigen::MatrixXd A = RandomSpd(n, &rng);
+    SparseCholesky L;
+    ASSERT_TRUE(L.Factorize(Sparse(A), 12).ok());
+    Eigen::VectorXd b = Eigen::VectorXd::Random(n);
+    Eigen::VectorXd x = A.ldlt().solve(b);
+    int dim = n;
+    for (int step = 0; step < 4; ++step) {
+      // An update on an old variable, the last one and (from step 1) two new ones, and a
+      // change of b on those rows.
+      std::vector<int> rows = {step * 7, dim - 1};
+      const int added = step == 0 ? 0 : 2;
+      for (int a = 0; a < added; ++a) rows.push_back(dim + a);
+      const Eigen::MatrixXd W = Eigen::MatrixXd::Random(static_cast<int>(rows.size()), 3);
+      const Eigen::MatrixXd grown = Grown(A, added, rows, W);
+      Eigen::VectorXd b_new = Eigen::VectorXd::Zero(dim + added);
+      b_new.head(dim) = b;
+      Eigen::VectorXd delta_b = Eigen::VectorXd::Random(static_cast<int>(rows.size()));
+      for (size_t r = 0; r < rows.size(); ++r) b_new[rows[r]] += delta_b[static_cast<Eigen::Index>(r)];
+      ASSERT_TRUE(L.Update(dim + added, rows, W).ok());
+      Eigen::VectorXd x_before = Eigen::VectorXd::Zero(dim + added);
+      x_before.head(dim) = x;
+      const Eigen::VectorXd residual = b_new - grown * x_before;
+      Eigen::VectorXd r_local(static_cast<int>(rows.size()));
+      for (size_t r = 0; r < rows.size(); ++r) r_local[static_cast<Eigen::Index>(r)] = residual[rows[r]];
+      // The residual is zero off the update's rows (x solved the system before).
+      for (int i = 0; i < dim + added; ++i) {
+        if (std::find(rows.begin(), rows.end(), i) == rows.end()) EXPECT_NEAR(residual[i], 0.0, 1e-9);
+      }
+      x = x_before;
+      std::vector<int> changed;
+      L.SolveChange(rows, r_local, threshold, &x, &changed);
+      const Eigen::VectorXd exact = grown.ldlt().solve(b_new);
+      const double tolerance = threshold == 0.0 ? 1e-9 : 1e3 * threshold;
+      EXPECT_LT((x - exact).cwiseAbs().maxCoeff(), tolerance) << "step " << step;
+      for (int i = 0; i < dim + added; ++i) {
+        const bool reported = std::find(changed.begin(), changed.end(), i) != changed.end();
+        if (!reported) EXPECT_EQ(x[i], x_before[i]) << i;
+      }
+      A = grown;
+      b = b_new;
+      dim += added;
+      if (threshold == 0.0) x = exact;  // the next step starts from the exact solution
+    }
+  }
 }
 
 // A 2-D grid of side × side variables, each linked to its right and lower neighbours

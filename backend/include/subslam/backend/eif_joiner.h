@@ -166,6 +166,23 @@ struct EifJoinerOptions {
   // rises in a row end a relinearisation at its best iterate (counter
   // relinearizations_diverged); 1 is monotone Gauss-Newton, 0 never stops on the cost.
   int divergence_rises = 2;
+  // State recovery after an incremental update (beyond the papers): instead of solving
+  // Λx = η afresh, the change the new factor makes is carried from its variables — a
+  // forward solve along the elimination-tree paths from them (exact), then a back
+  // substitution that goes down the tree only while the change exceeds this [m, rad]
+  // (SparseCholesky::SolveChange; iSAM2's partial state update). A join that extends the
+  // map moves nothing far behind it, so the join costs about its own size instead of the
+  // whole map's; only the factors on moved variables are tested by the relinearisation
+  // trigger. The changes left out are each below this; they are made good by the exact
+  // solves: at every full factorisation and relinearisation, at Finish(), and at the
+  // guarded joins (below). 0: every join solves Λx = η afresh and the trigger tests every
+  // factor.
+  // The guard on the updated factor (Λx = η, or refactorise) runs after the 1st, 2nd,
+  // 4th, … update since the last full factorisation, with an exact solve: a broken update
+  // (CHOLMOD's rank update keeps a positive definite factor, so this is a belt-and-braces
+  // check) is still caught while the factor lives, at O(N log N) in all instead of O(N)
+  // per join.
+  double recovery_change_threshold = 1e-9;
   // Factorisation: each join updates the sparse LDLᵀ factor of Λ by the new factor's
   // rank-(3+2n) update (CHOLMOD update/downdate; new variables last in the ordering)
   // instead of refactorising Λ; a full factorisation (with a fresh ordering) is done
@@ -311,8 +328,12 @@ class EifJoiner final : public MapJoiner {
   double LinearizationError(const Factor& f) const;
   // Its error before whitening, e (3 + 2n; the heading row 0).
   void UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const;
-  // Whether some factor's is above chi2 (most factors settled by a bound, without it).
+  // Whether some factor's is above chi2 (most factors settled by a bound, without it):
+  // every factor after an exact solve, else the factors on the variables the last
+  // partial recovery moved.
   bool LinearizationErrorAbove(double chi2) const;
+  // factors_of_row_ from every factor, when not valid.
+  void EnsureFactorsOfRow() const;
   // The headings and levers of the factor's linearisation at (start, end) and the
   // current landmarks.
   void RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const;
@@ -408,6 +429,16 @@ class EifJoiner final : public MapJoiner {
   mutable std::vector<int> lambda_slots_;
   mutable std::vector<int> lambda_slot_offsets_;
   Eigen::VectorXd eta_;
+  // Per state row, the factors on it (valid while factors_of_row_valid_); the rows the
+  // last partial recovery moved (changed_all_: the last solve was exact — all of them);
+  // incremental updates since the last full factorisation (the guard's schedule).
+  mutable std::vector<std::vector<int>> factors_of_row_;
+  mutable bool factors_of_row_valid_ = false;
+  mutable std::vector<int> candidate_stamp_;  // LinearizationErrorAbove()'s factors seen, by walk
+  mutable int candidate_walks_ = 0;
+  std::vector<int> changed_rows_;
+  bool changed_all_ = true;
+  long updates_since_factorization_ = 0;
   struct Solver;
   std::unique_ptr<Solver> solver_;
   SubmapAssociator associator_;

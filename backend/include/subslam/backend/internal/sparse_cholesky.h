@@ -63,6 +63,18 @@ class SparseCholesky {
   absl::Status Update(int new_dim, const std::vector<int>& rows, const Eigen::MatrixXd& W);
   // A⁻¹ B for B with dim() rows.
   Eigen::MatrixXd Solve(const Eigen::MatrixXd& B) const;
+  // Carries a solution over a change of the system: `x` (dim() entries; the solution of
+  // the system before, new variables at 0) becomes x + Δx with A Δx = r, where r, the new
+  // right-hand side minus A x, is non-zero on the variables `rows` only (r_local, in that
+  // order). The forward solve runs over the elimination-tree paths from those rows to the
+  // root alone (exact); the back substitution runs from the roots down and enters a
+  // column only on those paths or below a parent whose change exceeds `threshold`: where
+  // a change dies out, the columns under it are left as they are (the "wildfire" of
+  // iSAM2's partial state update; threshold 0 carries every change that is not exactly
+  // zero). Appends the variables whose value changed to `changed`. Work: the paths, the
+  // columns entered, and one pass over the elimination tree's parents.
+  void SolveChange(const std::vector<int>& rows, const Eigen::VectorXd& r_local, double threshold,
+                   Eigen::VectorXd* x, std::vector<int>* changed) const;
   // The block of A⁻¹ on the listed variables (rows and columns in the listed order):
   // with P A Pᵀ = L D Lᵀ, (A⁻¹)_SS = Yᵀ D⁻¹ Y for Y = L⁻¹ P E_S, each column of Y by a
   // forward solve limited to the reach of its unit right-hand side — the elimination-tree
@@ -198,8 +210,9 @@ class SparseCholesky {
   const SelectedInverse& Selected() const;
   // Drops what was computed from the factor (forward columns, the selected inverse — a few
   // arrays of nnz(L) entries, kept until the factor changes — and the parents); called
-  // before the factor changes, so an error part-way leaves nothing stale.
-  void InvalidateCaches(int capacity);
+  // before the factor changes, so an error part-way leaves nothing stale. An update keeps
+  // the parents it does not change (RefreshParentsFrom renews the others).
+  void InvalidateCaches(int capacity, bool keep_parents = false);
   // Z at factor positions (a, b) if it lies on L's pattern.
   std::optional<double> SelectedEntry(int a, int b) const;
   mutable std::optional<SelectedInverse> selected_;
@@ -218,8 +231,13 @@ class SparseCholesky {
   // all −1 between uses.
   mutable std::vector<int> path_index_;
   // Column j's parent in the elimination tree (its smallest row; −1 at a root), found on
-  // first use after the factor last changed (−2: not yet).
+  // first use after a factorisation (−2: not yet); an update refreshes the columns it
+  // changed (the paths from its rows to the root), the others keep theirs.
   int Parent(int j) const;
+  // Also checks those columns' pivots: false if one is not positive.
+  bool RefreshParentsFrom(const std::vector<int>& positions);
+  mutable std::vector<double> change_workspace_;  // SolveChange(): all zero between calls
+  mutable std::vector<char> change_live_;
   mutable std::vector<int> parent_;
   mutable std::vector<int> back_stamp_;  // InverseColumnsAt(): positions on a requested path
   mutable int back_walks_ = 0;
