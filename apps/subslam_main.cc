@@ -92,6 +92,8 @@ ABSL_FLAG(std::string, initial, "dead-reckoning",
           "solve: start from dead-reckoning | file (the file's vertex estimates)");
 ABSL_FLAG(int, poses_per_map, subslam::pipeline::SolveOptions{}.poses_per_map,
           "solve: poses per local map of the submap route (methods submaps, submaps-lm)");
+ABSL_FLAG(bool, write_local_maps, false,
+          "solve: also write the submap routes' local maps (METHOD_submaps.jsonl) for `subslam join`");
 ABSL_FLAG(bool, progress, true, "show a progress line on a terminal");
 ABSL_FLAG(bool, quiet, false, "do not print the summary table");
 
@@ -268,6 +270,7 @@ int Solve() {
   options.ceres.loss = backend->ceres.loss;
   options.ceres.loss_scale = backend->ceres.loss_scale;
   options.out_dir = absl::GetFlag(FLAGS_out);
+  options.write_local_maps = absl::GetFlag(FLAGS_write_local_maps);
   const subslam::posegraph::NoiseConvention noise =
       read.noise.value_or(subslam::posegraph::DefaultNoise(*read.format));
   options.source = {{"file", path},

@@ -10,6 +10,7 @@
 #include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
 #include "subslam/io/run_output_writer.h"
+#include "subslam/io/submaps_jsonl.h"
 #include "subslam/posegraph/batch_solver.h"
 #include "subslam/posegraph/graph_format.h"
 #include "subslam/posegraph/submap_route.h"
@@ -61,7 +62,7 @@ nlohmann::json RouteDetails(const posegraph::SubmapRouteReport& r) {
 
 // One method on its own copy of the graph, started at `start`.
 SolveMethodResult RunMethod(const std::string& name, const posegraph::PoseGraph& start, const SolveOptions& options,
-                            posegraph::PoseGraph* solution) {
+                            posegraph::PoseGraph* solution, std::vector<LocalSubmap>* local_maps) {
   SolveMethodResult m;
   m.name = name;
   *solution = start;
@@ -81,7 +82,7 @@ SolveMethodResult RunMethod(const std::string& name, const posegraph::PoseGraph&
     posegraph::SubmapRouteOptions route;
     route.poses_per_map = name == "eif" ? 1 : options.poses_per_map;
     route.eif = options.eif;
-    auto r = posegraph::SolveBySubmaps(solution, route);
+    auto r = posegraph::SolveBySubmaps(solution, route, local_maps);
     status = r.status();
     if (r.ok()) {
       m.iterations = static_cast<int>(r->counters.relinearizations);
@@ -152,7 +153,12 @@ absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const So
   nlohmann::json entries = nlohmann::json::array();
   for (const std::string& name : methods) {
     posegraph::PoseGraph solution;
-    SolveMethodResult m = RunMethod(name, start, options, &solution);
+    std::vector<LocalSubmap> local_maps;
+    SolveMethodResult m = RunMethod(name, start, options, &solution, options.write_local_maps ? &local_maps : nullptr);
+    if (m.status == "ok" && !options.out_dir.empty() && !local_maps.empty()) {
+      const std::string path = (std::filesystem::path(options.out_dir) / (name + "_submaps.jsonl")).string();
+      if (absl::Status s = io::WriteSubmapsJsonl(path, local_maps); !s.ok()) return s;
+    }
     if (m.status == "ok" && !options.out_dir.empty()) {
       posegraph::GraphWriteOptions write;
       write.format = posegraph::GraphFormat::kG2o;

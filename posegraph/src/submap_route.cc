@@ -230,7 +230,8 @@ absl::Status SubmapRouteOptions::Validate() const {
   return eif.Validate();
 }
 
-absl::StatusOr<SubmapRouteReport> SolveBySubmaps(PoseGraph* graph, const SubmapRouteOptions& options) {
+absl::StatusOr<SubmapRouteReport> SolveBySubmaps(PoseGraph* graph, const SubmapRouteOptions& options,
+                                                 std::vector<LocalSubmap>* local_maps) {
   if (absl::Status s = options.Validate(); !s.ok()) return s;
   if (absl::Status s = graph->Validate(); !s.ok()) return s;
   if (absl::Status s = CheckRouteApplies(*graph); !s.ok()) return s;
@@ -294,6 +295,10 @@ absl::StatusOr<SubmapRouteReport> SolveBySubmaps(PoseGraph* graph, const SubmapR
       graph->poses[runs[k].first + 1 + i].estimate = Compose(anchor, Pose2::FromVector(local));
     }
     graph->poses[runs[k].last].estimate = joined.anchors()[f.end_anchor];
+  }
+  if (local_maps != nullptr) {
+    local_maps->clear();
+    for (RunSolution& solution : solutions) local_maps->push_back(std::move(solution.submap));
   }
   for (PoseVertex& p : graph->poses) p.has_estimate = true;
   for (PointVertex& p : graph->points) p.has_estimate = true;

@@ -14,7 +14,7 @@
 //
 // Outputs (SolveOptions::out_dir, when set): METHOD.g2o per method that ran (the graph
 // with its solution; bearing-range measurements as Cartesian sightings, which g2o's
-// format needs), and report.json: the graph's counts and reading, the start's error, and
+// format needs), METHOD_submaps.jsonl for the submap routes when asked, and report.json: the graph's counts and reading, the start's error, and
 // under `methods` one entry per method — name, status ("ok" or why it did not run),
 // error (½ Σ rᵀΩr), chi2 (Σ rᵀΩr), iterations, seconds, peak_rss_mb, and what the method
 // reports beyond (Ceres's termination, the route's local maps and stage times).
@@ -49,6 +49,9 @@ struct SolveOptions {
   }();
   backend::EifJoinerOptions eif;
   std::string out_dir;  // empty: write nothing
+  // Also write the submap routes' local maps (METHOD_submaps.jsonl in out_dir), so that
+  // other back-ends join the same maps (`subslam join --known_association`).
+  bool write_local_maps = false;
   // What the report says the graph is (file, format, noise reading).
   nlohmann::json source;
 };

@@ -46,9 +46,12 @@ struct SubmapRouteReport {
   std::map<std::string, double> stage_times;  // the EIF's, per stage
 };
 
-// Sets every vertex estimate of `graph` (headings wrapped). Errors: a graph the route
-// does not apply to (see above), an invalid graph, a run whose Gauss-Newton fails.
-absl::StatusOr<SubmapRouteReport> SolveBySubmaps(PoseGraph* graph, const SubmapRouteOptions& options);
+// Sets every vertex estimate of `graph` (headings wrapped); `local_maps`, when given,
+// receives the local maps as they were joined (features carry the graph's point index as
+// truth_id, so `subslam join --known_association` joins them again). Errors: a graph the
+// route does not apply to (see above), an invalid graph, a run whose Gauss-Newton fails.
+absl::StatusOr<SubmapRouteReport> SolveBySubmaps(PoseGraph* graph, const SubmapRouteOptions& options,
+                                                 std::vector<LocalSubmap>* local_maps = nullptr);
 
 }  // namespace subslam::posegraph
 
