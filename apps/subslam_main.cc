@@ -31,6 +31,7 @@
 #include "subslam/pipeline/join_pipeline.h"
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/pipeline/solve_pipeline.h"
+#include "subslam/posegraph/dataset_graph.h"
 #include "subslam/posegraph/graph_format.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/io/dataset_reader.h"
@@ -137,7 +138,9 @@ int Simulate() {
   subslam::io::SimulationInfo info{name, options.seed, config->detection_probability,
                                    config->false_alarm_probability};
   if (auto s = subslam::io::WriteDataset(*dataset, out, &info); !s.ok()) return Fail(s);
-  std::printf("wrote %s: %zu controls, %zu scans, %zu detections, %zu landmarks -> %s\n",
+  // The known-association graph beside it, in every graph format (docs/formats.md).
+  if (auto s = subslam::posegraph::WriteDatasetGraphs(*dataset, out); !s.ok()) return Fail(s);
+  std::printf("wrote %s: %zu controls, %zu scans, %zu detections, %zu landmarks -> %s (and graph.{isam,g2o,toro})\n",
               name.c_str(), dataset->controls.size(), dataset->scans.size(),
               dataset->NumDetections(), dataset->truth_landmarks.size(), out.c_str());
   return 0;

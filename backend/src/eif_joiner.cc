@@ -409,7 +409,7 @@ EifJoiner::EifJoiner(const EifJoiner& other)
   // ordering that has switched to nested dissection stays switched).
   solver_->factor.AdoptOrderingChoice(other.solver_->factor);
   if (other.solver_->factor.ready()) {
-    SUBSLAM_CHECK(solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering).ok())
+    SUBSLAM_CHECK(solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering, LastAnchorVariables()).ok())
         << "refactorising a copy failed";
   }
 }

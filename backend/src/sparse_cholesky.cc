@@ -72,7 +72,7 @@ SparseCholesky::~SparseCholesky() {
 }
 
 absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int spare,
-                                       FillReducingOrdering ordering) {
+                                       FillReducingOrdering ordering, const std::vector<int>& last) {
   // The lower triangle of A, column by column (Eigen keeps each column's rows sorted).
   SparseLowerTriangle lower;
   lower.n = static_cast<int>(A.rows());
@@ -86,16 +86,16 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
     }
     lower.p.push_back(static_cast<int>(lower.i.size()));
   }
-  return Factorize(lower, spare, ordering);
+  return Factorize(lower, spare, ordering, last);
 }
 
 absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::Analyse(FillReducingOrdering ordering, cholmod_sparse* a,
-                                                                  cholmod_sparse* all) {
+                                                                  cholmod_sparse* all, const std::vector<int>& last) {
   const int n = static_cast<int>(a->ncol);
   std::vector<int> perm(all->ncol);
   Analysis analysis;
   if (n > 0) {
-    absl::StatusOr<FillReducingOrdering> used = Order(ordering, a, perm.data());
+    absl::StatusOr<FillReducingOrdering> used = Order(ordering, a, perm.data(), last);
     if (!used.ok()) return used.status();
     analysis.ordering = *used;
   }
@@ -106,14 +106,15 @@ absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::Analyse(FillReducingOrd
   return analysis;
 }
 
-absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::AnalyseAutomatically(cholmod_sparse* a, cholmod_sparse* all) {
+absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::AnalyseAutomatically(cholmod_sparse* a, cholmod_sparse* all,
+                                                                              const std::vector<int>& last) {
   if (automatic_chose_nested_) {
-    absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, a, all);
+    absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, a, all, last);
     if (nested.ok()) return nested;
     common_->status = CHOLMOD_OK;  // METIS failed: AMD instead
-    return Analyse(FillReducingOrdering::kAmd, a, all);
+    return Analyse(FillReducingOrdering::kAmd, a, all, last);
   }
-  absl::StatusOr<Analysis> amd = Analyse(FillReducingOrdering::kAmd, a, all);
+  absl::StatusOr<Analysis> amd = Analyse(FillReducingOrdering::kAmd, a, all, last);
   const double entries = static_cast<double>(static_cast<const int*>(a->p)[a->ncol]);
   if (!amd.ok() || nested_dissection_unavailable_ || entries == 0 ||
       amd->flops < kNestedDissectionMinFlopsPerEntry * entries) {
@@ -122,7 +123,7 @@ absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::AnalyseAutomatically(ch
   // AMD's factor is costly: nested dissection from here on. Its own flops are not
   // compared: where they are a little higher, its balanced tree still shortens the
   // updates' paths. (If METIS fails, AMD's analysis stands.)
-  absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, a, all);
+  absl::StatusOr<Analysis> nested = Analyse(FillReducingOrdering::kNestedDissection, a, all, last);
   if (!nested.ok() || nested->ordering != FillReducingOrdering::kNestedDissection) {
     if (nested.ok()) cholmod_free_factor(&nested->symbolic, common_);
     common_->status = CHOLMOD_OK;
@@ -134,7 +135,8 @@ absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::AnalyseAutomatically(ch
 }
 
 absl::StatusOr<FillReducingOrdering> SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse* a,
-                                                           int* perm) {
+                                                           int* perm, const std::vector<int>& last) {
+  const int n = static_cast<int>(a->ncol);
   if (ordering == FillReducingOrdering::kNestedDissection) {
     int ok = 0;
     {
@@ -144,19 +146,42 @@ absl::StatusOr<FillReducingOrdering> SparseCholesky::Order(FillReducingOrdering 
       std::lock_guard<std::mutex> lock(metis_mutex);
       ok = cholmod_metis(a, nullptr, 0, /*postorder=*/1, perm, common_);
     }
-    if (ok) return FillReducingOrdering::kNestedDissection;
+    if (ok) {
+      // The `last` variables moved to the end, the others in METIS's order.
+      std::vector<char> is_last(n, 0);
+      for (int v : last) is_last[v] = 1;
+      std::stable_partition(perm, perm + n, [&](int v) { return !is_last[v]; });
+      return FillReducingOrdering::kNestedDissection;
+    }
     if (common_->status != CHOLMOD_NOT_INSTALLED) {
       return absl::InternalError("CHOLMOD: nested-dissection (METIS) ordering failed");
     }
     common_->status = CHOLMOD_OK;
     nested_dissection_unavailable_ = true;
   }
-  if (!cholmod_amd(a, nullptr, 0, perm, common_)) return absl::InternalError("CHOLMOD: AMD ordering failed");
+  if (last.empty()) {
+    if (!cholmod_amd(a, nullptr, 0, perm, common_)) return absl::InternalError("CHOLMOD: AMD ordering failed");
+    return FillReducingOrdering::kAmd;
+  }
+  // Constrained minimum degree: set 0 first, the `last` variables (set 1) after it.
+  std::vector<int> member(n, 0);
+  for (int v : last) member[v] = 1;
+  if (!cholmod_camd(a, nullptr, 0, member.data(), perm, common_)) {
+    return absl::InternalError("CHOLMOD: constrained AMD ordering failed");
+  }
   return FillReducingOrdering::kAmd;
 }
 
-absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, FillReducingOrdering ordering) {
+absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, FillReducingOrdering ordering,
+                                       const std::vector<int>& last_variables) {
   const int n = A.n;
+  std::vector<int> last;
+  for (int v : last_variables) {
+    if (v < 0 || v >= n) return absl::InvalidArgumentError(absl::StrCat("Factorize: variable ", v, " out of range"));
+    last.push_back(v);
+  }
+  std::sort(last.begin(), last.end());
+  last.erase(std::unique(last.begin(), last.end()), last.end());
   if (static_cast<int>(A.p.size()) != n + 1 || A.p[0] != 0 || static_cast<size_t>(A.p[n]) != A.i.size() ||
       A.i.size() != A.x.size()) {
     return absl::InvalidArgumentError("Factorize: malformed lower triangle");
@@ -197,7 +222,7 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
   // iterations relinearise the same factors — a copy of that analysis is factorised again.
   // (p's length is capacity + 1, so equal p means equal spare slots too.)
   const bool same_pattern = symbolic_ != nullptr && n == analysed_n_ && ordering == analysed_ordering_ &&
-                            p == analysed_p_ && i == analysed_i_;
+                            p == analysed_p_ && i == analysed_i_ && last == analysed_last_;
   if (same_pattern) {
     factor_ = cholmod_copy_factor(symbolic_, common_);
     if (factor_ == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
@@ -206,8 +231,8 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
     analysed_n_ = -1;  // until the new analysis exists
     cholmod_sparse a = View(p, i, x, n, n);
     absl::StatusOr<Analysis> analysis = ordering == FillReducingOrdering::kAmdOrNestedDissection
-                                            ? AnalyseAutomatically(&a, &all)
-                                            : Analyse(ordering, &a, &all);
+                                            ? AnalyseAutomatically(&a, &all, last)
+                                            : Analyse(ordering, &a, &all, last);
     if (!analysis.ok()) return analysis.status();
     symbolic_ = analysis->symbolic;
     analysed_with_ = analysis->ordering;
@@ -216,6 +241,7 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
     analysed_ordering_ = ordering;
     analysed_p_ = p;
     analysed_i_ = i;
+    analysed_last_ = last;
     factor_ = cholmod_copy_factor(symbolic_, common_);
     if (factor_ == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
   }

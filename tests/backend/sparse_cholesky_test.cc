@@ -285,7 +285,9 @@ TEST(SparseCholesky, SolveChangeCarriesTheSolutionOverUpdates) {
       for (size_t r = 0; r < rows.size(); ++r) r_local[static_cast<Eigen::Index>(r)] = residual[rows[r]];
       // The residual is zero off the update's rows (x solved the system before).
       for (int i = 0; i < dim + added; ++i) {
-        if (std::find(rows.begin(), rows.end(), i) == rows.end()) EXPECT_NEAR(residual[i], 0.0, 1e-9);
+        if (std::find(rows.begin(), rows.end(), i) == rows.end()) {
+          EXPECT_NEAR(residual[i], 0.0, 1e-9);
+        }
       }
       x = x_before;
       std::vector<int> changed;
@@ -295,7 +297,9 @@ TEST(SparseCholesky, SolveChangeCarriesTheSolutionOverUpdates) {
       EXPECT_LT((x - exact).cwiseAbs().maxCoeff(), tolerance) << "step " << step;
       for (int i = 0; i < dim + added; ++i) {
         const bool reported = std::find(changed.begin(), changed.end(), i) != changed.end();
-        if (!reported) EXPECT_EQ(x[i], x_before[i]) << i;
+        if (!reported) {
+          EXPECT_EQ(x[i], x_before[i]) << i;
+        }
       }
       A = grown;
       b = b_new;
@@ -303,6 +307,34 @@ TEST(SparseCholesky, SolveChangeCarriesTheSolutionOverUpdates) {
       if (threshold == 0.0) x = exact;  // the next step starts from the exact solution
     }
   }
+}
+
+// A chain's end variable ordered last: extending the chain from it (an update on it and
+// a new variable) fills no column on the way, where minimum degree alone eliminates the
+// end of a path first and the update fills a column per variable on its path to the root.
+TEST(SparseCholesky, VariablesOrderedLastKeepAnExtendingUpdateCheap) {
+  const int n = 400;
+  Eigen::MatrixXd A = 2.0 * Eigen::MatrixXd::Identity(n, n);
+  for (int i = 0; i + 1 < n; ++i) A(i, i + 1) = A(i + 1, i) = -0.9;
+  const std::vector<int> rows = {n - 1, n};
+  const Eigen::MatrixXd W = (Eigen::MatrixXd(2, 2) << 1.0, 0.3, -1.0, 0.7).finished();
+  const Eigen::MatrixXd grown = Grown(A, 1, rows, W);
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(n + 1, -1.0, 1.0);
+  for (FillReducingOrdering ordering : {FillReducingOrdering::kAmd, FillReducingOrdering::kNestedDissection}) {
+    SparseCholesky constrained, free;
+    ASSERT_TRUE(constrained.Factorize(Sparse(A), 4, ordering, {n - 1}).ok());
+    ASSERT_TRUE(free.Factorize(Sparse(A), 4, ordering).ok());
+    ASSERT_TRUE(constrained.Update(n + 1, rows, W).ok());
+    ASSERT_TRUE(free.Update(n + 1, rows, W).ok());
+    EXPECT_LE(constrained.nonzeros() - constrained.nonzeros_after_factorize(), 3);
+    if (ordering == FillReducingOrdering::kAmd) {  // minimum degree puts a path's end first
+      EXPECT_GT(free.nonzeros() - free.nonzeros_after_factorize(), 100);
+    }
+    EXPECT_TRUE(MatricesNear(grown.ldlt().solve(b), constrained.Solve(b), 1e-9));
+    EXPECT_TRUE(MatricesNear(grown.ldlt().solve(b), free.Solve(b), 1e-9));
+  }
+  SparseCholesky bad;
+  EXPECT_FALSE(bad.Factorize(Sparse(A), 4, FillReducingOrdering::kAmd, {n}).ok());
 }
 
 // A 2-D grid of side × side variables, each linked to its right and lower neighbours

@@ -332,6 +332,9 @@ class EifJoiner final : public MapJoiner {
   // every factor after an exact solve, else the factors on the variables the last
   // partial recovery moved.
   bool LinearizationErrorAbove(double chi2) const;
+  // The last anchor's state rows, which a full factorisation orders last (the next join
+  // starts there); none before the first join.
+  std::vector<int> LastAnchorVariables() const;
   // factors_of_row_ from every factor, when not valid.
   void EnsureFactorsOfRow() const;
   // The headings and levers of the factor's linearisation at (start, end) and the

@@ -50,13 +50,19 @@ class SparseCholesky {
   // analysis (ordering, elimination tree, column counts) is redone only when A's pattern
   // (or n, or spare, or the ordering asked for) differs from the last analysed one;
   // otherwise it is reused, with the same result.
+  // `last`: variables the ordering puts after all others (before the spare slots) — the
+  // ones the next updates will touch, so that their elimination-tree paths are short
+  // (iSAM2 constrains its ordering the same way): CAMD's constrained minimum degree, or
+  // nested dissection's order with them moved to its end.
   absl::Status Factorize(const Eigen::SparseMatrix<double>& A, int spare,
-                         FillReducingOrdering ordering = FillReducingOrdering::kAmd);
+                         FillReducingOrdering ordering = FillReducingOrdering::kAmd,
+                         const std::vector<int>& last = {});
   // The same from A's lower triangle as it is stored. A malformed A (sizes, columns'
   // ranges, rows unsorted or above the diagonal) is rejected before anything changes:
   // the previous factor stays.
   absl::Status Factorize(const SparseLowerTriangle& A, int spare,
-                         FillReducingOrdering ordering = FillReducingOrdering::kAmd);
+                         FillReducingOrdering ordering = FillReducingOrdering::kAmd,
+                         const std::vector<int>& last = {});
   // A += W Wᵀ, where row r of W belongs to variable rows[r]; variables numbered from dim()
   // up to new_dim − 1 are new and claim spare slots (their identity is removed).
   // Requires new_dim ≤ capacity().
@@ -153,12 +159,13 @@ class SparseCholesky {
   double symbolic_flops_ = 0.0;
   // kAmdOrNestedDissection has switched to nested dissection (for good).
   bool automatic_chose_nested_ = false;
-  std::vector<int> analysed_p_, analysed_i_;
+  std::vector<int> analysed_p_, analysed_i_, analysed_last_;
   bool nested_dissection_unavailable_ = false;
   // The fill-reducing permutation of A's n × n lower triangle `a` into perm[0, n).
   // (kAmd or kNestedDissection only.) Returns the ordering used: AMD where METIS is not
   // installed.
-  absl::StatusOr<FillReducingOrdering> Order(FillReducingOrdering ordering, cholmod_sparse_struct* a, int* perm);
+  absl::StatusOr<FillReducingOrdering> Order(FillReducingOrdering ordering, cholmod_sparse_struct* a, int* perm,
+                                             const std::vector<int>& last);
   // The symbolic analysis of `all` (A's lower triangle `a`, then the spare slots) with
   // A ordered by `ordering` (kAmd or kNestedDissection) and the spare slots last.
   struct Analysis {
@@ -167,11 +174,12 @@ class SparseCholesky {
     double flops = 0.0;                         // of a numeric factorisation
   };
   absl::StatusOr<Analysis> Analyse(FillReducingOrdering ordering, cholmod_sparse_struct* a,
-                                   cholmod_sparse_struct* all);
+                                   cholmod_sparse_struct* all, const std::vector<int>& last);
   // kAmdOrNestedDissection's analysis: nested dissection once switched (AMD if METIS
   // fails); before, AMD's, or nested dissection's when AMD's costs at least
   // kNestedDissectionMinFlopsPerEntry per entry of `a` (the switch).
-  absl::StatusOr<Analysis> AnalyseAutomatically(cholmod_sparse_struct* a, cholmod_sparse_struct* all);
+  absl::StatusOr<Analysis> AnalyseAutomatically(cholmod_sparse_struct* a, cholmod_sparse_struct* all,
+                                                const std::vector<int>& last);
   std::vector<int> lower_p_, lower_i_;
   std::vector<double> lower_x_;
   long symbolic_reuses_ = 0;
