@@ -1,0 +1,86 @@
+#include "subslam/posegraph/dataset_graph.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <filesystem>
+#include <set>
+
+#include "subslam/io/dataset_reader.h"
+#include "subslam/io/internal/text_table.h"
+#include "subslam/posegraph/graph_format.h"
+
+namespace subslam::posegraph {
+namespace {
+
+// The simulated data set in tests/data (hybrid-120m's first 60 s: detections carry ids).
+io::Dataset TestDataset() {
+  auto d = io::ReadDataset(std::string(SUBSLAM_SOURCE_DIR) + "/tests/data/hybrid_60s");
+  EXPECT_TRUE(d.ok()) << d.status();
+  return *d;
+}
+
+TEST(DatasetGraph, HoldsAPosePerScanAndASightingPerIdentifiedDetection) {
+  const io::Dataset dataset = TestDataset();
+  auto g = GraphFromDataset(dataset, SightingForm::kBearingRange);
+  ASSERT_TRUE(g.ok()) << g.status();
+  size_t sightings = 0;
+  std::set<int> ids;
+  for (const Scan& scan : dataset.scans) {
+    for (const Detection& d : scan.detections) {
+      if (d.truth_id < 0) continue;
+      ++sightings;
+      ids.insert(d.truth_id);
+    }
+  }
+  EXPECT_EQ(g->poses.size(), dataset.scans.size());
+  EXPECT_EQ(g->odometry.size(), dataset.scans.size() - 1);
+  EXPECT_EQ(g->points.size(), ids.size());
+  EXPECT_EQ(g->bearing_range_measurements.size(), sightings);
+  EXPECT_EQ(g->points[0].id, kLandmarkIdOffset + dataset.scans[0].detections[0].truth_id);
+  EXPECT_TRUE(g->Validate().ok());
+  // Every odometry information is positive definite and no sharper across than the floor allows.
+  for (const OdometryMeasurement& m : g->odometry) {
+    const Eigen::Vector3d eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(m.information).eigenvalues();
+    ASSERT_GT(eigenvalues.minCoeff(), 0.0);
+    EXPECT_LE(eigenvalues.maxCoeff() / eigenvalues.minCoeff(), (1.0 + 1.0 / kMinOdometryVarianceRatio) * (1.0 + 1e-9));
+  }
+  // The Cartesian form: the same sightings at the measured points.
+  auto points = GraphFromDataset(dataset, SightingForm::kPoint);
+  ASSERT_TRUE(points.ok());
+  ASSERT_EQ(points->point_measurements.size(), sightings);
+  const BearingRangeMeasurement& polar = g->bearing_range_measurements[0];
+  EXPECT_NEAR(points->point_measurements[0].z.norm(), polar.range, 1e-12);
+  // A data set without true ids has no graph.
+  io::Dataset anonymous = dataset;
+  for (Scan& scan : anonymous.scans) {
+    for (Detection& d : scan.detections) d.truth_id = kUnknownTruthId;
+  }
+  EXPECT_FALSE(GraphFromDataset(anonymous, SightingForm::kBearingRange).ok());
+}
+
+// What `subslam simulate` writes reads back, and written again gives the same bytes.
+TEST(DatasetGraph, WrittenGraphsRoundTripInEveryFormat) {
+  const std::string dir = ::testing::TempDir() + "/dataset_graphs";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  ASSERT_TRUE(WriteDatasetGraphs(TestDataset(), dir).ok());
+  for (const char* name : {"graph.isam", "graph.g2o", "graph.toro"}) {
+    SCOPED_TRACE(name);
+    const std::string path = dir + "/" + name;
+    auto g = ReadGraph(path);
+    ASSERT_TRUE(g.ok()) << g.status();
+    EXPECT_TRUE(g->Validate().ok());
+    EXPECT_TRUE(g->HasEstimates());
+    GraphWriteOptions write;
+    write.format = *GraphFormatFromPath(path);
+    auto again = FormatGraph(*g, write);
+    ASSERT_TRUE(again.ok()) << again.status();
+    auto original = subslam::internal::ReadFileToString(path);
+    ASSERT_TRUE(original.ok());
+    EXPECT_EQ(*again, *original);
+  }
+}
+
+}  // namespace
+}  // namespace subslam::posegraph
