@@ -78,7 +78,30 @@ TEST(DatasetGraph, WrittenGraphsRoundTripInEveryFormat) {
     ASSERT_TRUE(again.ok()) << again.status();
     auto original = subslam::internal::ReadFileToString(path);
     ASSERT_TRUE(original.ok());
-    EXPECT_EQ(*again, *original);
+    if (DefaultNoise(write.format) == NoiseConvention::kInformation) {
+      // Information as written: the same bytes (the first difference shown; files are long).
+      size_t at = 0;
+      while (at < again->size() && at < original->size() && (*again)[at] == (*original)[at]) ++at;
+      EXPECT_EQ(at, original->size()) << "differs at byte " << at << ": " << original->substr(at, 80);
+      EXPECT_EQ(again->size(), original->size());
+      continue;
+    }
+    // Square-root information goes through Ω = RᵀR and back: the same measurements, the
+    // same information to rounding.
+    auto back = ParseGraph(*again, "again", write.format);
+    ASSERT_TRUE(back.ok()) << back.status();
+    ASSERT_EQ(back->odometry.size(), g->odometry.size());
+    ASSERT_EQ(back->bearing_range_measurements.size(), g->bearing_range_measurements.size());
+    for (size_t e = 0; e < g->odometry.size(); ++e) {
+      ASSERT_EQ(back->odometry[e].z.vector(), g->odometry[e].z.vector());
+      const Eigen::Matrix3d& I = g->odometry[e].information;
+      ASSERT_LE((back->odometry[e].information - I).cwiseAbs().maxCoeff(), 1e-12 * I.cwiseAbs().maxCoeff()) << e;
+    }
+    for (size_t e = 0; e < g->bearing_range_measurements.size(); ++e) {
+      const BearingRangeMeasurement& m = g->bearing_range_measurements[e];
+      ASSERT_EQ(back->bearing_range_measurements[e].bearing, m.bearing);
+      ASSERT_EQ(back->bearing_range_measurements[e].range, m.range);
+    }
   }
 }
 
