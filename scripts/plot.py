@@ -3,7 +3,7 @@
 
   scripts/plot.py DIR [DIR ...] [--formats png,svg]     (or: subslam plot DIR ...)
 
-DIR is what `subslam run`, `subslam join` or `subslam study` wrote (docs/formats.md); the
+DIR is what `subslam run`, `subslam join`, `subslam solve` or `subslam study` wrote (docs/formats.md); the
 figures go into DIR/plots/, each as PNG and SVG:
 
   run    map          the map with 95 % ellipses over the true landmarks, the estimated
@@ -12,6 +12,9 @@ figures go into DIR/plots/, each as PNG and SVG:
          errors       position error over time, online and final
          joins        time per join (local-map front-ends with a back-end)
   join   map, joins   the anchors and the map, as for a run; time per join
+  solve  solutions    each method's solution (poses and points from METHOD.g2o), one panel
+                      per method; errors: each method's final error (½ Σ rᵀΩr, log scale)
+                      and time
   study  hybridslam:  success rate per method and setting with 95 % intervals and the paper's
                       figures (success)
          others:      ANEES against time with the χ² band for the number of runs (anees),
@@ -20,7 +23,7 @@ figures go into DIR/plots/, each as PNG and SVG:
                       the local maps joined, per method (join_times)
 
 Every landmark ellipse, curve and bar carries an SVG id (e.g. landmark-ellipse-7,
-anees-rbpf-eif), so that a figure's content can be checked, not only its existence.
+anees-rbpf-eif, solution-poses-lm), so that a figure's content can be checked, not only its existence.
 """
 import argparse
 import csv
@@ -182,6 +185,59 @@ def plot_join(d, out, formats):
     return save(fig, out, "map", formats) + draw_joins(d, out, formats, title)
 
 
+def read_g2o(path):
+    """The vertices of a g2o file: pose (x, y) and point (x, y) lists."""
+    poses, points = [], []
+    with open(path) as f:
+        for line in f:
+            fields = line.split()
+            if fields and fields[0] == "VERTEX_SE2":
+                poses.append((float(fields[2]), float(fields[3])))
+            elif fields and fields[0] == "VERTEX_XY":
+                points.append((float(fields[2]), float(fields[3])))
+    return poses, points
+
+
+def plot_solve(d, out, formats):
+    report = json.load(open(os.path.join(d, "report.json")))
+    methods = [m for m in report["methods"] if m["status"] == "ok"]
+    if not methods:
+        raise SystemExit(f"{d}: no method solved the graph")
+    graph = report.get("graph", {}).get("file", "")
+    columns = min(3, len(methods))
+    rows_ = (len(methods) + columns - 1) // columns
+    fig, axes = plt.subplots(rows_, columns, figsize=(4.2 * columns, 4.2 * rows_), squeeze=False)
+    for k, m in enumerate(methods):
+        ax = axes[k // columns][k % columns]
+        poses, points = read_g2o(os.path.join(d, f"{m['name']}.g2o"))
+        (line,) = ax.plot([p[0] for p in poses], [p[1] for p in poses], lw=0.5, color="tab:blue")
+        line.set_gid(f"solution-poses-{m['name']}")
+        if points:
+            dots = ax.scatter([p[0] for p in points], [p[1] for p in points], s=6, color="tab:red")
+            dots.set_gid(f"solution-points-{m['name']}")
+        ax.set_title(f"{m['name']}: error {m['error']:.6g}, {m['seconds']:.3g} s", fontsize=8)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.tick_params(labelsize=6)
+    for k in range(len(methods), rows_ * columns):
+        axes[k // columns][k % columns].axis("off")
+    fig.suptitle(f"subslam solve: {graph}", fontsize=9)
+    written = save(fig, out, "solutions", formats)
+    fig, (ax_error, ax_time) = plt.subplots(1, 2, figsize=(9, 3.5))
+    for k, m in enumerate(methods):
+        bar = ax_error.bar(k, m["error"], color=f"C{k}")
+        bar.patches[0].set_gid(f"error-{m['name']}")
+        bar = ax_time.bar(k, m["seconds"], color=f"C{k}")
+        bar.patches[0].set_gid(f"seconds-{m['name']}")
+    for ax, label in ((ax_error, "final error ½Σ rᵀΩr"), (ax_time, "time [s]")):
+        ax.set_xticks(range(len(methods)))
+        ax.set_xticklabels([m["name"] for m in methods], fontsize=7, rotation=30)
+        ax.set_yscale("log")
+        ax.set_ylabel(label, fontsize=8)
+        ax.grid(True, axis="y", lw=0.3)
+    fig.suptitle(f"subslam solve: {graph} (start: error {report['initial_error']:.6g})", fontsize=9)
+    return written + save(fig, out, "errors", formats)
+
+
 def setting_label(row, names):
     return ", ".join(f"{n} {row[n]:g}" for n in names)
 
@@ -340,12 +396,15 @@ def plot(d, formats):
         return plot_run(d, out, formats)
     if os.path.exists(os.path.join(d, "anchors.csv")):
         return plot_join(d, out, formats)
-    raise SystemExit(f"{d}: not an output directory of subslam run, join or study")
+    report = os.path.join(d, "report.json")
+    if os.path.exists(report) and json.load(open(report)).get("job") == "solve":
+        return plot_solve(d, out, formats)
+    raise SystemExit(f"{d}: not an output directory of subslam run, join, solve or study")
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("dirs", nargs="+", help="output directories of subslam run, join or study")
+    parser.add_argument("dirs", nargs="+", help="output directories of subslam run, join, solve or study")
     parser.add_argument("--formats", default="png,svg", help="comma-separated (default png,svg)")
     args = parser.parse_args()
     for d in args.dirs:

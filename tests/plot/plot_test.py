@@ -66,6 +66,19 @@ class PlotTest(unittest.TestCase):
         self.assertEqual(len([i for i in ids if i.startswith("landmark-ellipse-")]),
                          len(rows(os.path.join(join_dir, "landmarks.csv"))))
 
+    def test_solve_draws_each_solution_and_error(self):
+        sim = os.path.join(ARGS.work, "sim")
+        run(ARGS.tool, "simulate", "--scenario", "hybrid-120m", "--duration", "20", "--out", sim)
+        solve = os.path.join(ARGS.work, "solve")
+        run(ARGS.tool, "solve", "--graph", os.path.join(sim, "graph.isam"), "--methods", "lm,submaps-lm",
+            "--quiet", "--out", solve)
+        ids = svg_ids(os.path.join(solve, "plots", "solutions.svg"))
+        for method in ("lm", "submaps-lm"):
+            self.assertIn(f"solution-poses-{method}", ids)
+            self.assertIn(f"solution-points-{method}", ids)
+        errors = svg_ids(os.path.join(solve, "plots", "errors.svg"))
+        self.assertTrue({"error-lm", "error-submaps-lm", "seconds-lm", "seconds-submaps-lm"} <= errors, errors)
+
     def test_monte_carlo_study_has_one_curve_per_method_and_the_band(self):
         study = os.path.join(ARGS.work, "fmj")
         run(ARGS.tool, "study", "fmj", "--trials", "2", "--methods", "fmj,ekfslam", "--quiet", "--out", study)
