@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "subslam/backend/ceres_submap_cost.h"
+#include "subslam/backend/internal/ceres_options.h"
 
 namespace subslam::backend {
 
@@ -44,6 +45,31 @@ absl::Status CeresSolveOptions::Validate() const {
   return absl::OkStatus();
 }
 
+ceres::Solver::Options CeresSolverOptions(const CeresSolveOptions& options) {
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  o.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  o.minimizer_type = ceres::TRUST_REGION;
+  o.trust_region_strategy_type = options.method == CeresMethod::kDogleg ? ceres::DOGLEG : ceres::LEVENBERG_MARQUARDT;
+  if (options.method == CeresMethod::kGaussNewton) {
+    o.initial_trust_region_radius = 1e16;
+    o.max_trust_region_radius = 1e16;
+  }
+  o.max_num_iterations = options.max_iterations;
+  o.function_tolerance = options.function_tolerance;
+  o.gradient_tolerance = options.gradient_tolerance;
+  o.parameter_tolerance = options.parameter_tolerance;
+  o.num_threads = options.num_threads;
+  o.logging_type = ceres::SILENT;
+  return o;
+}
+
+ceres::LossFunction* NewRobustLoss(const CeresSolveOptions& options) {
+  if (options.loss == RobustLoss::kHuber) return new ceres::HuberLoss(options.loss_scale);
+  if (options.loss == RobustLoss::kCauchy) return new ceres::CauchyLoss(options.loss_scale);
+  return nullptr;
+}
+
 absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresSolveOptions& options,
                                                 const std::vector<int>& covariance_anchors,
                                                 std::vector<Eigen::Matrix3d>* anchor_covariances) {
@@ -69,29 +95,11 @@ absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresS
       if (it == distinct.end()) distinct.push_back(j);
     }
     for (int j : distinct) blocks.push_back(landmarks[j].data());
-    ceres::LossFunction* loss = nullptr;
-    if (options.loss == RobustLoss::kHuber) loss = new ceres::HuberLoss(options.loss_scale);
-    if (options.loss == RobustLoss::kCauchy) loss = new ceres::CauchyLoss(options.loss_scale);
-    problem.AddResidualBlock(new SubmapCostFunction(f.submap, block_of_feature), loss, blocks);
+    problem.AddResidualBlock(new SubmapCostFunction(f.submap, block_of_feature), NewRobustLoss(options), blocks);
   }
   if (problem.HasParameterBlock(anchors[0].data())) problem.SetParameterBlockConstant(anchors[0].data());
 
-  ceres::Solver::Options o;
-  o.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  o.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
-  o.minimizer_type = ceres::TRUST_REGION;
-  o.trust_region_strategy_type = options.method == CeresMethod::kDogleg ? ceres::DOGLEG
-                                                                         : ceres::LEVENBERG_MARQUARDT;
-  if (options.method == CeresMethod::kGaussNewton) {
-    o.initial_trust_region_radius = 1e16;
-    o.max_trust_region_radius = 1e16;
-  }
-  o.max_num_iterations = options.max_iterations;
-  o.function_tolerance = options.function_tolerance;
-  o.gradient_tolerance = options.gradient_tolerance;
-  o.parameter_tolerance = options.parameter_tolerance;
-  o.num_threads = options.num_threads;
-  o.logging_type = ceres::SILENT;
+  ceres::Solver::Options o = CeresSolverOptions(options);
   std::string why;
   if (!o.IsValid(&why)) return absl::InvalidArgumentError(absl::StrCat("Ceres options: ", why));
   ceres::Solver::Summary summary;

@@ -5,9 +5,11 @@
 #include <Eigen/Cholesky>
 #include <array>
 #include <memory>
+#include <type_traits>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "subslam/backend/internal/ceres_options.h"
 #include "subslam/posegraph/measurement_residuals.h"
 
 namespace subslam::posegraph {
@@ -44,15 +46,18 @@ class OdometryCost final : public ceres::SizedCostFunction<3, 3, 3> {
   Eigen::Matrix3d W_;
 };
 
-class PointCost final : public ceres::SizedCostFunction<2, 3, 2> {
+// A 2-D sighting (a Cartesian point or a bearing-range measurement) of a point from a
+// pose: `Residual` gives r and its Jacobians for the measurement held.
+template <typename Measurement>
+class SightingCost final : public ceres::SizedCostFunction<2, 3, 2> {
  public:
-  explicit PointCost(const PointMeasurement& m) : z_(m.z), W_(Whitener<2>(m.information)) {}
+  explicit SightingCost(const Measurement& m) : m_(m), W_(Whitener<2>(m.information)) {}
   bool Evaluate(double const* const* x, double* residuals, double** jacobians) const override {
     Matrix23d J_pose;
     Eigen::Matrix2d J_point;
     const bool want = jacobians != nullptr;
-    const Eigen::Vector2d r = PointResidual(z_, PoseOf(x[0]), Eigen::Vector2d(x[1][0], x[1][1]),
-                                            want ? &J_pose : nullptr, want ? &J_point : nullptr);
+    const Eigen::Vector2d r = Residual(PoseOf(x[0]), Eigen::Vector2d(x[1][0], x[1][1]), want ? &J_pose : nullptr,
+                                       want ? &J_point : nullptr);
     Eigen::Map<Eigen::Vector2d>{residuals} = W_ * r;
     if (want && jacobians[0] != nullptr) Eigen::Map<RowMajor23>{jacobians[0]} = W_ * J_pose;
     if (want && jacobians[1] != nullptr) Eigen::Map<RowMajor22>{jacobians[1]} = W_ * J_point;
@@ -60,28 +65,15 @@ class PointCost final : public ceres::SizedCostFunction<2, 3, 2> {
   }
 
  private:
-  Eigen::Vector2d z_;
-  Eigen::Matrix2d W_;
-};
-
-class BearingRangeCost final : public ceres::SizedCostFunction<2, 3, 2> {
- public:
-  explicit BearingRangeCost(const BearingRangeMeasurement& m)
-      : bearing_(m.bearing), range_(m.range), W_(Whitener<2>(m.information)) {}
-  bool Evaluate(double const* const* x, double* residuals, double** jacobians) const override {
-    Matrix23d J_pose;
-    Eigen::Matrix2d J_point;
-    const bool want = jacobians != nullptr;
-    const Eigen::Vector2d r = BearingRangeResidual(bearing_, range_, PoseOf(x[0]), Eigen::Vector2d(x[1][0], x[1][1]),
-                                                   want ? &J_pose : nullptr, want ? &J_point : nullptr);
-    Eigen::Map<Eigen::Vector2d>{residuals} = W_ * r;
-    if (want && jacobians[0] != nullptr) Eigen::Map<RowMajor23>{jacobians[0]} = W_ * J_pose;
-    if (want && jacobians[1] != nullptr) Eigen::Map<RowMajor22>{jacobians[1]} = W_ * J_point;
-    return true;
+  Eigen::Vector2d Residual(const Pose2& pose, const Eigen::Vector2d& point, Matrix23d* J_pose,
+                           Eigen::Matrix2d* J_point) const {
+    if constexpr (std::is_same_v<Measurement, PointMeasurement>) {
+      return PointResidual(m_.z, pose, point, J_pose, J_point);
+    } else {
+      return BearingRangeResidual(m_.bearing, m_.range, pose, point, J_pose, J_point);
+    }
   }
-
- private:
-  double bearing_, range_;
+  Measurement m_;
   Eigen::Matrix2d W_;
 };
 
@@ -116,19 +108,15 @@ absl::StatusOr<BatchSolveReport> SolveGraphWithCeres(PoseGraph* graph, const bac
   }
   for (size_t j = 0; j < points.size(); ++j) points[j] = {graph->points[j].estimate.x(), graph->points[j].estimate.y()};
   ceres::Problem problem;
-  const auto loss = [&options]() -> ceres::LossFunction* {
-    if (options.loss == backend::RobustLoss::kHuber) return new ceres::HuberLoss(options.loss_scale);
-    if (options.loss == backend::RobustLoss::kCauchy) return new ceres::CauchyLoss(options.loss_scale);
-    return nullptr;
-  };
+  const auto loss = [&options] { return backend::NewRobustLoss(options); };
   for (const OdometryMeasurement& m : graph->odometry) {
     problem.AddResidualBlock(new OdometryCost(m), loss(), poses[m.from].data(), poses[m.to].data());
   }
   for (const PointMeasurement& m : graph->point_measurements) {
-    problem.AddResidualBlock(new PointCost(m), loss(), poses[m.pose].data(), points[m.point].data());
+    problem.AddResidualBlock(new SightingCost<PointMeasurement>(m), loss(), poses[m.pose].data(), points[m.point].data());
   }
   for (const BearingRangeMeasurement& m : graph->bearing_range_measurements) {
-    problem.AddResidualBlock(new BearingRangeCost(m), loss(), poses[m.pose].data(), points[m.point].data());
+    problem.AddResidualBlock(new SightingCost<BearingRangeMeasurement>(m), loss(), poses[m.pose].data(), points[m.point].data());
   }
   for (const BearingMeasurement& m : graph->bearing_measurements) {
     problem.AddResidualBlock(new BearingCost(m), loss(), poses[m.pose].data(), points[m.point].data());
@@ -136,21 +124,7 @@ absl::StatusOr<BatchSolveReport> SolveGraphWithCeres(PoseGraph* graph, const bac
   for (int g : graph->GaugePoses()) {
     if (problem.HasParameterBlock(poses[g].data())) problem.SetParameterBlockConstant(poses[g].data());
   }
-  ceres::Solver::Options o;
-  o.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  o.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
-  o.trust_region_strategy_type =
-      options.method == backend::CeresMethod::kDogleg ? ceres::DOGLEG : ceres::LEVENBERG_MARQUARDT;
-  if (options.method == backend::CeresMethod::kGaussNewton) {
-    o.initial_trust_region_radius = 1e16;  // no damping: Gauss-Newton steps
-    o.max_trust_region_radius = 1e16;
-  }
-  o.max_num_iterations = options.max_iterations;
-  o.function_tolerance = options.function_tolerance;
-  o.gradient_tolerance = options.gradient_tolerance;
-  o.parameter_tolerance = options.parameter_tolerance;
-  o.num_threads = options.num_threads;
-  o.logging_type = ceres::SILENT;
+  const ceres::Solver::Options o = backend::CeresSolverOptions(options);
   std::string why;
   if (!o.IsValid(&why)) return absl::InvalidArgumentError(absl::StrCat("Ceres options: ", why));
   ceres::Solver::Summary summary;

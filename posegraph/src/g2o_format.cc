@@ -8,35 +8,6 @@
 #include "graph_text.h"
 
 namespace subslam::posegraph::internal {
-namespace {
-
-// g2o vertices share one id space: an id used for a pose cannot name a point.
-absl::Status CheckKind(const GraphLine& line, int field, long id, const PoseGraph& graph, bool want_pose) {
-  if (want_pose && graph.FindPoint(id) >= 0) return line.FieldError(field, absl::StrCat("names point ", id, ", not a pose"));
-  if (!want_pose && graph.FindPose(id) >= 0) return line.FieldError(field, absl::StrCat("names pose ", id, ", not a point"));
-  return absl::OkStatus();
-}
-
-// Fields first … first + count − 1 as numbers.
-absl::StatusOr<std::vector<double>> Numbers(const GraphLine& line, int first, int count) {
-  std::vector<double> values;
-  for (int f = first; f < first + count; ++f) {
-    auto v = line.Number(f);
-    if (!v.ok()) return v.status();
-    values.push_back(*v);
-  }
-  return values;
-}
-
-absl::StatusOr<Eigen::MatrixXd> Information(const GraphLine& line, int first, int n, NoiseConvention noise) {
-  auto upper = Numbers(line, first, n * (n + 1) / 2);
-  if (!upper.ok()) return upper.status();
-  auto information = InformationFromUpperTriangle(*upper, n, noise);
-  if (!information.ok()) return line.Error(absl::StrCat("noise: ", information.status().message()));
-  return information;
-}
-
-}  // namespace
 
 absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* graph) {
   const absl::string_view tag = line.tag();
@@ -44,23 +15,7 @@ absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* gra
     const bool pose = tag == "VERTEX_SE2";
     absl::Status s = pose ? line.Expect({"id", "x", "y", "theta"}) : line.Expect({"id", "x", "y"});
     if (!s.ok()) return s;
-    auto id = line.Id(1);
-    if (!id.ok()) return id.status();
-    if (s = CheckKind(line, 1, *id, *graph, pose); !s.ok()) return s;
-    auto v = Numbers(line, 2, pose ? 3 : 2);
-    if (!v.ok()) return v.status();
-    if (pose) {
-      PoseVertex& p = graph->poses[graph->PoseIndex(*id)];
-      if (p.has_estimate) return line.FieldError(1, absl::StrCat("vertex ", *id, " is defined twice"));
-      p.estimate = Pose2((*v)[0], (*v)[1], (*v)[2]);
-      p.has_estimate = true;
-    } else {
-      PointVertex& p = graph->points[graph->PointIndex(*id)];
-      if (p.has_estimate) return line.FieldError(1, absl::StrCat("vertex ", *id, " is defined twice"));
-      p.estimate = Eigen::Vector2d((*v)[0], (*v)[1]);
-      p.has_estimate = true;
-    }
-    return absl::OkStatus();
+    return ParseVertexEstimate(line, pose, /*shared_ids=*/true, graph);
   }
   if (tag == "FIX") {
     if (line.size() == 0) return line.Error("missing field 'id' (field 1)");
@@ -83,34 +38,37 @@ absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* gra
       s = line.Expect({"pose", "point", "bearing", "I"});
     }
     if (!s.ok()) return s;
-    auto a = line.Id(1);
-    if (!a.ok()) return a.status();
-    auto b = line.Id(2);
-    if (!b.ok()) return b.status();
+    auto ids = line.EdgeIds();
+    if (!ids.ok()) return ids.status();
+    const auto [a, b] = *ids;
+    // The first end is a pose, the second a pose or a point: not an id of the other kind.
+    if (graph->FindPoint(a) >= 0) return line.FieldError(1, absl::StrCat("names point ", a, ", not a pose"));
     const bool pose_pose = tag == "EDGE_SE2";
-    if (s = CheckKind(line, 1, *a, *graph, true); !s.ok()) return s;
-    if (s = CheckKind(line, 2, *b, *graph, pose_pose); !s.ok()) return s;
+    if (pose_pose ? graph->FindPoint(b) >= 0 : graph->FindPose(b) >= 0) {
+      return line.FieldError(2, absl::StrCat("names ", pose_pose ? "point " : "pose ", b, ", not a ",
+                                             pose_pose ? "pose" : "point"));
+    }
     if (pose_pose) {
-      auto z = Numbers(line, 3, 3);
+      auto z = line.Numbers(3, 3);
       if (!z.ok()) return z.status();
-      auto information = Information(line, 6, 3, noise);
+      auto information = line.Information(6, 3, noise);
       if (!information.ok()) return information.status();
-      if (*a == *b) return line.Error("an edge from a pose to itself");
-      graph->odometry.push_back({graph->PoseIndex(*a), graph->PoseIndex(*b), Pose2((*z)[0], (*z)[1], (*z)[2]),
-                                 *information});
+      if (a == b) return line.Error("an edge from a pose to itself");
+      graph->odometry.push_back(
+          {graph->PoseIndex(a), graph->PoseIndex(b), Pose2((*z)[0], (*z)[1], (*z)[2]), *information});
     } else if (tag == "EDGE_SE2_XY") {
-      auto z = Numbers(line, 3, 2);
+      auto z = line.Numbers(3, 2);
       if (!z.ok()) return z.status();
-      auto information = Information(line, 5, 2, noise);
+      auto information = line.Information(5, 2, noise);
       if (!information.ok()) return information.status();
       graph->point_measurements.push_back(
-          {graph->PoseIndex(*a), graph->PointIndex(*b), Eigen::Vector2d((*z)[0], (*z)[1]), *information});
+          {graph->PoseIndex(a), graph->PointIndex(b), Eigen::Vector2d((*z)[0], (*z)[1]), *information});
     } else {
       auto z = line.Number(3);
       if (!z.ok()) return z.status();
-      auto information = Information(line, 4, 1, noise);
+      auto information = line.Information(4, 1, noise);
       if (!information.ok()) return information.status();
-      graph->bearing_measurements.push_back({graph->PoseIndex(*a), graph->PointIndex(*b), *z, (*information)(0, 0)});
+      graph->bearing_measurements.push_back({graph->PoseIndex(a), graph->PointIndex(b), *z, (*information)(0, 0)});
     }
     return absl::OkStatus();
   }

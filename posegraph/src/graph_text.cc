@@ -50,6 +50,52 @@ absl::StatusOr<double> GraphLine::Number(int field) const {
   return value;
 }
 
+absl::StatusOr<std::pair<long, long>> GraphLine::EdgeIds() const {
+  auto a = Id(1);
+  if (!a.ok()) return a.status();
+  auto b = Id(2);
+  if (!b.ok()) return b.status();
+  return std::pair<long, long>(*a, *b);
+}
+
+absl::StatusOr<std::vector<double>> GraphLine::Numbers(int first, int count) const {
+  std::vector<double> values;
+  for (int f = first; f < first + count; ++f) {
+    auto v = Number(f);
+    if (!v.ok()) return v.status();
+    values.push_back(*v);
+  }
+  return values;
+}
+
+absl::StatusOr<Eigen::MatrixXd> GraphLine::Information(int first, int n, NoiseConvention noise) const {
+  auto upper = Numbers(first, n * (n + 1) / 2);
+  if (!upper.ok()) return upper.status();
+  auto information = InformationFromUpperTriangle(*upper, n, noise);
+  if (!information.ok()) return Error(absl::StrCat("noise: ", information.status().message()));
+  return information;
+}
+
+absl::Status ParseVertexEstimate(const GraphLine& line, bool pose, bool shared_ids, PoseGraph* graph) {
+  auto id = line.Id(1);
+  if (!id.ok()) return id.status();
+  if (shared_ids && (pose ? graph->FindPoint(*id) : graph->FindPose(*id)) >= 0) {
+    return line.FieldError(1, absl::StrCat("names ", pose ? "point " : "pose ", *id, ", not a ", pose ? "pose" : "point"));
+  }
+  auto v = line.Numbers(2, pose ? 3 : 2);
+  if (!v.ok()) return v.status();
+  const int index = pose ? graph->PoseIndex(*id) : graph->PointIndex(*id);
+  bool& has_estimate = pose ? graph->poses[index].has_estimate : graph->points[index].has_estimate;
+  if (has_estimate) return line.FieldError(1, absl::StrCat("vertex ", *id, " is defined twice"));
+  has_estimate = true;
+  if (pose) {
+    graph->poses[index].estimate = Pose2((*v)[0], (*v)[1], (*v)[2]);
+  } else {
+    graph->points[index].estimate = Eigen::Vector2d((*v)[0], (*v)[1]);
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<Eigen::MatrixXd> InformationFromUpperTriangle(const std::vector<double>& upper, int n,
                                                              NoiseConvention noise) {
   Eigen::MatrixXd M = Eigen::MatrixXd::Zero(n, n);

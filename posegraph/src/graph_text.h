@@ -8,6 +8,7 @@
 #include <initializer_list>
 #include <string>
 #include "absl/strings/string_view.h"
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -27,6 +28,13 @@ class GraphLine {
   // Fields after the tag, 1-based: an integer id, a finite number.
   absl::StatusOr<long> Id(int field) const;
   absl::StatusOr<double> Number(int field) const;
+  // Fields 1 and 2 as ids (an edge's two ends).
+  absl::StatusOr<std::pair<long, long>> EdgeIds() const;
+  // Fields first … first + count − 1 as numbers.
+  absl::StatusOr<std::vector<double>> Numbers(int first, int count) const;
+  // The n × n information of the n(n+1)/2 noise numbers from field `first` (upper
+  // triangle row by row) under `noise`.
+  absl::StatusOr<Eigen::MatrixXd> Information(int first, int n, NoiseConvention noise) const;
   // An error at this line: "SOURCE:LINE: TAG: message".
   absl::Status Error(absl::string_view message) const;
   absl::Status FieldError(int field, absl::string_view message) const;
@@ -68,6 +76,11 @@ struct MeasurementRef {
   int index;
 };
 std::vector<MeasurementRef> WritingOrder(const PoseGraph& graph);
+
+// A vertex line `TAG id x y [θ]` (Expect already checked): the estimate of pose or point
+// `id`, given once. `shared_ids`: poses and points share one id space (g2o), so an id
+// already used by the other kind is an error.
+absl::Status ParseVertexEstimate(const GraphLine& line, bool pose, bool shared_ids, PoseGraph* graph);
 
 // The readers and writers of each format (GraphLine errors already name the line).
 absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* graph);

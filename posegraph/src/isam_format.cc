@@ -9,16 +9,6 @@
 namespace subslam::posegraph::internal {
 namespace {
 
-absl::StatusOr<std::vector<double>> Numbers(const GraphLine& line, int first, int count) {
-  std::vector<double> values;
-  for (int f = first; f < first + count; ++f) {
-    auto v = line.Number(f);
-    if (!v.ok()) return v.status();
-    values.push_back(*v);
-  }
-  return values;
-}
-
 // GTSAM's bearing-range reading of a LANDMARK's covariance c11 c12 c22: the Cartesian
 // noise taken as that of a point 10 m away, σ_b = √(c11 / 10) rad, σ_r = √c11 m.
 constexpr double kGtsamLandmarkRange = 10.0;
@@ -31,52 +21,33 @@ absl::Status ParseIsamLine(GraphLine& line, NoiseConvention noise, bool gtsam_la
     const bool pose = tag == "VERTEX2";
     absl::Status s = pose ? line.Expect({"id", "x", "y", "theta"}) : line.Expect({"id", "x", "y"});
     if (!s.ok()) return s;
-    auto id = line.Id(1);
-    if (!id.ok()) return id.status();
-    auto v = Numbers(line, 2, pose ? 3 : 2);
-    if (!v.ok()) return v.status();
-    if (pose) {
-      PoseVertex& p = graph->poses[graph->PoseIndex(*id)];
-      if (p.has_estimate) return line.FieldError(1, absl::StrCat("pose ", *id, " is given twice"));
-      p.estimate = Pose2((*v)[0], (*v)[1], (*v)[2]);
-      p.has_estimate = true;
-    } else {
-      PointVertex& p = graph->points[graph->PointIndex(*id)];
-      if (p.has_estimate) return line.FieldError(1, absl::StrCat("point ", *id, " is given twice"));
-      p.estimate = Eigen::Vector2d((*v)[0], (*v)[1]);
-      p.has_estimate = true;
-    }
-    return absl::OkStatus();
+    return ParseVertexEstimate(line, pose, /*shared_ids=*/false, graph);
   }
   if (tag == "ODOMETRY" || tag == "EDGE2") {
     if (absl::Status s = line.Expect({"from", "to", "dx", "dy", "dtheta", "n11", "n12", "n13", "n22", "n23", "n33"});
         !s.ok()) {
       return s;
     }
-    auto a = line.Id(1);
-    if (!a.ok()) return a.status();
-    auto b = line.Id(2);
-    if (!b.ok()) return b.status();
-    if (*a == *b) return line.Error("an edge from a pose to itself");
-    auto z = Numbers(line, 3, 3);
+    auto ids = line.EdgeIds();
+    if (!ids.ok()) return ids.status();
+    const auto [a, b] = *ids;
+    if (a == b) return line.Error("an edge from a pose to itself");
+    auto z = line.Numbers(3, 3);
     if (!z.ok()) return z.status();
-    auto upper = Numbers(line, 6, 6);
-    if (!upper.ok()) return upper.status();
-    auto information = InformationFromUpperTriangle(*upper, 3, noise);
-    if (!information.ok()) return line.Error(absl::StrCat("noise: ", information.status().message()));
+    auto information = line.Information(6, 3, noise);
+    if (!information.ok()) return information.status();
     graph->odometry.push_back(
-        {graph->PoseIndex(*a), graph->PoseIndex(*b), Pose2((*z)[0], (*z)[1], (*z)[2]), *information});
+        {graph->PoseIndex(a), graph->PoseIndex(b), Pose2((*z)[0], (*z)[1], (*z)[2]), *information});
     return absl::OkStatus();
   }
   if (tag == "LANDMARK") {
     if (absl::Status s = line.Expect({"pose", "landmark", "lx", "ly", "n11", "n12", "n22"}); !s.ok()) return s;
-    auto a = line.Id(1);
-    if (!a.ok()) return a.status();
-    auto b = line.Id(2);
-    if (!b.ok()) return b.status();
-    auto z = Numbers(line, 3, 2);
+    auto ids = line.EdgeIds();
+    if (!ids.ok()) return ids.status();
+    const auto [a, b] = *ids;
+    auto z = line.Numbers(3, 2);
     if (!z.ok()) return z.status();
-    auto upper = Numbers(line, 5, 3);
+    auto upper = line.Numbers(5, 3);
     if (!upper.ok()) return upper.status();
     if (gtsam_landmarks) {
       const double c11 = (*upper)[0], c12 = (*upper)[1], c22 = (*upper)[2];
@@ -90,13 +61,13 @@ absl::Status ParseIsamLine(GraphLine& line, NoiseConvention noise, bool gtsam_la
       information(0, 0) = kGtsamLandmarkRange / c11;
       information(1, 1) = 1.0 / c11;
       graph->bearing_range_measurements.push_back(
-          {graph->PoseIndex(*a), graph->PointIndex(*b), std::atan2((*z)[1], (*z)[0]), range, information});
+          {graph->PoseIndex(a), graph->PointIndex(b), std::atan2((*z)[1], (*z)[0]), range, information});
       return absl::OkStatus();
     }
-    auto information = InformationFromUpperTriangle(*upper, 2, noise);
-    if (!information.ok()) return line.Error(absl::StrCat("noise: ", information.status().message()));
+    auto information = line.Information(5, 2, noise);
+    if (!information.ok()) return information.status();
     graph->point_measurements.push_back(
-        {graph->PoseIndex(*a), graph->PointIndex(*b), Eigen::Vector2d((*z)[0], (*z)[1]), *information});
+        {graph->PoseIndex(a), graph->PointIndex(b), Eigen::Vector2d((*z)[0], (*z)[1]), *information});
     return absl::OkStatus();
   }
   if (tag == "BR") {
@@ -104,11 +75,10 @@ absl::Status ParseIsamLine(GraphLine& line, NoiseConvention noise, bool gtsam_la
         !s.ok()) {
       return s;
     }
-    auto a = line.Id(1);
-    if (!a.ok()) return a.status();
-    auto b = line.Id(2);
-    if (!b.ok()) return b.status();
-    auto v = Numbers(line, 3, 4);
+    auto ids = line.EdgeIds();
+    if (!ids.ok()) return ids.status();
+    const auto [a, b] = *ids;
+    auto v = line.Numbers(3, 4);
     if (!v.ok()) return v.status();
     if (!((*v)[1] > 0.0)) return line.FieldError(4, "is not positive");
     if (!((*v)[2] > 0.0)) return line.FieldError(5, "is not positive");
@@ -117,7 +87,7 @@ absl::Status ParseIsamLine(GraphLine& line, NoiseConvention noise, bool gtsam_la
     information(0, 0) = 1.0 / ((*v)[2] * (*v)[2]);
     information(1, 1) = 1.0 / ((*v)[3] * (*v)[3]);
     graph->bearing_range_measurements.push_back(
-        {graph->PoseIndex(*a), graph->PointIndex(*b), (*v)[0], (*v)[1], information});
+        {graph->PoseIndex(a), graph->PointIndex(b), (*v)[0], (*v)[1], information});
     return absl::OkStatus();
   }
   return line.Error("unknown tag (the iSAM / GTSAM format reads ODOMETRY, EDGE2, LANDMARK, BR, VERTEX2, POINT2)");

@@ -16,45 +16,26 @@ absl::Status ParseToroLine(GraphLine& line, NoiseConvention noise, PoseGraph* gr
   const absl::string_view tag = line.tag();
   if (tag == "VERTEX2") {
     if (absl::Status s = line.Expect({"id", "x", "y", "theta"}); !s.ok()) return s;
-    auto id = line.Id(1);
-    if (!id.ok()) return id.status();
-    double v[3];
-    for (int f = 2; f <= 4; ++f) {
-      auto x = line.Number(f);
-      if (!x.ok()) return x.status();
-      v[f - 2] = *x;
-    }
-    PoseVertex& p = graph->poses[graph->PoseIndex(*id)];
-    if (p.has_estimate) return line.FieldError(1, absl::StrCat("vertex ", *id, " is defined twice"));
-    p.estimate = Pose2(v[0], v[1], v[2]);
-    p.has_estimate = true;
-    return absl::OkStatus();
+    return ParseVertexEstimate(line, /*pose=*/true, /*shared_ids=*/false, graph);
   }
   if (tag == "EDGE2") {
     if (absl::Status s = line.Expect({"from", "to", "dx", "dy", "dtheta", "I11", "I12", "I22", "I33", "I13", "I23"});
         !s.ok()) {
       return s;
     }
-    auto a = line.Id(1);
-    if (!a.ok()) return a.status();
-    auto b = line.Id(2);
-    if (!b.ok()) return b.status();
-    if (*a == *b) return line.Error("an edge from a pose to itself");
-    double z[3];
-    for (int f = 3; f <= 5; ++f) {
-      auto x = line.Number(f);
-      if (!x.ok()) return x.status();
-      z[f - 3] = *x;
-    }
+    auto ids = line.EdgeIds();
+    if (!ids.ok()) return ids.status();
+    const auto [a, b] = *ids;
+    if (a == b) return line.Error("an edge from a pose to itself");
+    auto z = line.Numbers(3, 3);
+    if (!z.ok()) return z.status();
+    auto toro_order = line.Numbers(6, 6);
+    if (!toro_order.ok()) return toro_order.status();
     std::vector<double> upper(6);
-    for (int k = 0; k < 6; ++k) {
-      auto x = line.Number(6 + k);
-      if (!x.ok()) return x.status();
-      upper[kToroToUpper[k]] = *x;
-    }
+    for (int k = 0; k < 6; ++k) upper[kToroToUpper[k]] = (*toro_order)[k];
     auto information = InformationFromUpperTriangle(upper, 3, noise);
     if (!information.ok()) return line.Error(absl::StrCat("noise: ", information.status().message()));
-    graph->odometry.push_back({graph->PoseIndex(*a), graph->PoseIndex(*b), Pose2(z[0], z[1], z[2]), *information});
+    graph->odometry.push_back({graph->PoseIndex(a), graph->PoseIndex(b), Pose2((*z)[0], (*z)[1], (*z)[2]), *information});
     return absl::OkStatus();
   }
   return line.Error("unknown tag (TORO reads VERTEX2 and EDGE2)");
