@@ -52,4 +52,29 @@ absl::Status LocalSubmap::Validate() const {
   return absl::OkStatus();
 }
 
+int LocalSubmap::RegularizeDegenerateCovariance() {
+  if (Validate().ok() || !covariance.allFinite() || covariance.rows() != mean.size() ||
+      covariance.cols() != mean.size()) {
+    return 0;
+  }
+  const double scale = std::max(1.0, covariance.cwiseAbs().maxCoeff());
+  if ((covariance - covariance.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) return 0;
+  // Positive semidefinite to rounding only: a clearly negative eigenvalue is not a
+  // degenerate map but a wrong one.
+  const Eigen::VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(covariance).eigenvalues();
+  if (eigenvalues.minCoeff() < -1e-9 * std::max(eigenvalues.maxCoeff(), 0.0)) return 0;
+  const Eigen::MatrixXd original = covariance;
+  double variance = kRegularizationVariance;
+  for (int round = 1; round <= kMaxRegularizationRounds; ++round, variance *= 10.0) {
+    covariance = original;
+    covariance.diagonal().array() += variance;
+    if (Validate().ok()) {
+      covariance_repairs += round;
+      return round;
+    }
+  }
+  covariance = original;
+  return 0;
+}
+
 }  // namespace subslam

@@ -38,7 +38,8 @@ json ToJson(const LocalSubmap& s) {
   return out;
 }
 
-absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
+// `previous_t_end`: where a map without times is put (see ReadSubmapsJsonl).
+absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double previous_t_end) {
   if (!j.is_object()) return r.Error("(line)", "expected a JSON object");
   if (auto s = r.CheckKeys(j, "", {"id", "t_start", "t_end", "state", "cov", "landmarks",
                                    "covariance_repairs"});
@@ -49,13 +50,23 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
   auto id = r.Integer(j, "", "id");
   if (!id.ok()) return id.status();
   s.id = *id;
-  auto t0 = r.Number(j, "", "t_start");
-  if (!t0.ok()) return t0.status();
-  auto t1 = r.Number(j, "", "t_end");
-  if (!t1.ok()) return t1.status();
-  s.t_start = *t0;
-  s.t_end = *t1;
-  if (s.t_end < s.t_start) return r.Error("t_end", "is before t_start");
+  // Times are optional (absent or null, as other tools write local maps): such a map
+  // takes the zero-length span at the previous map's end. Both or neither.
+  const auto given = [&j](const char* key) { return j.contains(key) && !j.at(key).is_null(); };
+  if (given("t_start") != given("t_end")) {
+    return r.Error(given("t_start") ? "t_end" : "t_start", "missing while the other time is given");
+  }
+  if (given("t_start")) {
+    auto t0 = r.Number(j, "", "t_start");
+    if (!t0.ok()) return t0.status();
+    auto t1 = r.Number(j, "", "t_end");
+    if (!t1.ok()) return t1.status();
+    s.t_start = *t0;
+    s.t_end = *t1;
+    if (s.t_end < s.t_start) return r.Error("t_end", "is before t_start");
+  } else {
+    s.t_start = s.t_end = previous_t_end;
+  }
   if (j.contains("covariance_repairs")) {
     auto repairs = r.Integer(j, "", "covariance_repairs");
     if (!repairs.ok()) return repairs.status();
@@ -145,6 +156,7 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r) {
   s.covariance = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic,
                                                Eigen::RowMajor>>(
       cov->data(), static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
+  s.RegularizeDegenerateCovariance();  // a documented rule, counted in covariance_repairs
   if (absl::Status valid = s.Validate(); !valid.ok()) return r.Error("(local map)", std::string(valid.message()));
   return s;
 }
@@ -176,7 +188,7 @@ absl::StatusOr<std::vector<LocalSubmap>> ReadSubmapsJsonl(const std::string& pat
     } catch (const json::parse_error& e) {
       return reader.Error("(line)", absl::StrCat("invalid JSON: ", e.what()));
     }
-    absl::StatusOr<LocalSubmap> s = FromJson(j, reader);
+    absl::StatusOr<LocalSubmap> s = FromJson(j, reader, out.empty() ? 0.0 : out.back().t_end);
     if (!s.ok()) return s.status();
     if (!out.empty() && s->id <= out.back().id) {
       return reader.Error("id", absl::StrCat("ids must increase (", s->id, " after ", out.back().id, ")"));

@@ -136,9 +136,12 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                                         {"reobserved_recent_missed", a.recent_missed},
                                         {"reobserved_loop_merged", a.loop_merged},
                                         {"reobserved_loop_missed", a.loop_missed}};
+  long covariance_repairs = 0;
+  for (const LocalSubmap& s : submaps) covariance_repairs += s.covariance_repairs;
   nlohmann::json counts = {{"local_maps", r.local_maps},
                            {"anchors", joiner->num_anchors()},
-                           {"landmarks", joiner->num_landmarks()}};
+                           {"landmarks", joiner->num_landmarks()},
+                           {"covariance_repairs", covariance_repairs}};
   for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) {
     counts[f.name] = joiner->counters().*f.member;
   }

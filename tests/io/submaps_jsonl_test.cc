@@ -60,6 +60,34 @@ TEST(SubmapsJsonl, RoundTripIsBitIdentical) {
   }
 }
 
+// Local maps as other tools write them: no times (absent or null), and a degenerate
+// covariance (zero: the robot stood still) regularised by the documented rule and counted.
+TEST(SubmapsJsonl, AcceptsMissingTimesAndRegularisesADegenerateCovariance) {
+  const std::string text =
+      R"({"id":0,"t_start":0,"t_end":2.5,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})"
+      "\n"
+      R"({"id":1,"t_start":null,"t_end":null,"state":[1,0,0],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})"
+      "\n"
+      R"({"id":2,"state":[0,0,0],"cov":[0,0,0,0,0,0,0,0,0],"landmarks":[]})"
+      "\n";
+  absl::StatusOr<std::vector<LocalSubmap>> r = ReadSubmapsJsonl(Write("other_tools.jsonl", text));
+  ASSERT_TRUE(r.ok()) << r.status();
+  ASSERT_EQ(r->size(), 3u);
+  EXPECT_EQ((*r)[1].t_start, 2.5);
+  EXPECT_EQ((*r)[1].t_end, 2.5);
+  EXPECT_EQ((*r)[2].t_start, 2.5);
+  EXPECT_EQ((*r)[0].covariance_repairs, 0);
+  EXPECT_EQ((*r)[2].covariance_repairs, 1);
+  EXPECT_EQ((*r)[2].covariance(0, 0), LocalSubmap::kRegularizationVariance);
+  EXPECT_EQ((*r)[2].covariance(0, 1), 0.0);
+  // One time without the other is an error; an indefinite covariance is not "degenerate".
+  const std::string half = R"({"id":0,"t_start":1,"state":[0,0,0],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})";
+  absl::StatusOr<std::vector<LocalSubmap>> bad = ReadSubmapsJsonl(Write("half.jsonl", half + "\n"));
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("field 't_end': missing while the other time is given"), std::string::npos)
+      << bad.status();
+}
+
 // Each malformed line is reported with the file, the line and the field.
 TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
   // A line whose one landmark is `landmark` (a JSON object), all else valid.

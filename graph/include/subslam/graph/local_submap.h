@@ -56,6 +56,17 @@ struct LocalSubmap {
   // not numerically singular (smallest eigenvalue ≥ kMinRelativeEigenvalue × largest).
   absl::Status Validate() const;
   static constexpr double kMinRelativeEigenvalue = 1e-13;
+
+  // The rule for a local map from elsewhere whose covariance is symmetric, finite and
+  // positive semidefinite (to rounding) but singular or numerically so (a robot that stood
+  // still exports a zero covariance): its diagonal gets kRegularizationVariance (1 mm², 1 mrad²: the rule
+  // of the I-SLSJF authors' tools), ten times more each round until Validate() passes, at
+  // most kMaxRegularizationRounds rounds; each round adds one to covariance_repairs.
+  // Returns the rounds taken (0: the map was valid, or invalid for another reason — an
+  // indefinite covariance among them —, which Validate() then reports).
+  int RegularizeDegenerateCovariance();
+  static constexpr double kRegularizationVariance = 1e-6;
+  static constexpr int kMaxRegularizationRounds = 6;
 };
 
 }  // namespace subslam

@@ -9,7 +9,11 @@
 // Numbers are written with enough digits to read back bit-identical.
 // The reader checks every field and each local map's invariants
 // (LocalSubmap::Validate) and names file, line and field in its errors; ids must
-// increase from line to line.
+// increase from line to line. Two rules for local maps written by other tools: times
+// may be absent or null (the map then spans zero time at the previous map's end), and a
+// covariance that is symmetric but not positive definite or numerically singular is
+// regularised (LocalSubmap::RegularizeDegenerateCovariance, counted in
+// covariance_repairs, which `subslam join` reports).
 #ifndef SUBSLAM_IO_SUBMAPS_JSONL_H_
 #define SUBSLAM_IO_SUBMAPS_JSONL_H_
 
