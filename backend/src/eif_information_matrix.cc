@@ -264,6 +264,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
       for (const Factor& f : factors_) AddToEta(f, &eta_);
       lambda_factors_ = 0;
       factors_of_row_valid_ = false;
+      owner_of_row_valid_ = false;
     }
   }
   bool incremental = false;
@@ -310,8 +311,22 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
       x_local.segment(static_cast<Eigen::Index>(row), f.sizes[v]) = x.segment(f.offsets[v], f.sizes[v]);
     }
     const Eigen::VectorXd r = f.b - f.H * x_local;
-    solver_->factor.SolveChange(rows, r, options_.recovery_change_threshold, &x, &changed_rows_);
+    std::vector<int> moved;
+    std::vector<double> change;
+    solver_->factor.SolveChange(rows, r, options_.recovery_change_threshold, &x, &moved, &change);
+    if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
+    SetStateRows(x, moved);
+    drift_.resize(dim_, 0.0);
+    for (size_t k = 0; k < moved.size(); ++k) {
+      double& drift = drift_[moved[k]];
+      drift += std::abs(change[k]);
+      if (drift > kLinearizationRecheckDrift) {
+        changed_rows_.push_back(moved[k]);
+        drift = 0.0;
+      }
+    }
     changed_all_ = false;
+    return absl::OkStatus();
   } else {
     {
       StageTimer timer(&times_, "recovery");
@@ -335,6 +350,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   }
   if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
   SetState(x);
+  drift_.assign(dim_, 0.0);  // every factor is tested after an exact solve
   return absl::OkStatus();
 }
 

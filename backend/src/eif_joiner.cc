@@ -116,6 +116,50 @@ void EifJoiner::SetState(const Eigen::VectorXd& x) {
   }
 }
 
+void EifJoiner::SetStateRows(const Eigen::VectorXd& x, const std::vector<int>& rows) {
+  EnsureOwnerOfRow();
+  for (int row : rows) {
+    const int owner = owner_of_row_[row];
+    if (owner >= 0) {  // anchor `owner`: one coordinate
+      const int c = row - anchor_offset_[owner];
+      Pose2& p = graph_.anchor(owner);
+      if (c == 0) p.x = x[row];
+      if (c == 1) p.y = x[row];
+      if (c == 2) {
+        anchor_theta_[owner] = x[row];
+        p.theta = WrapAngle(x[row]);
+      }
+    } else {
+      const int j = -owner - 1;
+      graph_.landmark(j)[row - landmark_offset_[j]] = x[row];
+    }
+  }
+}
+
+void EifJoiner::EnsureOwnerOfRow() const {
+  if (!owner_of_row_valid_) {
+    owner_of_row_.assign(dim_, 0);
+    for (int k = 1; k < graph_.num_anchors(); ++k) {
+      for (int c = 0; c < 3; ++c) owner_of_row_[anchor_offset_[k] + c] = k;
+    }
+    for (int j = 0; j < graph_.num_landmarks(); ++j) {
+      for (int c = 0; c < 2; ++c) owner_of_row_[landmark_offset_[j] + c] = -j - 1;
+    }
+    owner_of_row_valid_ = true;
+    return;
+  }
+  // Rows added since: the newest anchors' and landmarks' (offsets increase).
+  const int known = static_cast<int>(owner_of_row_.size());
+  if (known == dim_) return;
+  owner_of_row_.resize(dim_, 0);
+  for (int k = graph_.num_anchors() - 1; k >= 1 && anchor_offset_[k] >= known; --k) {
+    for (int c = 0; c < 3; ++c) owner_of_row_[anchor_offset_[k] + c] = k;
+  }
+  for (int j = graph_.num_landmarks() - 1; j >= 0 && landmark_offset_[j] >= known; --j) {
+    for (int c = 0; c < 2; ++c) owner_of_row_[landmark_offset_[j] + c] = -j - 1;
+  }
+}
+
 absl::Status EifJoiner::JoinLocalMap(const LocalSubmap& s) {
   if (absl::Status v = s.Validate(); !v.ok()) return v;
   if (s.t_start < last_t_end_ - 1e-9) {
@@ -144,7 +188,9 @@ void EifJoiner::Restore(Snapshot before) {
   marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
   solver_->stale = true;  // it absorbed the undone factors
   factors_of_row_valid_ = false;
+  owner_of_row_valid_ = false;
   changed_all_ = true;
+  drift_.clear();
   counters_ = before.counters;
   touched_.assign(graph_.num_landmarks(), 1);
 }

@@ -123,7 +123,8 @@ bool SparseCholesky::RefreshParentsFrom(const std::vector<int>& positions) {
 }
 
 void SparseCholesky::SolveChange(const std::vector<int>& rows, const Eigen::VectorXd& r_local, double threshold,
-                                 Eigen::VectorXd* x, std::vector<int>* changed) const {
+                                 Eigen::VectorXd* x, std::vector<int>* changed,
+                                 std::vector<double>* change_sizes) const {
   const double* Lx = static_cast<const double*>(factor_->x);
   const int* Lp = static_cast<const int*>(factor_->p);
   const int* Li = static_cast<const int*>(factor_->i);
@@ -172,6 +173,7 @@ void SparseCholesky::SolveChange(const std::vector<int>& rows, const Eigen::Vect
     if (d[j] != 0.0 && v < dim_) {
       (*x)[v] += d[j];
       changed->push_back(v);
+      if (change_sizes != nullptr) change_sizes->push_back(d[j]);
     }
   }
   for (int j : entered) {

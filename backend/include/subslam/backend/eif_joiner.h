@@ -410,6 +410,8 @@ class EifJoiner final : public MapJoiner {
   SubmapAssociation AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
   Eigen::VectorXd StateVector() const;
   void SetState(const Eigen::VectorXd& x);
+  // The same for the listed state rows only (the rest already hold x).
+  void SetStateRows(const Eigen::VectorXd& x, const std::vector<int>& rows);
 
   EifJoinerOptions options_;
   SubmapGraph graph_;
@@ -432,9 +434,22 @@ class EifJoiner final : public MapJoiner {
   mutable std::vector<int> lambda_slots_;
   mutable std::vector<int> lambda_slot_offsets_;
   Eigen::VectorXd eta_;
-  // Per state row, the factors on it (valid while factors_of_row_valid_); the rows the
-  // last partial recovery moved (changed_all_: the last solve was exact — all of them);
-  // incremental updates since the last full factorisation (the guard's schedule).
+  // Per state row, the factors on it (valid while factors_of_row_valid_); the rows whose
+  // factors the relinearisation trigger must test after the last partial recovery: those
+  // that have moved by more than kLinearizationRecheckDrift since their factors were last
+  // tested (drift_ accumulates each row's changes since; changed_all_: the last solve was
+  // exact — test every factor); incremental updates since the last full factorisation
+  // (the guard's schedule).
+  // A factor's linearisation error moves by a negligible amount when its variables move
+  // by less than this [m, rad] (levers of 100 m and headings 0.1 rad off their
+  // linearisation change it by 10⁻⁵ m against local-map noise of centimetres and more).
+  static constexpr double kLinearizationRecheckDrift = 1e-6;
+  std::vector<double> drift_;
+  // Per state row, its anchor k (≥ 1) or landmark j (as −j − 1); valid while
+  // owner_of_row_valid_, extended as variables are added.
+  mutable std::vector<int> owner_of_row_;
+  mutable bool owner_of_row_valid_ = false;
+  void EnsureOwnerOfRow() const;
   mutable std::vector<std::vector<int>> factors_of_row_;
   mutable bool factors_of_row_valid_ = false;
   mutable std::vector<int> candidate_stamp_;  // LinearizationErrorAbove()'s factors seen, by walk

@@ -77,10 +77,11 @@ class SparseCholesky {
   // column only on those paths or below a parent whose change exceeds `threshold`: where
   // a change dies out, the columns under it are left as they are (the "wildfire" of
   // iSAM2's partial state update; threshold 0 carries every change that is not exactly
-  // zero). Appends the variables whose value changed to `changed`. Work: the paths, the
-  // columns entered, and one pass over the elimination tree's parents.
+  // zero). Appends the variables whose value changed to `changed` and, when given, the
+  // changes to `change_sizes`. Work: the paths, the columns entered, and one pass over the
+  // elimination tree's parents.
   void SolveChange(const std::vector<int>& rows, const Eigen::VectorXd& r_local, double threshold,
-                   Eigen::VectorXd* x, std::vector<int>* changed) const;
+                   Eigen::VectorXd* x, std::vector<int>* changed, std::vector<double>* change_sizes = nullptr) const;
   // The block of A⁻¹ on the listed variables (rows and columns in the listed order):
   // with P A Pᵀ = L D Lᵀ, (A⁻¹)_SS = Yᵀ D⁻¹ Y for Y = L⁻¹ P E_S, each column of Y by a
   // forward solve limited to the reach of its unit right-hand side — the elimination-tree
