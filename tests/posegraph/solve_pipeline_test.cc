@@ -69,5 +69,25 @@ TEST(SolvePipeline, ListsAMethodThatDoesNotApplyAndRefusesBadRequests) {
   EXPECT_FALSE(RunSolve(s.graph, options).ok());
 }
 
+// The field's standard known-association graph (../shared/data/graphs), when present: in
+// GTSAM's reading, the submap route and its polish reach the best minimum known (2,339.22).
+TEST(SolvePipeline, ReachesTheBestKnownMinimumOfTheVictoriaParkGraph) {
+  const std::string path = std::filesystem::path(SUBSLAM_VICTORIA_PARK_DIR).parent_path().string() +
+                           "/graphs/victoria_park.txt";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent";
+  posegraph::GraphReadOptions read;
+  read.format = posegraph::GraphFormat::kGtsam;
+  auto graph = posegraph::ReadGraph(path, read);
+  ASSERT_TRUE(graph.ok()) << graph.status();
+  SolveOptions options;
+  options.methods = {"submaps-lm"};
+  auto r = RunSolve(*graph, options);
+  ASSERT_TRUE(r.ok()) << r.status();
+  ASSERT_EQ(r->methods[0].status, "ok");
+  EXPECT_LE(r->methods[0].error, 2339.3);
+  EXPECT_GE(r->methods[0].error, 2339.2);
+  EXPECT_GT(r->initial_error, 5e7);  // from dead reckoning
+}
+
 }  // namespace
 }  // namespace subslam::pipeline
