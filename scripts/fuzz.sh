@@ -1,58 +1,76 @@
 #!/bin/sh
-# Fuzzes the graph-file readers with libFuzzer under AddressSanitizer + UBSan.
+# Fuzzes the readers of outside files with libFuzzer under AddressSanitizer + UBSan.
 #
-#   scripts/fuzz.sh [SECONDS] [extra libFuzzer flags…]    (default 30 s)
+#   scripts/fuzz.sh [SECONDS] [TARGET…]    (default 30 s each; targets: graph_format submaps_jsonl)
 #
-# Builds fuzz/graph_format_fuzzer.cc with clang (Debian's clang-14 and its libFuzzer)
-# into build-fuzz/, seeds a corpus from the test data (a short simulated world's graph in
-# every format, and the Victoria Park graph's first lines when ../shared is there), and
-# runs the target for SECONDS. A crash leaves its input in build-fuzz/ (crash-*) and fails
-# the script; each one found becomes a case of tests/posegraph/graph_format_test.cc.
+# Builds each target in fuzz/ with clang (Debian's clang-14 and its libFuzzer) into
+# build-fuzz/, seeds its corpus from test data the tool writes (a short simulated world's
+# graph in every format and its local maps; the Victoria Park graph's first lines when
+# ../shared is there), and runs it for SECONDS. A crash leaves its input in
+# build-fuzz/TARGET-crash-* and fails the script; each one found becomes a test case.
 set -eu
 cd "$(dirname "$0")/.."
 seconds=${1:-30}
 [ $# -gt 0 ] && shift
+targets=${*:-graph_format submaps_jsonl}
 out=build-fuzz
 mkdir -p "$out"
 command -v clang++ >/dev/null || { echo "fuzz.sh: clang++ is missing (apt-get install clang)" >&2; exit 1; }
+tool=build/apps/subslam
+[ -x "$tool" ] || { echo "fuzz.sh: build the tool first (scripts/setup.sh): it writes the seeds" >&2; exit 1; }
 
-sources="fuzz/graph_format_fuzzer.cc posegraph/src/graph_format.cc posegraph/src/graph_text.cc
-  posegraph/src/g2o_format.cc posegraph/src/toro_format.cc posegraph/src/isam_format.cc
-  posegraph/src/pose_graph.cc posegraph/src/measurement_residuals.cc graph/src/pose2.cc io/src/text_table.cc"
-if [ ! -x "$out/graph_format_fuzzer" ] || [ -n "$(find $sources posegraph/include graph/include -newer "$out/graph_format_fuzzer" | head -1)" ]; then
-  echo "fuzz.sh: building $out/graph_format_fuzzer"
-  # shellcheck disable=SC2086
-  clang++ -std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
-    -fno-omit-frame-pointer -I/usr/include/eigen3 -Iposegraph/include -Igraph/include -Iio/include \
-    $sources -o "$out/graph_format_fuzzer" \
-    -labsl_strings -labsl_strings_internal -labsl_status -labsl_statusor -labsl_raw_hash_set -labsl_hash \
-    -labsl_city -labsl_low_level_hash -labsl_int128 -labsl_throw_delegate -labsl_raw_logging_internal \
-    -labsl_str_format_internal -labsl_cord -labsl_cord_internal -labsl_cordz_info -labsl_cordz_functions \
-    -labsl_cordz_handle -labsl_synchronization -labsl_time -labsl_time_zone -labsl_base -labsl_spinlock_wait \
-    -labsl_malloc_internal -labsl_stacktrace -labsl_symbolize -labsl_debugging_internal -labsl_demangle_internal
-fi
+sources_graph_format="posegraph/src/graph_format.cc posegraph/src/graph_text.cc posegraph/src/g2o_format.cc
+  posegraph/src/toro_format.cc posegraph/src/isam_format.cc posegraph/src/pose_graph.cc
+  posegraph/src/measurement_residuals.cc graph/src/pose2.cc io/src/text_table.cc"
+sources_submaps_jsonl="io/src/submaps_jsonl.cc graph/src/local_submap.cc graph/src/pose2.cc"
+absl="-labsl_strings -labsl_strings_internal -labsl_status -labsl_statusor -labsl_raw_hash_set -labsl_hash
+  -labsl_city -labsl_low_level_hash -labsl_int128 -labsl_throw_delegate -labsl_raw_logging_internal
+  -labsl_str_format_internal -labsl_cord -labsl_cord_internal -labsl_cordz_info -labsl_cordz_functions
+  -labsl_cordz_handle -labsl_synchronization -labsl_time -labsl_time_zone -labsl_base -labsl_spinlock_wait
+  -labsl_malloc_internal -labsl_stacktrace -labsl_symbolize -labsl_debugging_internal -labsl_demangle_internal"
 
-# The seed corpus: the first byte picks the format (0 g2o, 1 toro, 2 isam, 3 gtsam; +4·k
-# the noise convention), the rest is a graph file's beginning.
-corpus="$out/corpus"
-mkdir -p "$corpus"
-if [ -z "$(ls -A "$corpus")" ]; then
-  tool=build/apps/subslam
-  [ -x "$tool" ] || { echo "fuzz.sh: build the tool first (scripts/setup.sh) to seed the corpus" >&2; exit 1; }
-  world="$out/seed_world"
+# The seeds: a 3 s simulated world's graph files and local maps.
+world="$out/seed_world"
+if [ ! -f "$world/graph.isam" ]; then
   "$tool" simulate --scenario hybrid-120m --duration 3 --out "$world" >/dev/null
-  seed() {  # seed NAME FORMAT_BYTE FILE LINES
-    { printf "\\$(printf '%03o' "$2")"; head -n "$4" "$3"; } > "$corpus/$1"
-  }
-  seed g2o 0 "$world/graph.g2o" 60
-  seed toro 1 "$world/graph.toro" 40
-  seed isam 2 "$world/graph.isam" 60
-  seed isam_information 10 "$world/graph.isam" 30
+  "$tool" run --dataset "$world" --frontend rbpf --submap_max_duration 0.5 --submap_min_duration 0.2 \
+    --quiet --progress=false --out "$world/run" >/dev/null
+fi
+seed_graph_format() {  # the first byte picks the format (0 g2o, 1 toro, 2 isam, 3 gtsam; +4·k the noise)
+  seed() { { printf "\\$(printf '%03o' "$2")"; head -n "$4" "$3"; } > "$1/$5"; }
+  seed "$1" 0 "$world/graph.g2o" 60 g2o
+  seed "$1" 1 "$world/graph.toro" 40 toro
+  seed "$1" 2 "$world/graph.isam" 60 isam
+  seed "$1" 10 "$world/graph.isam" 30 isam_information
   vp=../shared/data/graphs/victoria_park.txt
   if [ -f "$vp" ]; then
-    seed gtsam 3 "$vp" 60
-    seed gtsam_as_isam 2 "$vp" 30
+    seed "$1" 3 "$vp" 60 gtsam
+    seed "$1" 2 "$vp" 30 gtsam_as_isam
   fi
-fi
-"$out/graph_format_fuzzer" -max_total_time="$seconds" -max_len=4096 -print_final_stats=1 \
-  -artifact_prefix="$out/" "$@" "$corpus"
+}
+seed_submaps_jsonl() {
+  head -n 3 "$world/run/submaps.jsonl" > "$1/maps"
+  head -n 1 "$world/run/submaps.jsonl" > "$1/one_map"
+}
+
+status=0
+for target in $targets; do
+  eval "sources=\$sources_$target"
+  binary="$out/${target}_fuzzer"
+  # shellcheck disable=SC2086
+  if [ ! -x "$binary" ] || [ -n "$(find fuzz/${target}_fuzzer.cc $sources posegraph/include graph/include io/include \
+      -newer "$binary" | head -1)" ]; then
+    echo "fuzz.sh: building $binary"
+    # shellcheck disable=SC2086
+    clang++ -std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
+      -fno-omit-frame-pointer -I/usr/include/eigen3 -Iposegraph/include -Igraph/include -Iio/include -Iio/src \
+      "fuzz/${target}_fuzzer.cc" $sources -o "$binary" $absl
+  fi
+  corpus="$out/corpus_$target"
+  mkdir -p "$corpus"
+  [ -n "$(ls -A "$corpus")" ] || "seed_$target" "$corpus"
+  echo "fuzz.sh: $target for $seconds s"
+  "$binary" -max_total_time="$seconds" -max_len=8192 -print_final_stats=1 \
+    -artifact_prefix="$out/$target-" "$corpus" || status=1
+done
+exit $status

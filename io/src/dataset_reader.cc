@@ -309,6 +309,8 @@ absl::StatusOr<Dataset> ReadDataset(const std::string& directory) {
       const int line = 1 + static_cast<int>(std::count(text->begin(), text->begin() + byte, '\n'));
       return absl::InvalidArgumentError(
           absl::StrCat(manifest_path, ":", line, ": invalid JSON: ", e.what()));
+    } catch (const json::exception& e) {  // e.g. a number beyond a double's range
+      return absl::InvalidArgumentError(absl::StrCat(manifest_path, ": invalid JSON: ", e.what()));
     }
     return absl::InvalidArgumentError(absl::StrCat(manifest_path, ": invalid JSON"));
   }

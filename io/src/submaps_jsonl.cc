@@ -5,6 +5,7 @@
 #include <cmath>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
@@ -172,20 +173,21 @@ absl::Status WriteSubmapsJsonl(const std::string& path, const std::vector<LocalS
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::vector<LocalSubmap>> ReadSubmapsJsonl(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open"));
+absl::StatusOr<std::vector<LocalSubmap>> ParseSubmapsJsonl(const std::string& text, const std::string& source) {
   std::vector<LocalSubmap> out;
-  std::string text;
   int line = 0;
-  while (std::getline(in, text)) {
+  for (size_t start = 0; start < text.size();) {
+    size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    const std::string line_text = text.substr(start, end - start);
+    start = end + 1;
     ++line;
-    if (text.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const JsonFields reader(absl::StrCat(path, ":", line));
+    if (line_text.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const JsonFields reader(absl::StrCat(source, ":", line));
     json j;
     try {
-      j = json::parse(text);
-    } catch (const json::parse_error& e) {
+      j = json::parse(line_text);
+    } catch (const json::exception& e) {  // a syntax error, or a number beyond a double's range
       return reader.Error("(line)", absl::StrCat("invalid JSON: ", e.what()));
     }
     absl::StatusOr<LocalSubmap> s = FromJson(j, reader, out.empty() ? 0.0 : out.back().t_end);
@@ -195,8 +197,17 @@ absl::StatusOr<std::vector<LocalSubmap>> ReadSubmapsJsonl(const std::string& pat
     }
     out.push_back(*std::move(s));
   }
-  if (out.empty()) return absl::InvalidArgumentError(absl::StrCat(path, ": no local maps (empty file)"));
+  if (out.empty()) return absl::InvalidArgumentError(absl::StrCat(source, ": no local maps (empty file)"));
   return out;
+}
+
+absl::StatusOr<std::vector<LocalSubmap>> ReadSubmapsJsonl(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open"));
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  if (in.bad()) return absl::DataLossError(absl::StrCat(path, ": read error"));
+  return ParseSubmapsJsonl(buffer.str(), path);
 }
 
 }  // namespace subslam::io

@@ -129,6 +129,9 @@ TEST_F(MalformedDataset, MissingOrMistypedField) {
 TEST_F(MalformedDataset, InvalidJsonReportsLine) {
   Write("dataset.json", "{\n  \"format\": \"subslam-dataset/1\",\n  \"name\": tiny\n}\n");
   ExpectError({"dataset.json:3", "invalid JSON"});
+  // A number beyond a double's range (an exception other than a syntax error).
+  Write("dataset.json", R"({"format": "subslam-dataset/1", "name": "tiny", "initial_pose": [1e999, 0, 0]})");
+  ExpectError({"dataset.json", "invalid JSON", "number overflow"});
 }
 
 TEST_F(MalformedDataset, EmptyOrMissingFile) {

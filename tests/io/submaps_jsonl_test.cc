@@ -105,6 +105,10 @@ TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
   const std::vector<Case> cases = {
       {"", "empty"},
       {good + "\n{not json\n", ":2: field '(line)': invalid JSON"},
+      // Found by fuzzing (scripts/fuzz.sh): a number beyond a double's range once escaped
+      // the reader as an exception.
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,-2.1e803665060896854],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})",
+       ":1: field '(line)': invalid JSON: [json.exception.out_of_range.406] number overflow"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1]})", "field 'landmarks': missing"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})", "field 'state': has 4 numbers"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,-1,0,0,0,1],"landmarks":[]})", "not positive definite"},

@@ -28,6 +28,8 @@ namespace subslam::io {
 
 absl::Status WriteSubmapsJsonl(const std::string& path, const std::vector<LocalSubmap>& submaps);
 absl::StatusOr<std::vector<LocalSubmap>> ReadSubmapsJsonl(const std::string& path);
+// The same from the file's text in memory; `source` names it in errors.
+absl::StatusOr<std::vector<LocalSubmap>> ParseSubmapsJsonl(const std::string& text, const std::string& source);
 
 }  // namespace subslam::io
 
