@@ -295,8 +295,6 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   const long update_number = incremental ? ++updates_since_factorization_ : 0;
   const bool guarded = incremental && (update_number & (update_number - 1)) == 0;
   Eigen::VectorXd x;
-  changed_rows_.clear();
-  changed_all_ = true;
   if (incremental && !guarded && options_.recovery_change_threshold > 0) {
     // Carry the estimate over the new factor: Λ'Δx = η' − Λ'x with x the estimate before
     // (the new variables at 0, their spare slots' solution), non-zero on its rows only.
@@ -316,16 +314,18 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
     solver_->factor.SolveChange(rows, r, options_.recovery_change_threshold, &x, &moved, &change);
     if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
     SetStateRows(x, moved);
-    drift_.resize(dim_, 0.0);
-    for (size_t k = 0; k < moved.size(); ++k) {
-      double& drift = drift_[moved[k]];
-      drift += std::abs(change[k]);
-      if (drift > kLinearizationRecheckDrift) {
-        changed_rows_.push_back(moved[k]);
-        drift = 0.0;
+    estimate_exact_ = false;
+    if (options_.relinearize_linearization_chi2 > 0 && !changed_all_) {
+      drift_.resize(dim_, 0.0);
+      for (size_t k = 0; k < moved.size(); ++k) {
+        double& drift = drift_[moved[k]];
+        drift += std::abs(change[k]);
+        if (drift > kLinearizationRecheckDrift) {
+          changed_rows_.push_back(moved[k]);
+          drift = 0.0;
+        }
       }
     }
-    changed_all_ = false;
     return absl::OkStatus();
   } else {
     {
@@ -350,8 +350,19 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   }
   if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
   SetState(x);
-  drift_.assign(dim_, 0.0);  // every factor is tested after an exact solve
+  estimate_exact_ = true;
+  // Every variable may have moved (and the layout may have changed): the trigger tests
+  // every factor next time.
+  changed_all_ = true;
+  changed_rows_.clear();
+  drift_.assign(dim_, 0.0);
   return absl::OkStatus();
+}
+
+void EifJoiner::MarkLinearizationTested() {
+  changed_rows_.clear();
+  if (changed_all_) drift_.assign(dim_, 0.0);
+  changed_all_ = false;
 }
 
 std::vector<int> EifJoiner::LastAnchorVariables() const {

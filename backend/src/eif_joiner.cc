@@ -190,6 +190,8 @@ void EifJoiner::Restore(Snapshot before) {
   factors_of_row_valid_ = false;
   owner_of_row_valid_ = false;
   changed_all_ = true;
+  estimate_exact_ = false;  // the snapshot's estimate may be a partial one
+  changed_rows_.clear();
   drift_.clear();
   counters_ = before.counters;
   touched_.assign(graph_.num_landmarks(), 1);
@@ -409,6 +411,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   } else if (options_.relinearize_linearization_chi2 > 0) {
     StageTimer timer(&times_, "linearization_check");
     relinearize = LinearizationErrorAbove(options_.relinearize_linearization_chi2);
+    MarkLinearizationTested();
     if (relinearize) ++counters_.relinearized_on_linearization_error;
   }
   if (relinearize) {
@@ -424,6 +427,11 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
 
 absl::Status EifJoiner::Finish() {
   pending_loop_.reset();  // a closure still waiting at the end stands: no more maps to ask
+  if (!estimate_exact_ && !factors_.empty() && !(options_.relinearize_at_end)) {
+    // The changes the partial recoveries left out, made good: Λx = η exactly (Gauss-Newton
+    // at the end solves exactly anyway).
+    if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;
+  }
   // No association follows: the marginal bounds are not refreshed.
   if (options_.relinearize_at_end && !factors_.empty()) {
     if (absl::Status st = GaussNewton(); !st.ok()) return st;

@@ -154,19 +154,31 @@ void SparseCholesky::SolveChange(const std::vector<int>& rows, const Eigen::Vect
     for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) d[Li[p]] -= Lx[p] * yj;
   }
   for (int j : U) d[j] /= Lx[Lp[j]];
-  // Back: Lᵀ Δx = D⁻¹ y from the roots down; Δx_j = z_j − Σ_{i∈L_j} L_ij Δx_i.
+  // Back: Lᵀ Δx = D⁻¹ y from the roots down; Δx_j = z_j − Σ_{i∈L_j} L_ij Δx_i. Off the
+  // paths a column is solved when a row of it changed by more than the threshold ("live").
+  // Its rows lie in its parent's column and the parent itself (L_c ⊆ {p} ∪ L_p), so a
+  // column whose parent neither is live nor has a live row ("touched") has none either,
+  // and its whole subtree is passed over.
+  std::vector<char>& touched = change_touched_;
+  if (static_cast<int>(touched.size()) != capacity_) touched.assign(capacity_, 0);
   std::vector<int> entered;
   for (int j = capacity_ - 1; j >= 0; --j) {
     const bool on_path = stamp[j] == this_walk;
     if (!on_path) {
       const int parent = Parent(j);
-      if (parent < 0 || !live[parent]) continue;
+      if (parent < 0 || !touched[parent]) continue;
     }
+    bool live_row = false;
     double dj = on_path ? d[j] : 0.0;
-    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) dj -= Lx[p] * d[Li[p]];
+    for (int p = Lp[j] + 1; p < Lp[j] + Lnz[j]; ++p) {
+      live_row = live_row || live[Li[p]];
+      dj -= Lx[p] * d[Li[p]];
+    }
+    entered.push_back(j);
+    if (!on_path && !live_row) continue;  // only changes below the threshold reach it
     d[j] = dj;
     live[j] = std::abs(dj) > threshold;
-    entered.push_back(j);
+    touched[j] = live[j] || live_row;
   }
   for (int j : entered) {
     const int v = perm[j];
@@ -179,6 +191,7 @@ void SparseCholesky::SolveChange(const std::vector<int>& rows, const Eigen::Vect
   for (int j : entered) {
     d[j] = 0.0;
     live[j] = 0;
+    touched[j] = 0;
   }
   for (int j : U) d[j] = 0.0;
 }

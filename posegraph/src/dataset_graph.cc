@@ -77,8 +77,7 @@ absl::Status WriteDatasetGraphs(const io::Dataset& dataset, const std::string& d
   auto cartesian = GraphFromDataset(dataset, SightingForm::kPoint);
   if (!cartesian.ok()) return cartesian.status();
   PoseGraph poses_only = *cartesian;
-  poses_only.points.clear();
-  poses_only.point_measurements.clear();
+  poses_only.ClearPoints();
   const std::filesystem::path d(dir);
   GraphWriteOptions isam;
   isam.format = GraphFormat::kIsam;

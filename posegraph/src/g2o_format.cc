@@ -41,7 +41,9 @@ absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* gra
     auto ids = line.EdgeIds();
     if (!ids.ok()) return ids.status();
     const auto [a, b] = *ids;
-    // The first end is a pose, the second a pose or a point: not an id of the other kind.
+    // One id space: an edge's ends are two vertices. The first end is a pose, the second a
+    // pose or a point: not an id of the other kind.
+    if (a == b) return line.Error("an edge from a vertex to itself");
     if (graph->FindPoint(a) >= 0) return line.FieldError(1, absl::StrCat("names point ", a, ", not a pose"));
     const bool pose_pose = tag == "EDGE_SE2";
     if (pose_pose ? graph->FindPoint(b) >= 0 : graph->FindPose(b) >= 0) {
@@ -53,7 +55,6 @@ absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* gra
       if (!z.ok()) return z.status();
       auto information = line.Information(6, 3, noise);
       if (!information.ok()) return information.status();
-      if (a == b) return line.Error("an edge from a pose to itself");
       graph->odometry.push_back(
           {graph->PoseIndex(a), graph->PoseIndex(b), Pose2((*z)[0], (*z)[1], (*z)[2]), *information});
     } else if (tag == "EDGE_SE2_XY") {

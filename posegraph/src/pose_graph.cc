@@ -62,6 +62,14 @@ int PoseGraph::FindPoint(long id) const {
   return it == point_index_.end() ? -1 : it->second;
 }
 
+void PoseGraph::ClearPoints() {
+  points.clear();
+  point_index_.clear();
+  point_measurements.clear();
+  bearing_range_measurements.clear();
+  bearing_measurements.clear();
+}
+
 bool PoseGraph::HasEstimates() const {
   for (const PoseVertex& p : poses) {
     if (!p.has_estimate) return false;

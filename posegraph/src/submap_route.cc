@@ -169,16 +169,19 @@ absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, con
     // Halve a step that raises the cost (Gauss-Newton from dead reckoning seldom needs it).
     const std::vector<Pose2> saved_poses = poses;
     const std::vector<Eigen::Vector2d> saved_points = points;
-    double scale = 1.0, new_cost = cost;
-    for (int halvings = 0; halvings < 10; ++halvings, scale *= 0.5) {
+    double scale = 1.0;
+    bool descended = false;
+    for (int halvings = 0; halvings < 10; ++halvings) {
       apply(step, scale);
-      new_cost = linearize(false);
-      if (new_cost <= cost * (1.0 + 1e-12)) break;
+      descended = linearize(false) <= cost * (1.0 + 1e-12);
+      if (descended) break;
       poses = saved_poses;
       points = saved_points;
+      scale *= 0.5;
     }
     cost = linearize(true);
-    if (scale * step.cwiseAbs().maxCoeff() < 1e-9) break;
+    // No descent along the step: the run is at its minimum to rounding.
+    if (!descended || scale * step.cwiseAbs().maxCoeff() < 1e-9) break;
   }
   ldlt.compute(H);
   if (ldlt.info() != Eigen::Success) return absl::InternalError(absl::StrCat("local map ", id, ": factorisation failed"));
@@ -247,6 +250,7 @@ absl::StatusOr<SubmapRouteReport> SolveBySubmaps(PoseGraph* graph, const SubmapR
   }
   backend::EifJoinerOptions eif = options.eif;
   eif.association.known_association = true;
+  eif.validate_joins = false;  // a rejected join would give a point two landmarks
   const Pose2 initial = graph->poses[0].has_estimate ? graph->poses[0].estimate : Pose2();
   backend::EifJoiner joiner(initial, eif);
   SubmapRouteReport report;

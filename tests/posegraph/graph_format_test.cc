@@ -117,8 +117,7 @@ TEST(GraphFormat, RoundTripsEveryFormat) {
   const testing::SyntheticGraph points = testing::MakeSyntheticGraph(40, 12, testing::Sightings::kPoint, 3);
   const testing::SyntheticGraph polar = testing::MakeSyntheticGraph(40, 12, testing::Sightings::kBearingRange, 4);
   PoseGraph chain = points.graph;  // poses only, for TORO
-  chain.points.clear();
-  chain.point_measurements.clear();
+  chain.ClearPoints();
   struct Case {
     const PoseGraph* graph;
     GraphFormat format;
@@ -222,7 +221,8 @@ TEST(GraphFormat, RefusesBadLinesNamingFileLineAndField) {
       {GraphFormat::kG2o, "VERTEX_XY 3 0 0\nEDGE_SE2 0 3 1 0 0 1 0 0 1 0 1\n", "names point 3, not a pose"},
       {GraphFormat::kG2o, "FIX 4\n", "no pose vertex 4"},
       {GraphFormat::kG2o, "EDGE_SE2 0 1 1 0 0 1 0 0 -1 0 1\n", "information not positive definite"},
-      {GraphFormat::kG2o, "EDGE_SE2 0 0 1 0 0 1 0 0 1 0 1\n", "from a pose to itself"},
+      {GraphFormat::kG2o, "EDGE_SE2 0 0 1 0 0 1 0 0 1 0 1\n", "from a vertex to itself"},
+      {GraphFormat::kG2o, "EDGE_SE2_XY 7 7 1 0 1 0 1\n", "from a vertex to itself"},
       {GraphFormat::kToro, "EDGE2 0 1 1 0 0 1 0 1 1 0\n", "missing field 'I23'"},
       {GraphFormat::kToro, "VERTEX_SE2 0 0 0 0\n", "unknown tag (TORO reads"},
       {GraphFormat::kIsam, "ODOMETRY 0 1 1 0 0 1 0 0 0 0 1\n", "square-root information is singular"},

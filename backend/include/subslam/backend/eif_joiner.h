@@ -435,11 +435,10 @@ class EifJoiner final : public MapJoiner {
   mutable std::vector<int> lambda_slot_offsets_;
   Eigen::VectorXd eta_;
   // Per state row, the factors on it (valid while factors_of_row_valid_); the rows whose
-  // factors the relinearisation trigger must test after the last partial recovery: those
-  // that have moved by more than kLinearizationRecheckDrift since their factors were last
-  // tested (drift_ accumulates each row's changes since; changed_all_: the last solve was
-  // exact — test every factor); incremental updates since the last full factorisation
-  // (the guard's schedule).
+  // factors the relinearisation trigger must test next: those that have moved by more than
+  // kLinearizationRecheckDrift since their factors were last tested (drift_ accumulates
+  // each row's changes since; changed_all_: an exact solve since the last test — test every
+  // factor); incremental updates since the last full factorisation (the guard's schedule).
   // A factor's linearisation error moves by a negligible amount when its variables move
   // by less than this [m, rad] (levers of 100 m and headings 0.1 rad off their
   // linearisation change it by 10⁻⁵ m against local-map noise of centimetres and more).
@@ -456,6 +455,11 @@ class EifJoiner final : public MapJoiner {
   mutable int candidate_walks_ = 0;
   std::vector<int> changed_rows_;
   bool changed_all_ = true;
+  // Whether the estimate is Λ⁻¹η exactly (no partial recovery since the last exact solve).
+  bool estimate_exact_ = true;
+  // After the trigger's test: the rows it covered are tested (and, after a test of every
+  // factor, every row's drift starts again).
+  void MarkLinearizationTested();
   long updates_since_factorization_ = 0;
   struct Solver;
   std::unique_ptr<Solver> solver_;

@@ -11,8 +11,8 @@
 // (LocalSubmap::Validate) and names file, line and field in its errors; ids must
 // increase from line to line. Two rules for local maps written by other tools: times
 // may be absent or null (the map then spans zero time at the previous map's end), and a
-// covariance that is symmetric but not positive definite or numerically singular is
-// regularised (LocalSubmap::RegularizeDegenerateCovariance, counted in
+// covariance that is symmetric and positive semidefinite but singular or numerically so
+// is regularised (an indefinite one is an error) (LocalSubmap::RegularizeDegenerateCovariance, counted in
 // covariance_repairs, which `subslam join` reports).
 #ifndef SUBSLAM_IO_SUBMAPS_JSONL_H_
 #define SUBSLAM_IO_SUBMAPS_JSONL_H_

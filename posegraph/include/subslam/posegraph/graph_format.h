@@ -15,7 +15,9 @@
 //   gtsam   the isam lines as GTSAM's load2D reads them: noise numbers     covariance, upper
 //           are covariances, and each LANDMARK is a bearing-range          triangle row by row
 //           measurement (b, r) of (lx, ly) with σ_b = √(c11/10), σ_r = √c11
-//           (GTSAM's reading, defined for c11 = c22 only)
+//           (GTSAM's reading, defined for c11 = c22 only; GTSAM's own load2D
+//           also takes |c11 − c22| < 10⁻⁴, ignores c12 and otherwise quietly uses
+//           σ = 1 — here such a line is an error)
 //
 // Ids: g2o's vertices share one id space; in isam / gtsam files pose ids (ODOMETRY) and
 // landmark ids (LANDMARK, BR) are separate. Lines starting with '#' and blank lines are

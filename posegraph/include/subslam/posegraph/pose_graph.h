@@ -78,6 +78,8 @@ class PoseGraph {
   // The index, or -1 when there is none with this id.
   int FindPose(long id) const;
   int FindPoint(long id) const;
+  // Removes every point and every measurement of one (a pose graph remains).
+  void ClearPoints();
 
   std::vector<PoseVertex> poses;  // in order of first appearance in the file
   std::vector<PointVertex> points;

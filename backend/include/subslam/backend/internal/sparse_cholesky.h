@@ -73,11 +73,12 @@ class SparseCholesky {
   // the system before, new variables at 0) becomes x + Δx with A Δx = r, where r, the new
   // right-hand side minus A x, is non-zero on the variables `rows` only (r_local, in that
   // order). The forward solve runs over the elimination-tree paths from those rows to the
-  // root alone (exact); the back substitution runs from the roots down and enters a
-  // column only on those paths or below a parent whose change exceeds `threshold`: where
-  // a change dies out, the columns under it are left as they are (the "wildfire" of
-  // iSAM2's partial state update; threshold 0 carries every change that is not exactly
-  // zero). Appends the variables whose value changed to `changed` and, when given, the
+  // root alone (exact); the back substitution runs from the roots down and solves a column
+  // only on those paths or where a row of it changed by more than `threshold`: where the
+  // changes die out, the columns under them are left as they are (the "wildfire" of
+  // iSAM2's partial state update, which tests a clique's separator the same way; a column
+  // left out misses at most threshold · Σ|L_ij| over its rows; threshold 0 carries every
+  // change that is not exactly zero). Appends the variables whose value changed to `changed` and, when given, the
   // changes to `change_sizes`. Work: the paths, the columns entered, and one pass over the
   // elimination tree's parents.
   void SolveChange(const std::vector<int>& rows, const Eigen::VectorXd& r_local, double threshold,
@@ -246,7 +247,7 @@ class SparseCholesky {
   // Also checks those columns' pivots: false if one is not positive.
   bool RefreshParentsFrom(const std::vector<int>& positions);
   mutable std::vector<double> change_workspace_;  // SolveChange(): all zero between calls
-  mutable std::vector<char> change_live_;
+  mutable std::vector<char> change_live_, change_touched_;
   mutable std::vector<int> parent_;
   mutable std::vector<int> back_stamp_;  // InverseColumnsAt(): positions on a requested path
   mutable int back_walks_ = 0;
