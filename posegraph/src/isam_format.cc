@@ -60,6 +60,7 @@ absl::Status ParseIsamLine(GraphLine& line, NoiseConvention noise, bool gtsam_la
       Eigen::Matrix2d information = Eigen::Matrix2d::Zero();
       information(0, 0) = kGtsamLandmarkRange / c11;
       information(1, 1) = 1.0 / c11;
+      if (!information.allFinite()) return line.Error("noise: c11 so small that its information is not finite");
       graph->bearing_range_measurements.push_back(
           {graph->PoseIndex(a), graph->PointIndex(b), std::atan2((*z)[1], (*z)[0]), range, information});
       return absl::OkStatus();
@@ -86,6 +87,9 @@ absl::Status ParseIsamLine(GraphLine& line, NoiseConvention noise, bool gtsam_la
     Eigen::Matrix2d information = Eigen::Matrix2d::Zero();
     information(0, 0) = 1.0 / ((*v)[2] * (*v)[2]);
     information(1, 1) = 1.0 / ((*v)[3] * (*v)[3]);
+    if (!information.allFinite()) {
+      return line.Error("noise: a standard deviation so small that its information 1/σ² is not finite");
+    }
     graph->bearing_range_measurements.push_back(
         {graph->PoseIndex(a), graph->PointIndex(b), (*v)[0], (*v)[1], information});
     return absl::OkStatus();

@@ -227,6 +227,10 @@ TEST(GraphFormat, RefusesBadLinesNamingFileLineAndField) {
       {GraphFormat::kToro, "VERTEX_SE2 0 0 0 0\n", "unknown tag (TORO reads"},
       {GraphFormat::kIsam, "ODOMETRY 0 1 1 0 0 1 0 0 0 0 1\n", "square-root information is singular"},
       {GraphFormat::kIsam, "BR 0 1 0.1 5 0 0.1\n", "field 'sigma_bearing' (field 5) is not positive"},
+      // Found by fuzzing (scripts/fuzz.sh): σ = 9.6e-294 once gave an infinite information.
+      {GraphFormat::kIsam, "ODOMETRY 5 0 164 -3263.210 -16 0.003 0 0 06 0 4\nBR 100 012 98 8 096e-0295 .4\n",
+       "test.graph:2: BR: noise: a standard deviation so small that its information 1/σ² is not finite"},
+      {GraphFormat::kGtsam, "LANDMARK 0 1 3 4 1e-320 0 1e-320\n", "its information is not finite"},
       {GraphFormat::kGtsam, "ODOMETRY 0 1 1 0 0 1 0 0 1 0 1\nLANDMARK 1 5 3 4 0.4 0 0.5\n",
        "test.graph:2: LANDMARK: GTSAM's bearing-range reading needs a covariance c·I"},
       {GraphFormat::kGtsam, "ODOMETRY 0 1 1 0 0 1 2 0 1 0 1\n", "covariance not positive definite"},
