@@ -112,17 +112,15 @@ absl::StatusOr<std::string> FormatG2o(const PoseGraph& graph, NoiseConvention no
     switch (ref.kind) {
       case MeasurementRef::kOdometry: {
         const OdometryMeasurement& m = graph.odometry[ref.index];
-        absl::StrAppend(&out, "EDGE_SE2 ", graph.poses[m.from].id, " ", graph.poses[m.to].id);
-        AppendNumbers(&out, {m.z.x, m.z.y, m.z.theta});
-        AppendNumbers(&out, UpperTriangleFromInformation(m.information, noise));
-        break;
+        AppendMeasurementLine(&out, "EDGE_SE2", graph.poses[m.from].id, graph.poses[m.to].id, {m.z.x, m.z.y, m.z.theta},
+                              m.information, noise);
+        continue;
       }
       case MeasurementRef::kPoint: {
         const PointMeasurement& m = graph.point_measurements[ref.index];
-        absl::StrAppend(&out, "EDGE_SE2_XY ", graph.poses[m.pose].id, " ", graph.points[m.point].id + offset);
-        AppendNumbers(&out, {m.z.x(), m.z.y()});
-        AppendNumbers(&out, UpperTriangleFromInformation(m.information, noise));
-        break;
+        AppendMeasurementLine(&out, "EDGE_SE2_XY", graph.poses[m.pose].id, graph.points[m.point].id + offset, {m.z.x(), m.z.y()},
+                              m.information, noise);
+        continue;
       }
       case MeasurementRef::kBearingRange: {
         const BearingRangeMeasurement& m = graph.bearing_range_measurements[ref.index];
@@ -130,10 +128,9 @@ absl::StatusOr<std::string> FormatG2o(const PoseGraph& graph, NoiseConvention no
         Eigen::Matrix2d J;  // d(x, y) / d(bearing, range)
         J << -m.range * s, c, m.range * c, s;
         const Eigen::Matrix2d covariance = J * m.information.inverse() * J.transpose();
-        absl::StrAppend(&out, "EDGE_SE2_XY ", graph.poses[m.pose].id, " ", graph.points[m.point].id + offset);
-        AppendNumbers(&out, {m.range * c, m.range * s});
-        AppendNumbers(&out, UpperTriangleFromInformation(covariance.inverse(), noise));
-        break;
+        AppendMeasurementLine(&out, "EDGE_SE2_XY", graph.poses[m.pose].id, graph.points[m.point].id + offset,
+                              {m.range * c, m.range * s}, covariance.inverse(), noise);
+        continue;
       }
       case MeasurementRef::kBearing: {
         const BearingMeasurement& m = graph.bearing_measurements[ref.index];

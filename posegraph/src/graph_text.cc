@@ -168,6 +168,14 @@ void AppendNumbers(std::string* out, const std::vector<double>& values) {
   for (double v : values) absl::StrAppend(out, " ", FormatNumber(v));
 }
 
+void AppendMeasurementLine(std::string* out, absl::string_view tag, long a, long b, std::initializer_list<double> z,
+                           const Eigen::MatrixXd& information, NoiseConvention noise) {
+  absl::StrAppend(out, tag, " ", a, " ", b);
+  AppendNumbers(out, z);
+  AppendNumbers(out, UpperTriangleFromInformation(information, noise));
+  *out += '\n';
+}
+
 std::vector<MeasurementRef> WritingOrder(const PoseGraph& graph) {
   const int num_poses = static_cast<int>(graph.poses.size());
   std::vector<std::vector<MeasurementRef>> sightings(num_poses);

@@ -65,6 +65,10 @@ std::vector<double> UpperTriangleFromInformation(const Eigen::MatrixXd& informat
 std::string FormatNumber(double value);
 void AppendNumbers(std::string* out, std::initializer_list<double> values);
 void AppendNumbers(std::string* out, const std::vector<double>& values);
+// One measurement line: "TAG a b z… noise…\n", the noise numbers being the upper
+// triangle of `information` under `noise`.
+void AppendMeasurementLine(std::string* out, absl::string_view tag, long a, long b, std::initializer_list<double> z,
+                           const Eigen::MatrixXd& information, NoiseConvention noise);
 
 // The measurements in the order the writers put them: each odometry measurement in
 // graph order, followed — when it reaches a pose for the first time — by the sightings

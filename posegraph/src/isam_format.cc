@@ -122,17 +122,15 @@ absl::StatusOr<std::string> FormatIsam(const PoseGraph& graph, NoiseConvention n
     switch (ref.kind) {
       case MeasurementRef::kOdometry: {
         const OdometryMeasurement& m = graph.odometry[ref.index];
-        absl::StrAppend(&out, "ODOMETRY ", graph.poses[m.from].id, " ", graph.poses[m.to].id);
-        AppendNumbers(&out, {m.z.x, m.z.y, m.z.theta});
-        AppendNumbers(&out, UpperTriangleFromInformation(m.information, noise));
-        break;
+        AppendMeasurementLine(&out, "ODOMETRY", graph.poses[m.from].id, graph.poses[m.to].id, {m.z.x, m.z.y, m.z.theta},
+                              m.information, noise);
+        continue;
       }
       case MeasurementRef::kPoint: {
         const PointMeasurement& m = graph.point_measurements[ref.index];
-        absl::StrAppend(&out, "LANDMARK ", graph.poses[m.pose].id, " ", graph.points[m.point].id);
-        AppendNumbers(&out, {m.z.x(), m.z.y()});
-        AppendNumbers(&out, UpperTriangleFromInformation(m.information, noise));
-        break;
+        AppendMeasurementLine(&out, "LANDMARK", graph.poses[m.pose].id, graph.points[m.point].id, {m.z.x(), m.z.y()},
+                              m.information, noise);
+        continue;
       }
       case MeasurementRef::kBearingRange: {
         const BearingRangeMeasurement& m = graph.bearing_range_measurements[ref.index];
