@@ -96,6 +96,28 @@ absl::Status ParseVertexEstimate(const GraphLine& line, bool pose, bool shared_i
   return absl::OkStatus();
 }
 
+absl::Status ParseOdometryLine(GraphLine& line, const std::array<const char*, 6>& noise_names,
+                               const std::array<int, 6>& upper_of_noise, NoiseConvention noise, PoseGraph* graph) {
+  const auto& n = noise_names;
+  if (absl::Status s = line.Expect({"from", "to", "dx", "dy", "dtheta", n[0], n[1], n[2], n[3], n[4], n[5]}); !s.ok()) {
+    return s;
+  }
+  auto ids = line.EdgeIds();
+  if (!ids.ok()) return ids.status();
+  const auto [a, b] = *ids;
+  if (a == b) return line.Error("an edge from a pose to itself");
+  auto z = line.Numbers(3, 3);
+  if (!z.ok()) return z.status();
+  auto given = line.Numbers(6, 6);
+  if (!given.ok()) return given.status();
+  std::vector<double> upper(6);
+  for (int k = 0; k < 6; ++k) upper[upper_of_noise[k]] = (*given)[k];
+  auto information = InformationFromUpperTriangle(upper, 3, noise);
+  if (!information.ok()) return line.Error(absl::StrCat("noise: ", information.status().message()));
+  graph->odometry.push_back({graph->PoseIndex(a), graph->PoseIndex(b), Pose2((*z)[0], (*z)[1], (*z)[2]), *information});
+  return absl::OkStatus();
+}
+
 absl::StatusOr<Eigen::MatrixXd> InformationFromUpperTriangle(const std::vector<double>& upper, int n,
                                                              NoiseConvention noise) {
   Eigen::MatrixXd M = Eigen::MatrixXd::Zero(n, n);

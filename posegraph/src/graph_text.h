@@ -5,6 +5,7 @@
 #define SUBSLAM_POSEGRAPH_SRC_GRAPH_TEXT_H_
 
 #include <Eigen/Core>
+#include <array>
 #include <initializer_list>
 #include <string>
 #include "absl/strings/string_view.h"
@@ -85,6 +86,12 @@ std::vector<MeasurementRef> WritingOrder(const PoseGraph& graph);
 // `id`, given once. `shared_ids`: poses and points share one id space (g2o), so an id
 // already used by the other kind is an error.
 absl::Status ParseVertexEstimate(const GraphLine& line, bool pose, bool shared_ids, PoseGraph* graph);
+
+// An odometry line `TAG from to dx dy dθ n…` (6 noise numbers named `noise_names`, in
+// the order given by upper_of_noise: noise number k is entry upper_of_noise[k] of the
+// upper triangle row by row) added to the graph.
+absl::Status ParseOdometryLine(GraphLine& line, const std::array<const char*, 6>& noise_names,
+                               const std::array<int, 6>& upper_of_noise, NoiseConvention noise, PoseGraph* graph);
 
 // The readers and writers of each format (GraphLine errors already name the line).
 absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* graph);

@@ -24,21 +24,7 @@ absl::Status ParseIsamLine(GraphLine& line, NoiseConvention noise, bool gtsam_la
     return ParseVertexEstimate(line, pose, /*shared_ids=*/false, graph);
   }
   if (tag == "ODOMETRY" || tag == "EDGE2") {
-    if (absl::Status s = line.Expect({"from", "to", "dx", "dy", "dtheta", "n11", "n12", "n13", "n22", "n23", "n33"});
-        !s.ok()) {
-      return s;
-    }
-    auto ids = line.EdgeIds();
-    if (!ids.ok()) return ids.status();
-    const auto [a, b] = *ids;
-    if (a == b) return line.Error("an edge from a pose to itself");
-    auto z = line.Numbers(3, 3);
-    if (!z.ok()) return z.status();
-    auto information = line.Information(6, 3, noise);
-    if (!information.ok()) return information.status();
-    graph->odometry.push_back(
-        {graph->PoseIndex(a), graph->PoseIndex(b), Pose2((*z)[0], (*z)[1], (*z)[2]), *information});
-    return absl::OkStatus();
+    return ParseOdometryLine(line, {"n11", "n12", "n13", "n22", "n23", "n33"}, {0, 1, 2, 3, 4, 5}, noise, graph);
   }
   if (tag == "LANDMARK") {
     if (absl::Status s = line.Expect({"pose", "landmark", "lx", "ly", "n11", "n12", "n22"}); !s.ok()) return s;

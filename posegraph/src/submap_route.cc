@@ -71,7 +71,6 @@ absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, con
   // Points in order of first sighting.
   std::vector<int> point_of_slot;
   std::vector<Eigen::Vector2d> points;
-  std::vector<int> slot_of_point;  // sparse: filled on first sighting
   const int end = run.final ? run.last : run.last - 1;
   std::vector<std::pair<int, Sighting>> run_sightings;  // (local pose, sighting)
   for (int p = run.first; p <= end; ++p) {

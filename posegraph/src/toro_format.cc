@@ -8,7 +8,7 @@ namespace {
 
 // TORO's order of the six information entries, as indices into the upper triangle row
 // by row (I11 I12 I13 I22 I23 I33).
-constexpr int kToroToUpper[6] = {0, 1, 3, 5, 2, 4};
+constexpr std::array<int, 6> kToroToUpper = {0, 1, 3, 5, 2, 4};
 
 }  // namespace
 
@@ -19,24 +19,7 @@ absl::Status ParseToroLine(GraphLine& line, NoiseConvention noise, PoseGraph* gr
     return ParseVertexEstimate(line, /*pose=*/true, /*shared_ids=*/false, graph);
   }
   if (tag == "EDGE2") {
-    if (absl::Status s = line.Expect({"from", "to", "dx", "dy", "dtheta", "I11", "I12", "I22", "I33", "I13", "I23"});
-        !s.ok()) {
-      return s;
-    }
-    auto ids = line.EdgeIds();
-    if (!ids.ok()) return ids.status();
-    const auto [a, b] = *ids;
-    if (a == b) return line.Error("an edge from a pose to itself");
-    auto z = line.Numbers(3, 3);
-    if (!z.ok()) return z.status();
-    auto toro_order = line.Numbers(6, 6);
-    if (!toro_order.ok()) return toro_order.status();
-    std::vector<double> upper(6);
-    for (int k = 0; k < 6; ++k) upper[kToroToUpper[k]] = (*toro_order)[k];
-    auto information = InformationFromUpperTriangle(upper, 3, noise);
-    if (!information.ok()) return line.Error(absl::StrCat("noise: ", information.status().message()));
-    graph->odometry.push_back({graph->PoseIndex(a), graph->PoseIndex(b), Pose2((*z)[0], (*z)[1], (*z)[2]), *information});
-    return absl::OkStatus();
+    return ParseOdometryLine(line, {"I11", "I12", "I22", "I33", "I13", "I23"}, kToroToUpper, noise, graph);
   }
   return line.Error("unknown tag (TORO reads VERTEX2 and EDGE2)");
 }
@@ -56,7 +39,7 @@ absl::StatusOr<std::string> FormatToro(const PoseGraph& graph, NoiseConvention n
     absl::StrAppend(&out, "EDGE2 ", graph.poses[m.from].id, " ", graph.poses[m.to].id);
     AppendNumbers(&out, {m.z.x, m.z.y, m.z.theta});
     const std::vector<double> upper = UpperTriangleFromInformation(m.information, noise);
-    for (int k = 0; k < 6; ++k) AppendNumbers(&out, {upper[kToroToUpper[k]]});
+    for (int k : kToroToUpper) AppendNumbers(&out, {upper[k]});
     out += '\n';
   }
   return out;

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -580,6 +582,11 @@ TEST(EifJoiner, RejectsInvalidInput) {
   EifJoinerOptions o;
   o.association.gate_probability = 1.0;
   EXPECT_FALSE(o.Validate().ok());
+  EifJoinerOptions threshold;
+  threshold.recovery_change_threshold = -1e-9;
+  EXPECT_FALSE(threshold.Validate().ok());
+  threshold.recovery_change_threshold = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(threshold.Validate().ok());
 }
 
 }  // namespace

@@ -18,6 +18,7 @@ ABSL_DECLARE_FLAG(std::string, backend);
 ABSL_DECLARE_FLAG(bool, single_linearization);
 ABSL_DECLARE_FLAG(bool, join_merge);
 ABSL_DECLARE_FLAG(std::string, ceres_method);
+ABSL_DECLARE_FLAG(double, eif_recovery_threshold);
 ABSL_DECLARE_FLAG(std::string, ekf_fusion);
 ABSL_DECLARE_FLAG(int, ceres_every);
 
@@ -64,6 +65,7 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   absl::SetFlag(&FLAGS_join_merge, false);
   absl::SetFlag(&FLAGS_ceres_method, "dogleg");
   absl::SetFlag(&FLAGS_ceres_every, 5);
+  absl::SetFlag(&FLAGS_eif_recovery_threshold, 1e-6);
   absl::StatusOr<pipeline::BackendOptions> o = BackendOptionsFromFlags();
   ASSERT_TRUE(o.ok()) << o.status();
   EXPECT_EQ(o->kind, pipeline::Backend::kCeres);
@@ -74,6 +76,7 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   EXPECT_FALSE(o->ekf.revision.merge);
   EXPECT_EQ(o->ceres.method, backend::CeresMethod::kDogleg);
   EXPECT_EQ(o->ceres_every, 5);
+  EXPECT_EQ(o->eif.recovery_change_threshold, 1e-6);
 }
 
 TEST(BackendFlags, AnUnknownNameIsAnErrorThatNamesIt) {
