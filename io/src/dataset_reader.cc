@@ -173,6 +173,15 @@ absl::Status ParseSensor(const Manifest& m, const json& j, SensorConfig* sensor,
                       "max_range", "fov"});
 }
 
+// One text file of the data set, read through `read`.
+absl::StatusOr<std::vector<internal::TextRow>> Table(const FileReader& read, const std::string& path,
+                                                     const std::vector<std::string>& columns,
+                                                     int max_columns, bool allow_empty = false) {
+  absl::StatusOr<std::string> text = read(path);
+  if (!text.ok()) return text.status();
+  return internal::ParseTextTable(*text, path, columns, max_columns, allow_empty);
+}
+
 absl::Status NotBackwards(const std::string& path, int line, double t, double t_prev,
                           bool strictly) {
   if (t < t_prev || (strictly && t == t_prev)) {
@@ -182,9 +191,9 @@ absl::Status NotBackwards(const std::string& path, int line, double t, double t_
   return absl::OkStatus();
 }
 
-absl::Status ReadControls(const std::string& path, Dataset* d) {
+absl::Status ReadControls(const FileReader& read, const std::string& path, Dataset* d) {
   const bool unicycle = d->motion.model == MotionModelType::kUnicycle;
-  auto rows = internal::ReadTextTable(path, {"t", "v", unicycle ? "omega" : "steer"}, 3);
+  auto rows = Table(read, path, {"t", "v", unicycle ? "omega" : "steer"}, 3);
   if (!rows.ok()) return rows.status();
   double t_prev = -INFINITY;
   for (const internal::TextRow& r : *rows) {
@@ -204,7 +213,8 @@ absl::Status ReadControls(const std::string& path, Dataset* d) {
   return absl::OkStatus();
 }
 
-absl::Status ReadObservations(const std::string& path, const SensorFiles& files, Dataset* d) {
+absl::Status ReadObservations(const FileReader& read, const std::string& path, const SensorFiles& files,
+                              Dataset* d) {
   std::vector<std::string> columns = {"t", "range", "bearing"};
   const int needed = std::max({3, files.signature_column, files.truth_id_column});
   for (int c = 4; c <= needed; ++c) {
@@ -212,7 +222,7 @@ absl::Status ReadObservations(const std::string& path, const SensorFiles& files,
                       : c == files.truth_id_column ? "truth_id"
                                                    : absl::StrCat("column ", c));
   }
-  auto rows = internal::ReadTextTable(path, columns, 0, /*allow_empty=*/true);
+  auto rows = Table(read, path, columns, 0, /*allow_empty=*/true);
   if (!rows.ok()) return rows.status();
   double t_prev = -INFINITY;
   for (const internal::TextRow& r : *rows) {
@@ -241,8 +251,8 @@ absl::Status ReadObservations(const std::string& path, const SensorFiles& files,
   return absl::OkStatus();
 }
 
-absl::Status ReadGroundTruth(const std::string& dir, const Manifest& m, const json& j,
-                             Dataset* d) {
+absl::Status ReadGroundTruth(const FileReader& read, const std::string& dir, const Manifest& m,
+                             const json& j, Dataset* d) {
   std::string gps_file, poses_file, landmarks_file;
   SUBSLAM_ASSIGN_OR_RETURN(gps_file, m.OptionalFile(j, "ground_truth", "gps_file"));
   SUBSLAM_ASSIGN_OR_RETURN(poses_file, m.OptionalFile(j, "ground_truth", "poses_file"));
@@ -253,7 +263,7 @@ absl::Status ReadGroundTruth(const std::string& dir, const Manifest& m, const js
   }
   if (!gps_file.empty()) {
     const std::string path = (std::filesystem::path(dir) / gps_file).string();
-    auto rows = internal::ReadTextTable(path, {"t", "x", "y"}, 3);
+    auto rows = Table(read, path, {"t", "x", "y"}, 3);
     if (!rows.ok()) return rows.status();
     double t_prev = -INFINITY;
     for (const auto& r : *rows) {
@@ -264,7 +274,7 @@ absl::Status ReadGroundTruth(const std::string& dir, const Manifest& m, const js
   }
   if (!poses_file.empty()) {
     const std::string path = (std::filesystem::path(dir) / poses_file).string();
-    auto rows = internal::ReadTextTable(path, {"t", "x", "y", "theta"}, 4);
+    auto rows = Table(read, path, {"t", "x", "y", "theta"}, 4);
     if (!rows.ok()) return rows.status();
     double t_prev = -INFINITY;
     for (const auto& r : *rows) {
@@ -276,7 +286,7 @@ absl::Status ReadGroundTruth(const std::string& dir, const Manifest& m, const js
   }
   if (!landmarks_file.empty()) {
     const std::string path = (std::filesystem::path(dir) / landmarks_file).string();
-    auto rows = internal::ReadTextTable(path, {"id", "x", "y"}, 3);
+    auto rows = Table(read, path, {"id", "x", "y"}, 3);
     if (!rows.ok()) return rows.status();
     std::set<int> seen;
     for (const auto& r : *rows) {
@@ -294,9 +304,13 @@ absl::Status ReadGroundTruth(const std::string& dir, const Manifest& m, const js
 }  // namespace
 
 absl::StatusOr<Dataset> ReadDataset(const std::string& directory) {
+  return ReadDataset(directory, internal::ReadFileToString);
+}
+
+absl::StatusOr<Dataset> ReadDataset(const std::string& directory, const FileReader& read) {
   const std::filesystem::path dir(directory);
   const std::string manifest_path = (dir / "dataset.json").string();
-  auto text = internal::ReadFileToString(manifest_path);
+  auto text = read(manifest_path);
   if (!text.ok()) return text.status();
   json j = json::parse(*text, nullptr, /*allow_exceptions=*/false, /*ignore_comments=*/false);
   if (j.is_discarded()) {
@@ -345,14 +359,14 @@ absl::StatusOr<Dataset> ReadDataset(const std::string& directory) {
   SensorFiles files;
   if (absl::Status s = ParseSensor(m, *sensor, &d.sensor, &files); !s.ok()) return s;
 
-  if (absl::Status s = ReadControls((dir / controls_file).string(), &d); !s.ok()) return s;
-  if (absl::Status s = ReadObservations((dir / files.observations).string(), files, &d); !s.ok()) {
+  if (absl::Status s = ReadControls(read, (dir / controls_file).string(), &d); !s.ok()) return s;
+  if (absl::Status s = ReadObservations(read, (dir / files.observations).string(), files, &d); !s.ok()) {
     return s;
   }
   if (j.contains("ground_truth") && !j.at("ground_truth").is_null()) {
     const json* truth = nullptr;
     SUBSLAM_ASSIGN_OR_RETURN(truth, m.Object(j, "", "ground_truth"));
-    if (absl::Status s = ReadGroundTruth(directory, m, *truth, &d); !s.ok()) return s;
+    if (absl::Status s = ReadGroundTruth(read, directory, m, *truth, &d); !s.ok()) return s;
   }
   return d;
 }

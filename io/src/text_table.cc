@@ -1,6 +1,7 @@
 #include "subslam/io/internal/text_table.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -12,6 +13,13 @@
 namespace subslam::internal {
 
 absl::StatusOr<std::string> ReadFileToString(const std::string& path) {
+  // A directory, device or pipe named where a file is expected is refused before it is
+  // opened: reading /dev/zero or a FIFO would never end.
+  std::error_code error;
+  const std::filesystem::file_status status = std::filesystem::status(path, error);
+  if (!error && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+    return absl::InvalidArgumentError(absl::StrCat(path, ": not a regular file"));
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) return absl::NotFoundError(absl::StrCat(path, ": cannot open file"));
   std::ostringstream buffer;
@@ -25,6 +33,12 @@ absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
                                                    int max_columns, bool allow_empty) {
   absl::StatusOr<std::string> text = ReadFileToString(path);
   if (!text.ok()) return text.status();
+  return ParseTextTable(*text, path, column_names, max_columns, allow_empty);
+}
+
+absl::StatusOr<std::vector<TextRow>> ParseTextTable(absl::string_view text, const std::string& path,
+                                                    const std::vector<std::string>& column_names,
+                                                    int max_columns, bool allow_empty) {
   std::vector<TextRow> rows;
   std::vector<absl::string_view> fields;
   const auto separator = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
@@ -33,7 +47,7 @@ absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
     return i < static_cast<int>(column_names.size()) ? column_names[i] : absl::StrCat("column ", i + 1);
   };
   int line_number = 0;
-  for (absl::string_view line : absl::StrSplit(*text, '\n')) {
+  for (absl::string_view line : absl::StrSplit(text, '\n')) {
     ++line_number;
     line = absl::StripAsciiWhitespace(line);
     if (line.empty() || line.front() == '#') continue;

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 
 #include "subslam/io/dataset_writer.h"
 #include "subslam/io/run_output_writer.h"
@@ -139,6 +140,45 @@ TEST_F(MalformedDataset, EmptyOrMissingFile) {
   ExpectError({"c.dat", "no data lines"});
   fs::remove(dir_ / "c.dat");
   ExpectError({"c.dat", "cannot open"});
+}
+
+TEST_F(MalformedDataset, DirectoryOrDeviceNamedAsFile) {
+  fs::remove(dir_ / "c.dat");
+  fs::create_directories(dir_ / "c.dat");
+  ExpectError({"c.dat", "not a regular file"});
+  Write("dataset.json", R"({"format": "subslam-dataset/1", "name": "tiny",
+  "motion": {"model": "unicycle", "controls_file": "/dev/zero", "sigma_v": 0.1, "sigma_omega": 0.01},
+  "sensor": {"type": "range_bearing", "observations_file": "o.dat", "sigma_range": 0.1,
+             "sigma_bearing": 0.01, "max_range": 30}})");
+  ExpectError({"/dev/zero", "not a regular file"});  // would never end if read
+}
+
+TEST(ReadDatasetFromMemory, ReadsTheFilesThroughTheReaderAndNamesThem) {
+  std::map<std::string, std::string> files = {
+      {"mem/dataset.json", R"({"format": "subslam-dataset/1", "name": "in memory",
+  "motion": {"model": "unicycle", "controls_file": "c.dat", "sigma_v": 0.1, "sigma_omega": 0.01},
+  "sensor": {"type": "range_bearing", "observations_file": "o.dat", "sigma_range": 0.1,
+             "sigma_bearing": 0.01, "max_range": 30}})"},
+      {"mem/c.dat", "0 1 0\n0.1 1 0.1\n"},
+      {"mem/o.dat", "0.1 5 0.2\n0.1 6 0.3\n"}};
+  std::vector<std::string> asked;
+  const FileReader read = [&](const std::string& path) -> absl::StatusOr<std::string> {
+    asked.push_back(path);
+    const auto it = files.find(path);
+    if (it == files.end()) return absl::NotFoundError(path + ": cannot open file");
+    return it->second;
+  };
+  absl::StatusOr<Dataset> d = ReadDataset("mem", read);
+  ASSERT_TRUE(d.ok()) << d.status();
+  EXPECT_EQ(d->name, "in memory");
+  EXPECT_EQ(d->controls.size(), 2u);
+  ASSERT_EQ(d->scans.size(), 1u);
+  EXPECT_EQ(d->scans[0].detections.size(), 2u);
+  EXPECT_EQ(asked, (std::vector<std::string>{"mem/dataset.json", "mem/c.dat", "mem/o.dat"}));
+  files["mem/o.dat"] = "0.1 5 0.2\n0.2 x 0.3\n";
+  d = ReadDataset("mem", read);
+  ASSERT_FALSE(d.ok());
+  EXPECT_NE(d.status().message().find("mem/o.dat:2: field 'range'"), std::string::npos) << d.status();
 }
 
 TEST_F(MalformedDataset, BadTruthIdAndRange) {

@@ -9,6 +9,7 @@
 #ifndef SUBSLAM_IO_DATASET_READER_H_
 #define SUBSLAM_IO_DATASET_READER_H_
 
+#include <functional>
 #include <string>
 
 #include "absl/status/statusor.h"
@@ -18,6 +19,14 @@ namespace subslam::io {
 
 // Reads `directory`/dataset.json and the text files it names.
 absl::StatusOr<Dataset> ReadDataset(const std::string& directory);
+
+// Returns the whole content of the file at a path, or an error naming it.
+using FileReader = std::function<absl::StatusOr<std::string>(const std::string& path)>;
+
+// The same with the files' contents supplied by `read` (called with `directory`/dataset.json
+// and then with `directory`/NAME for each file the manifest names): a data set held in
+// memory or in an archive.
+absl::StatusOr<Dataset> ReadDataset(const std::string& directory, const FileReader& read);
 
 }  // namespace subslam::io
 

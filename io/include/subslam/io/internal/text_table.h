@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 
 namespace subslam::internal {
 
@@ -23,7 +24,12 @@ absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
                                                    const std::vector<std::string>& column_names,
                                                    int max_columns = 0, bool allow_empty = false);
 
-// Reads a whole file into a string.
+// The same for a text already in memory; `path` names it in error messages.
+absl::StatusOr<std::vector<TextRow>> ParseTextTable(absl::string_view text, const std::string& path,
+                                                    const std::vector<std::string>& column_names,
+                                                    int max_columns = 0, bool allow_empty = false);
+
+// Reads a whole regular file into a string (a directory, device or pipe is an error).
 absl::StatusOr<std::string> ReadFileToString(const std::string& path);
 
 }  // namespace subslam::internal
