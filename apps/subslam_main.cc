@@ -230,6 +230,12 @@ int Run() {
                   "outputs", options.out_dir.c_str(), local_maps ? ", submaps.jsonl" : "");
     }
   }
+  if (result->stop) {  // the outputs are written up to the last good step
+    std::fprintf(stderr, "subslam: error: the run stopped at step %d of %d (t = %.6f s): %s%s\n", result->stop->step,
+                 result->steps, result->stop->t, result->stop->reason.c_str(),
+                 options.out_dir.empty() ? "" : "; the outputs hold the run up to there");
+    return 1;
+  }
   return 0;
 }
 

@@ -9,6 +9,7 @@
 #include "subslam/frontend/fastslam.h"
 #include "subslam/frontend/seif_slam.h"
 #include "subslam/frontend/submap_policy.h"
+#include "subslam/io/input_screening.h"
 
 namespace {
 const subslam::frontend::EkfSlamOptions& EkfDefaults() {
@@ -105,6 +106,15 @@ ABSL_FLAG(double, sensor_yaw_sigma, FastSlamDefaults().sensor_yaw_sigma,
           "fastslam / rbpf: sigma [rad] of the sensor yaw each particle draws at the start of a local map "
           "and adds to every bearing, so that each map estimates an uncalibrated yaw (0: off)");
 
+ABSL_FLAG(int, innovation_test_window, EkfDefaults().innovation_test.window_scans,
+          "ekfslam / ekf: scans per window of the normalised innovation test for divergence (0: off)");
+ABSL_FLAG(double, depletion_ess, FastSlamDefaults().depletion_ess_ratio,
+          "fastslam / rbpf: an update leaving fewer than this fraction of effective particles counts as depleted");
+ABSL_FLAG(double, control_spike_sigmas, subslam::io::InputScreeningOptions{}.control_spike_sigmas,
+          "a control departing from both neighbours by more than this many noise sigmas is a spike, replaced");
+ABSL_FLAG(double, time_gap_factor, subslam::io::InputScreeningOptions{}.time_gap_factor,
+          "an interval between steps longer than this many median intervals is counted as a time gap");
+
 namespace subslam::cli {
 
 absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options) {
@@ -138,6 +148,10 @@ absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options) {
   options->fastslam.num_threads = absl::GetFlag(FLAGS_threads);
   options->fastslam.sample_association = absl::GetFlag(FLAGS_sample_association);
   options->fastslam.resample_ess_ratio = absl::GetFlag(FLAGS_resample_ess);
+  options->fastslam.depletion_ess_ratio = absl::GetFlag(FLAGS_depletion_ess);
+  options->ekf.innovation_test.window_scans = absl::GetFlag(FLAGS_innovation_test_window);
+  options->inputs.control_spike_sigmas = absl::GetFlag(FLAGS_control_spike_sigmas);
+  options->inputs.time_gap_factor = absl::GetFlag(FLAGS_time_gap_factor);
   options->fastslam.landmark_update_iterations = absl::GetFlag(FLAGS_landmark_iterations);
   options->fastslam.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);
   options->fastslam.correct_shared_ancestry = absl::GetFlag(FLAGS_correct_shared_ancestry);

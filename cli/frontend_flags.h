@@ -10,7 +10,7 @@
 
 namespace subslam::cli {
 
-// Sets options->ekf, fastslam, seif and policy from the flags (not the front-end kind,
+// Sets options->ekf, fastslam, seif, policy and inputs from the flags (not the front-end kind,
 // the back-end or the noise overrides); errors for names no enum table knows.
 absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options);
 

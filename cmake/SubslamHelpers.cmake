@@ -28,8 +28,8 @@ function(subslam_add_module NAME)
   # choice (no measurable cost of the pinning: bench/RESULTS.md).
   target_compile_definitions(subslam_${NAME} PUBLIC EIGEN_MAX_ALIGN_BYTES=64 EIGEN_MAX_STATIC_ALIGN_BYTES=16
                              EIGEN_MALLOC_ALREADY_ALIGNED=0)
-  if(SUBSLAM_SANITIZE)  # users of a sanitized build link its runtime
-    target_link_options(subslam_${NAME} INTERFACE -fsanitize=address,undefined)
+  if(SUBSLAM_SANITIZER_FLAGS)  # users of a sanitized build link its runtime
+    target_link_options(subslam_${NAME} INTERFACE ${SUBSLAM_SANITIZER_FLAGS})
   endif()
   install(TARGETS subslam_${NAME} EXPORT subslamTargets
           ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}

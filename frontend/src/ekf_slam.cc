@@ -15,13 +15,14 @@
 namespace subslam::frontend {
 absl::Status EkfSlamOptions::Validate() const {
   if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
+  if (absl::Status s = innovation_test.Validate(); !s.ok()) return s;
   return landmarks.Validate();
 }
 
 EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion,
                  const models::RangeBearingConfig& sensor, const Pose2& initial_pose,
                  const EkfSlamOptions& options, const Eigen::Matrix3d& initial_pose_covariance)
-    : motion_(std::move(motion)), sensor_(sensor), options_(options) {
+    : motion_(std::move(motion)), sensor_(sensor), options_(options), innovation_monitor_(options.innovation_test) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   gate_d2_ = models::ChiSquareQuantile(options_.landmarks.gate_probability, 2);
   new_landmark_d2_ = models::ChiSquareQuantile(options_.landmarks.new_landmark_probability, 2);
@@ -150,7 +151,10 @@ void EkfSlam::Update(const Scan& scan) {
       for (const Prediction& pr : predictions) {
         const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
         const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
-        SUBSLAM_CHECK(d2.has_value()) << "innovation covariance not positive definite";
+        if (!d2.has_value()) {  // S not positive definite: this pairing is not considered
+          ++counters_.numerical_failures;
+          continue;
+        }
         min_d2[j] = std::min(min_d2[j], *d2);
         if (*d2 < new_landmark_d2_) gated[pr.landmark] = true;
         if (*d2 < gate_d2_) problem.candidates[j].push_back({pr.landmark, *d2, nu});
@@ -174,7 +178,12 @@ void EkfSlam::Update(const Scan& scan) {
         const Prediction& pr = predictions[prediction_of_landmark[i]];
         const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
         const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
-        SUBSLAM_CHECK(d2.has_value()) << "innovation covariance not positive definite";
+        if (!d2.has_value()) {  // S not positive definite: this detection is not used
+          ++counters_.numerical_failures;
+          association.landmark_of_detection[j] = -1;
+          gated[i] = true;  // not a new landmark either
+          continue;
+        }
         problem.candidates[j].push_back({i, *d2, nu});
         association.landmark_of_detection[j] = i;
         gated[i] = true;
@@ -256,7 +265,10 @@ void EkfSlam::UpdateWithPairings(
   }
   S = 0.5 * (S + S.transpose()).eval();
   Eigen::LLT<Eigen::MatrixXd> llt(S);
-  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "joint innovation covariance not PD";
+  if (llt.info() != Eigen::Success) {  // the scan's update is skipped
+    ++counters_.numerical_failures;
+    return;
+  }
   // W = PHᵀ L⁻ᵀ, so that K ν = W (L⁻¹ ν) and K S Kᵀ = W Wᵀ.
   Eigen::MatrixXd Wt = PHt.transpose();
   llt.matrixL().solveInPlace(Wt);
@@ -267,6 +279,7 @@ void EkfSlam::UpdateWithPairings(
       0.5 * whitened.squaredNorm() + llt.matrixLLT().diagonal().array().log().sum() +
       k * std::log(2.0 * std::numbers::pi);
   counters_.innovation_dof += 2 * k;
+  innovation_monitor_.Add(whitened.squaredNorm(), 2 * k);
   x_.head(dim_).noalias() += Wt.transpose() * whitened;
   x_[2] = WrapAngle(x_[2]);
   // Lower triangle only: mirroring the whole matrix would cost as much as the update.
@@ -413,7 +426,7 @@ std::vector<LandmarkEstimate> EkfSlam::Map() const {
 std::map<std::string, double> EkfSlam::Counters() const {
   int confirmed = 0;
   for (const LandmarkInfo& l : landmarks_) confirmed += l.confirmed ? 1 : 0;
-  return {{"scans", counters_.scans},
+  std::map<std::string, double> out = {{"scans", counters_.scans},
           {"detections", counters_.detections},
           {"associated", counters_.associated},
           {"new_landmarks", counters_.new_landmarks},
@@ -423,8 +436,11 @@ std::map<std::string, double> EkfSlam::Counters() const {
           {"jcbb_truncated_scans", counters_.jcbb_truncated},
           {"innovation_neg_log_likelihood", counters_.innovation_neg_log_likelihood},
           {"innovation_dof", counters_.innovation_dof},
+          {"numerical_failures", counters_.numerical_failures},
           {"landmarks_in_state", num_landmarks()},
           {"confirmed_landmarks", confirmed}};
+  innovation_monitor_.AddCounters(&out);
+  return out;
 }
 
 }  // namespace subslam::frontend

@@ -32,6 +32,9 @@ absl::Status FastSlamOptions::Validate() const {
   if (!(resample_ess_ratio >= 0.0 && resample_ess_ratio <= 1.0)) {
     return absl::InvalidArgumentError("resample_ess_ratio must be in [0, 1]");
   }
+  if (!(depletion_ess_ratio >= 0.0 && depletion_ess_ratio <= 1.0)) {
+    return absl::InvalidArgumentError("depletion_ess_ratio must be in [0, 1]");
+  }
   if (landmark_update_iterations < 1) {
     return absl::InvalidArgumentError("landmark_update_iterations must be >= 1");
   }
@@ -104,6 +107,7 @@ void FastSlam::Reset(const Pose2& start) {
   feature_truth_.clear();
   scan_disagreement_ = 0.0;
   resample_pending_ = false;
+  lineage_collapsed_ = false;
   motion_since_scan_ = Pose2();
   motion_covariance_.setZero();
   genealogy_.Reset();
@@ -221,6 +225,11 @@ void FastSlam::Update(const Scan& scan) {
     motion_covariance_.setZero();
     Normalise();
     last_ess_ratio_ = EffectiveSampleSizeRatio();
+    counters_.min_ess_ratio = std::min(counters_.min_ess_ratio, last_ess_ratio_);
+    if (last_ess_ratio_ < options_.depletion_ess_ratio) ++counters_.depleted_updates;
+    const bool collapsed = num_particles() > 1 && LineageDiversity() * num_particles() < 1.5;
+    if (collapsed && !lineage_collapsed_) ++counters_.lineage_collapses;
+    lineage_collapsed_ = collapsed;
     Vote(m);
     std::vector<int> per_detection(scan.detections.size(), -1);
     for (int j = 0; j < m; ++j) per_detection[detection_index_[j]] = scan_features_[j];
@@ -252,8 +261,16 @@ int FastSlam::threads() const { return pool_->threads(); }
 
 void FastSlam::Normalise() {
   double max_log = -INFINITY;
-  for (const Particle& p : particles_) max_log = std::max(max_log, p.log_weight);
-  SUBSLAM_CHECK(std::isfinite(max_log)) << "every particle weight is zero or NaN";
+  for (Particle& p : particles_) {
+    if (std::isnan(p.log_weight)) p.log_weight = -INFINITY;  // no weight
+    max_log = std::max(max_log, p.log_weight);
+  }
+  if (!std::isfinite(max_log)) {  // every weight zero or NaN: uniform
+    ++counters_.weight_collapses;
+    const double log_w = -std::log(static_cast<double>(particles_.size()));
+    for (Particle& p : particles_) p.log_weight = log_w;
+    return;
+  }
   double total = 0.0;
   for (const Particle& p : particles_) total += std::exp(p.log_weight - max_log);
   const double log_total = max_log + std::log(total);
@@ -465,6 +482,10 @@ std::map<std::string, double> FastSlam::Counters() const {
           {"landmark_copies", counters_.landmark_copies},
           {"common_features_issued", counters_.features},
           {"scans_with_fewer_threads", counters_.scans_with_fewer_threads},
+          {"min_ess_ratio", counters_.min_ess_ratio},
+          {"depleted_updates", counters_.depleted_updates},
+          {"lineage_collapses", counters_.lineage_collapses},
+          {"weight_collapses", counters_.weight_collapses},
           {"mean_landmarks_per_particle", landmarks / num_particles()}};
 }
 

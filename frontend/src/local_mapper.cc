@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "subslam/graph/check.h"
 
@@ -41,6 +42,7 @@ void LocalMapper::Finish() {
 }
 
 void LocalMapper::Close(CloseReason reason) {
+  if (!status_.ok()) return;  // a map failed before: nothing more is closed
   const absl::Time start = absl::Now();
   MomentMatchedGaussian g = Export();
   DropUncertainFeatures(&g);
@@ -61,8 +63,11 @@ void LocalMapper::Close(CloseReason reason) {
     if (k < g.truth_id.size() && g.truth_id[k] >= 0) l.truth_id = g.truth_id[k];  // known association
     s.landmarks.push_back(l);
   }
-  const absl::Status valid = s.Validate();
-  SUBSLAM_CHECK(valid.ok()) << "exported local map is invalid: " << valid.message();
+  if (const absl::Status valid = s.Validate(); !valid.ok()) {
+    status_ = absl::InternalError(absl::StrCat("the filter's estimate could not be exported as local map ", map_id_,
+                                               ": ", valid.message()));
+    return;
+  }
   repairs_ += g.covariance_repairs;
   ++closes_by_reason_[ToString(reason)];
   closed_.push_back(std::move(closed));

@@ -205,6 +205,7 @@ absl::Status ReadControls(const FileReader& read, const std::string& path, Datas
     }
     if (!d->controls.empty() && d->controls.back().t == r.values[0]) {
       d->controls.back().u = {r.values[1], r.values[2]};  // the later line wins
+      ++d->duplicate_control_times;
     } else {
       d->controls.push_back({r.values[0], {r.values[1], r.values[2]}});
     }

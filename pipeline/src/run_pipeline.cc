@@ -179,9 +179,10 @@ std::unique_ptr<frontend::OnlineEstimator> MakeEstimator(const io::Dataset& data
 
 // Drives the estimator over the steps: the online trajectory, the wall time after each
 // tenth of the run, and (submap pipeline) the truth votes of each scan's features and the
-// final joins. Fills r's counts, online trajectory and times.
-absl::Status Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Dataset& dataset,
-                   bool show_progress, RunResult* r, TruthVotes* truth_votes) {
+// final joins. Fills r's counts, online trajectory and times. Stops early (r->stop) at the
+// first step whose estimate is not finite, or once a join has failed.
+void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Dataset& dataset,
+           bool show_progress, RunResult* r, TruthVotes* truth_votes) {
   const std::vector<io::Step> steps = io::BuildSteps(dataset);
   r->steps = static_cast<int>(steps.size());
   r->scans = static_cast<int>(dataset.scans.size());
@@ -197,7 +198,13 @@ absl::Status Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, cons
       estimator.Update(scan);
       if (chain != nullptr) truth_votes->Add(chain->last_scan_map_id(), chain->last_scan_features(), scan);
     }
-    r->online.push_back({step.t, estimator.pose(), estimator.pose_covariance()});
+    const PoseEstimate now{step.t, estimator.pose(), estimator.pose_covariance()};
+    if (!now.pose.vector().allFinite() || !now.covariance.allFinite()) {
+      r->stop = RunStop{RunStop::Cause::kNonFiniteEstimate, static_cast<int>(k), step.t,
+                        absl::StrFormat("the estimate is not finite after step %d (t = %.6f s)", k, step.t)};
+      break;
+    }
+    r->online.push_back(now);
     if (chain != nullptr) chain->RecordStep(step.t);
     progress.Tick(k, step.t);
     // Wall time at the end of each tenth of the run: flat increments mean the time
@@ -205,12 +212,23 @@ absl::Status Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, cons
     if ((k + 1) * 10 / steps.size() != k * 10 / steps.size()) {
       r->wall_seconds_by_tenth.push_back(absl::ToDoubleSeconds(absl::Now() - start));
     }
+    if (chain != nullptr && (chain->join_failed() || chain->export_failed())) {
+      r->stop = RunStop{chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed,
+                        static_cast<int>(k + 1), k + 1 < steps.size() ? steps[k + 1].t : step.t, ""};
+      break;
+    }
   }
   if (chain != nullptr) {
-    if (absl::Status st = chain->Finish(); !st.ok()) return st;
+    // Joins the open map; after a failed join it returns that join's error.
+    if (absl::Status st = chain->Finish(); !st.ok()) {
+      if (!r->stop) {
+        r->stop = RunStop{chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed,
+                          r->steps, steps.empty() ? 0.0 : steps.back().t, ""};
+      }
+      if (r->stop->reason.empty()) r->stop->reason = std::string(st.message());
+    }
   }
   r->wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
-  return absl::OkStatus();
 }
 
 // Each local map's NEES against the truth (the true end pose and features in the true
@@ -291,6 +309,53 @@ json Evaluate(const io::Dataset& dataset, const RunOptions& options, const Subma
   return metrics;
 }
 
+// report.json's "health": whether the run completed, the input rules' counts, and each
+// failure kind the estimator watches for (docs/formats.md, "health").
+json Health(const RunResult& r, const std::map<std::string, double>& counters) {
+  const auto count = [&counters](const char* name) {
+    const auto it = counters.find(name);
+    return it == counters.end() ? 0.0 : it->second;
+  };
+  const auto has = [&counters](const char* name) { return counters.count(name) > 0; };
+  json h = {{"completed", !r.stop.has_value()}};
+  if (r.stop) {
+    h["stopped"] = {{"cause", ToString(r.stop->cause)},
+                    {"step", r.stop->step}, {"t", r.stop->t}, {"reason", r.stop->reason},
+                    {"steps_in_outputs", r.online.size()}, {"final_trajectory_steps", r.final_trajectory.size()}};
+  }
+  h["inputs"] = {{"control_spikes_replaced", r.inputs.control_spikes},
+                 {"time_gaps", r.inputs.time_gaps},
+                 {"longest_step_interval_s", r.inputs.longest_gap_s},
+                 {"median_step_interval_s", r.inputs.median_interval_s},
+                 {"repeated_control_times", r.inputs.duplicate_control_times},
+                 {"detections_out_of_range", r.inputs.detections_out_of_range}};
+  if (has("min_ess_ratio")) {
+    h["particles"] = {{"min_ess_ratio", count("min_ess_ratio")},
+                      {"depleted_updates", count("depleted_updates")},
+                      {"lineage_collapses", count("lineage_collapses")},
+                      {"weight_collapses", count("weight_collapses")}};
+  }
+  if (has("innovation_windows_tested")) {
+    h["divergence"] = {{"windows_tested", count("innovation_windows_tested")},
+                       {"windows_failed", count("innovation_windows_failed")},
+                       {"episodes", count("divergence_episodes")},
+                       {"longest_episode_scans", count("longest_divergence_scans")}};
+  }
+  h["numerical_failures"] = {{"filter", count("numerical_failures")},
+                             {"factor_updates_refactorised", count("join_failed_updates")}};
+  if (has("join_maps")) {
+    const bool join_failed = r.stop.has_value() && r.stop->cause == RunStop::Cause::kJoinFailed;
+    h["joins"] = {{"joined", count("join_maps")},
+                  {"failed", join_failed ? 1 : 0},
+                  {"rejected_and_joined_without_associations", count("join_rejected")},
+                  {"loop_closures_undone", count("join_loop_closures_unconfirmed")},
+                  {"landmarks_merged", count("join_landmarks_merged")},
+                  {"features_split", count("join_features_split")}};
+  }
+  h["non_finite_landmarks_dropped"] = r.non_finite_landmarks;
+  return h;
+}
+
 // report.json: configuration, counts, the estimator's counters and stage times, memory and
 // the metrics.
 json Report(const io::Dataset& dataset, const RunOptions& options, const CheckedOptions& checked,
@@ -299,7 +364,8 @@ json Report(const io::Dataset& dataset, const RunOptions& options, const Checked
   json stage_times = json::object();
   for (const auto& [stage, seconds] : estimator.stage_times()) stage_times[stage] = seconds;
   json counters = json::object();
-  for (const auto& [name, value] : estimator.Counters()) counters[name] = value;
+  const std::map<std::string, double> estimator_counters = estimator.Counters();
+  for (const auto& [name, value] : estimator_counters) counters[name] = value;
   const models::RangeBearingConfig& rb = dataset.sensor.range_bearing;
   json report = {
       {"format", "subslam-report/1"},
@@ -334,6 +400,7 @@ json Report(const io::Dataset& dataset, const RunOptions& options, const Checked
         {"stages", stage_times},
         {"cumulative_by_tenth_of_steps", r.wall_seconds_by_tenth}}},
       {"peak_rss_kb", r.peak_rss_kb},
+      {"health", Health(r, estimator_counters)},
       {"metrics", std::move(metrics)}};
 
   if (options.backend.kind != Backend::kNone &&
@@ -453,6 +520,15 @@ constexpr EnumName<Frontend> kFrontendNames[] = {
 
 const char* ToString(Frontend frontend) { return NameOf(kFrontendNames, frontend); }
 
+const char* ToString(RunStop::Cause cause) {
+  switch (cause) {
+    case RunStop::Cause::kExportFailed: return "local_map_export_failed";
+    case RunStop::Cause::kJoinFailed: return "join_failed";
+    case RunStop::Cause::kNonFiniteEstimate: break;
+  }
+  return "non_finite_estimate";
+}
+
 absl::StatusOr<Frontend> FrontendFromString(const std::string& name) {
   return ParseEnum(kFrontendNames, name, "front-end");
 }
@@ -485,6 +561,7 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
 
 absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& options) {
   if (absl::Status s = options.noise.ApplyTo(&dataset); !s.ok()) return s;
+  if (absl::Status s = options.inputs.Validate(); !s.ok()) return s;
   absl::StatusOr<CheckedOptions> checked = CheckOptions(dataset, options);
   if (!checked.ok()) return checked.status();
   SubmapSlam* chain = nullptr;
@@ -493,7 +570,8 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   r.source = options.source.empty() ? dataset.name : options.source;
   r.frontend = estimator->Name();
   TruthVotes truth_votes;
-  if (absl::Status st = Drive(*estimator, chain, dataset, options.progress, &r, &truth_votes); !st.ok()) return st;
+  r.inputs = io::ScreenInputs(options.inputs, &dataset);
+  Drive(*estimator, chain, dataset, options.progress, &r, &truth_votes);
   // The online trajectory is complete: it is written on another thread while the final
   // one, the map and the metrics are computed (Victoria Park: 69,000 rows).
   std::optional<std::filesystem::path> out_dir;
@@ -519,6 +597,13 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   // every step with the final anchors.
   r.final_trajectory = chain != nullptr ? chain->FinalTrajectory() : r.online;
   r.landmarks = estimator->Map();
+  if (r.stop) {  // a broken estimate's landmarks are not part of the map
+    const size_t before = r.landmarks.size();
+    std::erase_if(r.landmarks, [](const LandmarkEstimate& l) {
+      return !l.position.allFinite() || !l.covariance.allFinite();
+    });
+    r.non_finite_landmarks = static_cast<int>(before - r.landmarks.size());
+  }
   json metrics = Evaluate(dataset, options, chain, &r);
   r.report = Report(dataset, options, *checked, *estimator, r, std::move(metrics));
   if (out_dir.has_value()) {
@@ -535,6 +620,10 @@ std::string SummaryTable(const RunResult& r) {
     absl::StrAppendFormat(&s, "  %-34s %s\n", key, value);
   };
   row("ran", absl::StrCat(r.frontend, " on ", r.source));
+  if (r.stop) {
+    row("STOPPED", absl::StrFormat("at step %d of %d (t = %.3f s): %s; outputs up to there", r.stop->step,
+                                   r.steps, r.stop->t, r.stop->reason));
+  }
   row("steps / scans / detections", absl::StrCat(r.steps, " / ", r.scans, " / ", r.detections));
   row("landmarks in map", absl::StrCat(r.landmarks.size()));
   if (r.errors) {
@@ -586,6 +675,40 @@ std::string SummaryTable(const RunResult& r) {
     row("back-end association revised", absl::StrFormat("%.0f landmarks merged, %.0f features split",
                                                          c["join_landmarks_merged"].get<double>(),
                                                          c["join_features_split"].get<double>()));
+  }
+  if (r.report.contains("health")) {
+    const nlohmann::json& h = r.report["health"];
+    const auto n = [](const nlohmann::json& v) { return static_cast<long>(v.get<double>()); };
+    const nlohmann::json& in = h["inputs"];
+    row("inputs: spikes / gaps / repeated t",
+        absl::StrFormat("%d / %d (longest step %.3g s) / %d; %d detections out of range",
+                        in["control_spikes_replaced"].get<int>(), in["time_gaps"].get<int>(),
+                        in["longest_step_interval_s"].get<double>(), in["repeated_control_times"].get<int>(),
+                        in["detections_out_of_range"].get<long>()));
+    if (h.contains("particles")) {
+      const nlohmann::json& p = h["particles"];
+      row("particles: min ESS / depleted",
+          absl::StrFormat("%.3f N / %d updates; %d lineage collapses, %d weight collapses",
+                          p["min_ess_ratio"].get<double>(), n(p["depleted_updates"]), n(p["lineage_collapses"]),
+                          n(p["weight_collapses"])));
+    }
+    if (h.contains("divergence")) {
+      const nlohmann::json& d = h["divergence"];
+      row("innovation test: windows failed",
+          absl::StrFormat("%d / %d (%d episodes, longest %d scans)", n(d["windows_failed"]), n(d["windows_tested"]),
+                          n(d["episodes"]), n(d["longest_episode_scans"])));
+    }
+    const nlohmann::json& nf = h["numerical_failures"];
+    if (n(nf["filter"]) > 0 || n(nf["factor_updates_refactorised"]) > 0) {
+      row("numerical failures", absl::StrFormat("%d in the filter (update skipped), %d factor updates refactorised",
+                                                n(nf["filter"]), n(nf["factor_updates_refactorised"])));
+    }
+    if (h.contains("joins")) {
+      const nlohmann::json& j = h["joins"];
+      row("joins: failed / rejected / undone",
+          absl::StrFormat("%d / %d / %d loop closures", n(j["failed"]),
+                          n(j["rejected_and_joined_without_associations"]), n(j["loop_closures_undone"])));
+    }
   }
   row("estimator time", absl::StrFormat("%.3f s", r.wall_seconds));
   row("peak memory", absl::StrFormat("%.1f MB", r.peak_rss_kb / 1024.0));

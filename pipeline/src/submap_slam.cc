@@ -60,14 +60,20 @@ std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, co
 
 SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
                        const BackendOptions& backend)
-    : mapper_(std::move(mapper)),
-      backend_(backend.kind),
-      joiner_(MakeJoiner(backend, initial_pose)),
-      anchor_(initial_pose) {
+    : SubmapSlam(std::move(mapper), initial_pose, MakeJoiner(backend, initial_pose), backend.background,
+                 ToString(backend.kind)) {
   SUBSLAM_CHECK(backend.Validate().ok()) << backend.Validate().message();
+}
+
+SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
+                       std::unique_ptr<backend::MapJoiner> joiner, bool background, std::string backend_name)
+    : mapper_(std::move(mapper)),
+      backend_name_(joiner == nullptr ? "" : backend_name.empty() ? joiner->Name() : std::move(backend_name)),
+      joiner_(std::move(joiner)),
+      anchor_(initial_pose) {
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
-  background_ = backend.background && joiner_ != nullptr;
+  background_ = background && joiner_ != nullptr;
   if (background_) join_thread_ = std::thread([this] { JoinWorker(); });
 }
 
@@ -91,6 +97,7 @@ void SubmapSlam::JoinWorker() {
       JoinOne(*joining_);  // joining_ is not touched by anyone else while it is set
     } catch (const std::exception& e) {  // e.g. out of memory: reported by Finish()
       status_ = absl::InternalError(absl::StrCat("joining local map ", joining_->id, ": ", e.what()));
+      join_failed_.store(true, std::memory_order_release);
     }
     lock.lock();
     joining_.reset();
@@ -106,7 +113,7 @@ void SubmapSlam::WaitForJoins() const {
 }
 
 std::string SubmapSlam::Name() const {
-  return backend_ == Backend::kNone ? mapper_->Name() : absl::StrCat(mapper_->Name(), "+", ToString(backend_));
+  return backend_name_.empty() ? mapper_->Name() : absl::StrCat(mapper_->Name(), "+", backend_name_);
 }
 
 void SubmapSlam::Update(const Scan& scan) {
@@ -169,6 +176,7 @@ void SubmapSlam::JoinOne(const LocalSubmap& s) {
     status_ = absl::StrContains(st.message(), map)
                   ? st
                   : absl::Status(st.code(), absl::StrCat("joining ", map, ": ", st.message()));
+    join_failed_.store(true, std::memory_order_release);
     return;
   }
   joins_.push_back(joiner_->last_join());
@@ -197,6 +205,7 @@ absl::Status SubmapSlam::Finish() {
   mapper_->Finish();
   JoinClosed();
   WaitForJoins();
+  if (!mapper_->status().ok()) return mapper_->status();
   if (joiner_ && status_.ok()) status_ = joiner_->Finish();
   if (joiner_ && status_.ok()) {  // the online pose after the run: on the final estimate
     anchor_ = Anchor(mapper_->current_map_id());
@@ -216,6 +225,7 @@ Trajectory SubmapSlam::FinalTrajectory() const {
   Pose2 anchor;
   Eigen::Matrix3d anchor_cov;
   for (const StepRecord& r : steps_) {
+    if (r.map >= static_cast<int>(anchor_covariances.size())) break;  // after a failed join
     if (r.map != cached) {
       anchor = Anchor(r.map);
       anchor_cov = anchor_covariances.at(r.map);

@@ -9,7 +9,11 @@ absl::StatusOr<pipeline::RunResult> RunMethod(const StudyMethod& method, io::Dat
   options.fastslam.num_threads = 1;
   options.backend.background = false;
   method.configure(&options);
-  return pipeline::RunPipeline(std::move(dataset), options);
+  absl::StatusOr<pipeline::RunResult> r = pipeline::RunPipeline(std::move(dataset), options);
+  if (r.ok() && r->stop) {  // a study's figures need the whole run
+    return absl::InternalError(absl::StrCat("the run stopped at step ", r->stop->step, ": ", r->stop->reason));
+  }
+  return r;
 }
 
 absl::StatusOr<pipeline::RunResult> RunMethodWithTruth(const StudyMethod& method, io::Dataset dataset) {

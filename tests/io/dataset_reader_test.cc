@@ -76,6 +76,15 @@ TEST_F(MalformedDataset, ValidBaselineLoads) {
   EXPECT_EQ(d->truth_poses.size(), 3u);
 }
 
+TEST_F(MalformedDataset, RepeatedControlTimeKeepsTheLaterLineAndIsCounted) {
+  Write("c.dat", "0 1 0\n0.1 1 0.1\n0.1 2 0.2\n0.2 1 0\n");
+  absl::StatusOr<Dataset> d = ReadDataset(dir_.string());
+  ASSERT_TRUE(d.ok()) << d.status();
+  ASSERT_EQ(d->controls.size(), 3u);
+  EXPECT_EQ(d->controls[1].u, Eigen::Vector2d(2, 0.2));
+  EXPECT_EQ(d->duplicate_control_times, 1);
+}
+
 TEST_F(MalformedDataset, NonNumericField) {
   Write("c.dat", "0 1 0\n0.1 abc 0\n");
   ExpectError({"c.dat:2", "'v'", "not a number"});

@@ -33,6 +33,7 @@
 #include "subslam/association/data_association.h"
 #include "subslam/frontend/landmark_options.h"
 #include "subslam/frontend/moment_matching.h"
+#include "subslam/frontend/innovation_monitor.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
 #include "subslam/models/range_bearing_model.h"
@@ -43,6 +44,9 @@ struct EkfSlamOptions {
   association::AssociationMethod association = association::AssociationMethod::kNearestNeighbour;
   long jcbb_max_nodes = 20000;  // JCBB search budget per scan
   LandmarkOptions landmarks;    // gates, known association, existence
+  // Divergence: the windowed normalised innovation test over the associated detections
+  // (innovation_monitor.h), counted in Counters().
+  InnovationTestOptions innovation_test;
 
   absl::Status Validate() const;
 };
@@ -62,6 +66,9 @@ struct EkfSlamCounters {
   // likelihood estimate (bench/sensor_yaw_calibration).
   double innovation_neg_log_likelihood = 0.0;
   long innovation_dof = 0;
+  // Numerical failures: an innovation covariance that is not positive definite. The
+  // pairing (or, for the joint update, the scan's update) is skipped and counted.
+  long numerical_failures = 0;
 };
 
 class EkfSlam final : public OnlineEstimator {
@@ -160,6 +167,7 @@ class EkfSlam final : public OnlineEstimator {
   std::vector<LandmarkInfo> landmarks_;
   int next_id_ = 0;
   EkfSlamCounters counters_;
+  InnovationMonitor innovation_monitor_;
   StageTimes times_;
   std::vector<int> scan_features_;
 };

@@ -95,6 +95,9 @@ struct FastSlamOptions {
   // gate and cut off the tails of the pose posterior (bench/RESULTS.md).
   // Resample when N_eff < resample_ess_ratio · N.
   double resample_ess_ratio = 0.5;
+  // Particle depletion, reported only (Counters(): depleted_updates): an update after
+  // which N_eff < depletion_ess_ratio · N — a handful of particles carry the weight.
+  double depletion_ess_ratio = 0.05;
   // Landmark EKF update iterations (1: plain EKF; more: iterated EKF, relinearising the
   // measurement at the updated mean — better with large bearing noise at long range).
   int landmark_update_iterations = 1;
@@ -140,6 +143,15 @@ struct FastSlamCounters {
   long landmark_copies = 0;    // copy-on-write copies (with threads, timing may add a few)
   long features = 0;           // common feature ids issued
   long scans_with_fewer_threads = 0;  // run below the pool's size (set_thread_limit)
+  // Depletion. The smallest N_eff / N after an update; updates below
+  // FastSlamOptions::depletion_ess_ratio; entries into lineage collapse (every particle
+  // descends from one particle of the run's or the local map's start); scans after which
+  // every weight was zero or NaN, so that the weights were reset to uniform (the scan
+  // then informs the landmarks but not the choice of particles).
+  double min_ess_ratio = 1.0;
+  long depleted_updates = 0;
+  long lineage_collapses = 0;
+  long weight_collapses = 0;
 };
 
 class FastSlam final : public OnlineEstimator {
@@ -345,6 +357,7 @@ class FastSlam final : public OnlineEstimator {
   mutable Pose2 cached_pose_;
   mutable Eigen::Matrix3d cached_pose_covariance_;
   bool resample_pending_ = false;
+  bool lineage_collapsed_ = false;
   std::vector<Eigen::Vector2d> z_;
   std::vector<double> signature_;
   std::vector<int> truth_;  // known association: the true id of each usable detection

@@ -42,6 +42,9 @@ class LocalMapper {
   void Finish();
   // Local maps closed since the last call, in order.
   std::vector<ClosedLocalMap> TakeClosed();
+  // An error once a closing map could not be exported (its estimate is not finite or not
+  // a valid Gaussian): that map and every later one are not closed.
+  const absl::Status& status() const { return status_; }
 
   // The vehicle in the current local map's frame.
   Pose2 local_pose() const { return FilterPose(); }
@@ -84,6 +87,7 @@ class LocalMapper {
   std::vector<ClosedLocalMap> closed_;
   std::map<std::string, long> closes_by_reason_;
   int repairs_ = 0;
+  absl::Status status_;
   double max_feature_sigma_m_ = 0.0;  // 0: export every feature (see max_feature_sigma_ratio)
   long features_too_uncertain_ = 0;   // not exported by that rule
   double export_seconds_ = 0.0;

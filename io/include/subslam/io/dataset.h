@@ -77,6 +77,9 @@ struct Dataset {
   std::vector<TimedPose> truth_poses;  // in the frame of initial_pose's parent
   std::vector<TruthLandmark> truth_landmarks;
   std::vector<TimedPoint> gps;  // own frame: align before comparing
+  // Control lines that repeated the previous line's time, read as one record (the later
+  // line wins; io/dataset_reader.h). Counted in the run's report.
+  int duplicate_control_times = 0;
 
   size_t NumDetections() const;
 };

@@ -31,6 +31,7 @@
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/io/dataset.h"
+#include "subslam/io/input_screening.h"
 
 namespace subslam::pipeline {
 
@@ -66,6 +67,7 @@ struct RunOptions {
   frontend::SubmapPolicyOptions policy;  // rbpf, ekf
   BackendOptions backend;                 // rbpf, ekf: how local maps are joined
   NoiseOverrides noise;
+  io::InputScreeningOptions inputs;  // implausible inputs: the rules of io/input_screening.h
   std::string out_dir;          // empty: write nothing
   bool progress = false;        // progress line on stderr (when it is a terminal)
   std::string source;           // what was run, for the report ("scenario hybrid-120m seed 1")
@@ -80,6 +82,21 @@ struct LocalMapSummary {
   int landmarks_inside = 0;   // their 2-dof marginal NEES inside the 95% bounds
   int false_alarms = 0; // exported features whose detections were false alarms
 };
+
+// Why a run stopped before its end (RunResult::stop). The outputs hold everything up to
+// the last good step.
+struct RunStop {
+  // The filter's pose or covariance became non-finite; a local map could not be exported
+  // (SubmapSlam::export_failed); a join failed (SubmapSlam::join_failed).
+  enum class Cause { kNonFiniteEstimate, kExportFailed, kJoinFailed };
+  Cause cause = Cause::kNonFiniteEstimate;
+  int step = 0;     // index of the first step not in the outputs (io::BuildSteps order)
+  double t = 0.0;   // its time [s]
+  std::string reason;
+};
+
+// report.json's name of a cause: non_finite_estimate, local_map_export_failed, join_failed.
+const char* ToString(RunStop::Cause cause);
 
 struct RunResult {
   std::string source;
@@ -108,9 +125,18 @@ struct RunResult {
   std::vector<backend::JoinSummary> joins;  // with a back-end: what each join did, in order
   std::optional<LocalMapSummary> local_map_summary;
   int impure_features = 0;  // exported features built from detections of ≥ 2 true landmarks
+  io::InputScreening inputs;  // what the input rules found (and repaired)
+  // Set when the run could not go on: the estimate became non-finite, or a local map's
+  // join failed. The trajectories, the map and the report then stop at the last good step
+  // (the final trajectory at the last local map with a start anchor).
+  std::optional<RunStop> stop;
+  int non_finite_landmarks = 0;  // dropped from the map (a stopped run's broken estimate)
   nlohmann::json report;
 };
 
+// Errors: invalid options or overrides, an output that cannot be written. A run that
+// cannot go on is not an error: its result and outputs stop at the last good step, and
+// RunResult::stop says where and why (report.json "health": "completed": false).
 absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& options);
 
 // A short human-readable summary table of a result.

@@ -85,6 +85,11 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
              const BackendOptions& backend);
   ~SubmapSlam() override;
+  // With a joiner of the caller's (nullptr: the local maps are chained by their end poses),
+  // joined on a background thread if `background`; `backend_name` (default: the joiner's
+  // Name()) names it in Name().
+  SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
+             std::unique_ptr<backend::MapJoiner> joiner, bool background, std::string backend_name = "");
   SubmapSlam(const SubmapSlam&) = delete;
   SubmapSlam& operator=(const SubmapSlam&) = delete;
 
@@ -102,6 +107,15 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   // Closes and joins the open local map (and relinearises, if the joiner is set to).
   // Returns the first error any join met.
   absl::Status Finish();
+  // Whether a join has failed (readable at any time, also while a background join runs).
+  // The joiner is left as it was before that join, nothing more is joined, and Finish()
+  // returns the error: the run cannot go on, but everything up to the failed map stands.
+  bool join_failed() const { return join_failed_.load(std::memory_order_acquire); }
+  // Whether the local mapper could not export a local map (a broken filter estimate):
+  // nothing after it is joined either, and Finish() returns the mapper's error.
+  bool export_failed() const { return !mapper_->status().ok(); }
+  // Every recorded step re-expressed with the final anchors — after a failed join, the
+  // steps of the local maps that have a start anchor (those joined, and the failed one).
   Trajectory FinalTrajectory() const;
 
   const std::vector<frontend::ClosedLocalMap>& local_maps() const { return closed_; }
@@ -131,7 +145,7 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   Eigen::Matrix3d AnchorCovariance(int k) const;
 
   std::unique_ptr<frontend::LocalMapper> mapper_;
-  Backend backend_;
+  std::string backend_name_;  // empty: no back-end
   std::unique_ptr<backend::MapJoiner> joiner_;
   std::vector<frontend::ClosedLocalMap> closed_;
   // kNone: the chained anchors (index k = start of map k) and covariances; the joiners
@@ -159,6 +173,7 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   std::condition_variable join_wanted_;
   std::optional<LocalSubmap> joining_;
   std::atomic<bool> join_busy_{false};  // joining_ is set (read without the lock)
+  std::atomic<bool> join_failed_{false};  // status_ holds a join's error
   bool join_stop_ = false;
   std::thread join_thread_;
 };
