@@ -37,6 +37,16 @@ long PeakRssKb() {
   return usage.ru_maxrss;
 }
 
+// The process's resident memory now (kB), from /proc/self/statm; 0 where there is none.
+long CurrentRssKb() {
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  if (f == nullptr) return 0;
+  long size = 0, resident = 0;
+  const int read = std::fscanf(f, "%ld %ld", &size, &resident);
+  std::fclose(f);
+  return read == 2 ? resident * (sysconf(_SC_PAGESIZE) / 1024) : 0;
+}
+
 class Progress {
  public:
   Progress(bool enabled, size_t total) : enabled_(enabled && isatty(STDERR_FILENO)), total_(total) {}
@@ -211,6 +221,7 @@ void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Da
     // per step does not grow with the length of the run.
     if ((k + 1) * 10 / steps.size() != k * 10 / steps.size()) {
       r->wall_seconds_by_tenth.push_back(absl::ToDoubleSeconds(absl::Now() - start));
+      r->rss_kb_by_tenth.push_back(CurrentRssKb());
     }
     if (chain != nullptr && (chain->join_failed() || chain->export_failed())) {
       r->stop = RunStop{chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed,
@@ -400,6 +411,7 @@ json Report(const io::Dataset& dataset, const RunOptions& options, const Checked
         {"stages", stage_times},
         {"cumulative_by_tenth_of_steps", r.wall_seconds_by_tenth}}},
       {"peak_rss_kb", r.peak_rss_kb},
+      {"rss_kb_by_tenth_of_steps", r.rss_kb_by_tenth},
       {"health", Health(r, estimator_counters)},
       {"metrics", std::move(metrics)}};
 

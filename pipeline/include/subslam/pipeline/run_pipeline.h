@@ -109,6 +109,7 @@ struct RunResult {
   std::vector<LandmarkEstimate> landmarks;
   double wall_seconds = 0.0;        // estimator time (excludes reading and writing)
   std::vector<double> wall_seconds_by_tenth;  // cumulative, after each tenth of the steps
+  std::vector<long> rss_kb_by_tenth;          // resident memory after each tenth of the steps
   long peak_rss_kb = 0;             // process peak resident memory after the run
   std::optional<eval::TrajectoryErrors> errors;       // final trajectory vs true poses
   std::optional<eval::TrajectoryErrors> errors_online;  // joined local maps: the online one
