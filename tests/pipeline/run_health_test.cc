@@ -16,20 +16,12 @@
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/pipeline/submap_slam.h"
 #include "subslam/sim/simulator.h"
+#include "simulated_dataset.h"
 
 namespace subslam::pipeline {
 namespace {
 
 namespace fs = std::filesystem;
-
-io::Dataset Simulate(const std::string& scenario, double duration_s, uint64_t seed = 1) {
-  sim::ScenarioOptions o;
-  o.seed = seed;
-  o.duration_s = duration_s;
-  absl::StatusOr<io::Dataset> d = sim::SimulateScenario(scenario, o);
-  EXPECT_TRUE(d.ok()) << d.status();
-  return *std::move(d);
-}
 
 int CountLines(const fs::path& path) {
   std::ifstream in(path);
@@ -44,7 +36,7 @@ nlohmann::json ReadJson(const fs::path& path) {
 }
 
 TEST(RunHealth, InputRulesAreAppliedAndCounted) {
-  io::Dataset d = Simulate("hybrid-120m", 60.0);
+  io::Dataset d = Simulate(1, "hybrid-120m", 60.0);
   const int k = static_cast<int>(d.controls.size()) / 2;
   d.controls[k].u[0] += 50.0 * (d.motion.noise.sigma_u0 + d.motion.noise.scale_u0 * std::abs(d.controls[k].u[0]));
   RunOptions options;
@@ -57,7 +49,7 @@ TEST(RunHealth, InputRulesAreAppliedAndCounted) {
   EXPECT_EQ(h["inputs"]["time_gaps"].get<int>(), 0);
   EXPECT_NE(SummaryTable(*r).find("inputs: spikes / gaps / repeated t 1 / 0"), std::string::npos) << SummaryTable(*r);
   // The repaired run equals the clean one.
-  io::Dataset clean = Simulate("hybrid-120m", 60.0);
+  io::Dataset clean = Simulate(1, "hybrid-120m", 60.0);
   absl::StatusOr<RunResult> c = RunPipeline(clean, options);
   ASSERT_TRUE(c.ok());
   EXPECT_LT((c->online.back().pose.translation() - r->online.back().pose.translation()).norm(), 0.05);
@@ -69,7 +61,7 @@ TEST(RunHealth, InputRulesAreAppliedAndCounted) {
 // the overlap); told its bearings are 10× more precise than they are, it fails window
 // after window.
 TEST(RunHealth, InnovationTestPassesAConsistentFilterAndFlagsADivergingOne) {
-  io::Dataset d = Simulate("hybrid-120m", 200.0);
+  io::Dataset d = Simulate(1, "hybrid-120m", 200.0);
   RunOptions options;
   options.frontend = Frontend::kEkfSlam;
   options.ekf.landmarks.known_association = true;  // no gate: the test's χ² holds exactly
@@ -96,7 +88,7 @@ TEST(RunHealth, InnovationTestPassesAConsistentFilterAndFlagsADivergingOne) {
 // weight at every scan (ESS collapses, lineages die out); the particle filter's counters
 // say so, and a well-matched model shows far less.
 TEST(RunHealth, ParticleDepletionIsCounted) {
-  io::Dataset d = Simulate("hybrid-120m", 60.0);
+  io::Dataset d = Simulate(1, "hybrid-120m", 60.0);
   RunOptions options;
   options.frontend = Frontend::kFastSlam;
   options.fastslam.num_particles = 50;
@@ -119,7 +111,7 @@ TEST(RunHealth, ParticleDepletionIsCounted) {
 // not a spike, so the input rules keep it), the covariance overflows, and the run stops
 // with the outputs written up to the last good step and the report saying so.
 TEST(RunHealth, ANonFiniteEstimateStopsTheRunWithPartialOutputs) {
-  io::Dataset d = Simulate("hybrid-120m", 30.0);
+  io::Dataset d = Simulate(1, "hybrid-120m", 30.0);
   const size_t half = d.controls.size() / 2;
   for (size_t k = half; k < d.controls.size(); ++k) d.controls[k].u[0] = 1e300;
   const fs::path out = fs::path(::testing::TempDir()) / "subslam_run_health_stop";
@@ -178,7 +170,7 @@ class FailingJoiner final : public backend::MapJoiner {
 // final trajectory ends with the last local map that has a start anchor, and Finish()
 // names the map and the error — in the background and synchronously alike.
 TEST(RunHealth, AFailedJoinStopsJoiningAndKeepsWhatWasJoined) {
-  const io::Dataset d = Simulate("hybrid-120m", 60.0);
+  const io::Dataset d = Simulate(1, "hybrid-120m", 60.0);
   for (bool background : {false, true}) {
     frontend::SubmapPolicyOptions policy;
     policy.max_duration_s = 5.0;

@@ -16,19 +16,10 @@
 #include "subslam/io/steps.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/sim/simulator.h"
+#include "simulated_dataset.h"
 
 namespace subslam::pipeline {
 namespace {
-
-io::Dataset Simulate(uint64_t seed, const std::string& scenario = "hybrid-120m",
-                     std::optional<double> duration_s = std::nullopt) {
-  sim::ScenarioOptions o;
-  o.seed = seed;
-  o.duration_s = duration_s;
-  absl::StatusOr<io::Dataset> d = sim::SimulateScenario(scenario, o);
-  EXPECT_TRUE(d.ok()) << d.status();
-  return *std::move(d);
-}
 
 // The EKF local maps of a run (no back-end).
 std::vector<LocalSubmap> EkfLocalMaps(const io::Dataset& d) {
