@@ -134,7 +134,7 @@ void EkfJoiner::SubtractOuter(const Eigen::MatrixXd& W) {
   P_.triangularView<Eigen::StrictlyUpper>() = P_.transpose();
 }
 
-void EkfJoiner::FuseZeroNoise(const std::vector<std::pair<int, int>>& pairs) {
+absl::Status EkfJoiner::FuseZeroNoise(const std::vector<std::pair<int, int>>& pairs) {
   const int N = static_cast<int>(x_.size()), m = static_cast<int>(pairs.size());
   Eigen::MatrixXd PH(N, 2 * m);  // P Hᵀ for H = [… I (copy) … −I (landmark) …]
   Eigen::VectorXd nu(2 * m);     // 0 − (ĉ − L̂)
@@ -150,11 +150,14 @@ void EkfJoiner::FuseZeroNoise(const std::vector<std::pair<int, int>>& pairs) {
   }
   S = 0.5 * (S + S.transpose());
   const Eigen::LLT<Eigen::MatrixXd> llt(S);
-  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "EKF join: fusion innovation covariance not positive definite";
+  if (llt.info() != Eigen::Success) {
+    return absl::InternalError("EKF join: the fusion's innovation covariance is not positive definite");
+  }
   // K = PH S⁻¹; with S = L Lᵀ and W = PH L⁻ᵀ: x += W L⁻¹ ν, P −= W Wᵀ.
   const Eigen::MatrixXd W = llt.matrixL().solve(PH.transpose()).transpose();
   x_ += W * llt.matrixL().solve(nu);
   SubtractOuter(W);
+  return absl::OkStatus();
 }
 
 absl::Status EkfJoiner::FuseConditional(const LocalSubmap& s, int start, int end,
@@ -295,7 +298,7 @@ absl::Status EkfJoiner::JoinAssociated(const LocalSubmap& s, std::vector<int> as
   {
     StageTimer timer(&times_, "update");
     if (zero_noise && !copies.empty()) {
-      FuseZeroNoise(copies);
+      if (absl::Status st = FuseZeroNoise(copies); !st.ok()) return st;
       const int keep = static_cast<int>(x_.size()) - 2 * static_cast<int>(copies.size());
       P_.conservativeResize(keep, keep);
       x_.conservativeResize(keep);
@@ -359,7 +362,7 @@ absl::Status EkfJoiner::MergeLandmarks(int keep, int drop) {
   if (keep > drop) std::swap(keep, drop);
   // L_drop = L_keep as a zero-noise constraint, then L_drop dropped.
   const int o_drop = landmark_offset_[drop];
-  FuseZeroNoise({{o_drop, landmark_offset_[keep]}});
+  if (absl::Status st = FuseZeroNoise({{o_drop, landmark_offset_[keep]}}); !st.ok()) return st;
   DropVariable(o_drop, 2);
   landmark_offset_.erase(landmark_offset_.begin() + drop);
   if (!x_.allFinite() || !P_.allFinite()) return absl::InternalError("EKF merge produced a non-finite value");
@@ -454,7 +457,7 @@ absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
   }
   if (!copies.empty()) {
     StageTimer timer(&times_, "update");
-    FuseZeroNoise(copies);
+    if (absl::Status st = FuseZeroNoise(copies); !st.ok()) return st;
     const int keep = static_cast<int>(x_.size()) - 2 * static_cast<int>(copies.size());
     P_.conservativeResize(keep, keep);
     x_.conservativeResize(keep);

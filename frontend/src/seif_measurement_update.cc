@@ -112,7 +112,10 @@ void SeifSlam::AssociateByGates(const Pose2& p, const std::vector<Eigen::Vector2
       const Prediction& pr = prediction[l];
       const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
       const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
-      SUBSLAM_CHECK(d2.has_value()) << "innovation covariance not positive definite";
+      if (!d2.has_value()) {  // S not positive definite: this pairing is not considered
+        ++numerical_failures_;
+        continue;
+      }
       min_d2[j] = std::min(min_d2[j], *d2);
       if (*d2 < new_landmark_d2_) (*gated)[l] = true;
       if (*d2 < gate_d2_) problem.candidates[j].push_back({l, *d2, nu});

@@ -50,14 +50,20 @@ class SeifSlam::ExactSolver {
     Eigen::SparseMatrix<double> A(dim_, dim_);
     A.setFromTriplets(t.begin(), t.end());
     chol_.compute(A);
-    SUBSLAM_CHECK(chol_.info() == Eigen::Success) << "SEIF information matrix not positive definite";
+    ok_ = chol_.info() == Eigen::Success;
+    if (!ok_) ++f.numerical_failures_;  // the information matrix is not positive definite
   }
   int dim() const { return dim_; }
   int Column(int landmark) const { return column_[landmark]; }
-  Eigen::MatrixXd Solve(const Eigen::MatrixXd& b) const { return chol_.solve(b); }
+  // NaN when the factorisation failed: the estimate becomes non-finite and the run stops.
+  Eigen::MatrixXd Solve(const Eigen::MatrixXd& b) const {
+    if (!ok_) return Eigen::MatrixXd::Constant(b.rows(), b.cols(), std::numeric_limits<double>::quiet_NaN());
+    return chol_.solve(b);
+  }
 
  private:
   std::vector<int> column_;
+  bool ok_ = false;
   int dim_ = 3;
   Eigen::CholmodDecomposition<Eigen::SparseMatrix<double>, Eigen::Lower> chol_;
 };
@@ -163,7 +169,11 @@ SeifSlam::LocalCovariance SeifSlam::Covariance(const std::vector<int>& landmarks
     }
   }
   const Eigen::LLT<Eigen::MatrixXd> llt(Gather(blanket));
-  SUBSLAM_CHECK(llt.info() == Eigen::Success) << "SEIF Markov-blanket information not positive definite";
+  if (llt.info() != Eigen::Success) {  // not positive definite: no covariance (NaN)
+    ++numerical_failures_;
+    out.sigma = Eigen::MatrixXd::Constant(3 + 2 * k, 3 + 2 * k, std::numeric_limits<double>::quiet_NaN());
+    return out;
+  }
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(3 + 2 * blanket.size(), 3 + 2 * k);
   rhs.topLeftCorner(3 + 2 * k, 3 + 2 * k).setIdentity();  // the requested variables come first
   out.sigma = llt.solve(rhs).topRows(3 + 2 * k);

@@ -418,6 +418,7 @@ std::map<std::string, double> SeifSlam::Counters() const {
   int confirmed = 0;
   for (const LandmarkInfo& l : landmarks_) confirmed += l.alive && l.confirmed ? 1 : 0;
   return {{"scans", counters_.scans},
+          {"numerical_failures", numerical_failures_},
           {"detections", counters_.detections},
           {"associated", counters_.associated},
           {"new_landmarks", counters_.new_landmarks},

@@ -113,7 +113,8 @@ class EkfJoiner final : public MapJoiner {
   // returns their state offsets.
   std::vector<int> Augment(int start, const Eigen::VectorXd& z, const Eigen::MatrixXd& Q,
                            const std::vector<Block>& blocks);
-  void FuseZeroNoise(const std::vector<std::pair<int, int>>& copy_and_landmark_offsets);
+  // Error: the fusion's innovation covariance is not positive definite (nothing changed).
+  absl::Status FuseZeroNoise(const std::vector<std::pair<int, int>>& copy_and_landmark_offsets);
   absl::Status FuseConditional(const LocalSubmap& s, int start, int end,
                                const std::vector<int>& landmark_of_feature,
                                const std::vector<char>& matched);

@@ -178,6 +178,9 @@ class SeifSlam final : public OnlineEstimator {
 
  private:
   class ExactSolver;
+  // Factorisations or innovation covariances that were not positive definite (Counters():
+  // numerical_failures); a failed recovery leaves NaN, so the run stops there.
+  mutable long numerical_failures_ = 0;
   // One linearised measurement update: what it adds to Ω and ξ.
   struct Linearization {
     std::vector<int> landmarks;  // distinct, in the order of D's blocks
