@@ -111,7 +111,7 @@ ABSL_FLAG(int, innovation_test_window, EkfDefaults().innovation_test.window_scan
 ABSL_FLAG(double, depletion_ess, FastSlamDefaults().depletion_ess_ratio,
           "fastslam / rbpf: an update leaving fewer than this fraction of effective particles counts as depleted");
 ABSL_FLAG(double, control_spike_sigmas, subslam::io::InputScreeningOptions{}.control_spike_sigmas,
-          "a control departing from both neighbours by more than this many noise sigmas is a spike, replaced");
+          "a control departing from its neighbours' median by more than this many sigmas (the noise's or the neighbours' spread, the larger) is a spike, replaced");
 ABSL_FLAG(double, time_gap_factor, subslam::io::InputScreeningOptions{}.time_gap_factor,
           "an interval between steps longer than this many median intervals is counted as a time gap");
 

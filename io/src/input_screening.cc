@@ -34,15 +34,29 @@ InputScreening ScreenInputs(const InputScreeningOptions& options, Dataset* d) {
   out.duplicate_control_times = d->duplicate_control_times;
   // Control spikes, judged against the records as read (a repair does not feed the next test).
   const std::vector<ControlRecord> read = d->controls;
-  for (size_t k = 1; k + 1 < read.size(); ++k) {
+  const int w = InputScreeningOptions::kSpikeWindow;
+  std::vector<double> around(2 * w), deviations(2 * w);
+  const auto median = [](std::vector<double>& v) {  // of an even count: the mean of the middle two
+    const size_t h = v.size() / 2;
+    std::nth_element(v.begin(), v.begin() + h, v.end());
+    const double upper = v[h];
+    return 0.5 * (upper + *std::max_element(v.begin(), v.begin() + h));
+  };
+  for (size_t k = w; k + w < read.size(); ++k) {
     bool spike = false;
     for (int c = 0; c < 2; ++c) {
-      const double before = read[k - 1].u[c], after = read[k + 1].u[c], mean = 0.5 * (before + after);
-      const double bound = options.control_spike_sigmas * Sigma(d->motion.noise, c, mean);
-      const double u = read[k].u[c];
-      if (std::abs(before - after) <= bound && std::abs(u - before) > bound && std::abs(u - after) > bound) {
+      for (int i = 0; i < w; ++i) {
+        around[i] = read[k - w + i].u[c];
+        around[w + i] = read[k + 1 + i].u[c];
+      }
+      const double m = median(around);
+      for (int i = 0; i < 2 * w; ++i) deviations[i] = std::abs(around[i] - m);
+      // The neighbours' own spread (as a σ: 1.4826 × their median absolute deviation) or
+      // the noise model's σ, whichever is larger.
+      const double scale = std::max(Sigma(d->motion.noise, c, m), 1.4826 * median(deviations));
+      if (std::abs(read[k].u[c] - m) > options.control_spike_sigmas * scale) {
         spike = true;
-        if (options.replace_control_spikes) d->controls[k].u[c] = mean;
+        if (options.replace_control_spikes) d->controls[k].u[c] = m;
       }
     }
     out.control_spikes += spike ? 1 : 0;

@@ -16,7 +16,7 @@ Dataset Steady(int n) {
   return d;
 }
 
-TEST(ScreenInputs, ReplacesAnIsolatedControlSpikeByItsNeighboursMean) {
+TEST(ScreenInputs, ReplacesAnIsolatedControlSpikeByItsNeighboursMedian) {
   Dataset d = Steady(10);
   d.controls[4].u = {1.0 + 11 * 0.1, 0.1};  // 11 σ above both neighbours
   d.controls[6].u = {1.0 + 9 * 0.1, 0.1};   // 9 σ: inside the bound

@@ -3,13 +3,14 @@
 // is malformed — non-finite values, times going backwards, a non-positive range; what it
 // accepts can still be implausible:
 //
-//   control spikes   a control channel that departs from both neighbouring records by
-//                    more than `control_spike_sigmas` σ of the motion model's noise at the
-//                    neighbours' mean, while the neighbours agree with each other within
-//                    that bound: an isolated fault, not a manoeuvre (a step in the control
-//                    moves every later record too). The channel is replaced by the
-//                    neighbours' mean. The first and last records have one neighbour and
-//                    are left alone.
+//   control spikes   a control channel that departs from the median of the
+//                    `kSpikeWindow` records on each side by more than
+//                    `control_spike_sigmas` times the larger of the motion model's noise σ
+//                    at that median and the neighbours' own spread (1.4826 × their median
+//                    absolute deviation): an isolated fault, not a manoeuvre — a step or
+//                    the peak of a fast turn moves the neighbours too. The channel is
+//                    replaced by the median. The first and last kSpikeWindow records are
+//                    left alone.
 //   time gaps        an interval between consecutive steps (controls and scans merged)
 //                    longer than `time_gap_factor` times the median interval. Nothing is
 //                    changed: the prediction over a gap holds the last control, and the
@@ -29,8 +30,9 @@
 namespace subslam::io {
 
 struct InputScreeningOptions {
-  // Spike bound in σ of the control noise. Under the noise model a departure of 10 σ
-  // from both neighbours has probability below 1e-20; Victoria Park's largest is 0.95 σ.
+  static constexpr int kSpikeWindow = 3;  // records on each side of a control judged
+  // Spike bound in σ (see above). Under the noise model a departure of 10 σ has
+  // probability below 1e-20; Victoria Park's largest is below 1 σ.
   double control_spike_sigmas = 10.0;
   double time_gap_factor = 20.0;  // a gap: longer than this many median intervals
   bool replace_control_spikes = true;  // false: count only
