@@ -1,7 +1,7 @@
 // What the data-set fuzz targets share: a small valid data set's text files in memory
 // (under the directory "fuzz"), reading a data set from such files, and the invariants
 // the estimators rely on (docs/formats.md, "Data-set directory"), checked on every data
-// set the reader accepts.
+// set the reader accepts, before and after the input rules.
 #ifndef SUBSLAM_FUZZ_DATASET_FUZZ_H_
 #define SUBSLAM_FUZZ_DATASET_FUZZ_H_
 
@@ -12,6 +12,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "subslam/io/dataset_reader.h"
+#include "subslam/io/input_screening.h"
 #include "subslam/io/steps.h"
 
 namespace subslam::fuzz {
@@ -63,6 +64,9 @@ inline void ReadAndCheck(const std::map<std::string, std::string>& files) {
     Require(!d.status().message().empty());
     return;
   }
+  CheckAcceptedDataset(*d);
+  // The input rules the run applies next (io/input_screening.h) keep those invariants.
+  io::ScreenInputs(io::InputScreeningOptions{}, &*d);
   CheckAcceptedDataset(*d);
 }
 

@@ -26,7 +26,7 @@ sources_graph_format="posegraph/src/graph_format.cc posegraph/src/graph_text.cc 
   posegraph/src/toro_format.cc posegraph/src/isam_format.cc posegraph/src/pose_graph.cc
   posegraph/src/measurement_residuals.cc graph/src/pose2.cc io/src/text_table.cc"
 sources_submaps_jsonl="io/src/submaps_jsonl.cc graph/src/local_submap.cc graph/src/pose2.cc"
-sources_dataset="io/src/dataset_reader.cc io/src/dataset.cc io/src/steps.cc io/src/text_table.cc
+sources_dataset="io/src/dataset_reader.cc io/src/dataset.cc io/src/steps.cc io/src/text_table.cc io/src/input_screening.cc
   models/src/range_bearing_model.cc models/src/motion_model.cc models/src/unicycle_model.cc
   models/src/ackermann_model.cc graph/src/pose2.cc graph/src/check.cc"
 sources_dataset_manifest=$sources_dataset
