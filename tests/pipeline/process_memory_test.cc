@@ -12,8 +12,9 @@
 namespace subslam::pipeline {
 namespace {
 
-// glibc's allocator only: not under AddressSanitizer, whose allocator replaces it.
-#if defined(__GLIBC__) && __GLIBC_PREREQ(2, 33) && !defined(__SANITIZE_ADDRESS__)  // mallinfo2
+// glibc's allocator only: not under AddressSanitizer or ThreadSanitizer, whose allocators
+// replace it.
+#if defined(__GLIBC__) && __GLIBC_PREREQ(2, 33) && !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
 // Whether a 16 MiB block comes from the heap (not mmapped) and stays in it once freed.
 // glibc's own threshold starts at 128 KiB and only rises as mmapped blocks are freed, so
 // in a fresh process such a block is mmapped and returned at once.
