@@ -2,13 +2,18 @@
 # The checks to run before submitting a change to threaded or memory-heavy code:
 #
 #   scripts/check.sh [asan] [tsan] [fuzz]      (default: all three, in that order)
+#   scripts/check.sh ci                        (the subset CI runs, a few minutes)
 #
 #   asan  the whole test suite under AddressSanitizer + UndefinedBehaviorSanitizer
 #         (RelWithDebInfo in build-asan/);
 #   tsan  the test programs with threads — frontend_test (the particle update on oneTBB),
 #         pipeline_test (background joins, every submap run) and study_test (the study
 #         runner's workers) — under ThreadSanitizer (build-tsan/);
-#   fuzz  every reader's fuzz target for FUZZ_SECONDS (default 30) each (scripts/fuzz.sh).
+#   fuzz  every reader's fuzz target for FUZZ_SECONDS (default 30) each (scripts/fuzz.sh);
+#   ci    a subset that fits CI's time: io_test (every data-set and local-map reader on
+#         malformed input) under ASan + UBSan, and the particle filter's threaded tests
+#         (WorkerPool, FastSlam's thread-count tests, KnownAssociation on two threads)
+#         under TSan. The whole sanitizer suite takes about three quarters of an hour.
 #
 # A sanitizer report fails the test that caused it, and that fails the script. One
 # statistical test is left out of the sanitizer builds (NEAR_BOUND below): its particle
@@ -24,12 +29,24 @@ steps=("$@")
 NEAR_BOUND=RbpfLocalMaps.Hybrid120mJointNeesIsConsistentAtTheDefaultParticleCount
 ((${#steps[@]})) || steps=(asan tsan fuzz)
 
-build() {  # build DIR SANITIZER
-  if [[ ! -f "$1/CMakeCache.txt" ]]; then
-    cmake -S "$ROOT" -B "$1" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSUBSLAM_SANITIZE="$2" \
+build() {  # build DIR SANITIZER [TARGET…]
+  local dir=$1 sanitizer=$2
+  shift 2
+  if [[ ! -f "$dir/CMakeCache.txt" ]]; then
+    cmake -S "$ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSUBSLAM_SANITIZE="$sanitizer" \
       -DSUBSLAM_BUILD_BENCHMARKS=OFF -DSUBSLAM_BUILD_EXAMPLES=OFF >/dev/null
   fi
-  cmake --build "$1" -j "$JOBS"
+  if (($#)); then
+    cmake --build "$dir" -j "$JOBS" --target "$@"
+  else
+    cmake --build "$dir" -j "$JOBS"
+  fi
+}
+tsan_run() {  # tsan_run TEST [GTEST_FILTER]
+  echo "check.sh: $1 under ThreadSanitizer"
+  (cd "$ROOT/build-tsan/tests" &&
+    TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$ROOT/scripts/tsan.supp" \
+    ./"$1" --gtest_brief=1 --gtest_filter="${2:--$NEAR_BOUND}")
 }
 
 for step in "${steps[@]}"; do
@@ -42,19 +59,20 @@ for step in "${steps[@]}"; do
       ;;
     tsan)
       build "$ROOT/build-tsan" thread
-      for t in frontend_test pipeline_test study_test; do
-        echo "check.sh: $t under ThreadSanitizer"
-        (cd "$ROOT/build-tsan/tests" &&
-          TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$ROOT/scripts/tsan.supp" \
-          ./"$t" --gtest_brief=1 --gtest_filter="-$NEAR_BOUND")
-      done
+      for t in frontend_test pipeline_test study_test; do tsan_run "$t"; done
+      ;;
+    ci)
+      build "$ROOT/build-asan" address io_test
+      (cd "$ROOT/build-asan/tests" && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 ./io_test --gtest_brief=1)
+      build "$ROOT/build-tsan" thread frontend_test
+      tsan_run frontend_test "WorkerPool.*:FastSlam.*Thread*:KnownAssociation.*"
       ;;
     fuzz)
       [[ -x "$ROOT/build/apps/subslam" ]] || "$ROOT/scripts/setup.sh"  # it writes the seeds
       "$ROOT/scripts/fuzz.sh" "${FUZZ_SECONDS:-30}"
       ;;
     *)
-      echo "check.sh: unknown step '$step' (asan, tsan or fuzz)" >&2
+      echo "check.sh: unknown step '$step' (asan, tsan, fuzz or ci)" >&2
       exit 2
       ;;
   esac
