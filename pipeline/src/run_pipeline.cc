@@ -595,16 +595,6 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     online_written = WriteInBackground(
         [&r, path = (*out_dir / "trajectory_online.csv").string()] { return io::WriteTrajectoryCsv(path, r.online); });
   }
-  if (chain != nullptr) {
-    for (const frontend::ClosedLocalMap& c : chain->local_maps()) {
-      LocalSubmap s = c.submap;
-      r.impure_features += truth_votes.Label(&s);
-      r.local_maps.push_back(std::move(s));
-      r.close_reasons.push_back(frontend::ToString(c.reason));
-    }
-    r.joins = chain->joins();
-  }
-  r.peak_rss_kb = PeakRssKb();
   // Single-map filters have nothing to re-express; the submap pipeline re-expresses
   // every step with the final anchors.
   r.final_trajectory = chain != nullptr ? chain->FinalTrajectory() : r.online;
@@ -616,6 +606,15 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
     });
     r.non_finite_landmarks = static_cast<int>(before - r.landmarks.size());
   }
+  if (chain != nullptr) {  // the local maps move into the result (held once)
+    for (frontend::ClosedLocalMap& c : chain->TakeLocalMaps()) {
+      r.impure_features += truth_votes.Label(&c.submap);
+      r.local_maps.push_back(std::move(c.submap));
+      r.close_reasons.push_back(frontend::ToString(c.reason));
+    }
+    r.joins = chain->joins();
+  }
+  r.peak_rss_kb = PeakRssKb();
   json metrics = Evaluate(dataset, options, chain, &r);
   r.report = Report(dataset, options, *checked, *estimator, r, std::move(metrics));
   if (out_dir.has_value()) {

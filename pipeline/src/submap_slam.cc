@@ -1,5 +1,7 @@
 #include "subslam/pipeline/submap_slam.h"
 
+#include <utility>
+
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
@@ -180,6 +182,11 @@ void SubmapSlam::JoinOne(const LocalSubmap& s) {
     return;
   }
   joins_.push_back(joiner_->last_join());
+}
+
+std::vector<frontend::ClosedLocalMap> SubmapSlam::TakeLocalMaps() {
+  WaitForJoins();
+  return std::exchange(closed_, {});
 }
 
 Pose2 SubmapSlam::Anchor(int k) const { return joiner_ ? joiner_->anchor(k) : chain_[k]; }

@@ -119,6 +119,9 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   Trajectory FinalTrajectory() const;
 
   const std::vector<frontend::ClosedLocalMap>& local_maps() const { return closed_; }
+  // Moves the closed local maps out (local_maps() is empty afterwards), for a caller that
+  // keeps them once the run is over. Map() without a back-end chains them: ask it first.
+  std::vector<frontend::ClosedLocalMap> TakeLocalMaps();
   int last_scan_map_id() const { return last_scan_map_id_; }
   const std::vector<int>& last_scan_features() const { return mapper_->last_scan_features(); }
   // The back-end's joiner (nullptr for kNone).
