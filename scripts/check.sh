@@ -19,7 +19,10 @@
 # statistical test is left out of the sanitizer builds (NEAR_BOUND below): its particle
 # draws depend on the build's floating-point arithmetic, and its count sits within a few
 # maps of its binomial bound (tests/pipeline/local_maps_test.cc), so another build's
-# arithmetic is another trial; the Release suite runs it. TSan
+# arithmetic is another trial; the Release suite runs it. Under TSan one more test is
+# left out (BITWISE below): it compares a study's in-process runs with the tool's runs of
+# the same commands to the bit, and the TSan-built test program and tool round
+# differently (no race is reported; the particle methods then drift apart). TSan
 # ignores races inside libgomp, whose OpenMP threads (CHOLMOD's, in the SEIF tests) it
 # cannot see synchronise: scripts/tsan.supp. Environment: JOBS (default nproc).
 set -euo pipefail
@@ -27,6 +30,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 JOBS="${JOBS:-$(nproc)}"
 steps=("$@")
 NEAR_BOUND=RbpfLocalMaps.Hybrid120mJointNeesIsConsistentAtTheDefaultParticleCount
+BITWISE=HybridSlamStudy.EachMethodIsItsRecordedCommand
 ((${#steps[@]})) || steps=(asan tsan fuzz)
 
 build() {  # build DIR SANITIZER [TARGET…]
@@ -46,7 +50,7 @@ tsan_run() {  # tsan_run TEST [GTEST_FILTER]
   echo "check.sh: $1 under ThreadSanitizer"
   (cd "$ROOT/build-tsan/tests" &&
     TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$ROOT/scripts/tsan.supp" \
-    ./"$1" --gtest_brief=1 --gtest_filter="${2:--$NEAR_BOUND}")
+    ./"$1" --gtest_brief=1 --gtest_filter="${2:--$NEAR_BOUND:$BITWISE}")
 }
 
 for step in "${steps[@]}"; do
