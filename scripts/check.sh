@@ -13,7 +13,7 @@
 #   ci    a subset that fits CI's time: io_test (every data-set and local-map reader on
 #         malformed input) under ASan + UBSan, and the particle filter's threaded tests
 #         (WorkerPool, FastSlam's thread-count tests, KnownAssociation on two threads)
-#         under TSan. The whole sanitizer suite takes about three quarters of an hour.
+#         under TSan. The whole sanitizer steps run for the better part of an hour.
 #
 # A sanitizer report fails the test that caused it, and that fails the script. One
 # statistical test is left out of the sanitizer builds (NEAR_BOUND below): its particle
