@@ -306,7 +306,9 @@ void EkfSlam::ManageLandmarks(const std::vector<Eigen::Vector2d>& z, const std::
     }
   }
   for (int j = 0; j < m; ++j) {
-    if (landmark_of_detection[j] >= 0 || known_landmark[j] == kDropped) continue;
+    // Known association: a detection of a known landmark never starts another (its pairing
+    // may have been skipped as a numerical failure).
+    if (landmark_of_detection[j] >= 0 || known_landmark[j] == kDropped || known_landmark[j] >= 0) continue;
     if (min_d2[j] > new_landmark_d2_) {
       AddLandmark(z[j], truth_of_detection[j]);
       scan_features_[detection_index[j]] = landmarks_.back().id;

@@ -18,6 +18,13 @@ absl::Status InnovationTestOptions::Validate() const {
 
 void InnovationMonitor::Add(double nis, int dof) {
   if (options_.window_scans == 0 || dof <= 0) return;
+  if (!std::isfinite(nis)) {  // a broken estimate's innovation: a failed window, not summed
+    ++tested_;
+    ++failed_;
+    if (run_++ == 0) ++episodes_;
+    longest_ = std::max(longest_, run_);
+    return;
+  }
   window_.emplace_back(nis, dof);
   sum_ += nis;
   dof_ += dof;
@@ -28,7 +35,6 @@ void InnovationMonitor::Add(double nis, int dof) {
   }
   if (static_cast<int>(window_.size()) < options_.window_scans) return;
   ++tested_;
-  // A non-finite ε (an innovation of a broken estimate) fails too.
   if (!(sum_ <= models::ChiSquareQuantile(options_.probability, static_cast<double>(dof_)))) {
     ++failed_;
     if (run_++ == 0) ++episodes_;

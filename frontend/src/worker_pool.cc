@@ -9,6 +9,14 @@
 
 #include "subslam/graph/check.h"
 
+#if defined(__SANITIZE_THREAD__)
+#define SUBSLAM_THREAD_SANITIZER 1
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define SUBSLAM_THREAD_SANITIZER 1
+#endif
+#endif
+
 namespace subslam::frontend {
 
 WorkerPool::WorkerPool(int threads) : threads_(threads), arena_(std::max(threads, 1)) {
@@ -21,7 +29,7 @@ void WorkerPool::Run(const std::function<void(int)>& body, int active) {
     body(0);
     return;
   }
-#if defined(__SANITIZE_THREAD__)
+#if defined(SUBSLAM_THREAD_SANITIZER)
   // Under ThreadSanitizer: one plain thread per index. libtbb is not instrumented, so TSan
   // cannot see its scheduler hand the bodies their data and would report every handoff;
   // with threads it sees the fork and the join, and reports the races of the bodies.
@@ -29,13 +37,13 @@ void WorkerPool::Run(const std::function<void(int)>& body, int active) {
   for (int t = 1; t < active; ++t) threads.emplace_back(body, t);
   body(0);
   for (std::thread& thread : threads) thread.join();
-  return;
-#endif
+#else
   // One task per index (simple_partitioner: no two indices share a task), so that every
   // free thread of the arena can take one.
   arena_.execute([&] {
     oneapi::tbb::parallel_for(0, active, 1, [&](int t) { body(t); }, oneapi::tbb::simple_partitioner());
   });
+#endif
 }
 
 }  // namespace subslam::frontend

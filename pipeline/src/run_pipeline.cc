@@ -208,6 +208,12 @@ void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Da
       estimator.Update(scan);
       if (chain != nullptr) truth_votes->Add(chain->last_scan_map_id(), chain->last_scan_features(), scan);
     }
+    // A failed join or export leaves the online pose without its anchor: stop before it.
+    if (chain != nullptr && (chain->join_failed() || chain->export_failed())) {
+      r->stop = RunStop{chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed,
+                        static_cast<int>(k), step.t, ""};
+      break;
+    }
     const PoseEstimate now{step.t, estimator.pose(), estimator.pose_covariance()};
     if (!now.pose.vector().allFinite() || !now.covariance.allFinite()) {
       r->stop = RunStop{RunStop::Cause::kNonFiniteEstimate, static_cast<int>(k), step.t,
@@ -223,15 +229,12 @@ void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Da
       r->wall_seconds_by_tenth.push_back(absl::ToDoubleSeconds(absl::Now() - start));
       r->rss_kb_by_tenth.push_back(CurrentRssKb());
     }
-    if (chain != nullptr && (chain->join_failed() || chain->export_failed())) {
-      r->stop = RunStop{chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed,
-                        static_cast<int>(k + 1), k + 1 < steps.size() ? steps[k + 1].t : step.t, ""};
-      break;
-    }
   }
   if (chain != nullptr) {
     // Joins the open map; after a failed join it returns that join's error.
-    if (absl::Status st = chain->Finish(); !st.ok()) {
+    const absl::Status st = chain->Finish();
+    r->join_failed = chain->join_failed();
+    if (!st.ok()) {
       if (!r->stop) {
         r->stop = RunStop{chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed,
                           r->steps, steps.empty() ? 0.0 : steps.back().t, ""};
@@ -355,9 +358,8 @@ json Health(const RunResult& r, const std::map<std::string, double>& counters) {
   h["numerical_failures"] = {{"filter", count("numerical_failures")},
                              {"factor_updates_refactorised", count("join_failed_updates")}};
   if (has("join_maps")) {
-    const bool join_failed = r.stop.has_value() && r.stop->cause == RunStop::Cause::kJoinFailed;
     h["joins"] = {{"joined", count("join_maps")},
-                  {"failed", join_failed ? 1 : 0},
+                  {"failed", r.join_failed ? 1 : 0},
                   {"rejected_and_joined_without_associations", count("join_rejected")},
                   {"loop_closures_undone", count("join_loop_closures_unconfirmed")},
                   {"landmarks_merged", count("join_landmarks_merged")},
@@ -596,9 +598,11 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
         [&r, path = (*out_dir / "trajectory_online.csv").string()] { return io::WriteTrajectoryCsv(path, r.online); });
   }
   // Single-map filters have nothing to re-express; the submap pipeline re-expresses
-  // every step with the final anchors.
-  r.final_trajectory = chain != nullptr ? chain->FinalTrajectory() : r.online;
-  r.landmarks = estimator->Map();
+  // every step with the final anchors. After a failed join the back-end's estimate is not
+  // used (a join that failed part-way may have left it half-made): the final trajectory
+  // is the online one, and the map is empty.
+  r.final_trajectory = chain != nullptr && !r.join_failed ? chain->FinalTrajectory() : r.online;
+  if (!r.join_failed) r.landmarks = estimator->Map();
   if (r.stop) {  // a broken estimate's landmarks are not part of the map
     const size_t before = r.landmarks.size();
     std::erase_if(r.landmarks, [](const LandmarkEstimate& l) {

@@ -127,10 +127,13 @@ struct RunResult {
   std::optional<LocalMapSummary> local_map_summary;
   int impure_features = 0;  // exported features built from detections of ≥ 2 true landmarks
   io::InputScreening inputs;  // what the input rules found (and repaired)
-  // Set when the run could not go on: the estimate became non-finite, or a local map's
-  // join failed. The trajectories, the map and the report then stop at the last good step
-  // (the final trajectory at the last local map with a start anchor).
+  // Set when the run could not go on: the estimate became non-finite, or a local map could
+  // not be exported or joined. The trajectories, the map and the report then stop at the
+  // last good step. After a failed join the back-end's estimate is not used (a join that
+  // failed part-way may have left it half-made): the final trajectory is the online one
+  // and the map is empty.
   std::optional<RunStop> stop;
+  bool join_failed = false;  // a join failed (the run stopped there)
   int non_finite_landmarks = 0;  // dropped from the map (a stopped run's broken estimate)
   nlohmann::json report;
 };

@@ -115,7 +115,9 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   // nothing after it is joined either, and Finish() returns the mapper's error.
   bool export_failed() const { return !mapper_->status().ok(); }
   // Every recorded step re-expressed with the final anchors — after a failed join, the
-  // steps of the local maps that have a start anchor (those joined, and the failed one).
+  // steps of the local maps that have a start anchor (those joined, and the failed one),
+  // which holds for a joiner that a failure leaves as it was (RunPipeline does not rely on
+  // it: a join may fail part-way).
   Trajectory FinalTrajectory() const;
 
   const std::vector<frontend::ClosedLocalMap>& local_maps() const { return closed_; }
