@@ -720,8 +720,8 @@ std::string SummaryTable(const RunResult& r) {
     }
     if (h.contains("joins")) {
       const nlohmann::json& j = h["joins"];
-      row("joins: failed / rejected / undone",
-          absl::StrFormat("%d / %d / %d loop closures", n(j["failed"]),
+      row("joins: health",
+          absl::StrFormat("%d failed, %d rejected, %d loop closures undone", n(j["failed"]),
                           n(j["rejected_and_joined_without_associations"]), n(j["loop_closures_undone"])));
     }
   }
