@@ -199,6 +199,9 @@ void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Da
   r->detections = static_cast<long>(dataset.NumDetections());
   r->online.reserve(steps.size());
   Progress progress(show_progress, steps.size());
+  const auto chain_cause = [chain] {
+    return chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed;
+  };
   const absl::Time start = absl::Now();
   for (size_t k = 0; k < steps.size(); ++k) {
     const io::Step& step = steps[k];
@@ -210,8 +213,7 @@ void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Da
     }
     // A failed join or export leaves the online pose without its anchor: stop before it.
     if (chain != nullptr && (chain->join_failed() || chain->export_failed())) {
-      r->stop = RunStop{chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed,
-                        static_cast<int>(k), step.t, ""};
+      r->stop = RunStop{chain_cause(), static_cast<int>(k), step.t, ""};
       break;
     }
     const PoseEstimate now{step.t, estimator.pose(), estimator.pose_covariance()};
@@ -236,8 +238,7 @@ void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Da
     r->join_failed = chain->join_failed();
     if (!st.ok()) {
       if (!r->stop) {
-        r->stop = RunStop{chain->export_failed() ? RunStop::Cause::kExportFailed : RunStop::Cause::kJoinFailed,
-                          r->steps, steps.empty() ? 0.0 : steps.back().t, ""};
+        r->stop = RunStop{chain_cause(), r->steps, steps.empty() ? 0.0 : steps.back().t, ""};
       }
       if (r->stop->reason.empty()) r->stop->reason = std::string(st.message());
     }
