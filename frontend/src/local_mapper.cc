@@ -63,12 +63,15 @@ void LocalMapper::Close(CloseReason reason) {
     if (k < g.truth_id.size() && g.truth_id[k] >= 0) l.truth_id = g.truth_id[k];  // known association
     s.landmarks.push_back(l);
   }
+  // A map over almost no motion (a vehicle standing still) is nearly rigid: regularised by
+  // the documented rule and counted, as the reader does with one from elsewhere.
+  s.RegularizeDegenerateCovariance();
   if (const absl::Status valid = s.Validate(); !valid.ok()) {
     status_ = absl::InternalError(absl::StrCat("the filter's estimate could not be exported as local map ", map_id_,
                                                ": ", valid.message()));
     return;
   }
-  repairs_ += g.covariance_repairs;
+  repairs_ += s.covariance_repairs;
   ++closes_by_reason_[ToString(reason)];
   closed_.push_back(std::move(closed));
   FilterReset();

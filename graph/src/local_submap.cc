@@ -40,14 +40,21 @@ absl::Status LocalSubmap::Validate() const {
   if (llt.info() != Eigen::Success) return error("covariance is not positive definite");
   // Joiners whiten by the covariance's Cholesky factor: past this condition number the
   // information it carries is rounding error (and CHOLMOD fails on the sum). The factor's
-  // reciprocal condition estimate settles the usual case (1/κ₁ ≤ λ_min/λ_max; the factor
-  // 10³ leaves room for the estimate's error).
-  if (llt.rcond() >= 1e3 * kMinRelativeEigenvalue) return absl::OkStatus();
+  // reciprocal condition estimate settles the usual case (1/κ₁ ≤ λ_min/λ_max, and
+  // λ_min ≥ 1/‖C⁻¹‖₁ ≈ rcond·‖C‖₁; the factor 10³ leaves room for the estimate's error).
+  const double norm1 = covariance.cwiseAbs().colwise().sum().maxCoeff();
+  if (llt.rcond() >= 1e3 * kMinRelativeEigenvalue && llt.rcond() * norm1 >= 1e3 * kMinVariance) {
+    return absl::OkStatus();
+  }
   const Eigen::VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(covariance).eigenvalues();
   if (!(eigenvalues.minCoeff() >= kMinRelativeEigenvalue * eigenvalues.maxCoeff())) {
     return error("covariance is numerically singular (eigenvalues ", eigenvalues.minCoeff(), " to ",
                  eigenvalues.maxCoeff(), "; the smallest must be at least ", kMinRelativeEigenvalue,
                  " of the largest)");
+  }
+  if (!(eigenvalues.minCoeff() >= kMinVariance)) {
+    return error("covariance is nearly rigid (smallest eigenvalue ", eigenvalues.minCoeff(),
+                 "; at least ", kMinVariance, " m² or rad²)");
   }
   return absl::OkStatus();
 }

@@ -213,7 +213,14 @@ absl::Status SubmapSlam::Finish() {
   JoinClosed();
   WaitForJoins();
   if (!mapper_->status().ok()) return mapper_->status();
-  if (joiner_ && status_.ok()) status_ = joiner_->Finish();
+  if (joiner_ && status_.ok()) {
+    // The joiner's own last work (relinearisation, the final revision passes) can fail as
+    // a join can, and leaves the joiner as half-made: its estimate is not used either.
+    if (absl::Status st = joiner_->Finish(); !st.ok()) {
+      status_ = absl::Status(st.code(), absl::StrCat("finishing the joins: ", st.message()));
+      join_failed_.store(true, std::memory_order_release);
+    }
+  }
   if (joiner_ && status_.ok()) {  // the online pose after the run: on the final estimate
     anchor_ = Anchor(mapper_->current_map_id());
     anchor_covariance_ = AnchorCovariance(mapper_->current_map_id());

@@ -546,7 +546,8 @@ TEST(EifJoiner, ValidationCatchesAnInjectedWrongAssociation) {
   EXPECT_TRUE(clean.rejected().empty());
 }
 
-// The joiner's anchors equal batch Gauss-Newton's solution of its graph, to 1e-8.
+// A one-step local map whose covariance is singular (rank 2: y and θ move together) is
+// refused with the reason, and joined once repaired.
 TEST(EifJoiner, JoinsAOneStepLocalMapOnceItsCovarianceIsRepaired) {
   const SyntheticRun run = MakeRun(3, 2);
   LocalSubmap one_step;
@@ -563,7 +564,13 @@ TEST(EifJoiner, JoinsAOneStepLocalMapOnceItsCovarianceIsRepaired) {
   const absl::Status rejected = eif.Join(one_step);
   EXPECT_FALSE(rejected.ok());
   EXPECT_NE(rejected.message().find("numerically singular"), std::string::npos) << rejected;
+  // The moment matcher's relative floor makes it positive definite but leaves it nearly
+  // rigid (smallest eigenvalue below LocalSubmap::kMinVariance); the regularisation rule
+  // (which the local mapper and the reader apply) makes it joinable.
   ASSERT_TRUE(frontend::RepairCovariance(&one_step.covariance, 1e-9));
+  const absl::Status rigid = eif.Join(one_step);
+  EXPECT_NE(rigid.message().find("nearly rigid"), std::string::npos) << rigid;
+  EXPECT_EQ(one_step.RegularizeDegenerateCovariance(), 1);
   ASSERT_TRUE(eif.Join(one_step).ok());
   ASSERT_TRUE(eif.Finish().ok());
   EXPECT_EQ(eif.num_anchors(), 4);

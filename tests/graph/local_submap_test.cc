@@ -45,6 +45,29 @@ TEST(LocalSubmap, RejectsANumericallySingularCovariance) {
   EXPECT_TRUE(s.Validate().ok()) << s.Validate();
 }
 
+// A map over almost no motion (one 0.1 s step of a vehicle barely moving: 1.1e-15 m² along
+// its path) is well conditioned in itself but nearly rigid: its information would swamp Λ.
+// Validate() rejects it; the regularisation rule makes it valid in one round and counts it.
+TEST(LocalSubmap, RejectsANearlyRigidCovarianceAndTheRuleRegularisesIt) {
+  LocalSubmap s;
+  s.id = 111;
+  s.t_start = 429.1;
+  s.t_end = 429.2;
+  s.mean = Eigen::Vector3d(-1.2e-4, 0.0, -6.2e-5);
+  s.covariance = Eigen::Vector3d(1.1e-15, 6.5e-7, 1.1e-6).asDiagonal();
+  const absl::Status st = s.Validate();
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.message().find("nearly rigid"), std::string::npos) << st;
+  EXPECT_NE(st.message().find("local map 111"), std::string::npos) << st;
+  EXPECT_EQ(s.RegularizeDegenerateCovariance(), 1);
+  EXPECT_TRUE(s.Validate().ok()) << s.Validate();
+  EXPECT_EQ(s.covariance_repairs, 1);
+  EXPECT_DOUBLE_EQ(s.covariance(0, 0), 1.1e-15 + LocalSubmap::kRegularizationVariance);
+  // At the floor itself it is accepted as it is.
+  s.covariance = Eigen::Vector3d(LocalSubmap::kMinVariance, 6.5e-7, 1.1e-6).asDiagonal();
+  EXPECT_TRUE(s.Validate().ok()) << s.Validate();
+}
+
 TEST(LocalSubmap, RejectsEachBrokenInvariant) {
   const auto broken = [](auto&& edit) {
     LocalSubmap s = Valid();

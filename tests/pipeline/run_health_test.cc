@@ -140,12 +140,17 @@ TEST(RunHealth, ANonFiniteEstimateStopsTheRunWithPartialOutputs) {
   }
 }
 
-// A joiner that fails its third join, as a numerical failure would.
+// A joiner that fails its third join (or, with `fail_at_finish`, its Finish()), as a
+// numerical failure would.
 class FailingJoiner final : public backend::MapJoiner {
  public:
-  explicit FailingJoiner(const Pose2& start) : inner_(start, backend::EifJoinerOptions{}) {}
+  explicit FailingJoiner(const Pose2& start, bool fail_at_finish = false)
+      : inner_(start, backend::EifJoinerOptions{}), fail_at_finish_(fail_at_finish) {}
   std::string Name() const override { return "failing"; }
-  absl::Status Finish() override { return inner_.Finish(); }
+  absl::Status Finish() override {
+    if (fail_at_finish_) return absl::InternalError("CHOLMOD: the matrix is not positive definite (provoked)");
+    return inner_.Finish();
+  }
   const SubmapGraph& graph() const override { return inner_.graph(); }
   Eigen::MatrixXd JointCovariance(const std::vector<int>& a, const std::vector<int>& l) const override {
     return inner_.JointCovariance(a, l);
@@ -157,12 +162,13 @@ class FailingJoiner final : public backend::MapJoiner {
 
  protected:
   absl::Status JoinLocalMap(const LocalSubmap& s) override {
-    if (++joins_ == 3) return absl::InternalError("factorisation failed (provoked)");
+    if (++joins_ == 3 && !fail_at_finish_) return absl::InternalError("factorisation failed (provoked)");
     return inner_.Join(s);
   }
 
  private:
   backend::EifJoiner inner_;
+  bool fail_at_finish_ = false;
   int joins_ = 0;
 };
 
@@ -199,6 +205,30 @@ TEST(RunHealth, AFailedJoinStopsJoiningAndKeepsWhatWasJoined) {
     EXPECT_GT(final_trajectory.back().t, slam.local_maps()[1].submap.t_end);
     EXPECT_TRUE(slam.pose().vector().allFinite());
   }
+}
+
+// The joiner's own last work (Gauss-Newton, the final revision passes) failing is a failed
+// join too: its estimate is not used (the run's final trajectory is then the online one).
+TEST(RunHealth, AFailureAtTheJoinersFinishIsAFailedJoin) {
+  const io::Dataset d = Simulate(1, "hybrid-120m", 30.0);
+  frontend::SubmapPolicyOptions policy;
+  policy.max_duration_s = 5.0;
+  auto mapper = std::make_unique<frontend::EkfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing,
+                                                           frontend::EkfSlamOptions{}, policy, 0.0, 0.5);
+  SubmapSlam slam(std::move(mapper), d.initial_pose,
+                  std::make_unique<FailingJoiner>(d.initial_pose, /*fail_at_finish=*/true), /*background=*/false);
+  for (const io::Step& step : io::BuildSteps(d)) {
+    slam.Predict(step.control, step.dt);
+    if (step.scan_index >= 0) slam.Update(d.scans[step.scan_index]);
+    slam.RecordStep(step.t);
+    EXPECT_FALSE(slam.join_failed());
+  }
+  const absl::Status st = slam.Finish();
+  ASSERT_FALSE(st.ok());
+  EXPECT_TRUE(slam.join_failed());
+  EXPECT_NE(st.message().find("finishing the joins"), std::string::npos) << st;
+  EXPECT_NE(st.message().find("provoked"), std::string::npos) << st;
+  EXPECT_GE(slam.joins().size(), 5u);  // every map was joined before
 }
 
 }  // namespace

@@ -53,13 +53,20 @@ struct LocalSubmap {
 
   // Sizes agree, values finite, t_start ≤ t_end, heading wrapped, local ids unique,
   // existence in [0, 1], covariance symmetric (to 1e-9 relative), positive definite and
-  // not numerically singular (smallest eigenvalue ≥ kMinRelativeEigenvalue × largest).
+  // not numerically singular (smallest eigenvalue ≥ kMinRelativeEigenvalue × largest)
+  // nor nearly rigid (smallest eigenvalue ≥ kMinVariance).
   absl::Status Validate() const;
   static constexpr double kMinRelativeEigenvalue = 1e-13;
+  // (1 µm)² and (1 µrad)², far below any sensor's resolution. A stiffer map is numerically
+  // a rigid constraint, which the information form cannot take: its information (above
+  // 10¹²) swamps the rest of Λ in the sum, and the factorisation loses positive
+  // definiteness to rounding — a run's last local map of one 0.1 s step in which the
+  // vehicle barely moved (variance 1.1·10⁻¹⁵ m² along its path) did that to the EIF.
+  static constexpr double kMinVariance = 1e-12;
 
-  // The rule for a local map from elsewhere whose covariance is symmetric, finite and
-  // positive semidefinite (to rounding) but singular or numerically so (a robot that stood
-  // still exports a zero covariance): its diagonal gets kRegularizationVariance (1 mm², 1 mrad²: the rule
+  // The rule for a local map whose covariance is symmetric, finite and positive
+  // semidefinite (to rounding) but singular, numerically so or nearly rigid (a robot that
+  // stood still exports a zero covariance): its diagonal gets kRegularizationVariance (1 mm², 1 mrad²: the rule
   // of the I-SLSJF authors' tools), ten times more each round until Validate() passes, at
   // most kMaxRegularizationRounds rounds; each round adds one to covariance_repairs.
   // Returns the rounds taken (0: the map was valid, or invalid for another reason — an
