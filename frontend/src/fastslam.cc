@@ -471,7 +471,7 @@ FastSlam::FeatureCounts FastSlam::ConfirmedFeatureCounts() const {
 std::map<std::string, double> FastSlam::Counters() const {
   double landmarks = 0;
   for (const Particle& p : particles_) landmarks += static_cast<double>(p.landmarks.size());
-  return {{"scans", counters_.scans},
+  std::map<std::string, double> out = {{"scans", counters_.scans},
           {"detections", counters_.detections},
           {"particles", num_particles()},
           {"resamples", counters_.resamples},
@@ -487,6 +487,15 @@ std::map<std::string, double> FastSlam::Counters() const {
           {"lineage_collapses", counters_.lineage_collapses},
           {"weight_collapses", counters_.weight_collapses},
           {"mean_landmarks_per_particle", landmarks / num_particles()}};
+  if (options_.sensor_yaw_sigma > 0.0) {
+    // The particles' sensor yaws now (in a local mapper: the map being built), weighted.
+    double mean = 0.0, second = 0.0;
+    for (const Particle& p : particles_) mean += std::exp(p.log_weight) * p.sensor_yaw;
+    for (const Particle& p : particles_) second += std::exp(p.log_weight) * (p.sensor_yaw - mean) * (p.sensor_yaw - mean);
+    out["sensor_yaw_mean"] = mean;
+    out["sensor_yaw_sigma"] = std::sqrt(second);
+  }
+  return out;
 }
 
 }  // namespace subslam::frontend

@@ -263,9 +263,9 @@ TEST(RunPipeline, VictoriaParkRbpfEifWithCalibratedYawBelowThePapersErrors) {
   EXPECT_LT(r->gps_final->rms_y_m, 4.83);
 }
 
-// Without the calibration, the particles' sensor yaws (sensor_yaw_sigma) let each local
-// map estimate the laser's yaw: RBPF + EIF below single-map EKF-SLAM's error against GPS
-// (2.26 m).
+// Without the calibration, the particles' sensor yaws (sensor_yaw_sigma) make each local
+// map's covariance carry a rotation of its bearings, so consecutive maps agree on the
+// same trees: RBPF + EIF below single-map EKF-SLAM's error against GPS (2.26 m).
 TEST(RunPipeline, VictoriaParkRbpfEifEstimatesTheSensorYawPerLocalMap) {
   if (!fs::exists(testing::VictoriaParkDir() + "/dataset.json")) GTEST_SKIP() << "no Victoria Park data";
   const std::optional<RunResult> r = RunVictoriaParkRbpfEif(0.0, 0.01);

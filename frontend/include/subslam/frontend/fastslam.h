@@ -120,13 +120,13 @@ struct FastSlamOptions {
   // The results do not depend on it: each particle slot draws from its own random
   // stream, seeded from `seed` and the slot. 0: std::thread::hardware_concurrency().
   int num_threads = 1;
-  // The sensor's yaw on the vehicle as a static parameter of each local map: at Reset()
-  // every particle draws a yaw ψ ~ N(0, σ²) [rad] and adds it to every bearing it sees, so
-  // the weights select the yaw the map's own detections support (each map estimates it
-  // afresh: local maps stay independent). 0: bearings taken as calibrated. Opt-in: it
-  // corrects an uncalibrated sensor (docs/limits.md), but within a map the particles'
-  // yaws collapse to a few values, whose spread the exported covariance then no longer
-  // carries.
+  // The sensor's yaw on the vehicle as an uncertain parameter of each local map: at
+  // Reset() every particle draws a yaw ψ ~ N(0, σ²) [rad] and adds it to every bearing it
+  // sees (local maps stay independent). A local map hardly identifies ψ; the spread
+  // makes the exported covariance carry a rotation of the map's bearings, so that local
+  // maps of an uncalibrated sensor still agree with each other. 0: bearings taken as
+  // calibrated. Opt-in: where they are, the spread costs accuracy (docs/limits.md). The
+  // counters sensor_yaw_mean and sensor_yaw_sigma give the particles' weighted yaws.
   double sensor_yaw_sigma = 0.0;
 
   absl::Status Validate() const;
