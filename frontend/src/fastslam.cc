@@ -92,6 +92,14 @@ FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
 FastSlam::~FastSlam() = default;
 
 void FastSlam::Reset(const Pose2& start) {
+  // The outgoing particles' yaws, if they have seen a scan: a local map's (sensor_yaw_sigma).
+  if (options_.sensor_yaw_sigma > 0.0 && counters_.scans > scans_at_reset_) {
+    const YawMoments m = SensorYawMoments();
+    yaw_mean_sum_ += m.mean;
+    yaw_spread_sum_ += m.spread;
+    ++yaw_maps_;
+  }
+  scans_at_reset_ = counters_.scans;
   particles_.assign(options_.num_particles, Particle{});
   const double log_w = -std::log(static_cast<double>(options_.num_particles));
   for (Particle& p : particles_) {
@@ -304,6 +312,15 @@ double FastSlam::EffectiveSampleSizeRatio() const {
   return 1.0 / (sum_sq * num_particles());
 }
 
+FastSlam::YawMoments FastSlam::SensorYawMoments() const {
+  YawMoments m;
+  double second = 0.0;
+  for (const Particle& p : particles_) m.mean += std::exp(p.log_weight) * p.sensor_yaw;
+  for (const Particle& p : particles_) second += std::exp(p.log_weight) * (p.sensor_yaw - m.mean) * (p.sensor_yaw - m.mean);
+  m.spread = std::sqrt(second);
+  return m;
+}
+
 void FastSlam::Resample() {
   const int P = num_particles();
   std::uniform_real_distribution<double> uniform(0.0, 1.0 / P);
@@ -488,12 +505,11 @@ std::map<std::string, double> FastSlam::Counters() const {
           {"weight_collapses", counters_.weight_collapses},
           {"mean_landmarks_per_particle", landmarks / num_particles()}};
   if (options_.sensor_yaw_sigma > 0.0) {
-    // The particles' sensor yaws now (in a local mapper: the map being built), weighted.
-    double mean = 0.0, second = 0.0;
-    for (const Particle& p : particles_) mean += std::exp(p.log_weight) * p.sensor_yaw;
-    for (const Particle& p : particles_) second += std::exp(p.log_weight) * (p.sensor_yaw - mean) * (p.sensor_yaw - mean);
-    out["sensor_yaw_mean"] = mean;
-    out["sensor_yaw_sigma"] = std::sqrt(second);
+    // Averaged over the particle sets closed by Reset() (local maps); without any, the
+    // current particles (a single-map run).
+    const YawMoments now = SensorYawMoments();
+    out["sensor_yaw_mean"] = yaw_maps_ > 0 ? yaw_mean_sum_ / yaw_maps_ : now.mean;
+    out["sensor_yaw_spread"] = yaw_maps_ > 0 ? yaw_spread_sum_ / yaw_maps_ : now.spread;
   }
   return out;
 }

@@ -294,6 +294,36 @@ TEST(FastSlam, ResetStartsAnEmptyMapAtTheGivenPose) {
   EXPECT_EQ(f.LineageDiversity(), 1.0);
 }
 
+// With sensor_yaw_sigma the counters give the particles' weighted yaw and spread: in a
+// single-map run the particles' now; once Reset() has closed particle sets (local maps),
+// their average over those sets — not the fresh draws of the prior after the last Reset().
+TEST(FastSlam, SensorYawCountersDescribeTheClosedParticleSets) {
+  const io::Dataset d = Simulate("hybrid-120m", 6, 20.0);
+  FastSlamOptions options;
+  options.num_particles = 50;
+  {
+    FastSlam plain(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+    EXPECT_EQ(plain.Counters().count("sensor_yaw_mean"), 0u);  // only with the option
+  }
+  options.sensor_yaw_sigma = 0.01;
+  FastSlam f(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
+  RunFilter(&f, d);
+  const double first_mean = f.Counters().at("sensor_yaw_mean");
+  const double first_spread = f.Counters().at("sensor_yaw_spread");
+  ASSERT_GT(f.counters().resamples, 10);
+  EXPECT_LT(first_spread, 0.01);  // the weights and resampling narrowed the prior's draws
+  f.Reset(d.initial_pose);        // closes the set: the counters keep describing it
+  EXPECT_EQ(f.Counters().at("sensor_yaw_mean"), first_mean);
+  EXPECT_EQ(f.Counters().at("sensor_yaw_spread"), first_spread);
+  f.Reset(d.initial_pose);  // a set that saw no scan is not counted
+  EXPECT_EQ(f.Counters().at("sensor_yaw_mean"), first_mean);
+  RunFilter(&f, d);
+  EXPECT_EQ(f.Counters().at("sensor_yaw_mean"), first_mean);  // the closed sets until the next close
+  f.Reset(d.initial_pose);
+  EXPECT_NE(f.Counters().at("sensor_yaw_mean"), first_mean);  // now the average of two
+  EXPECT_LT(f.Counters().at("sensor_yaw_spread"), 0.01);
+}
+
 // Two landmarks 1 m apart; a later detection lies nearer A but carries B's signature:
 // without the cue it goes to A, with it to B.
 TEST(FastSlam, SignatureCueResolvesGeometricAmbiguity) {

@@ -36,6 +36,7 @@ class FixedGaussianMapper final : public LocalMapper {
     gaussian_.signature = {0.1, 0.2, 0.3};
   }
   const MomentMatchedGaussian& gaussian() const { return gaussian_; }
+  void set_gaussian(const MomentMatchedGaussian& g) { gaussian_ = g; }
   std::string Name() const override { return "fixed"; }
   const std::vector<int>& last_scan_features() const override { return none_; }
 
@@ -92,6 +93,30 @@ TEST(LocalMapper, DoesNotExportAFeatureWiderThanOneDetectionAtMaximumRange) {
     EXPECT_EQ(s.landmarks[1].signature, 0.3);
     EXPECT_EQ(mapper.Counters().at("features_too_uncertain_to_export"), 1.0);
   }
+}
+
+// A map over almost no motion (one 0.1 s step of a vehicle barely moving: 1.1e-15 m² along
+// its path) is nearly rigid: the mapper closes it regularised by the documented rule and
+// counts the repair, instead of failing the export.
+TEST(LocalMapper, RegularisesANearlyRigidMapItCloses) {
+  models::RangeBearingConfig sensor;
+  FixedGaussianMapper mapper(SubmapPolicyOptions{}, sensor);
+  MomentMatchedGaussian rigid;
+  rigid.mean = Eigen::Vector3d(-1.2e-4, 0.0, -6.2e-5);
+  rigid.covariance = Eigen::Vector3d(1.1e-15, 6.5e-7, 1.1e-6).asDiagonal();
+  mapper.set_gaussian(rigid);
+  Scan scan;
+  scan.t = 0.1;
+  mapper.Update(scan);
+  mapper.Finish();
+  ASSERT_TRUE(mapper.status().ok()) << mapper.status();
+  const std::vector<ClosedLocalMap> closed = mapper.TakeClosed();
+  ASSERT_EQ(closed.size(), 1u);
+  const LocalSubmap& s = closed[0].submap;
+  EXPECT_TRUE(s.Validate().ok()) << s.Validate();
+  EXPECT_EQ(s.covariance_repairs, 1);
+  EXPECT_DOUBLE_EQ(s.covariance(0, 0), 1.1e-15 + LocalSubmap::kRegularizationVariance);
+  EXPECT_EQ(mapper.Counters().at("covariance_repairs"), 1.0);
 }
 
 }  // namespace

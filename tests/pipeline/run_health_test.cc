@@ -211,24 +211,26 @@ TEST(RunHealth, AFailedJoinStopsJoiningAndKeepsWhatWasJoined) {
 // join too: its estimate is not used (the run's final trajectory is then the online one).
 TEST(RunHealth, AFailureAtTheJoinersFinishIsAFailedJoin) {
   const io::Dataset d = Simulate(1, "hybrid-120m", 30.0);
-  frontend::SubmapPolicyOptions policy;
-  policy.max_duration_s = 5.0;
-  auto mapper = std::make_unique<frontend::EkfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing,
-                                                           frontend::EkfSlamOptions{}, policy, 0.0, 0.5);
-  SubmapSlam slam(std::move(mapper), d.initial_pose,
-                  std::make_unique<FailingJoiner>(d.initial_pose, /*fail_at_finish=*/true), /*background=*/false);
-  for (const io::Step& step : io::BuildSteps(d)) {
-    slam.Predict(step.control, step.dt);
-    if (step.scan_index >= 0) slam.Update(d.scans[step.scan_index]);
-    slam.RecordStep(step.t);
-    EXPECT_FALSE(slam.join_failed());
+  for (bool background : {false, true}) {
+    frontend::SubmapPolicyOptions policy;
+    policy.max_duration_s = 5.0;
+    auto mapper = std::make_unique<frontend::EkfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing,
+                                                             frontend::EkfSlamOptions{}, policy, 0.0, 0.5);
+    SubmapSlam slam(std::move(mapper), d.initial_pose,
+                    std::make_unique<FailingJoiner>(d.initial_pose, /*fail_at_finish=*/true), background);
+    for (const io::Step& step : io::BuildSteps(d)) {
+      slam.Predict(step.control, step.dt);
+      if (step.scan_index >= 0) slam.Update(d.scans[step.scan_index]);
+      slam.RecordStep(step.t);
+      EXPECT_FALSE(slam.join_failed());
+    }
+    const absl::Status st = slam.Finish();
+    ASSERT_FALSE(st.ok());
+    EXPECT_TRUE(slam.join_failed());
+    EXPECT_NE(st.message().find("finishing the joins"), std::string::npos) << st;
+    EXPECT_NE(st.message().find("provoked"), std::string::npos) << st;
+    EXPECT_GE(slam.joins().size(), 5u);  // every map was joined before
   }
-  const absl::Status st = slam.Finish();
-  ASSERT_FALSE(st.ok());
-  EXPECT_TRUE(slam.join_failed());
-  EXPECT_NE(st.message().find("finishing the joins"), std::string::npos) << st;
-  EXPECT_NE(st.message().find("provoked"), std::string::npos) << st;
-  EXPECT_GE(slam.joins().size(), 5u);  // every map was joined before
 }
 
 }  // namespace

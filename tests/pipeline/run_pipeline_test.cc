@@ -266,7 +266,7 @@ TEST(RunPipeline, VictoriaParkRbpfEifWithCalibratedYawBelowThePapersErrors) {
 // Without the calibration, the particles' sensor yaws (sensor_yaw_sigma) make each local
 // map's covariance carry a rotation of its bearings, so consecutive maps agree on the
 // same trees: RBPF + EIF below single-map EKF-SLAM's error against GPS (2.26 m).
-TEST(RunPipeline, VictoriaParkRbpfEifEstimatesTheSensorYawPerLocalMap) {
+TEST(RunPipeline, VictoriaParkRbpfEifWithTheSensorYawSpreadPerLocalMapBelowEkfSlam) {
   if (!fs::exists(testing::VictoriaParkDir() + "/dataset.json")) GTEST_SKIP() << "no Victoria Park data";
   const std::optional<RunResult> r = RunVictoriaParkRbpfEif(0.0, 0.01);
   ASSERT_TRUE(r.has_value());

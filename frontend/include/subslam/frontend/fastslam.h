@@ -122,11 +122,14 @@ struct FastSlamOptions {
   int num_threads = 1;
   // The sensor's yaw on the vehicle as an uncertain parameter of each local map: at
   // Reset() every particle draws a yaw ψ ~ N(0, σ²) [rad] and adds it to every bearing it
-  // sees (local maps stay independent). A local map hardly identifies ψ; the spread
-  // makes the exported covariance carry a rotation of the map's bearings, so that local
-  // maps of an uncalibrated sensor still agree with each other. 0: bearings taken as
+  // sees (local maps stay independent). A local map identifies ψ only weakly (about
+  // ±0.015 rad on Victoria Park); mostly the spread makes the exported covariance carry a
+  // rotation of the map's bearings, so that local maps of an uncalibrated sensor still
+  // agree with each other. 0: bearings taken as
   // calibrated. Opt-in: where they are, the spread costs accuracy (docs/limits.md). The
-  // counters sensor_yaw_mean and sensor_yaw_sigma give the particles' weighted yaws.
+  // counters sensor_yaw_mean and sensor_yaw_spread give the particles' weighted yaw and its
+  // spread at each local map's close (Reset() after scans), averaged over the maps closed
+  // so far; before the first close, the particles' now (a single-map run).
   double sensor_yaw_sigma = 0.0;
 
   absl::Status Validate() const;
@@ -326,6 +329,15 @@ class FastSlam final : public OnlineEstimator {
   std::mt19937_64 yaw_rng_;  // the particles' sensor yaws (sensor_yaw_sigma)
   std::unique_ptr<WorkerPool> pool_;
   int thread_limit_ = 0;
+  // The particles' weighted sensor yaw [rad] and its spread, now and summed over the
+  // particle sets Reset() closed (sensor_yaw_sigma; counters sensor_yaw_mean, _spread).
+  struct YawMoments {
+    double mean = 0.0, spread = 0.0;
+  };
+  YawMoments SensorYawMoments() const;
+  double yaw_mean_sum_ = 0.0, yaw_spread_sum_ = 0.0;
+  long yaw_maps_ = 0;
+  long scans_at_reset_ = 0;
   std::vector<Scratch> scratch_;                // one per thread
   std::vector<int> owner_;                      // the thread that associated each particle
   static constexpr int kChunk = 4;              // particles a thread takes at a time

@@ -133,7 +133,7 @@ struct RunResult {
   // failed part-way may have left it half-made): the final trajectory is the online one
   // and the map is empty.
   std::optional<RunStop> stop;
-  bool join_failed = false;  // a join failed (the run stopped there)
+  bool join_failed = false;  // a join (or the joiner's Finish) failed: the back-end estimate is not used
   int non_finite_landmarks = 0;  // dropped from the map (a stopped run's broken estimate)
   nlohmann::json report;
 };

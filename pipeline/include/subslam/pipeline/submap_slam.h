@@ -110,6 +110,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   // Whether a join has failed (readable at any time, also while a background join runs).
   // The joiner is left as it was before that join, nothing more is joined, and Finish()
   // returns the error: the run cannot go on, but everything up to the failed map stands.
+  // A failure in the joiner's own Finish() (its last relinearisation or revision passes)
+  // counts too; the joiner may then be half-made, and its estimate must not be used.
   bool join_failed() const { return join_failed_.load(std::memory_order_acquire); }
   // Whether the local mapper could not export a local map (a broken filter estimate):
   // nothing after it is joined either, and Finish() returns the mapper's error.
