@@ -104,7 +104,8 @@ ABSL_FLAG(bool, submap_delay_ambiguous, PolicyDefaults().delay_while_ambiguous,
 
 ABSL_FLAG(double, sensor_yaw_sigma, FastSlamDefaults().sensor_yaw_sigma,
           "fastslam / rbpf: sigma [rad] of the sensor yaw each particle draws at the start of a local map "
-          "and adds to every bearing, so that each map estimates an uncalibrated yaw (0: off)");
+          "and adds to every bearing, so that the maps of an uncalibrated sensor carry its yaw's uncertainty "
+          "(0: off; docs/limits.md)");
 
 ABSL_FLAG(int, innovation_test_window, EkfDefaults().innovation_test.window_scans,
           "ekfslam / ekf: scans per window of the normalised innovation test for divergence (0: off)");

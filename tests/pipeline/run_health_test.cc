@@ -6,6 +6,8 @@
 #include <boost/math/distributions/binomial.hpp>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <memory>
 
 #include <nlohmann/json.hpp>
 
@@ -172,24 +174,35 @@ class FailingJoiner final : public backend::MapJoiner {
   int joins_ = 0;
 };
 
+// An EKF local mapper (5 s maps) chained by a FailingJoiner, driven over the whole data set;
+// `on_step` sees the chain after each step.
+std::unique_ptr<SubmapSlam> DriveWithFailingJoiner(const io::Dataset& d, bool fail_at_finish, bool background,
+                                                   const std::function<void(const SubmapSlam&)>& on_step) {
+  frontend::SubmapPolicyOptions policy;
+  policy.max_duration_s = 5.0;
+  auto mapper = std::make_unique<frontend::EkfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing,
+                                                           frontend::EkfSlamOptions{}, policy, 0.0, 0.5);
+  auto slam = std::make_unique<SubmapSlam>(std::move(mapper), d.initial_pose,
+                                           std::make_unique<FailingJoiner>(d.initial_pose, fail_at_finish), background);
+  for (const io::Step& step : io::BuildSteps(d)) {
+    slam->Predict(step.control, step.dt);
+    if (step.scan_index >= 0) slam->Update(d.scans[step.scan_index]);
+    slam->RecordStep(step.t);
+    on_step(*slam);
+  }
+  return slam;
+}
+
 // A failed join stops the joining: nothing more is joined, the online pose goes on, the
 // final trajectory ends with the last local map that has a start anchor, and Finish()
 // names the map and the error — in the background and synchronously alike.
 TEST(RunHealth, AFailedJoinStopsJoiningAndKeepsWhatWasJoined) {
   const io::Dataset d = Simulate(1, "hybrid-120m", 60.0);
   for (bool background : {false, true}) {
-    frontend::SubmapPolicyOptions policy;
-    policy.max_duration_s = 5.0;
-    auto mapper = std::make_unique<frontend::EkfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing,
-                                                             frontend::EkfSlamOptions{}, policy, 0.0, 0.5);
-    SubmapSlam slam(std::move(mapper), d.initial_pose, std::make_unique<FailingJoiner>(d.initial_pose), background);
     bool failed_seen = false;
-    for (const io::Step& step : io::BuildSteps(d)) {
-      slam.Predict(step.control, step.dt);
-      if (step.scan_index >= 0) slam.Update(d.scans[step.scan_index]);
-      slam.RecordStep(step.t);
-      failed_seen = failed_seen || slam.join_failed();
-    }
+    const std::unique_ptr<SubmapSlam> chain = DriveWithFailingJoiner(
+        d, /*fail_at_finish=*/false, background, [&](const SubmapSlam& s) { failed_seen = failed_seen || s.join_failed(); });
+    SubmapSlam& slam = *chain;
     const absl::Status st = slam.Finish();
     EXPECT_TRUE(slam.join_failed());
     EXPECT_FALSE(slam.export_failed());
@@ -212,18 +225,9 @@ TEST(RunHealth, AFailedJoinStopsJoiningAndKeepsWhatWasJoined) {
 TEST(RunHealth, AFailureAtTheJoinersFinishIsAFailedJoin) {
   const io::Dataset d = Simulate(1, "hybrid-120m", 30.0);
   for (bool background : {false, true}) {
-    frontend::SubmapPolicyOptions policy;
-    policy.max_duration_s = 5.0;
-    auto mapper = std::make_unique<frontend::EkfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing,
-                                                             frontend::EkfSlamOptions{}, policy, 0.0, 0.5);
-    SubmapSlam slam(std::move(mapper), d.initial_pose,
-                    std::make_unique<FailingJoiner>(d.initial_pose, /*fail_at_finish=*/true), background);
-    for (const io::Step& step : io::BuildSteps(d)) {
-      slam.Predict(step.control, step.dt);
-      if (step.scan_index >= 0) slam.Update(d.scans[step.scan_index]);
-      slam.RecordStep(step.t);
-      EXPECT_FALSE(slam.join_failed());
-    }
+    const std::unique_ptr<SubmapSlam> chain = DriveWithFailingJoiner(
+        d, /*fail_at_finish=*/true, background, [](const SubmapSlam& s) { EXPECT_FALSE(s.join_failed()); });
+    SubmapSlam& slam = *chain;
     const absl::Status st = slam.Finish();
     ASSERT_FALSE(st.ok());
     EXPECT_TRUE(slam.join_failed());

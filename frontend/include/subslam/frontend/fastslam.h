@@ -125,11 +125,11 @@ struct FastSlamOptions {
   // sees (local maps stay independent). A local map identifies ψ only weakly (about
   // ±0.015 rad on Victoria Park); mostly the spread makes the exported covariance carry a
   // rotation of the map's bearings, so that local maps of an uncalibrated sensor still
-  // agree with each other. 0: bearings taken as
-  // calibrated. Opt-in: where they are, the spread costs accuracy (docs/limits.md). The
-  // counters sensor_yaw_mean and sensor_yaw_spread give the particles' weighted yaw and its
-  // spread at each local map's close (Reset() after scans), averaged over the maps closed
-  // so far; before the first close, the particles' now (a single-map run).
+  // agree with each other. 0: bearings taken as calibrated. Opt-in: where they are, the
+  // spread costs accuracy (docs/limits.md). The counters sensor_yaw_mean and
+  // sensor_yaw_spread give the particles' weighted yaw and its spread at each local map's
+  // close (Reset() after scans), averaged over the maps closed so far; before the first
+  // close, the particles' now (a single-map run).
   double sensor_yaw_sigma = 0.0;
 
   absl::Status Validate() const;
