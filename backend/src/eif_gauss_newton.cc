@@ -49,8 +49,9 @@ absl::Status EifJoiner::Relinearize() {
   if (absl::Status st = GaussNewton(); !st.ok()) return st;
   // Every factor moved, so the landmarks' marginal bounds were forgotten: today's exact
   // marginals, all at once from the sparse inverse, bound every later one until the next
-  // relinearisation (Λ only grows), so association can skip candidates at once again.
-  if (options_.bound_candidate_marginals && graph_.num_landmarks() > 0) {
+  // relinearisation (Λ only grows), so association can skip candidates at once again
+  // (association by truth ids has no candidates).
+  if (options_.bound_candidate_marginals && !options_.association.known_association && graph_.num_landmarks() > 0) {
     StageTimer timer(&times_, "covariance_recovery");
     marginal_bound_ = LandmarkCovariances();
   }

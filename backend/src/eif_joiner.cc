@@ -482,7 +482,9 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   // A loop closure still waiting for confirmation stands: once whole maps are joined the
   // maps after it are no longer a sequence to replay (and right's own is right's).
   pending_loop_.reset();
-  absl::StatusOr<LocalSubmap> summary = SummarizeForJoin(right, last_t_end_);
+  // Association by truth ids reads no covariance: the joint marginal is not recovered.
+  absl::StatusOr<LocalSubmap> summary =
+      SummarizeForJoin(right, last_t_end_, /*with_covariance=*/!options_.association.known_association);
   if (!summary.ok()) return summary.status();
   const int start = graph_.num_anchors() - 1;
   const int n = right.graph_.num_landmarks();

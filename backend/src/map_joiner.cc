@@ -75,7 +75,7 @@ std::vector<Eigen::Matrix2d> MapJoiner::LandmarkCovariances() const {
   return out;
 }
 
-LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j) {
+LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j, bool with_covariance) {
   const SubmapGraph& g = j.graph();
   SUBSLAM_CHECK(!g.factors().empty()) << "an empty map has no summary";
   const Pose2& origin = g.anchors()[0];
@@ -90,7 +90,7 @@ LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j) {
   std::vector<int> landmarks(n);
   std::iota(landmarks.begin(), landmarks.end(), 0);
   for (int l = 0; l < n; ++l) s.mean.segment<2>(3 + 2 * l) = g.landmarks()[l];
-  s.covariance = j.JointCovariance({last}, landmarks);
+  if (with_covariance) s.covariance = j.JointCovariance({last}, landmarks);
   const std::vector<int> truth = j.associator().TruthIds(n);
   for (int l = 0; l < n; ++l) {
     LocalSubmapLandmark lm;
@@ -103,8 +103,8 @@ LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j) {
   return s;
 }
 
-absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end) {
-  LocalSubmap summary = SummarizeAsLocalSubmap(right);
+absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end, bool with_covariance) {
+  LocalSubmap summary = SummarizeAsLocalSubmap(right, with_covariance);
   if (summary.t_start < left_t_end - 1e-9) {
     return absl::InvalidArgumentError(absl::StrCat("map from ", summary.t_start, " s starts before this one ends (",
                                                    left_t_end, " s)"));

@@ -174,5 +174,23 @@ TEST(TreeJoiner, NodesMustSupportMapJoins) {
   EXPECT_FALSE(tree->Join(run.submaps[1]).ok());  // the join of two leaves needs the anchors
 }
 
+// A map's summary without its covariance keeps everything association by truth ids
+// reads (means, truth ids, times) and leaves the joint marginal unrecovered.
+TEST(SummarizeAsLocalSubmap, WithoutCovarianceKeepsWhatAssociationByTruthReads) {
+  const SyntheticRun run = MakeRun(4, 5, 1.0);
+  EifJoiner joiner(Pose2(), ConvergingKnownAssociation());  // a tree node's frame: anchor 0 the identity
+  for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(joiner.Join(s).ok());
+  const LocalSubmap full = SummarizeAsLocalSubmap(joiner);
+  const LocalSubmap means_only = SummarizeAsLocalSubmap(joiner, /*with_covariance=*/false);
+  ASSERT_GT(full.num_landmarks(), 0);
+  EXPECT_EQ(full.covariance.rows(), full.mean.size());
+  EXPECT_EQ(means_only.covariance.size(), 0);
+  EXPECT_TRUE(testing::MatricesNear(full.mean, means_only.mean, 0.0));
+  EXPECT_EQ(means_only.t_start, full.t_start);
+  EXPECT_EQ(means_only.t_end, full.t_end);
+  ASSERT_EQ(means_only.num_landmarks(), full.num_landmarks());
+  for (int i = 0; i < full.num_landmarks(); ++i) EXPECT_EQ(means_only.landmarks[i].truth_id, full.landmarks[i].truth_id);
+}
+
 }  // namespace
 }  // namespace subslam::backend

@@ -183,11 +183,14 @@ absl::Status ReviseUntilSettled(MapJoiner& joiner, int max_passes = 50);
 // The map `j` seen as one local map from its anchor 0 (which must be the identity):
 // mean [last anchor, every landmark], their joint marginal covariance, each landmark's
 // mean signature and truth id; id, start and end times from j's first and last local
-// maps. What a tree join associates with the map on its left.
-LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j);
+// maps. What a tree join associates with the map on its left. Without `with_covariance`
+// the covariance is left empty (0 × 0): all that association by truth ids reads, without
+// recovering the joint marginal.
+LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j, bool with_covariance = true);
 // The summary of `right` for a whole-map join onto a map that ends at `left_t_end` (s);
 // an error if right starts before.
-absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end);
+absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end,
+                                             bool with_covariance = true);
 
 }  // namespace subslam::backend
 
