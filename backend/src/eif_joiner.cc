@@ -532,10 +532,11 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   counters_.new_landmarks -= matched;
   for (const auto& [stage, seconds] : right.times_) times_[stage] += seconds;
   last_t_end_ = right.last_t_end_;
-  if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;
   // Right's factors were linearised at an estimate made without this map's information:
   // after a long right map, one step is far from the joint optimum (on combined-2km the
   // tree's anchors were 74 m off, NEES 3,800), so a tree join is iterated to convergence.
+  // Its first iteration linearises every factor at the joined estimate and solves (Λ is
+  // factorised there first).
   if (absl::Status st = Relinearize(); !st.ok()) return st;
   return ReviseAssociation(/*full=*/true);
 }

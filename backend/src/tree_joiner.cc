@@ -86,25 +86,26 @@ const MapJoiner& TreeJoiner::Whole() const {
 
 void TreeJoiner::Chain(Pose2* pose, Eigen::Matrix3d* covariance) const {
   *pose = initial_pose_;
-  covariance->setZero();
+  if (covariance != nullptr) covariance->setZero();
   for (size_t i = 0; i < nodes_.size(); ++i) {
     const MapJoiner& node = *nodes_[i].map;
     if (i == 0) {  // in the world frame already
       *pose = node.LastAnchor();
-      *covariance = node.LastAnchorCovariance();
+      if (covariance != nullptr) *covariance = node.LastAnchorCovariance();
       continue;
     }
     Eigen::Matrix3d J_a, J_b;
     const Pose2 next = Compose(*pose, node.LastAnchor(), &J_a, &J_b);
-    *covariance = J_a * *covariance * J_a.transpose() + J_b * node.LastAnchorCovariance() * J_b.transpose();
+    if (covariance != nullptr) {
+      *covariance = J_a * *covariance * J_a.transpose() + J_b * node.LastAnchorCovariance() * J_b.transpose();
+    }
     *pose = next;
   }
 }
 
 Pose2 TreeJoiner::LastAnchor() const {
   Pose2 p;
-  Eigen::Matrix3d c;
-  Chain(&p, &c);
+  Chain(&p, nullptr);
   return p;
 }
 

@@ -77,6 +77,8 @@ class TreeJoiner final : public MapJoiner {
     int level = 0;
   };
   const MapJoiner& Whole() const;
+  // The last anchor chained over the nodes' last anchors, and its covariance (first order)
+  // unless `covariance` is null.
   void Chain(Pose2* pose, Eigen::Matrix3d* covariance) const;
 
   std::unique_ptr<MapJoiner> prototype_;
