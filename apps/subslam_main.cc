@@ -152,7 +152,7 @@ int Join() {
   auto backend = subslam::cli::BackendOptionsFromFlags();
   if (!backend.ok()) return Fail(backend.status());
   if (backend->kind == subslam::pipeline::Backend::kNone) {
-    return Fail(absl::InvalidArgumentError("join needs --backend eif, ceres, ekf, tree-ekf or tree-eif"));
+    return Fail(absl::InvalidArgumentError("join needs --backend eif, ceres, ekf, tree-ekf, tree-eif or tree-ceres"));
   }
   auto submaps = subslam::io::ReadSubmapsJsonl(path);
   if (!submaps.ok()) return Fail(submaps.status());

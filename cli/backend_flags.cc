@@ -20,13 +20,14 @@ const subslam::backend::EifJoinerOptions& EifDefaults() {
 ABSL_FLAG(std::string, backend, "none",
           "rbpf / ekf: how local maps are joined: none (chained end to start) | eif | ceres "
           "(EIF association, then a Ceres solve of the whole graph at the end) | ekf (dense "
-          "EKF map joining, the baseline) | tree-ekf | tree-eif (binary-tree joining)");
+          "EKF map joining, the baseline) | tree-ekf | tree-eif (binary-tree joining) | tree-ceres "
+          "(binary-tree EIF joins, then the Ceres solve)");
 ABSL_FLAG(std::string, ekf_fusion, "zero-noise",
           "ekf back-end: how matched features are fused: zero-noise (HybridSLAM: augment, "
           "constrain copy = landmark, drop the copy) | conditional (the EIF's update in "
           "covariance form)");
 ABSL_FLAG(bool, tree_batch, false,
-          "tree-ekf / tree-eif: keep the leaves and build the tree level by level at the end "
+          "tree-ekf / tree-eif / tree-ceres: keep the leaves and build the tree level by level at the end "
           "(default: running, a binary counter that joins pairs as they complete)");
 ABSL_FLAG(bool, ekf_keep_anchors, true,
           "ekf back-end: keep every anchor in the state (false: marginalise each start "

@@ -19,14 +19,14 @@ constexpr std::array<CliCommand, 9> kCommands = {{
      "each detection's true id for evaluation."},
     {"run",
      "subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend "
-     "odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf [--backend none|eif|ceres|ekf|tree-ekf|tree-eif] "
+     "odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf [--backend none|eif|ceres|ekf|tree-ekf|tree-eif|tree-ceres] "
      "--out DIR",
      "Runs one estimator over a data set or a simulated scenario, prints a summary table and "
      "writes the run outputs (docs/formats.md, \"Run outputs\"): the online and final "
      "trajectories, the map, `report.json` with the metrics the ground truth allows, and for the "
      "local-map front-ends (`rbpf`, `ekf`) the local maps as `submaps.jsonl`."},
     {"join",
-     "subslam join --submaps FILE --backend eif|ceres|ekf|tree-ekf|tree-eif [--known_association] "
+     "subslam join --submaps FILE --backend eif|ceres|ekf|tree-ekf|tree-eif|tree-ceres [--known_association] "
      "[--dataset DIR | --scenario NAME --seed S] --out DIR",
      "Runs a back-end alone on recorded local maps, so that every back-end can be compared on "
      "the same input. With `--dataset` or `--scenario`/`--seed` it takes the initial pose and "

@@ -22,7 +22,8 @@ absl::Status CeresJoinerOptions::Validate() const {
 }
 
 CeresJoiner::CeresJoiner(const Pose2& initial_pose, const CeresJoinerOptions& options)
-    : eif_(initial_pose, WithoutGaussNewtonAtEnd(options.eif)),
+    : options_(options),
+      eif_(initial_pose, WithoutGaussNewtonAtEnd(options.eif)),
       solve_options_(options.solve),
       solve_every_(options.solve_every) {}
 
@@ -30,6 +31,24 @@ absl::Status CeresJoiner::JoinLocalMap(const LocalSubmap& submap) {
   if (absl::Status st = eif_.Join(submap); !st.ok()) return st;
   ++joins_;
   if (solve_every_ > 0 && joins_ % solve_every_ == 0) return SolveAndAdopt();
+  return absl::OkStatus();
+}
+
+std::unique_ptr<MapJoiner> CeresJoiner::NewEmpty(const Pose2& initial_pose) const {
+  return std::make_unique<CeresJoiner>(initial_pose, options_);
+}
+
+std::unique_ptr<MapJoiner> CeresJoiner::Clone() const { return std::make_unique<CeresJoiner>(*this); }
+
+absl::Status CeresJoiner::JoinMap(const MapJoiner& right_base) {
+  const auto* right = dynamic_cast<const CeresJoiner*>(&right_base);
+  if (right == nullptr) return absl::InvalidArgumentError("Ceres JoinMap: the right map is not a Ceres map");
+  if (absl::Status st = eif_.JoinMap(right->eif_); !st.ok()) return st;
+  joins_ += right->joins_;
+  solves_ += right->solves_;
+  iterations_ += right->iterations_;
+  seconds_ += right->seconds_;
+  max_seconds_ = std::max(max_seconds_, right->max_seconds_);
   return absl::OkStatus();
 }
 

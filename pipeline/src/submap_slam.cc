@@ -14,9 +14,10 @@
 namespace subslam::pipeline {
 
 namespace {
-constexpr EnumName<Backend> kBackendNames[] = {{Backend::kNone, "none"},       {Backend::kEif, "eif"},
-                                               {Backend::kCeres, "ceres"},     {Backend::kEkf, "ekf"},
-                                               {Backend::kTreeEkf, "tree-ekf"}, {Backend::kTreeEif, "tree-eif"}};
+constexpr EnumName<Backend> kBackendNames[] = {{Backend::kNone, "none"},         {Backend::kEif, "eif"},
+                                               {Backend::kCeres, "ceres"},       {Backend::kEkf, "ekf"},
+                                               {Backend::kTreeEkf, "tree-ekf"},   {Backend::kTreeEif, "tree-eif"},
+                                               {Backend::kTreeCeres, "tree-ceres"}};
 }  // namespace
 
 const char* ToString(Backend backend) { return NameOf(kBackendNames, backend); }
@@ -34,7 +35,7 @@ absl::Status BackendOptions::Validate() const {
 }
 
 bool EifRelinearizesAtEnd(const BackendOptions& options) {
-  return options.eif.relinearize_at_end && options.kind != Backend::kCeres;
+  return options.eif.relinearize_at_end && options.kind != Backend::kCeres && options.kind != Backend::kTreeCeres;
 }
 
 std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose) {
@@ -46,6 +47,13 @@ std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, co
           initial_pose, backend::CeresJoinerOptions{.eif = options.eif,
                                                     .solve = options.ceres,
                                                     .solve_every = options.ceres_every});
+    case Backend::kTreeCeres:
+      return std::make_unique<backend::TreeJoiner>(
+          std::make_unique<backend::CeresJoiner>(initial_pose,
+                                                 backend::CeresJoinerOptions{.eif = options.eif,
+                                                                             .solve = options.ceres,
+                                                                             .solve_every = options.ceres_every}),
+          options.tree);
     case Backend::kEkf: return std::make_unique<backend::EkfJoiner>(initial_pose, options.ekf);
     case Backend::kTreeEkf: {
       backend::EkfJoinerOptions ekf = options.ekf;

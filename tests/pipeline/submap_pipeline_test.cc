@@ -509,7 +509,7 @@ TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
 // without local maps is an error, not a crash.
 TEST(BackendOptions, RejectsBadInput) {
   for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf,
-                    Backend::kTreeEif}) {
+                    Backend::kTreeEif, Backend::kTreeCeres}) {
     absl::StatusOr<Backend> parsed = BackendFromString(ToString(b));
     ASSERT_TRUE(parsed.ok());
     EXPECT_EQ(*parsed, b);

@@ -4,6 +4,11 @@
 // from the current estimate (ISEIF's schedule, with Ceres doing the iterations), and the
 // EIF adopts the solution (EifJoiner::AdoptEstimate: every factor relinearised there),
 // so the anchors, the map and the marginals that this joiner answers all follow it.
+//
+// As a node of a binary tree (tree_joiner.h) it joins whole maps by the EIF's tree join;
+// the nodes' periodic solves count their own joins, and the root's Finish() solves the
+// whole graph once: Ceres from the tree's estimate, which on thousands of small local
+// maps comes much sooner than the sequential EIF's (bench/RESULTS.md).
 #ifndef SUBSLAM_BACKEND_CERES_JOINER_H_
 #define SUBSLAM_BACKEND_CERES_JOINER_H_
 
@@ -51,6 +56,12 @@ class CeresJoiner final : public MapJoiner {
   absl::Status MergeLandmarks(int keep, int drop) override { return eif_.MergeLandmarks(keep, drop); }
   absl::Status SplitFeature(int factor, int feature) override { return eif_.SplitFeature(factor, feature); }
 
+  // Tree nodes: an empty Ceres joiner with the same options, a copy, and the whole-map
+  // join of another Ceres joiner (its EIF's JoinMap; no solve).
+  std::unique_ptr<MapJoiner> NewEmpty(const Pose2& initial_pose) const override;
+  std::unique_ptr<MapJoiner> Clone() const override;
+  absl::Status JoinMap(const MapJoiner& right) override;
+
   // Ceres's summary of the last solve (nullopt before the first).
   const std::optional<CeresSolveReport>& last_solve() const { return last_solve_; }
 
@@ -60,6 +71,7 @@ class CeresJoiner final : public MapJoiner {
  private:
   absl::Status SolveAndAdopt();
 
+  CeresJoinerOptions options_;
   EifJoiner eif_;
   CeresSolveOptions solve_options_;
   int solve_every_ = 0;

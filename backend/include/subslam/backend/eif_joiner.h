@@ -319,6 +319,7 @@ class EifJoiner final : public MapJoiner {
   };
 
   EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
+  friend class CeresJoiner;           // whose copies copy their EIF
   // The factor record of graph factor `index`: its variables' offsets and sizes.
   Factor MakeFactor(int index) const;
   // Its variables' offsets and sizes, from the graph's factor record.

@@ -64,6 +64,8 @@ class TreeJoiner final : public MapJoiner {
   // Summed over the nodes (each holds its subtree's), plus "fold" for on-demand folds.
   std::map<std::string, double> stage_times() const override;
   const JoinerCounters& counters() const override;
+  // The whole map's (e.g. the Ceres root's solve figures).
+  JoinerExtras Extras() const override { return Whole().Extras(); }
 
   int num_nodes() const { return static_cast<int>(nodes_.size()); }
   int tree_joins() const { return tree_joins_; }  // JoinMap calls that built the tree

@@ -11,7 +11,9 @@
 //    sparse EIF nodes; the online anchor is chained over the tree's pending nodes;
 //  * kCeres — the Ceres back-end (backend/ceres_joiner.h): the EIF associates and gives
 //    the online estimate, and every `ceres_every` joins and at Finish() Ceres solves the
-//    whole graph and the EIF adopts the solution.
+//    whole graph and the EIF adopts the solution;
+//  * kTreeCeres — the same Ceres nodes joined by the binary tree (EIF tree joins), Ceres
+//    solving the whole graph at Finish() from the tree's estimate.
 //
 // pose() is the current start anchor composed with the local map's pose; its covariance
 // adds the anchor's marginal and the local pose's covariance (their correlation is
@@ -53,8 +55,8 @@
 
 namespace subslam::pipeline {
 
-enum class Backend { kNone, kEif, kCeres, kEkf, kTreeEkf, kTreeEif };
-const char* ToString(Backend backend);  // none, eif, ceres, ekf, tree-ekf, tree-eif
+enum class Backend { kNone, kEif, kCeres, kEkf, kTreeEkf, kTreeEif, kTreeCeres };
+const char* ToString(Backend backend);  // none, eif, ceres, ekf, tree-ekf, tree-eif, tree-ceres
 absl::StatusOr<Backend> BackendFromString(const std::string& name);
 
 struct BackendOptions {
@@ -73,7 +75,7 @@ struct BackendOptions {
 };
 
 // Whether the back-end's EIF runs Gauss-Newton at Finish(): eif.relinearize_at_end, except
-// for kCeres, where Ceres solves there instead.
+// for kCeres and kTreeCeres, where Ceres solves there instead.
 bool EifRelinearizesAtEnd(const BackendOptions& options);
 
 // The joiner of a back-end (nullptr for kNone).
