@@ -88,6 +88,7 @@ absl::Status EifJoiner::GaussNewton() {
       // small: that linearisation stays, without another factorisation.
       for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &previous[k]);
       ++counters_.relinearizations_predicted_converged;
+      converged_ = true;
       break;
     }
     if (absl::Status s = Rebuild(/*only_last_factor=*/false); !s.ok()) return s;
@@ -109,12 +110,18 @@ absl::Status EifJoiner::GaussNewton() {
       }
     }
     const Eigen::VectorXd step = StateVector() - before;
-    if (step.cwiseAbs().maxCoeff() < options_.relinearize_tolerance) break;
+    if (step.cwiseAbs().maxCoeff() < options_.relinearize_tolerance) {
+      converged_ = true;
+      break;
+    }
     // The step's length in the information metric of the linearisation that produced it
     // (ΔxᵀΛΔx, the decrease of Cost() it predicts): a small fraction of the estimate's
     // uncertainty is converged for estimation, however far it moved an ill-determined
     // variable in metres.
-    if (InformationNorm(step) < options_.relinearize_step_chi2) break;
+    if (InformationNorm(step) < options_.relinearize_step_chi2) {
+      converged_ = true;
+      break;
+    }
   }
   return absl::OkStatus();
 }

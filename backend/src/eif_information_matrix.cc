@@ -241,6 +241,7 @@ absl::Status EifJoiner::FullFactorization() {
 }
 
 absl::Status EifJoiner::Rebuild(bool only_last_factor) {
+  converged_ = false;
   const Eigen::Index old_dim = eta_.size();
   {
     StageTimer timer(&times_, "update");

@@ -191,6 +191,7 @@ void EifJoiner::Restore(Snapshot before) {
   owner_of_row_valid_ = false;
   changed_all_ = true;
   estimate_exact_ = false;  // the snapshot's estimate may be a partial one
+  converged_ = false;
   changed_rows_.clear();
   drift_.clear();
   counters_ = before.counters;
@@ -432,8 +433,9 @@ absl::Status EifJoiner::Finish() {
     // at the end solves exactly anyway).
     if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;
   }
-  // No association follows: the marginal bounds are not refreshed.
-  if (options_.relinearize_at_end && !factors_.empty()) {
+  // No association follows: the marginal bounds are not refreshed. An estimate already
+  // converged (a tree's last join iterates to convergence) is not iterated again.
+  if (options_.relinearize_at_end && !factors_.empty() && !converged_) {
     if (absl::Status st = GaussNewton(); !st.ok()) return st;
   }
   // Revise at the converged estimate (each pass that changes something solves again).

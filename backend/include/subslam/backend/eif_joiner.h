@@ -458,6 +458,9 @@ class EifJoiner final : public MapJoiner {
   bool changed_all_ = true;
   // Whether the estimate is Λ⁻¹η exactly (no partial recovery since the last exact solve).
   bool estimate_exact_ = true;
+  // Whether the estimate is a converged Gauss-Newton's (set where GaussNewton() stops on
+  // its tolerances, cleared by every rebuild of Λ): Finish() then has nothing to iterate.
+  bool converged_ = false;
   // After the trigger's test: the rows it covered are tested (and, after a test of every
   // factor, every row's drift starts again).
   void MarkLinearizationTested();
