@@ -3,7 +3,7 @@
 // Combined SLAM); and the growth of the joining cost with the number of local maps.
 //
 //   build/bench/backends_bench [--scenario combined-2km --seed 1 | --dataset DIR]
-//       [--frontend ekf|rbpf] [--known_association] [--backends eif,ceres,ekf,tree-ekf,tree-eif]
+//       [--frontend ekf|rbpf] [--known_association] [--backends eif,ceres,ekf,tree-ekf,tree-eif,tree-ceres]
 //       [--growth_km 1,2,4,8,16] [back-end flags: --single_linearization, --relinearize_*,
 //       --eif_ordering, --join_*, … as `subslam` takes them, docs/cli.md] [--out results.json]
 //
@@ -42,7 +42,7 @@ ABSL_FLAG(std::string, scenario, "combined-2km", "simulated scenario (ignored wi
 ABSL_FLAG(uint64_t, seed, 1, "scenario seed");
 ABSL_FLAG(std::string, dataset, "", "a data-set directory instead of a scenario (e.g. Victoria Park)");
 ABSL_FLAG(std::string, frontend, "ekf", "local maps from: ekf | rbpf");
-ABSL_FLAG(std::string, backends, "eif,ceres,ekf,tree-ekf,tree-eif", "back-ends, comma-separated");
+ABSL_FLAG(std::string, backends, "eif,ceres,ekf,tree-ekf,tree-eif,tree-ceres", "back-ends, comma-separated");
 ABSL_FLAG(std::string, growth_km, "1,2,4,8,16", "random-world path lengths for the growth table (empty: skip)");
 ABSL_FLAG(std::string, growth_backends, "eif,ekf,tree-ekf,tree-eif", "back-ends of the growth table");
 ABSL_FLAG(double, growth_dense_max_km, 4.0,
