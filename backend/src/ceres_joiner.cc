@@ -22,15 +22,12 @@ absl::Status CeresJoinerOptions::Validate() const {
 }
 
 CeresJoiner::CeresJoiner(const Pose2& initial_pose, const CeresJoinerOptions& options)
-    : options_(options),
-      eif_(initial_pose, WithoutGaussNewtonAtEnd(options.eif)),
-      solve_options_(options.solve),
-      solve_every_(options.solve_every) {}
+    : options_(options), eif_(initial_pose, WithoutGaussNewtonAtEnd(options.eif)) {}
 
 absl::Status CeresJoiner::JoinLocalMap(const LocalSubmap& submap) {
   if (absl::Status st = eif_.Join(submap); !st.ok()) return st;
   ++joins_;
-  if (solve_every_ > 0 && joins_ % solve_every_ == 0) return SolveAndAdopt();
+  if (options_.solve_every > 0 && joins_ % options_.solve_every == 0) return SolveAndAdopt();
   return absl::OkStatus();
 }
 
@@ -61,7 +58,7 @@ absl::Status CeresJoiner::SolveAndAdopt() {
   if (eif_.graph().factors().empty()) return absl::OkStatus();
   const absl::Time start = absl::Now();
   SubmapGraph g = eif_.graph();  // warm start: the current estimate
-  absl::StatusOr<CeresSolveReport> r = SolveWithCeres(&g, solve_options_);
+  absl::StatusOr<CeresSolveReport> r = SolveWithCeres(&g, options_.solve);
   if (!r.ok()) return r.status();
   last_solve_ = *r;
   ++solves_;

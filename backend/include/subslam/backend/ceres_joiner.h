@@ -73,8 +73,6 @@ class CeresJoiner final : public MapJoiner {
 
   CeresJoinerOptions options_;
   EifJoiner eif_;
-  CeresSolveOptions solve_options_;
-  int solve_every_ = 0;
   int joins_ = 0;
   std::optional<CeresSolveReport> last_solve_;
   int solves_ = 0;
