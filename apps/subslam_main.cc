@@ -198,7 +198,7 @@ int Run() {
   if (!frontend.ok()) return Fail(frontend.status());
   options.frontend = *frontend;
   if (absl::Status st = subslam::cli::SetFrontendOptionsFromFlags(&options); !st.ok()) return Fail(st);
-  auto backend = subslam::cli::BackendOptionsFromFlags();
+  auto backend = subslam::cli::BackendOptionsFromFlags(absl::GetFlag(FLAGS_sensor_yaw).has_value());
   if (!backend.ok()) return Fail(backend.status());
   options.backend = *backend;
   options.noise.sigma_v = absl::GetFlag(FLAGS_sigma_v);

@@ -1,5 +1,6 @@
 #include "backend_flags.h"
 
+#include <optional>
 #include <string>
 
 #include "absl/flags/flag.h"
@@ -36,6 +37,13 @@ ABSL_FLAG(std::string, ceres_method, "lm", "ceres: lm (Levenberg-Marquardt) | do
 ABSL_FLAG(std::string, ceres_loss, "none", "ceres: robust loss per local map: none | huber | cauchy");
 ABSL_FLAG(double, ceres_loss_scale, 3.0, "ceres: robust loss scale, in whitened units");
 ABSL_FLAG(int, ceres_every, 0, "ceres: also solve the graph every K joins during the run (0: at the end only)");
+ABSL_FLAG(std::optional<bool>, sensor_yaw_calibration, std::nullopt,
+          "back-ends that join (run and join): =true calibrates the sensor's yaw online from the "
+          "features consecutive local maps share and joins each map turned by the estimate "
+          "(counters sensor_yaw_correction, _sigma, _pairs; docs/limits.md); unset: on, except for "
+          "a run given --sensor_yaw, whose yaw is taken as calibrated");
+ABSL_FLAG(double, sensor_yaw_prior_sigma, subslam::backend::SensorYawCalibrationOptions{}.prior_sigma_rad,
+          "the online yaw calibration's prior sigma [rad] (zero mean)");
 ABSL_FLAG(bool, join_in_background, subslam::pipeline::BackendOptions{}.background,
           "run: join each closed local map on a thread of its own while the front-end builds the "
           "next (the online pose one join behind; while a join runs, rbpf leaves it a core; the "
@@ -208,7 +216,7 @@ absl::StatusOr<backend::CeresSolveOptions> CeresOptionsFromFlags() {
 
 }  // namespace
 
-absl::StatusOr<pipeline::BackendOptions> BackendOptionsFromFlags() {
+absl::StatusOr<pipeline::BackendOptions> BackendOptionsFromFlags(bool sensor_yaw_given) {
   pipeline::BackendOptions o;
   auto kind = pipeline::BackendFromString(absl::GetFlag(FLAGS_backend));
   if (!kind.ok()) return kind.status();
@@ -223,6 +231,8 @@ absl::StatusOr<pipeline::BackendOptions> BackendOptionsFromFlags() {
   o.ceres = *ceres;
   o.ceres_every = absl::GetFlag(FLAGS_ceres_every);
   o.background = absl::GetFlag(FLAGS_join_in_background);
+  o.sensor_yaw.enabled = absl::GetFlag(FLAGS_sensor_yaw_calibration).value_or(!sensor_yaw_given);
+  o.sensor_yaw.prior_sigma_rad = absl::GetFlag(FLAGS_sensor_yaw_prior_sigma);
   if (absl::Status st = o.Validate(); !st.ok()) return st;
   return o;
 }

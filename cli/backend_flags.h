@@ -16,8 +16,9 @@ ABSL_DECLARE_FLAG(double, sigma_signature);
 
 namespace subslam::cli {
 
-// The back-end the flags describe, validated.
-absl::StatusOr<pipeline::BackendOptions> BackendOptionsFromFlags();
+// The back-end the flags describe, validated. `sensor_yaw_given`: the run was given the
+// sensor's yaw (--sensor_yaw), so the online yaw calibration is off unless asked for.
+absl::StatusOr<pipeline::BackendOptions> BackendOptionsFromFlags(bool sensor_yaw_given = false);
 
 }  // namespace subslam::cli
 

@@ -31,6 +31,7 @@ absl::Status BackendOptions::Validate() const {
   if (absl::Status st = ekf.Validate(); !st.ok()) return st;
   if (absl::Status st = ceres.Validate(); !st.ok()) return st;
   if (ceres_every < 0) return absl::InvalidArgumentError("ceres_every must be >= 0");
+  if (absl::Status st = sensor_yaw.Validate(); !st.ok()) return st;
   return absl::OkStatus();
 }
 
@@ -71,15 +72,18 @@ std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, co
 SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
                        const BackendOptions& backend)
     : SubmapSlam(std::move(mapper), initial_pose, MakeJoiner(backend, initial_pose), backend.background,
-                 ToString(backend.kind)) {
+                 ToString(backend.kind), backend.sensor_yaw) {
   SUBSLAM_CHECK(backend.Validate().ok()) << backend.Validate().message();
 }
 
 SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
-                       std::unique_ptr<backend::MapJoiner> joiner, bool background, std::string backend_name)
+                       std::unique_ptr<backend::MapJoiner> joiner, bool background, std::string backend_name,
+                       const backend::SensorYawCalibrationOptions& sensor_yaw)
     : mapper_(std::move(mapper)),
       backend_name_(joiner == nullptr ? "" : backend_name.empty() ? joiner->Name() : std::move(backend_name)),
       joiner_(std::move(joiner)),
+      yaw_calibration_(sensor_yaw),
+      joined_anchor_(initial_pose),
       anchor_(initial_pose) {
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
@@ -138,41 +142,59 @@ void SubmapSlam::JoinClosed() {
   std::vector<frontend::ClosedLocalMap> newly_closed = mapper_->TakeClosed();
   if (newly_closed.empty()) return;  // the anchor changes only when a map closes
   for (frontend::ClosedLocalMap& c : newly_closed) {
-    const LocalSubmap& s = c.submap;
-    if (joiner_ && background_) {
-      WaitForJoins();  // the previous map's join
-      if (status_.ok()) {
-        // One join behind: s's start anchor as joined so far, through s's end pose.
-        Eigen::Matrix3d J_a, J_e;
-        const Eigen::Matrix3d start_covariance = joiner_->LastAnchorCovariance();
-        anchor_ = Compose(joiner_->LastAnchor(), s.end_pose(), &J_a, &J_e);
-        anchor_covariance_ = J_a * start_covariance * J_a.transpose() +
-                             J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose();
-        {
-          std::lock_guard<std::mutex> lock(join_mutex_);
-          joining_ = s;
-          join_busy_.store(true, std::memory_order_relaxed);
-        }
-        join_wanted_.notify_one();
-      }
-    } else if (joiner_) {
-      JoinOne(s);
+    if (joiner_) {
+      yaw_calibration_.Add(c.submap);
     } else {
       Eigen::Matrix3d J_a, J_e;
-      const Pose2 next = Compose(chain_.back(), s.end_pose(), &J_a, &J_e);
+      const Pose2 next = Compose(chain_.back(), c.submap.end_pose(), &J_a, &J_e);
       chain_covariance_.push_back(J_a * chain_covariance_.back() * J_a.transpose() +
-                                  J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose());
+                                  J_e * c.submap.covariance.topLeftCorner<3, 3>() * J_e.transpose());
       chain_.push_back(next);
     }
     closed_.push_back(std::move(c));
   }
-  if (joiner_) {
-    if (background_ || !status_.ok()) return;  // set above, or the last one joined stays
-    anchor_ = joiner_->LastAnchor();  // the tree joiner answers without folding its nodes
-    anchor_covariance_ = joiner_->LastAnchorCovariance();
-  } else {
+  if (!joiner_) {
     anchor_ = chain_.back();
     anchor_covariance_ = chain_covariance_.back();
+    return;
+  }
+  JoinReady();
+}
+
+void SubmapSlam::JoinReady() {
+  for (const LocalSubmap& s : yaw_calibration_.TakeReady()) {
+    if (background_) {
+      WaitForJoins();  // the previous map's join
+      if (!status_.ok()) break;
+      // One join behind: s's start anchor as joined so far, through s's end pose.
+      Eigen::Matrix3d J_a, J_e;
+      const Eigen::Matrix3d start_covariance = joiner_->LastAnchorCovariance();
+      joined_anchor_ = Compose(joiner_->LastAnchor(), s.end_pose(), &J_a, &J_e);
+      joined_anchor_covariance_ = J_a * start_covariance * J_a.transpose() +
+                                  J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose();
+      {
+        std::lock_guard<std::mutex> lock(join_mutex_);
+        joining_ = s;
+        join_busy_.store(true, std::memory_order_relaxed);
+      }
+      join_wanted_.notify_one();
+    } else {
+      JoinOne(s);
+      if (status_.ok()) {  // else the last one joined stays
+        joined_anchor_ = joiner_->LastAnchor();  // the tree joiner answers without folding its nodes
+        joined_anchor_covariance_ = joiner_->LastAnchorCovariance();
+      }
+    }
+  }
+  // The maps the yaw calibration still holds (its warm-up) chained on, end pose by end pose.
+  anchor_ = joined_anchor_;
+  anchor_covariance_ = joined_anchor_covariance_;
+  for (size_t k = closed_.size() - yaw_calibration_.held(); k < closed_.size(); ++k) {
+    Eigen::Matrix3d J_a, J_e;
+    const LocalSubmap& held = closed_[k].submap;
+    anchor_ = Compose(anchor_, held.end_pose(), &J_a, &J_e);
+    anchor_covariance_ = J_a * anchor_covariance_ * J_a.transpose() +
+                         J_e * held.covariance.topLeftCorner<3, 3>() * J_e.transpose();
   }
 }
 
@@ -219,6 +241,10 @@ void SubmapSlam::RecordStep(double t) {
 absl::Status SubmapSlam::Finish() {
   mapper_->Finish();
   JoinClosed();
+  if (joiner_) {
+    yaw_calibration_.Flush();
+    JoinReady();
+  }
   WaitForJoins();
   if (!mapper_->status().ok()) return mapper_->status();
   if (joiner_ && status_.ok()) {
@@ -300,6 +326,12 @@ std::map<std::string, double> SubmapSlam::Counters() const {
       out[std::string("join_") + f.name] = counters.*f.member;
     }
     out["global_landmarks"] = joiner_->num_landmarks();
+    if (yaw_calibration_.enabled()) {
+      out["sensor_yaw_correction"] = yaw_calibration_.estimate();
+      out["sensor_yaw_correction_sigma"] = yaw_calibration_.sigma();
+      out["sensor_yaw_pairs"] = static_cast<double>(yaw_calibration_.pairs());
+      out["sensor_yaw_maps_turned"] = static_cast<double>(yaw_calibration_.maps_turned());
+    }
     for (const auto& [name, value] : joiner_->Extras().figures) out[name] = value;
   }
   return out;

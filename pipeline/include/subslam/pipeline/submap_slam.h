@@ -49,6 +49,7 @@
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/ekf_joiner.h"
 #include "subslam/backend/map_joiner.h"
+#include "subslam/backend/sensor_yaw_calibration.h"
 #include "subslam/backend/tree_joiner.h"
 #include "subslam/frontend/local_mapper.h"
 #include "subslam/frontend/online_estimator.h"
@@ -66,6 +67,10 @@ struct BackendOptions {
   backend::TreeJoinerOptions tree;  // tree-ekf, tree-eif
   backend::CeresSolveOptions ceres; // ceres
   int ceres_every = 0;              // ceres: also solve every K joins (0: at the end only)
+  // Every back-end that joins (not kNone) gets the local maps with the sensor's yaw
+  // calibrated online from consecutive maps (backend/sensor_yaw_calibration.h); the maps
+  // kept in local_maps() and written to submaps.jsonl are the front-end's.
+  backend::SensorYawCalibrationOptions sensor_yaw;
   // Join on a background thread, the online pose one join behind (see SubmapSlam);
   // false: each closed map is joined inside the Update() that closed it, and the online
   // pose uses its joined anchor at once.
@@ -91,7 +96,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   // joined on a background thread if `background`; `backend_name` (default: the joiner's
   // Name()) names it in Name().
   SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
-             std::unique_ptr<backend::MapJoiner> joiner, bool background, std::string backend_name = "");
+             std::unique_ptr<backend::MapJoiner> joiner, bool background, std::string backend_name = "",
+             const backend::SensorYawCalibrationOptions& sensor_yaw = {});
   SubmapSlam(const SubmapSlam&) = delete;
   SubmapSlam& operator=(const SubmapSlam&) = delete;
 
@@ -144,6 +150,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
 
  private:
   void JoinClosed();
+  // Joins the maps the yaw calibration has made ready and sets the online anchor.
+  void JoinReady();
   // Joins one local map; records the first error.
   void JoinOne(const LocalSubmap& s);
   // Background joins: until the join in progress, if any, is done.
@@ -157,11 +165,16 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   std::string backend_name_;  // empty: no back-end
   std::unique_ptr<backend::MapJoiner> joiner_;
   std::vector<frontend::ClosedLocalMap> closed_;
+  backend::SensorYawCalibration yaw_calibration_;  // applied to the maps handed to the joiner
   // kNone: the chained anchors (index k = start of map k) and covariances; the joiners
   // keep their own.
   std::vector<Pose2> chain_;
   std::vector<Eigen::Matrix3d> chain_covariance_;
-  // The current start anchor, cached after each join.
+  // The end anchor of the last map handed to the joiner (one join behind in the
+  // background), and the current start anchor: that one through the maps the yaw
+  // calibration holds.
+  Pose2 joined_anchor_;
+  Eigen::Matrix3d joined_anchor_covariance_ = Eigen::Matrix3d::Zero();
   Pose2 anchor_;
   Eigen::Matrix3d anchor_covariance_ = Eigen::Matrix3d::Zero();
   struct StepRecord {
