@@ -3,7 +3,6 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
-#include <utility>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
@@ -42,9 +41,9 @@ absl::Status SensorYawCalibrationOptions::Validate() const {
     return absl::InvalidArgumentError(absl::StrCat(
         "sensor yaw calibration: settled_sigma_rad must be finite and >= 0, got ", settled_sigma_rad));
   }
-  if (max_held_maps < 0) {
+  if (warm_up_maps < 0) {
     return absl::InvalidArgumentError(
-        absl::StrCat("sensor yaw calibration: max_held_maps must be >= 0, got ", max_held_maps));
+        absl::StrCat("sensor yaw calibration: warm_up_maps must be >= 0, got ", warm_up_maps));
   }
   if (!(gate_probability > 0.0 && gate_probability < 1.0)) {
     return absl::InvalidArgumentError(absl::StrCat("sensor yaw calibration: gate_probability must be in (0, 1), got ",
@@ -199,30 +198,33 @@ LocalSubmap SensorYawCalibration::Corrected(const LocalSubmap& built) {
   return Rotated(built, estimate(), 0.0);
 }
 
-void SensorYawCalibration::Add(const LocalSubmap& built) {
+SensorYawCalibration::Ready SensorYawCalibration::Add(const LocalSubmap& built) {
+  Ready out;
   if (!options_.enabled) {
-    ready_.push_back(built);
-    return;
+    out.maps.push_back(built);
+    return out;
   }
   if (have_previous_) AddPairs(previous_, built);
   previous_ = built;
   have_previous_ = true;
-  held_.push_back(built);
-  if (!warmed_up_) {
-    warmed_up_ = Significant() || sigma() <= options_.settled_sigma_rad ||
-                 static_cast<int>(held_.size()) >= options_.max_held_maps;
-    if (!warmed_up_) return;
+  if (warmed_up_) {
+    out.maps.push_back(Corrected(built));
+    return out;
   }
-  for (const LocalSubmap& m : held_) ready_.push_back(Corrected(m));
-  held_.clear();
+  warm_up_.push_back(built);
+  if (Significant()) {  // the maps joined as built so far are to be joined again, turned
+    warmed_up_ = true;
+    out.restart = true;
+    for (const LocalSubmap& m : warm_up_) out.maps.push_back(Corrected(m));
+    warm_up_.clear();
+    return out;
+  }
+  if (sigma() <= options_.settled_sigma_rad || static_cast<int>(warm_up_.size()) >= options_.warm_up_maps) {
+    warmed_up_ = true;  // no misalignment shown: the maps stay as joined
+    warm_up_.clear();
+  }
+  out.maps.push_back(built);
+  return out;
 }
-
-void SensorYawCalibration::Flush() {
-  for (const LocalSubmap& m : held_) ready_.push_back(Corrected(m));
-  held_.clear();
-  warmed_up_ = true;
-}
-
-std::vector<LocalSubmap> SensorYawCalibration::TakeReady() { return std::exchange(ready_, {}); }
 
 }  // namespace subslam::backend

@@ -14,6 +14,10 @@ TreeJoiner::TreeJoiner(std::unique_ptr<MapJoiner> prototype, const TreeJoinerOpt
   SUBSLAM_CHECK(prototype_->NewEmpty(Pose2()) != nullptr) << prototype_->Name() << " cannot be a tree node";
 }
 
+std::unique_ptr<MapJoiner> TreeJoiner::NewEmpty(const Pose2& initial_pose) const {
+  return std::make_unique<TreeJoiner>(prototype_->NewEmpty(initial_pose), options_);
+}
+
 absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
   if (finished_) return absl::FailedPreconditionError("the tree is finished");
   if (!status_.ok()) return status_;

@@ -85,11 +85,21 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   JoinResult r;
   r.anchors_online.push_back({submaps.front().t_start, options.initial_pose, Eigen::Matrix3d::Zero()});
   absl::Duration joining;
-  // The maps go through the online yaw calibration as in a run (its warm-up holds the first
-  // ones back); each is joined as soon as it is ready.
+  // The maps go through the online yaw calibration as in a run: at the end of its warm-up it
+  // may ask for the maps so far to be joined again, turned, into an empty joiner.
   backend::SensorYawCalibration yaw_calibration(options.backend.sensor_yaw);
-  const auto join_ready = [&]() -> absl::Status {
-    for (const LocalSubmap& s : yaw_calibration.TakeReady()) {
+  int joiner_restarts = 0;
+  for (const LocalSubmap& built : submaps) {
+    const absl::Time calibration_start = absl::Now();
+    backend::SensorYawCalibration::Ready ready = yaw_calibration.Add(built);
+    joining += absl::Now() - calibration_start;
+    if (ready.restart) {
+      joiner = MakeJoiner(options.backend, options.initial_pose);
+      r.joins.clear();
+      r.anchors_online.resize(1);
+      ++joiner_restarts;
+    }
+    for (const LocalSubmap& s : ready.maps) {
       const absl::Time join_start = absl::Now();
       if (absl::Status st = joiner->Join(s); !st.ok()) {
         return absl::Status(st.code(), absl::StrCat("joining local map ", s.id, ": ", st.message()));
@@ -98,16 +108,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
       r.joins.push_back(joiner->last_join());
       r.anchors_online.push_back({s.t_end, joiner->LastAnchor(), joiner->LastAnchorCovariance()});
     }
-    return absl::OkStatus();
-  };
-  for (const LocalSubmap& s : submaps) {
-    const absl::Time calibration_start = absl::Now();
-    yaw_calibration.Add(s);
-    joining += absl::Now() - calibration_start;
-    if (absl::Status st = join_ready(); !st.ok()) return st;
   }
-  yaw_calibration.Flush();
-  if (absl::Status st = join_ready(); !st.ok()) return st;
   const absl::Time start = absl::Now() - joining;  // the online records are not timed
   if (absl::Status st = joiner->Finish(); !st.ok()) return st;
   r.wall_seconds = absl::ToDoubleSeconds(absl::Now() - start);
@@ -161,6 +162,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     counts["sensor_yaw_correction_sigma"] = yaw_calibration.sigma();
     counts["sensor_yaw_pairs"] = yaw_calibration.pairs();
     counts["sensor_yaw_maps_turned"] = yaw_calibration.maps_turned();
+    counts["sensor_yaw_joiner_restarts"] = joiner_restarts;
   }
   for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) {
     counts[f.name] = joiner->counters().*f.member;

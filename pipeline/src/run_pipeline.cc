@@ -692,6 +692,13 @@ std::string SummaryTable(const RunResult& r) {
                                                          c["join_landmarks_merged"].get<double>(),
                                                          c["join_features_split"].get<double>()));
   }
+  if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("sensor_yaw_correction")) {
+    const nlohmann::json& c = r.report["estimator_counters"];
+    row("sensor yaw, online calibration",
+        absl::StrFormat("%+.4f rad (sigma %.4f) from %.0f feature pairs; %.0f maps joined turned",
+                        c["sensor_yaw_correction"].get<double>(), c["sensor_yaw_correction_sigma"].get<double>(),
+                        c["sensor_yaw_pairs"].get<double>(), c["sensor_yaw_maps_turned"].get<double>()));
+  }
   if (r.report.contains("health")) {
     const nlohmann::json& h = r.report["health"];
     const auto n = [](const nlohmann::json& v) { return static_cast<long>(v.get<double>()); };

@@ -83,8 +83,13 @@ SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose
       backend_name_(joiner == nullptr ? "" : backend_name.empty() ? joiner->Name() : std::move(backend_name)),
       joiner_(std::move(joiner)),
       yaw_calibration_(sensor_yaw),
-      joined_anchor_(initial_pose),
+      initial_pose_(initial_pose),
       anchor_(initial_pose) {
+  // The yaw calibration may ask to join its warm-up's maps again into an empty joiner.
+  if (joiner_) prototype_ = joiner_->NewEmpty(initial_pose);
+  if (joiner_ && prototype_ == nullptr) {
+    yaw_calibration_ = backend::SensorYawCalibration(backend::SensorYawCalibrationOptions{.enabled = false});
+  }
   chain_.push_back(initial_pose);
   chain_covariance_.push_back(Eigen::Matrix3d::Zero());
   background_ = background && joiner_ != nullptr;
@@ -143,7 +148,9 @@ void SubmapSlam::JoinClosed() {
   if (newly_closed.empty()) return;  // the anchor changes only when a map closes
   for (frontend::ClosedLocalMap& c : newly_closed) {
     if (joiner_) {
-      yaw_calibration_.Add(c.submap);
+      backend::SensorYawCalibration::Ready ready = yaw_calibration_.Add(c.submap);
+      if (ready.restart) RestartJoiner();
+      for (const LocalSubmap& s : ready.maps) Submit(s);
     } else {
       Eigen::Matrix3d J_a, J_e;
       const Pose2 next = Compose(chain_.back(), c.submap.end_pose(), &J_a, &J_e);
@@ -153,49 +160,45 @@ void SubmapSlam::JoinClosed() {
     }
     closed_.push_back(std::move(c));
   }
-  if (!joiner_) {
+  if (joiner_) {
+    if (background_ || !status_.ok()) return;  // set by Submit, or the last one joined stays
+    anchor_ = joiner_->LastAnchor();  // the tree joiner answers without folding its nodes
+    anchor_covariance_ = joiner_->LastAnchorCovariance();
+  } else {
     anchor_ = chain_.back();
     anchor_covariance_ = chain_covariance_.back();
-    return;
   }
-  JoinReady();
 }
 
-void SubmapSlam::JoinReady() {
-  for (const LocalSubmap& s : yaw_calibration_.TakeReady()) {
-    if (background_) {
-      WaitForJoins();  // the previous map's join
-      if (!status_.ok()) break;
-      // One join behind: s's start anchor as joined so far, through s's end pose.
-      Eigen::Matrix3d J_a, J_e;
-      const Eigen::Matrix3d start_covariance = joiner_->LastAnchorCovariance();
-      joined_anchor_ = Compose(joiner_->LastAnchor(), s.end_pose(), &J_a, &J_e);
-      joined_anchor_covariance_ = J_a * start_covariance * J_a.transpose() +
-                                  J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose();
-      {
-        std::lock_guard<std::mutex> lock(join_mutex_);
-        joining_ = s;
-        join_busy_.store(true, std::memory_order_relaxed);
-      }
-      join_wanted_.notify_one();
-    } else {
-      JoinOne(s);
-      if (status_.ok()) {  // else the last one joined stays
-        joined_anchor_ = joiner_->LastAnchor();  // the tree joiner answers without folding its nodes
-        joined_anchor_covariance_ = joiner_->LastAnchorCovariance();
-      }
-    }
+void SubmapSlam::Submit(const LocalSubmap& s) {
+  if (!background_) {
+    JoinOne(s);
+    return;
   }
-  // The maps the yaw calibration still holds (its warm-up) chained on, end pose by end pose.
-  anchor_ = joined_anchor_;
-  anchor_covariance_ = joined_anchor_covariance_;
-  for (size_t k = closed_.size() - yaw_calibration_.held(); k < closed_.size(); ++k) {
-    Eigen::Matrix3d J_a, J_e;
-    const LocalSubmap& held = closed_[k].submap;
-    anchor_ = Compose(anchor_, held.end_pose(), &J_a, &J_e);
-    anchor_covariance_ = J_a * anchor_covariance_ * J_a.transpose() +
-                         J_e * held.covariance.topLeftCorner<3, 3>() * J_e.transpose();
+  WaitForJoins();  // the previous map's join
+  if (!status_.ok()) return;
+  // One join behind: s's start anchor as joined so far, through s's end pose.
+  Eigen::Matrix3d J_a, J_e;
+  const Eigen::Matrix3d start_covariance = joiner_->LastAnchorCovariance();
+  anchor_ = Compose(joiner_->LastAnchor(), s.end_pose(), &J_a, &J_e);
+  anchor_covariance_ = J_a * start_covariance * J_a.transpose() +
+                       J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose();
+  {
+    std::lock_guard<std::mutex> lock(join_mutex_);
+    joining_ = s;
+    join_busy_.store(true, std::memory_order_relaxed);
   }
+  join_wanted_.notify_one();
+}
+
+void SubmapSlam::RestartJoiner() {
+  WaitForJoins();
+  if (!status_.ok()) return;
+  std::unique_ptr<backend::MapJoiner> fresh = prototype_->NewEmpty(initial_pose_);
+  SUBSLAM_CHECK(fresh != nullptr) << "the joiner cannot make an empty one of its kind";
+  joiner_ = std::move(fresh);
+  joins_.clear();
+  ++joiner_restarts_;
 }
 
 void SubmapSlam::JoinOne(const LocalSubmap& s) {
@@ -241,10 +244,6 @@ void SubmapSlam::RecordStep(double t) {
 absl::Status SubmapSlam::Finish() {
   mapper_->Finish();
   JoinClosed();
-  if (joiner_) {
-    yaw_calibration_.Flush();
-    JoinReady();
-  }
   WaitForJoins();
   if (!mapper_->status().ok()) return mapper_->status();
   if (joiner_ && status_.ok()) {
@@ -331,6 +330,7 @@ std::map<std::string, double> SubmapSlam::Counters() const {
       out["sensor_yaw_correction_sigma"] = yaw_calibration_.sigma();
       out["sensor_yaw_pairs"] = static_cast<double>(yaw_calibration_.pairs());
       out["sensor_yaw_maps_turned"] = static_cast<double>(yaw_calibration_.maps_turned());
+      out["sensor_yaw_joiner_restarts"] = static_cast<double>(joiner_restarts_);
     }
     for (const auto& [name, value] : joiner_->Extras().figures) out[name] = value;
   }

@@ -25,7 +25,9 @@ LocalSubmap MakeMap(int id, const Pose2& end, const std::vector<Eigen::Vector2d>
   m.mean.head<3>() = end.vector();
   for (size_t k = 0; k < features.size(); ++k) {
     m.mean.segment<2>(3 + 2 * k) = features[k];
-    m.landmarks.push_back({.local_id = static_cast<int>(k)});
+    LocalSubmapLandmark l;
+    l.local_id = static_cast<int>(k);
+    m.landmarks.push_back(l);
   }
   Eigen::MatrixXd A = Eigen::MatrixXd::Identity(dim, dim) * 0.1;
   for (int r = 1; r < dim; ++r) A(r, r - 1) = 0.02;
@@ -127,16 +129,16 @@ std::vector<LocalSubmap> ModelMaps(double yaw, int maps, std::mt19937_64* rng) {
   return out;
 }
 
-// Every map given to the calibration; the maps it made ready, in order.
+// Every map given to the calibration; what a joiner would hold at the end (a restart
+// drops what was joined before it).
 std::vector<LocalSubmap> RunThrough(SensorYawCalibration* calibration, const std::vector<LocalSubmap>& maps) {
-  std::vector<LocalSubmap> out;
+  std::vector<LocalSubmap> joined;
   for (const LocalSubmap& m : maps) {
-    calibration->Add(m);
-    for (LocalSubmap& r : calibration->TakeReady()) out.push_back(std::move(r));
+    SensorYawCalibration::Ready ready = calibration->Add(m);
+    if (ready.restart) joined.clear();
+    for (LocalSubmap& r : ready.maps) joined.push_back(std::move(r));
   }
-  calibration->Flush();
-  for (LocalSubmap& r : calibration->TakeReady()) out.push_back(std::move(r));
-  return out;
+  return joined;
 }
 
 TEST(SensorYawCalibration, EstimateIsUnbiasedAndItsSigmaHoldsOverMonteCarloRuns) {
@@ -158,32 +160,33 @@ TEST(SensorYawCalibration, EstimateIsUnbiasedAndItsSigmaHoldsOverMonteCarloRuns)
   }
 }
 
-TEST(SensorYawCalibration, WarmUpHoldsTheFirstMapsThenTurnsEveryMapByTheEstimateOfItsTime) {
+TEST(SensorYawCalibration, WarmUpEndsWithTheFirstMapsTurnedThenTurnsEveryMapByTheEstimateOfItsTime) {
   std::mt19937_64 rng(3);
   const std::vector<LocalSubmap> maps = ModelMaps(0.03, 10, &rng);
   SensorYawCalibration calibration({});
-  calibration.Add(maps[0]);
-  EXPECT_TRUE(calibration.TakeReady().empty());  // nothing to pair with: held
-  EXPECT_EQ(calibration.held(), 1);
-  size_t k = 1;
-  std::vector<LocalSubmap> ready;
-  for (; k < maps.size() && ready.empty(); ++k) {
-    calibration.Add(maps[k]);
-    ready = calibration.TakeReady();
+  // The warm-up's maps go on as built, one at a time, until the estimate differs from zero.
+  size_t k = 0;
+  SensorYawCalibration::Ready ready;
+  for (; k < maps.size(); ++k) {
+    ready = calibration.Add(maps[k]);
+    if (ready.restart) break;
+    ASSERT_EQ(ready.maps.size(), 1u);
+    EXPECT_EQ(ready.maps[0].mean, maps[k].mean);
   }
-  // Released together once the estimate differed from zero, each turned by it, unwidened.
-  ASSERT_EQ(ready.size(), k);
-  EXPECT_EQ(calibration.held(), 0);
-  for (size_t i = 0; i < k; ++i) {
+  // Then all of them again, from the first, turned by that estimate, unwidened.
+  ASSERT_LT(k, maps.size());
+  EXPECT_GE(k, 1u);
+  ASSERT_EQ(ready.maps.size(), k + 1);
+  for (size_t i = 0; i <= k; ++i) {
     const LocalSubmap expected = SensorYawCalibration::Rotated(maps[i], calibration.estimate(), 0.0);
-    EXPECT_EQ(ready[i].mean, expected.mean);
-    EXPECT_EQ(ready[i].covariance, expected.covariance);
+    EXPECT_EQ(ready.maps[i].mean, expected.mean);
+    EXPECT_EQ(ready.maps[i].covariance, expected.covariance);
   }
-  for (; k < maps.size(); ++k) {  // then each map at once, by the estimate after its own pairs
-    calibration.Add(maps[k]);
-    ready = calibration.TakeReady();
-    ASSERT_EQ(ready.size(), 1u);
-    EXPECT_EQ(ready[0].mean, SensorYawCalibration::Rotated(maps[k], calibration.estimate(), 0.0).mean);
+  for (++k; k < maps.size(); ++k) {  // then each map by the estimate after its own pairs
+    ready = calibration.Add(maps[k]);
+    EXPECT_FALSE(ready.restart);
+    ASSERT_EQ(ready.maps.size(), 1u);
+    EXPECT_EQ(ready.maps[0].mean, SensorYawCalibration::Rotated(maps[k], calibration.estimate(), 0.0).mean);
   }
   EXPECT_EQ(calibration.maps_turned(), 10);
   EXPECT_NEAR(calibration.estimate(), 0.03, 4.0 * calibration.sigma());
@@ -193,46 +196,37 @@ TEST(SensorYawCalibration, MapsWithoutMisalignmentAreJoinedAsBuilt) {
   std::mt19937_64 rng(11);
   const std::vector<LocalSubmap> maps = ModelMaps(0.0, 60, &rng);
   SensorYawCalibration calibration({});
-  const std::vector<LocalSubmap> ready = RunThrough(&calibration, maps);
-  ASSERT_EQ(ready.size(), maps.size());
-  for (size_t k = 0; k < maps.size(); ++k) EXPECT_EQ(ready[k].mean, maps[k].mean);
+  for (const LocalSubmap& m : maps) {
+    const SensorYawCalibration::Ready ready = calibration.Add(m);
+    EXPECT_FALSE(ready.restart);
+    ASSERT_EQ(ready.maps.size(), 1u);
+    EXPECT_EQ(ready.maps[0].mean, m.mean);
+  }
   EXPECT_EQ(calibration.maps_turned(), 0);
 }
 
-TEST(SensorYawCalibration, FlushReleasesTheHeldMaps) {
-  std::mt19937_64 rng(5);
-  const std::vector<LocalSubmap> maps = ModelMaps(0.0, 3, &rng);
-  SensorYawCalibration calibration({});
-  for (const LocalSubmap& m : maps) calibration.Add(m);
-  EXPECT_TRUE(calibration.TakeReady().empty());
-  EXPECT_EQ(calibration.held(), 3);
-  calibration.Flush();
-  EXPECT_EQ(calibration.TakeReady().size(), 3u);
-  EXPECT_EQ(calibration.held(), 0);
-}
-
-TEST(SensorYawCalibration, OffPassesMapsOnAtOnce) {
+TEST(SensorYawCalibration, OffPassesMapsOnAsBuilt) {
   std::mt19937_64 rng(3);
   SensorYawCalibration calibration({.enabled = false});
   for (const LocalSubmap& m : ModelMaps(0.03, 3, &rng)) {
-    calibration.Add(m);
-    const std::vector<LocalSubmap> ready = calibration.TakeReady();
-    ASSERT_EQ(ready.size(), 1u);
-    EXPECT_EQ(ready[0].mean, m.mean);
-    EXPECT_EQ(ready[0].covariance, m.covariance);
+    const SensorYawCalibration::Ready ready = calibration.Add(m);
+    EXPECT_FALSE(ready.restart);
+    ASSERT_EQ(ready.maps.size(), 1u);
+    EXPECT_EQ(ready.maps[0].mean, m.mean);
+    EXPECT_EQ(ready.maps[0].covariance, m.covariance);
   }
   EXPECT_EQ(calibration.pairs(), 0);
   EXPECT_EQ(calibration.estimate(), 0.0);
 }
 
 TEST(SensorYawCalibration, MapsWithoutFeaturesArePassedOn) {
-  SensorYawCalibration calibration({.max_held_maps = 1});
+  SensorYawCalibration calibration({});
   const LocalSubmap empty = MakeMap(0, Pose2(1.0, 0.0, 0.1), {});
   const LocalSubmap one = MakeMap(1, Pose2(1.0, 0.0, 0.0), {{3.0, 1.0}});
-  const std::vector<LocalSubmap> ready = RunThrough(&calibration, {empty, one});
-  ASSERT_EQ(ready.size(), 2u);
-  EXPECT_EQ(ready[0].mean, empty.mean);
-  EXPECT_EQ(ready[1].mean, one.mean);
+  const std::vector<LocalSubmap> joined = RunThrough(&calibration, {empty, one});
+  ASSERT_EQ(joined.size(), 2u);
+  EXPECT_EQ(joined[0].mean, empty.mean);
+  EXPECT_EQ(joined[1].mean, one.mean);
   EXPECT_EQ(calibration.pairs(), 0);
 }
 
@@ -248,7 +242,7 @@ TEST(SensorYawCalibrationOptions, BadValuesAreRefused) {
     EXPECT_FALSE(SensorYawCalibrationOptions{.significance = p}.Validate().ok());
   }
   EXPECT_FALSE(SensorYawCalibrationOptions{.settled_sigma_rad = -1.0}.Validate().ok());
-  EXPECT_FALSE(SensorYawCalibrationOptions{.max_held_maps = -1}.Validate().ok());
+  EXPECT_FALSE(SensorYawCalibrationOptions{.warm_up_maps = -1}.Validate().ok());
 }
 
 }  // namespace

@@ -25,15 +25,17 @@
 //
 // Which maps are turned: the error of a map joined with the wrong turn is not undone by
 // the maps after it — joined with the true correction from the first map on, a simulated
-// 1° misalignment gives the unbiased run's error; from the sixth map on, five times that
-// (bench/RESULTS.md). So the first maps are held back (warm-up) until the estimate either
-// differs from zero at `significance` (δ̂²/σ² above the χ²₁ quantile), or is known to
-// `settled_sigma_rad`, or `max_held_maps` are waiting; then they and every later map go on
-// turned by the estimate of their time if it differs from zero at `significance`, and as
+// 1° misalignment gives the aligned sensor's error; from the sixth map on, five times that
+// (bench/RESULTS.md). So the run starts with a warm-up: its maps are joined as built, and
+// if the estimate comes to differ from zero at `significance` (δ̂²/σ² above the χ²₁
+// quantile) before it is known to `settled_sigma_rad` or `warm_up_maps` maps have passed,
+// every map of the warm-up is handed on again, turned by that estimate, to be joined into
+// a new joiner from the start (Ready::restart). After the warm-up each map is handed on
+// turned by the estimate of its time if that differs from zero at `significance`, and as
 // built otherwise. A map's covariance is not widened by the estimate's uncertainty: that
 // error is one and the same for every map, where a widening would treat it as independent
 // per map and take from each the heading information its features carry (measured: the
-// unbiased runs' error grew by half).
+// aligned runs' error grew by half).
 //
 // On data without a misalignment the estimate stays within its uncertainty of zero and
 // the maps are joined as built; a misalignment of about a degree is recovered to within a
@@ -63,10 +65,10 @@ struct SensorYawCalibrationOptions {
   double gate_probability = 0.99;
   // A map is turned only while the estimate differs from zero at this level.
   double significance = 0.999;
-  // Warm-up (see above): the first maps wait until the estimate is significant, or its
-  // sigma is below this [rad] (0.002: a feature 20 m away moves 4 cm), or this many wait.
+  // The warm-up (see above) ends without a turn once the estimate's sigma is below this
+  // [rad] (0.002: a feature 20 m away moves 4 cm) or after this many maps.
   double settled_sigma_rad = 0.002;
-  int max_held_maps = 50;
+  int warm_up_maps = 50;
 
   absl::Status Validate() const;
 };
@@ -88,13 +90,14 @@ class SensorYawCalibration {
  public:
   explicit SensorYawCalibration(const SensorYawCalibrationOptions& options);
 
+  // What to join: `maps` in order, into the joiner as it is, or — `restart` — into a new
+  // joiner, from the first map of the run (the warm-up's maps, turned).
+  struct Ready {
+    std::vector<LocalSubmap> maps;
+    bool restart = false;
+  };
   // Takes the next local map as the front-end built it (maps in run order, each valid).
-  void Add(const LocalSubmap& built);
-  // The maps ready to be joined, in order, corrected (see above); during the warm-up none.
-  std::vector<LocalSubmap> TakeReady();
-  // Ends the warm-up (the run is over): every held map becomes ready.
-  void Flush();
-  int held() const { return static_cast<int>(held_.size()); }
+  Ready Add(const LocalSubmap& built);
 
   double estimate() const;  // δ̂ [rad], to be added to the sensor's yaw
   double sigma() const;     // its standard deviation [rad] (the least squares')
@@ -121,8 +124,7 @@ class SensorYawCalibration {
   bool have_previous_ = false;
   LocalSubmap previous_;
   bool warmed_up_ = false;
-  std::vector<LocalSubmap> held_;
-  std::vector<LocalSubmap> ready_;
+  std::vector<LocalSubmap> warm_up_;  // the warm-up's maps as built
 };
 
 }  // namespace subslam::backend

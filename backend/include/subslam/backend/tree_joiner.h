@@ -67,6 +67,9 @@ class TreeJoiner final : public MapJoiner {
   // The whole map's (e.g. the Ceres root's solve figures).
   JoinerExtras Extras() const override { return Whole().Extras(); }
 
+  // An empty tree of the same node kind and options.
+  std::unique_ptr<MapJoiner> NewEmpty(const Pose2& initial_pose) const override;
+
   int num_nodes() const { return static_cast<int>(nodes_.size()); }
   int tree_joins() const { return tree_joins_; }  // JoinMap calls that built the tree
 

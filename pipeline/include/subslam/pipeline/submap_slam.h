@@ -15,6 +15,12 @@
 //  * kTreeCeres — the same Ceres nodes joined by the binary tree (EIF tree joins), Ceres
 //    solving the whole graph at Finish() from the tree's estimate.
 //
+// Every closed map goes through the online sensor-yaw calibration
+// (backend/sensor_yaw_calibration.h; BackendOptions::sensor_yaw) before it is joined; when
+// the calibration's warm-up ends with a turn, the joiner is replaced by an empty one of its
+// kind (MapJoiner::NewEmpty) and the warm-up's maps are joined again, turned. local_maps()
+// keeps the maps as the front-end built them.
+//
 // pose() is the current start anchor composed with the local map's pose; its covariance
 // adds the anchor's marginal and the local pose's covariance (their correlation is
 // ignored).
@@ -69,7 +75,8 @@ struct BackendOptions {
   int ceres_every = 0;              // ceres: also solve every K joins (0: at the end only)
   // Every back-end that joins (not kNone) gets the local maps with the sensor's yaw
   // calibrated online from consecutive maps (backend/sensor_yaw_calibration.h); the maps
-  // kept in local_maps() and written to submaps.jsonl are the front-end's.
+  // kept in local_maps() and written to submaps.jsonl are the front-end's, and `subslam
+  // join` calibrates them the same way.
   backend::SensorYawCalibrationOptions sensor_yaw;
   // Join on a background thread, the online pose one join behind (see SubmapSlam);
   // false: each closed map is joined inside the Update() that closed it, and the online
@@ -94,7 +101,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   ~SubmapSlam() override;
   // With a joiner of the caller's (nullptr: the local maps are chained by their end poses),
   // joined on a background thread if `background`; `backend_name` (default: the joiner's
-  // Name()) names it in Name().
+  // Name()) names it in Name(). The yaw calibration is off for a joiner that cannot make an
+  // empty one of its kind (NewEmpty() null).
   SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
              std::unique_ptr<backend::MapJoiner> joiner, bool background, std::string backend_name = "",
              const backend::SensorYawCalibrationOptions& sensor_yaw = {});
@@ -150,8 +158,12 @@ class SubmapSlam final : public frontend::OnlineEstimator {
 
  private:
   void JoinClosed();
-  // Joins the maps the yaw calibration has made ready and sets the online anchor.
-  void JoinReady();
+  // Joins one map: on the background thread (setting the online anchor one join behind),
+  // or at once.
+  void Submit(const LocalSubmap& s);
+  // An empty joiner of the same kind in place of the current one (the yaw calibration's
+  // warm-up ended with a turn: its maps are joined again, turned).
+  void RestartJoiner();
   // Joins one local map; records the first error.
   void JoinOne(const LocalSubmap& s);
   // Background joins: until the join in progress, if any, is done.
@@ -170,11 +182,10 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   // keep their own.
   std::vector<Pose2> chain_;
   std::vector<Eigen::Matrix3d> chain_covariance_;
-  // The end anchor of the last map handed to the joiner (one join behind in the
-  // background), and the current start anchor: that one through the maps the yaw
-  // calibration holds.
-  Pose2 joined_anchor_;
-  Eigen::Matrix3d joined_anchor_covariance_ = Eigen::Matrix3d::Zero();
+  Pose2 initial_pose_;
+  std::unique_ptr<backend::MapJoiner> prototype_;  // an empty joiner of the kind, for restarts
+  int joiner_restarts_ = 0;
+  // The current start anchor, cached after each join.
   Pose2 anchor_;
   Eigen::Matrix3d anchor_covariance_ = Eigen::Matrix3d::Zero();
   struct StepRecord {
