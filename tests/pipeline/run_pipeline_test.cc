@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include "subslam/io/dataset_reader.h"
 #include "subslam/io/dataset_writer.h"
@@ -122,15 +123,23 @@ TEST(RunPipeline, SensorYawRotatesEveryBearing) {
 // EKF-SLAM's innovation likelihood identifies a sensor mounted with a yaw error: with
 // every bearing of a simulated run rotated by +0.03 rad, the innovations are most
 // likely (per dimension) when the correction is −0.03, less so at 0 or −0.06.
-TEST(RunPipeline, InnovationLikelihoodFindsAMisalignedSensor) {
+// hybrid-120m (seed, optionally cut to `duration_s`) with every bearing turned by `yaw`: what
+// a sensor mounted with that yaw error sees.
+absl::StatusOr<io::Dataset> MisalignedHybrid(uint64_t seed, double yaw, std::optional<double> duration_s = std::nullopt) {
   sim::ScenarioOptions o;
-  o.seed = 3;
-  o.duration_s = 120;
+  o.seed = seed;
+  o.duration_s = duration_s;
   absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", o);
-  ASSERT_TRUE(d.ok());
+  if (!d.ok()) return d.status();
   NoiseOverrides misalign;
-  misalign.sensor_yaw = 0.03;
-  ASSERT_TRUE(misalign.ApplyTo(&*d).ok());
+  misalign.sensor_yaw = yaw;
+  if (absl::Status s = misalign.ApplyTo(&*d); !s.ok()) return s;
+  return d;
+}
+
+TEST(RunPipeline, InnovationLikelihoodFindsAMisalignedSensor) {
+  absl::StatusOr<io::Dataset> d = MisalignedHybrid(3, 0.03, 120.0);
+  ASSERT_TRUE(d.ok()) << d.status();
   const auto nll_per_dof = [&](double correction) {
     RunOptions options;
     options.noise.sensor_yaw = correction;
@@ -296,13 +305,8 @@ TEST(RunPipeline, VictoriaParkRbpfEifCalibratesTheSensorYawOnline) {
 // with it the correction comes out near −0.0175 and the run ends as an aligned sensor's
 // does (0.16 m on this seed).
 TEST(RunPipeline, OnlineYawCalibrationUndoesASimulatedMisalignment) {
-  sim::ScenarioOptions o;
-  o.seed = 1;
-  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("hybrid-120m", o);
-  ASSERT_TRUE(d.ok());
-  NoiseOverrides misalign;
-  misalign.sensor_yaw = 0.0175;
-  ASSERT_TRUE(misalign.ApplyTo(&*d).ok());
+  absl::StatusOr<io::Dataset> d = MisalignedHybrid(1, 0.0175);
+  ASSERT_TRUE(d.ok()) << d.status();
   const auto run = [&](bool calibrate) {
     RunOptions options;
     options.frontend = Frontend::kRbpf;
