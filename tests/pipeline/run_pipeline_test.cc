@@ -11,6 +11,7 @@
 #include "subslam/io/dataset_reader.h"
 #include "subslam/io/dataset_writer.h"
 #include "subslam/io/run_output_writer.h"
+#include "subslam/pipeline/join_pipeline.h"
 #include "subslam/sim/simulator.h"
 #include "test_util.h"
 
@@ -327,6 +328,16 @@ TEST(RunPipeline, OnlineYawCalibrationUndoesASimulatedMisalignment) {
   EXPECT_GT(final_rms(off), 1.0);
   EXPECT_LE(duplicates(on), 1);
   EXPECT_GE(duplicates(off), 10);
+  // `subslam join` on the run's recorded maps calibrates them the same way: the same map.
+  JoinOptions join;
+  join.initial_pose = d->initial_pose;
+  join.backend.kind = Backend::kEif;
+  absl::StatusOr<JoinResult> j = RunJoin(on.local_maps, join);
+  ASSERT_TRUE(j.ok()) << j.status();
+  ASSERT_EQ(j->landmarks.size(), on.landmarks.size());
+  for (size_t k = 0; k < on.landmarks.size(); ++k) {
+    EXPECT_LT((j->landmarks[k].position - on.landmarks[k].position).norm(), 1e-9) << "landmark " << k;
+  }
 }
 
 }  // namespace
