@@ -39,11 +39,11 @@
 //
 // On data without a misalignment the estimate stays within its uncertainty of zero and
 // the maps are joined as built; a misalignment of about a degree is recovered to within a
-// tenth (simulated), and Victoria Park's maps join as well as calibrated ones
+// tenth (simulated), and Victoria Park's maps join as well as offline-calibrated ones
 // (bench/RESULTS.md). What δ̂ estimates is the rotation of this model, which absorbs more
 // than the bearing offset (the vehicle's path within a map was also estimated from biased
 // bearings): on Victoria Park it is about −0.012 rad where the offline calibration of the
-// bearings says −0.0182, and maps built with that calibration still show −0.004.
+// bearings says −0.0182, and maps built with that calibration still show −0.003.
 // Not thread-safe.
 #ifndef SUBSLAM_BACKEND_SENSOR_YAW_CALIBRATION_H_
 #define SUBSLAM_BACKEND_SENSOR_YAW_CALIBRATION_H_
