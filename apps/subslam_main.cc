@@ -76,7 +76,8 @@ ABSL_FLAG(std::optional<double>, sigma_bearing, std::nullopt, "override bearing 
 ABSL_FLAG(std::optional<double>, max_range, std::nullopt, "ignore detections beyond [m]");
 ABSL_FLAG(std::optional<double>, sensor_yaw, std::nullopt,
           "add this to every bearing [rad]: the sensor's yaw on the vehicle, a calibration "
-          "(Victoria Park: -0.019, bench/sensor_yaw_calibration)");
+          "(Victoria Park: -0.0182, bench/sensor_yaw_calibration); given, it is taken as calibrated "
+          "and the back-end's online yaw calibration is off unless --sensor_yaw_calibration=true");
 ABSL_FLAG(int, trials, 0, "study: trials per method and setting (0: the paper's)");
 ABSL_FLAG(int, workers, 0, "study: runs at a time, one thread each (0: every core)");
 ABSL_FLAG(std::vector<std::string>, methods, {}, "study: only these methods, comma-separated (default: all)");
