@@ -1,8 +1,11 @@
 #include "subslam/backend/sensor_yaw_calibration.h"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <string>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
@@ -11,17 +14,13 @@
 namespace subslam::backend {
 namespace {
 
-Eigen::Matrix2d Rotation(double a) {
-  Eigen::Matrix2d R;
-  R << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
-  return R;
-}
+Eigen::Matrix2d Rotation(double a) { return Eigen::Rotation2Dd(a).toRotationMatrix(); }
 
-// dR(a)/da.
+// dR(a)/da = R(a) · [0 −1; 1 0].
 Eigen::Matrix2d RotationDerivative(double a) {
-  Eigen::Matrix2d R;
-  R << -std::sin(a), -std::cos(a), std::cos(a), -std::sin(a);
-  return R;
+  Eigen::Matrix2d quarter_turn;
+  quarter_turn << 0.0, -1.0, 1.0, 0.0;
+  return Rotation(a) * quarter_turn;
 }
 
 Eigen::Vector2d PathCentre(const LocalSubmap& map) { return 0.5 * map.mean.head<2>(); }
@@ -75,26 +74,21 @@ YawPairDifference PairDifference(const LocalSubmap& earlier, int i, const LocalS
   return out;
 }
 
-LocalSubmap SensorYawCalibration::Rotated(const LocalSubmap& map, double yaw, double yaw_variance) {
+LocalSubmap SensorYawCalibration::Rotated(const LocalSubmap& map, double yaw) {
   LocalSubmap out = map;
   const int n = map.num_landmarks();
-  if (n == 0 || (yaw == 0.0 && yaw_variance == 0.0)) return out;
+  if (n == 0 || yaw == 0.0) return out;
   const int dim = 3 + 2 * n;
   const Eigen::Matrix2d R = Rotation(yaw);
-  const Eigen::Matrix2d dR = RotationDerivative(yaw);
   const Eigen::Vector2d c = PathCentre(map);
-  Eigen::MatrixXd G = Eigen::MatrixXd::Identity(dim, dim);
-  Eigen::VectorXd a = Eigen::VectorXd::Zero(dim);
+  Eigen::MatrixXd G = Eigen::MatrixXd::Identity(dim, dim);  // ∂out.mean/∂map.mean
   for (int k = 0; k < n; ++k) {
     const int o = 3 + 2 * k;
-    const Eigen::Vector2d u = map.landmark(k) - c;
-    out.mean.segment<2>(o) = c + R * u;
+    out.mean.segment<2>(o) = c + R * (map.landmark(k) - c);
     G.block<2, 2>(o, o) = R;
     G.block<2, 2>(o, 0) = 0.5 * (Eigen::Matrix2d::Identity() - R);
-    a.segment<2>(o) = dR * u;
   }
   out.covariance = G * map.covariance * G.transpose();
-  out.covariance.noalias() += yaw_variance * a * a.transpose();
   out.covariance = (0.5 * (out.covariance + out.covariance.transpose())).eval();
   return out;
 }
@@ -121,6 +115,7 @@ void SensorYawCalibration::AddPairs(const LocalSubmap& earlier, const LocalSubma
   struct Candidate {
     double d2;
     int i, j;
+    YawPairDifference difference;
   };
   std::vector<Candidate> candidates;
   Eigen::Matrix<double, 5, 5> C1;
@@ -141,7 +136,7 @@ void SensorYawCalibration::AddPairs(const LocalSubmap& earlier, const LocalSubma
       const Eigen::LLT<Eigen::Matrix2d> llt(S_gate);
       if (llt.info() != Eigen::Success) continue;
       const double d2 = p.d.dot(llt.solve(p.d));
-      if (d2 < gate_) candidates.push_back({d2, i, j});
+      if (d2 < gate_) candidates.push_back({d2, i, j, p});
     }
   }
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
@@ -168,7 +163,7 @@ void SensorYawCalibration::AddPairs(const LocalSubmap& earlier, const LocalSubma
   Eigen::MatrixXd A1 = Eigen::MatrixXd::Zero(2 * m, rows1.size());
   Eigen::MatrixXd A2 = Eigen::MatrixXd::Zero(2 * m, rows2.size());
   for (int k = 0; k < m; ++k) {
-    const YawPairDifference p = PairDifference(earlier, pairs[k]->i, later, pairs[k]->j, yaw);
+    const YawPairDifference& p = pairs[k]->difference;
     D.segment<2>(2 * k) = p.d;
     a.segment<2>(2 * k) = p.d_yaw;
     A1.block<2, 3>(2 * k, 0) = p.d_earlier.rightCols<3>();
@@ -195,7 +190,7 @@ bool SensorYawCalibration::Significant() const {
 LocalSubmap SensorYawCalibration::Corrected(const LocalSubmap& built) {
   if (!Significant()) return built;
   ++maps_turned_;
-  return Rotated(built, estimate(), 0.0);
+  return Rotated(built, estimate());
 }
 
 SensorYawCalibration::Ready SensorYawCalibration::Add(const LocalSubmap& built) {
@@ -215,6 +210,7 @@ SensorYawCalibration::Ready SensorYawCalibration::Add(const LocalSubmap& built) 
   if (Significant()) {  // the maps joined as built so far are to be joined again, turned
     warmed_up_ = true;
     out.restart = true;
+    ++restarts_;
     for (const LocalSubmap& m : warm_up_) out.maps.push_back(Corrected(m));
     warm_up_.clear();
     return out;
@@ -225,6 +221,15 @@ SensorYawCalibration::Ready SensorYawCalibration::Add(const LocalSubmap& built) 
   }
   out.maps.push_back(built);
   return out;
+}
+
+std::map<std::string, double> SensorYawCalibration::Counters() const {
+  if (!options_.enabled) return {};
+  return {{"sensor_yaw_correction", estimate()},
+          {"sensor_yaw_correction_sigma", sigma()},
+          {"sensor_yaw_pairs", static_cast<double>(pairs_)},
+          {"sensor_yaw_maps_turned", static_cast<double>(maps_turned_)},
+          {"sensor_yaw_joiner_restarts", static_cast<double>(restarts_)}};
 }
 
 }  // namespace subslam::backend

@@ -88,7 +88,6 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   // The maps go through the online yaw calibration as in a run: at the end of its warm-up it
   // may ask for the maps so far to be joined again, turned, into an empty joiner.
   backend::SensorYawCalibration yaw_calibration(options.backend.sensor_yaw);
-  int joiner_restarts = 0;
   for (const LocalSubmap& built : submaps) {
     const absl::Time calibration_start = absl::Now();
     backend::SensorYawCalibration::Ready ready = yaw_calibration.Add(built);
@@ -97,7 +96,6 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
       joiner = MakeJoiner(options.backend, options.initial_pose);
       r.joins.clear();
       r.anchors_online.resize(1);
-      ++joiner_restarts;
     }
     for (const LocalSubmap& s : ready.maps) {
       const absl::Time join_start = absl::Now();
@@ -157,13 +155,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                            {"anchors", joiner->num_anchors()},
                            {"landmarks", joiner->num_landmarks()},
                            {"covariance_repairs", covariance_repairs}};
-  if (yaw_calibration.enabled()) {
-    counts["sensor_yaw_correction"] = yaw_calibration.estimate();
-    counts["sensor_yaw_correction_sigma"] = yaw_calibration.sigma();
-    counts["sensor_yaw_pairs"] = yaw_calibration.pairs();
-    counts["sensor_yaw_maps_turned"] = yaw_calibration.maps_turned();
-    counts["sensor_yaw_joiner_restarts"] = joiner_restarts;
-  }
+  for (const auto& [name, value] : yaw_calibration.Counters()) counts[name] = value;
   for (const backend::JoinerCounters::Field& f : backend::JoinerCounters::Fields()) {
     counts[f.name] = joiner->counters().*f.member;
   }

@@ -86,8 +86,7 @@ SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose
       initial_pose_(initial_pose),
       anchor_(initial_pose) {
   // The yaw calibration may ask to join its warm-up's maps again into an empty joiner.
-  if (joiner_) prototype_ = joiner_->NewEmpty(initial_pose);
-  if (joiner_ && prototype_ == nullptr) {
+  if (joiner_ && joiner_->NewEmpty(initial_pose) == nullptr) {
     yaw_calibration_ = backend::SensorYawCalibration(backend::SensorYawCalibrationOptions{.enabled = false});
   }
   chain_.push_back(initial_pose);
@@ -194,11 +193,8 @@ void SubmapSlam::Submit(const LocalSubmap& s) {
 void SubmapSlam::RestartJoiner() {
   WaitForJoins();
   if (!status_.ok()) return;
-  std::unique_ptr<backend::MapJoiner> fresh = prototype_->NewEmpty(initial_pose_);
-  SUBSLAM_CHECK(fresh != nullptr) << "the joiner cannot make an empty one of its kind";
-  joiner_ = std::move(fresh);
+  joiner_ = joiner_->NewEmpty(initial_pose_);  // non-null: checked at construction
   joins_.clear();
-  ++joiner_restarts_;
 }
 
 void SubmapSlam::JoinOne(const LocalSubmap& s) {
@@ -325,13 +321,7 @@ std::map<std::string, double> SubmapSlam::Counters() const {
       out[std::string("join_") + f.name] = counters.*f.member;
     }
     out["global_landmarks"] = joiner_->num_landmarks();
-    if (yaw_calibration_.enabled()) {
-      out["sensor_yaw_correction"] = yaw_calibration_.estimate();
-      out["sensor_yaw_correction_sigma"] = yaw_calibration_.sigma();
-      out["sensor_yaw_pairs"] = static_cast<double>(yaw_calibration_.pairs());
-      out["sensor_yaw_maps_turned"] = static_cast<double>(yaw_calibration_.maps_turned());
-      out["sensor_yaw_joiner_restarts"] = static_cast<double>(joiner_restarts_);
-    }
+    out.merge(yaw_calibration_.Counters());
     for (const auto& [name, value] : joiner_->Extras().figures) out[name] = value;
   }
   return out;

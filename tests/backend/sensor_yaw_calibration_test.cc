@@ -67,19 +67,18 @@ TEST(SensorYawCalibration, PairDifferenceJacobiansMatchNumericalDifferentiation)
 
 TEST(SensorYawCalibration, RotatedTurnsFeaturesAboutThePathCentreAndTransformsTheCovariance) {
   const LocalSubmap map = MakeMap(0, Pose2(6.0, 2.0, 0.3), {{13.0, 2.0}, {-2.0, 9.0}});
-  // Unchanged by a zero turn with no uncertainty.
-  const LocalSubmap same = SensorYawCalibration::Rotated(map, 0.0, 0.0);
+  // Unchanged by a zero turn.
+  const LocalSubmap same = SensorYawCalibration::Rotated(map, 0.0);
   EXPECT_EQ(same.mean, map.mean);
   EXPECT_EQ(same.covariance, map.covariance);
-  const double yaw = 0.1, variance = 4e-4;
-  const LocalSubmap turned = SensorYawCalibration::Rotated(map, yaw, variance);
+  const double yaw = 0.1;
+  const LocalSubmap turned = SensorYawCalibration::Rotated(map, yaw);
   // The centre (3, 1); feature (13, 2) is 10 east and 1 north of it.
   const Eigen::Vector2d u(10.0, 1.0);
   const Eigen::Vector2d expected = Eigen::Vector2d(3.0, 1.0) + Eigen::Rotation2Dd(yaw).toRotationMatrix() * u;
   EXPECT_LT((turned.landmark(0) - expected).norm(), 1e-12);
   EXPECT_EQ(turned.mean.head<3>(), map.mean.head<3>());
-  // Covariance: G P Gᵀ + a aᵀ var with G = ∂turned.mean/∂map.mean and a = ∂turned.mean/∂yaw,
-  // both numerical here.
+  // Covariance: G P Gᵀ with G = ∂turned.mean/∂map.mean, numerical here.
   const int dim = static_cast<int>(map.mean.size());
   const double h = 1e-6;
   Eigen::MatrixXd G(dim, dim);
@@ -87,13 +86,9 @@ TEST(SensorYawCalibration, RotatedTurnsFeaturesAboutThePathCentreAndTransformsTh
     LocalSubmap plus = map, minus = map;
     plus.mean[c] += h;
     minus.mean[c] -= h;
-    G.col(c) = (SensorYawCalibration::Rotated(plus, yaw, 0).mean - SensorYawCalibration::Rotated(minus, yaw, 0).mean) /
-               (2 * h);
+    G.col(c) = (SensorYawCalibration::Rotated(plus, yaw).mean - SensorYawCalibration::Rotated(minus, yaw).mean) / (2 * h);
   }
-  const Eigen::VectorXd a =
-      (SensorYawCalibration::Rotated(map, yaw + h, 0).mean - SensorYawCalibration::Rotated(map, yaw - h, 0).mean) /
-      (2 * h);
-  const Eigen::MatrixXd expected_covariance = G * map.covariance * G.transpose() + variance * a * a.transpose();
+  const Eigen::MatrixXd expected_covariance = G * map.covariance * G.transpose();
   EXPECT_LT((turned.covariance - expected_covariance).cwiseAbs().maxCoeff(), 1e-8);
   EXPECT_TRUE(map.Validate().ok()) << map.Validate().message();
   EXPECT_TRUE(turned.Validate().ok()) << turned.Validate().message();
@@ -173,12 +168,12 @@ TEST(SensorYawCalibration, WarmUpEndsWithTheFirstMapsTurnedThenTurnsEveryMapByTh
     ASSERT_EQ(ready.maps.size(), 1u);
     EXPECT_EQ(ready.maps[0].mean, maps[k].mean);
   }
-  // Then all of them again, from the first, turned by that estimate, unwidened.
+  // Then all of them again, from the first, turned by that estimate.
   ASSERT_LT(k, maps.size());
   EXPECT_GE(k, 1u);
   ASSERT_EQ(ready.maps.size(), k + 1);
   for (size_t i = 0; i <= k; ++i) {
-    const LocalSubmap expected = SensorYawCalibration::Rotated(maps[i], calibration.estimate(), 0.0);
+    const LocalSubmap expected = SensorYawCalibration::Rotated(maps[i], calibration.estimate());
     EXPECT_EQ(ready.maps[i].mean, expected.mean);
     EXPECT_EQ(ready.maps[i].covariance, expected.covariance);
   }
@@ -186,9 +181,11 @@ TEST(SensorYawCalibration, WarmUpEndsWithTheFirstMapsTurnedThenTurnsEveryMapByTh
     ready = calibration.Add(maps[k]);
     EXPECT_FALSE(ready.restart);
     ASSERT_EQ(ready.maps.size(), 1u);
-    EXPECT_EQ(ready.maps[0].mean, SensorYawCalibration::Rotated(maps[k], calibration.estimate(), 0.0).mean);
+    EXPECT_EQ(ready.maps[0].mean, SensorYawCalibration::Rotated(maps[k], calibration.estimate()).mean);
   }
   EXPECT_EQ(calibration.maps_turned(), 10);
+  EXPECT_EQ(calibration.restarts(), 1);
+  EXPECT_EQ(calibration.Counters().at("sensor_yaw_joiner_restarts"), 1.0);
   EXPECT_NEAR(calibration.estimate(), 0.03, 4.0 * calibration.sigma());
 }
 
@@ -217,6 +214,7 @@ TEST(SensorYawCalibration, OffPassesMapsOnAsBuilt) {
   }
   EXPECT_EQ(calibration.pairs(), 0);
   EXPECT_EQ(calibration.estimate(), 0.0);
+  EXPECT_TRUE(calibration.Counters().empty());
 }
 
 TEST(SensorYawCalibration, MapsWithoutFeaturesArePassedOn) {

@@ -49,6 +49,8 @@
 #define SUBSLAM_BACKEND_SENSOR_YAW_CALIBRATION_H_
 
 #include <Eigen/Core>
+#include <map>
+#include <string>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -104,10 +106,14 @@ class SensorYawCalibration {
   long pairs() const { return pairs_; }  // feature pairs used so far
   bool enabled() const { return options_.enabled; }
   long maps_turned() const { return maps_turned_; }  // maps passed on with a correction
+  int restarts() const { return restarts_; }          // Ready::restart handed out (0 or 1)
+  // The figures above under their report.json names (sensor_yaw_correction, _sigma,
+  // _pairs, _maps_turned, _joiner_restarts); none when off.
+  std::map<std::string, double> Counters() const;
 
   // `map` with its features turned by `yaw` about its path's centre and its covariance
-  // transformed to first order, plus a aᵀ `yaw_variance` (a = ∂features/∂yaw).
-  static LocalSubmap Rotated(const LocalSubmap& map, double yaw, double yaw_variance);
+  // transformed to first order (the end pose, which the centre follows, unchanged).
+  static LocalSubmap Rotated(const LocalSubmap& map, double yaw);
 
  private:
   void AddPairs(const LocalSubmap& earlier, const LocalSubmap& later);
@@ -121,6 +127,7 @@ class SensorYawCalibration {
   double projected_ = 0.0;    // Σ aᵀ S⁻¹ (a δ_linearised − d)
   long pairs_ = 0;
   long maps_turned_ = 0;
+  int restarts_ = 0;
   bool have_previous_ = false;
   LocalSubmap previous_;
   bool warmed_up_ = false;

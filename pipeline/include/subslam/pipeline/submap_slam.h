@@ -183,8 +183,6 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   std::vector<Pose2> chain_;
   std::vector<Eigen::Matrix3d> chain_covariance_;
   Pose2 initial_pose_;
-  std::unique_ptr<backend::MapJoiner> prototype_;  // an empty joiner of the kind, for restarts
-  int joiner_restarts_ = 0;
   // The current start anchor, cached after each join.
   Pose2 anchor_;
   Eigen::Matrix3d anchor_covariance_ = Eigen::Matrix3d::Zero();
