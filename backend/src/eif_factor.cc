@@ -107,67 +107,120 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   L.solveInPlace(e);
   f->H = A.transpose() * A;
   f->b = A.transpose() * e;
+  Eigen::VectorXd whitened_residual = lin.residual;
+  L.solveInPlace(whitened_residual);
+  f->cost = whitened_residual.squaredNorm();
   *whitened_jacobian = std::move(A);
 }
 
 // H = Jᵀ Q⁻¹ J and b = Jᵀ Q⁻¹ (J x̂ − r) from J's structure, without whitening: J's
-// anchor columns J_a are dense (m × 3 or 6), and its landmark columns hold one 2 × 2 block
-// R_i = ∂r_i/∂L_i in feature i's rows only. With W = Q⁻¹ (kept per factor):
+// anchor columns J_a (start and end, 6) hold the relative pose's A_0 = [J_s J_e] in the
+// first three rows and [J_frame,i 0] in feature i's rows, and its landmark columns one
+// 2 × 2 block R_i = ∂r_i/∂L_i in feature i's rows only. With W = Q⁻¹ (kept per factor) in
+// blocks W_pq over the rows (the relative pose p = 0, feature i ≥ 1):
+//   (W J_a)_p = W_p0 A_0 + Σ_k W_pk [J_frame,k 0],  w_p = Σ_q W_pq (J x̂ − r)_q,
 //   H_aa = J_aᵀ W J_a,  H_a,i = (W J_a)_iᵀ R_i,  H_i,k = R_iᵀ W_ik R_k,
-//   b_a = J_aᵀ w,  b_i = R_iᵀ w_i,  w = W (J x̂ − r),
-// O(m² · 6) instead of the O(m³) triangular solve and product (m = 3 + 2n).
+//   b_a = J_aᵀ w,  b_i = R_iᵀ w_i,
+// O(n² · 6) in fixed-size blocks instead of the O(m³) triangular solve and product
+// (m = 3 + 2n). A fixed start anchor (P0) has no columns: its J_s and J_frame are zero.
 void EifJoiner::LinearizeStructured(Factor* f) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   const LocalSubmap& s = record.submap;
   const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
   RecordLinearizationPoint(f, start, end);
-  const int n = s.num_landmarks(), m = 3 + 2 * n;
+  const int n = s.num_landmarks();
   const bool start_fixed = record.start_anchor == 0;
-  const int na = start_fixed ? 3 : 6;
-  Eigen::MatrixXd J_a = Eigen::MatrixXd::Zero(m, na);
-  Eigen::VectorXd x_a(na), r(m), Jx(m);
+  using Matrix26 = Eigen::Matrix<double, 2, 6, Eigen::DontAlign>;
+  using Vector2 = Eigen::Matrix<double, 2, 1, Eigen::DontAlign>;
+  struct Feature {
+    Eigen::Matrix<double, 2, 2, Eigen::DontAlign> R;
+    Eigen::Matrix<double, 2, 3, Eigen::DontAlign> J_frame;
+    Vector2 r, d, Wr, w;  // residual, J x̂ − r, and their products with W's rows
+    Matrix26 WJ;          // (W J_a)_i
+  };
+  thread_local std::vector<Feature> features;  // reused: no allocation per call
+  features.resize(static_cast<size_t>(n));
   Eigen::Matrix3d J_s, J_e;
   const Pose2 relative = Between(start, end, &J_s, &J_e);
-  r.head<3>() = relative.vector() - s.mean.head<3>();
-  r[2] = WrapAngle(r[2]);
-  if (!start_fixed) {
-    J_a.topLeftCorner<3, 3>() = J_s;
-    x_a.head<3>() = start.vector();
-  }
-  J_a.block<3, 3>(0, na - 3) = J_e;
-  x_a.tail<3>() = end.vector();
-  std::vector<Eigen::Matrix2d> R(n);
-  std::vector<Eigen::Vector2d> landmarks(n);
+  if (start_fixed) J_s.setZero();
+  Eigen::Vector3d r0 = relative.vector() - s.mean.head<3>();
+  r0[2] = WrapAngle(r0[2]);
+  Eigen::Matrix<double, 3, 6> A0;
+  A0 << J_s, J_e;
+  Eigen::Matrix<double, 6, 1> x_a;
+  x_a << start.vector(), end.vector();
+  const Eigen::Vector3d d0 = A0 * x_a - r0;
   for (int i = 0; i < n; ++i) {
-    landmarks[i] = graph_.landmarks()[record.landmark_of_feature[i]];
+    Feature& fi = features[i];
+    const Eigen::Vector2d landmark = graph_.landmarks()[record.landmark_of_feature[i]];
     Matrix23d J_frame;
-    r.segment<2>(3 + 2 * i) = TransformTo(start, landmarks[i], &J_frame, &R[i]) - s.landmark(i);
-    if (!start_fixed) J_a.block<2, 3>(3 + 2 * i, 0) = J_frame;
+    Eigen::Matrix2d R;
+    fi.r = TransformTo(start, landmark, &J_frame, &R) - s.landmark(i);
+    if (start_fixed) J_frame.setZero();
+    fi.J_frame = J_frame;
+    fi.R = R;
+    fi.d = J_frame * start.vector() + R * landmark - fi.r;
   }
-  Jx.noalias() = J_a * x_a;
-  for (int i = 0; i < n; ++i) Jx.segment<2>(3 + 2 * i) += R[i] * landmarks[i];
   if (f->information == nullptr) {  // Q⁻¹ = L⁻ᵀ L⁻¹, once per factor
+    const int m = 3 + 2 * n;
     Eigen::MatrixXd L_inv = Eigen::MatrixXd::Identity(m, m);
     f->covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(L_inv);
     Eigen::MatrixXd information = L_inv.transpose() * L_inv;
     f->information = std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
   }
   const Eigen::MatrixXd& W = *f->information;
-  const Eigen::MatrixXd WJ_a = W * J_a;
-  const Eigen::VectorXd w = W * (Jx - r);
+  // Row block 0 (the relative pose) and each feature's row block of W J_a, W r and w.
+  const Eigen::Matrix3d W00 = W.topLeftCorner<3, 3>();
+  Eigen::Matrix<double, 3, 6> WJ0 = W00 * A0;
+  Eigen::Vector3d Wr0 = W00 * r0, w0 = W00 * d0;
+  for (int k = 0; k < n; ++k) {
+    const Feature& fk = features[k];
+    const Eigen::Matrix<double, 3, 2> W0k = W.block<3, 2>(0, 3 + 2 * k);
+    WJ0.leftCols<3>() += W0k * fk.J_frame;
+    Wr0 += W0k * fk.r;
+    w0 += W0k * fk.d;
+  }
+  for (int i = 0; i < n; ++i) {
+    Feature& fi = features[i];
+    const Eigen::Matrix<double, 2, 3> Wi0 = W.block<2, 3>(3 + 2 * i, 0);
+    fi.WJ = Wi0 * A0;
+    fi.Wr = Wi0 * r0;
+    fi.w = Wi0 * d0;
+    for (int k = 0; k < n; ++k) {
+      const Feature& fk = features[k];
+      const Eigen::Matrix2d Wik = W.block<2, 2>(3 + 2 * i, 3 + 2 * k);
+      fi.WJ.leftCols<3>() += Wik * fk.J_frame;
+      fi.Wr += Wik * fk.r;
+      fi.w += Wik * fk.d;
+    }
+  }
+  double cost = r0.dot(Wr0);
+  Eigen::Matrix<double, 6, 6> H_aa = A0.transpose() * WJ0;
+  Eigen::Matrix<double, 6, 1> b_a = A0.transpose() * w0;
+  for (int i = 0; i < n; ++i) {
+    const Feature& fi = features[i];
+    cost += fi.r.dot(fi.Wr);
+    H_aa.topRows<3>() += fi.J_frame.transpose() * fi.WJ;
+    b_a.head<3>() += fi.J_frame.transpose() * fi.w;
+  }
+  H_aa = (0.5 * (H_aa + H_aa.transpose())).eval();
+  f->cost = cost;
+  // The anchor columns kept: both, or the end anchor's alone after a fixed start.
+  const int na = start_fixed ? 3 : 6;
   const int cols = na + 2 * n;
   f->H.resize(cols, cols);
   f->b.resize(cols);
-  f->H.topLeftCorner(na, na).noalias() = J_a.transpose() * WJ_a;
-  f->H.topLeftCorner(na, na) = 0.5 * (f->H.topLeftCorner(na, na) + f->H.topLeftCorner(na, na).transpose()).eval();
-  f->b.head(na).noalias() = J_a.transpose() * w;
+  f->H.topLeftCorner(na, na) = H_aa.bottomRightCorner(na, na);
+  f->b.head(na) = b_a.tail(na);
   for (int i = 0; i < n; ++i) {
-    const Eigen::MatrixXd cross = WJ_a.middleRows<2>(3 + 2 * i).transpose() * R[i];  // na × 2
-    f->H.block(0, na + 2 * i, na, 2) = cross;
-    f->H.block(na + 2 * i, 0, 2, na) = cross.transpose();
-    f->b.segment<2>(na + 2 * i) = R[i].transpose() * w.segment<2>(3 + 2 * i);
+    const Feature& fi = features[i];
+    const Eigen::Matrix<double, 6, 2> cross = fi.WJ.transpose() * fi.R;  // H_a,i
+    f->H.block(0, na + 2 * i, na, 2) = cross.bottomRows(na);
+    f->H.block(na + 2 * i, 0, 2, na) = cross.bottomRows(na).transpose();
+    f->b.segment<2>(na + 2 * i) = fi.R.transpose() * fi.w;
     for (int k = 0; k <= i; ++k) {  // H symmetric to the bit
-      f->H.block<2, 2>(na + 2 * i, na + 2 * k) = R[i].transpose() * W.block<2, 2>(3 + 2 * i, 3 + 2 * k) * R[k];
+      const Feature& fk = features[k];
+      f->H.block<2, 2>(na + 2 * i, na + 2 * k) = fi.R.transpose() * W.block<2, 2>(3 + 2 * i, 3 + 2 * k) * fk.R;
       if (k < i) f->H.block<2, 2>(na + 2 * k, na + 2 * i) = f->H.block<2, 2>(na + 2 * i, na + 2 * k).transpose();
     }
   }
@@ -243,6 +296,7 @@ void EifJoiner::SwapLinearization(Factor* f, Linearization* l) {
   std::swap(f->start_theta, l->start_theta);
   std::swap(f->end_theta, l->end_theta);
   f->levers.swap(l->levers);
+  std::swap(f->cost, l->cost);
 }
 
 void EifJoiner::UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const {

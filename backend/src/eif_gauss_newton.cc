@@ -62,53 +62,73 @@ absl::Status EifJoiner::GaussNewton() {
   // Gauss-Newton need not lower the cost at every iteration (a first step often raises
   // it a little on the way to a lower minimum), but `divergence_rises` rises in a row
   // mean divergence (seen with wrong associations): then the best iterate is restored —
-  // the factors' linearisation whose solution it was — and the iterations end.
+  // the factors' linearisation whose solution it was — and the iterations end. An
+  // iterate's cost comes with the factors' linearisation at it (Factor::cost), at the
+  // start of the next iteration; a step that ends the iterations as converged is below
+  // the tolerances, and its cost is not asked for.
   const int max_rises = options_.divergence_rises;
   const bool watch = max_rises > 0 && options_.max_relinearizations >= max_rises;
-  double best_cost = watch ? Cost() : 0.0, last_cost = best_cost;
-  std::vector<Factor> best_factors;  // their solution is the best iterate so far
-  if (watch) best_factors = factors_;
+  double best_cost = 0.0, last_cost = 0.0;
   int rises = 0;
-  // The linearisation the factor and the estimate belong to, while the factors hold the
-  // next one (swapped, not copied).
-  std::vector<Linearization> previous;
-  for (int it = 0; it < options_.max_relinearizations; ++it) {
+  // Linearisations set aside, swapped, never copied: `previous` holds the one the factor
+  // and the estimate belong to while the factors take the next; `best` the one whose
+  // solution is the best iterate, once `previous` is needed for a later one.
+  std::vector<Linearization> previous, best;
+  bool best_is_previous = false;
+  const auto restore = [this](std::vector<Linearization>* from) {
+    for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &(*from)[k]);
+  };
+  for (int it = 0; it <= options_.max_relinearizations; ++it) {
+    // One more linearisation after the last step, for the watch alone.
+    if (it == options_.max_relinearizations && !watch) break;
     const Eigen::VectorXd before = StateVector();
     const bool check = it > 0 && options_.predict_convergence;
-    if (check) {
+    if (watch || check) {
+      if (best_is_previous) {
+        best.swap(previous);
+        best_is_previous = false;
+      }
       previous.resize(factors_.size());
-      for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &previous[k]);
+      restore(&previous);
     }
+    double cost = 0.0;
     {
       StageTimer timer(&times_, "update");
-      for (Factor& f : factors_) Linearize(&f);
+      for (Factor& f : factors_) {
+        Linearize(&f);
+        cost += f.cost;
+      }
+    }
+    if (watch) {  // `cost` is the estimate's, the solution of `previous`
+      // Near convergence the cost changes by its rounding error only (about 1e-12 of it
+      // here), up or down: a rise counts when it is well above that.
+      constexpr double kRoundingFloor = 1e-8;
+      rises = it > 0 && cost > last_cost * (1.0 + kRoundingFloor) ? rises + 1 : 0;
+      last_cost = cost;
+      if (it == 0 || cost < best_cost) {
+        best_cost = cost;
+        best_is_previous = true;
+      } else if (rises >= max_rises || !std::isfinite(cost)) {
+        ++counters_.relinearizations_diverged;
+        restore(best_is_previous ? &previous : &best);
+        return Rebuild(/*only_last_factor=*/false);
+      }
+    }
+    if (it == options_.max_relinearizations) {
+      // No step left: the estimate stays the solution of the linearisation before.
+      restore(&previous);
+      break;
     }
     if (check && PredictedStepConverged(before)) {
       // The estimate solves the previous linearisation and the step from it is already
       // small: that linearisation stays, without another factorisation.
-      for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &previous[k]);
+      restore(&previous);
       ++counters_.relinearizations_predicted_converged;
       converged_ = true;
       break;
     }
     if (absl::Status s = Rebuild(/*only_last_factor=*/false); !s.ok()) return s;
     ++counters_.relinearizations;
-    if (watch) {
-      const double cost = Cost();
-      // Near convergence the cost changes by its rounding error only (about 1e-12 of it
-      // here), up or down: a rise counts when it is well above that.
-      constexpr double kRoundingFloor = 1e-8;
-      rises = cost > last_cost * (1.0 + kRoundingFloor) ? rises + 1 : 0;
-      last_cost = cost;
-      if (cost < best_cost) {
-        best_cost = cost;
-        best_factors = factors_;
-      } else if (rises >= max_rises || !std::isfinite(cost)) {
-        ++counters_.relinearizations_diverged;
-        factors_ = std::move(best_factors);
-        return Rebuild(/*only_last_factor=*/false);
-      }
-    }
     const Eigen::VectorXd step = StateVector() - before;
     if (step.cwiseAbs().maxCoeff() < options_.relinearize_tolerance) {
       converged_ = true;

@@ -226,18 +226,23 @@ absl::Status EifJoiner::FullFactorization() {
   StageTimer full(&times_, "full_factorization");
   SparseCholesky& L = solver_->factor;
   const long reuses = L.symbolic_reuses();
-  // Spare slots for the next joins' new variables (about 15 % of the state).
-  // The last anchor, where the next join starts, is ordered last: the next joins' updates
-  // then walk short paths (a chain's last anchor elsewhere in the order would fill a
-  // column per variable on its path with every update).
-  if (absl::Status st = L.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering, LastAnchorVariables());
-      !st.ok()) {
-    return absl::InternalError(absl::StrCat("EIF: ", st.message()));
-  }
+  if (absl::Status st = FactorizeLambda(); !st.ok()) return absl::InternalError(absl::StrCat("EIF: ", st.message()));
   ++counters_.full_factorizations;
   if (L.ordering() == FillReducingOrdering::kNestedDissection) ++counters_.nested_dissection_factorizations;
   counters_.reused_analyses += L.symbolic_reuses() - reuses;
   return absl::OkStatus();
+}
+
+absl::Status EifJoiner::FactorizeLambda() {
+  if (!options_.incremental_factorization) {
+    // No rank updates will follow: neither spare slots nor a constrained ordering.
+    return solver_->factor.Factorize(LowerInformation(), /*spare=*/0, options_.ordering);
+  }
+  // Spare slots for the next joins' new variables (about 15 % of the state).
+  // The last anchor, where the next join starts, is ordered last: the next joins' updates
+  // then walk short paths (a chain's last anchor elsewhere in the order would fill a
+  // column per variable on its path with every update).
+  return solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering, LastAnchorVariables());
 }
 
 absl::Status EifJoiner::Rebuild(bool only_last_factor) {

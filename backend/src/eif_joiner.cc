@@ -465,8 +465,7 @@ EifJoiner::EifJoiner(const EifJoiner& other)
   // ordering that has switched to nested dissection stays switched).
   solver_->factor.AdoptOrderingChoice(other.solver_->factor);
   if (other.solver_->factor.ready()) {
-    SUBSLAM_CHECK(solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering, LastAnchorVariables()).ok())
-        << "refactorising a copy failed";
+    SUBSLAM_CHECK(FactorizeLambda().ok()) << "refactorising a copy failed";
   }
 }
 
@@ -517,11 +516,19 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   }
   {
     StageTimer timer(&times_, "update");
-    for (const SubmapFactor& f : right.graph_.factors()) {
+    for (const Factor& right_factor : right.factors_) {
+      const SubmapFactor& f = right.graph_.factors()[right_factor.index];
       std::vector<int> landmarks;
       for (int l : f.landmark_of_feature) landmarks.push_back(assoc[l]);
       graph_.AddFactor({f.submap, anchor_map[f.start_anchor], anchor_map[f.end_anchor], landmarks});
-      Factor factor = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
+      // The local map's own terms (its covariance's factor, information and smallest
+      // eigenvalue) carry over; the layout and linearisation are this map's.
+      Factor factor;
+      factor.index = static_cast<int>(graph_.factors().size()) - 1;
+      factor.covariance_sqrt = right_factor.covariance_sqrt;
+      factor.information = right_factor.information;
+      factor.covariance_min_eigenvalue = right_factor.covariance_min_eigenvalue;
+      SetLayout(&factor);
       Linearize(&factor);
       factors_.push_back(std::move(factor));
     }

@@ -36,6 +36,7 @@ absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
       return st;
     }
     ++left.level;
+    left.last_anchor_covariance.reset();
     ++tree_joins_;
   }
   return absl::OkStatus();
@@ -52,6 +53,7 @@ absl::Status TreeJoiner::Finish() {
       Node right = std::move(nodes_.back());
       nodes_.pop_back();
       if (absl::Status st = nodes_.back().map->JoinMap(*right.map); !st.ok()) return status_ = st;
+      nodes_.back().last_anchor_covariance.reset();
       ++tree_joins_;
     }
   } else {
@@ -59,6 +61,7 @@ absl::Status TreeJoiner::Finish() {
       std::vector<Node> next;
       for (size_t i = 0; i + 1 < nodes_.size(); i += 2) {
         if (absl::Status st = nodes_[i].map->JoinMap(*nodes_[i + 1].map); !st.ok()) return status_ = st;
+        nodes_[i].last_anchor_covariance.reset();
         ++tree_joins_;
         ++nodes_[i].level;
         next.push_back(std::move(nodes_[i]));
@@ -67,7 +70,9 @@ absl::Status TreeJoiner::Finish() {
       nodes_ = std::move(next);
     }
   }
-  return status_ = nodes_.front().map->Finish();
+  status_ = nodes_.front().map->Finish();
+  nodes_.front().last_anchor_covariance.reset();
+  return status_;
 }
 
 const MapJoiner& TreeJoiner::Whole() const {
@@ -93,15 +98,19 @@ void TreeJoiner::Chain(Pose2* pose, Eigen::Matrix3d* covariance) const {
   if (covariance != nullptr) covariance->setZero();
   for (size_t i = 0; i < nodes_.size(); ++i) {
     const MapJoiner& node = *nodes_[i].map;
+    const auto node_covariance = [&]() -> const Eigen::Matrix3d& {
+      if (!nodes_[i].last_anchor_covariance) nodes_[i].last_anchor_covariance = node.LastAnchorCovariance();
+      return *nodes_[i].last_anchor_covariance;
+    };
     if (i == 0) {  // in the world frame already
       *pose = node.LastAnchor();
-      if (covariance != nullptr) *covariance = node.LastAnchorCovariance();
+      if (covariance != nullptr) *covariance = node_covariance();
       continue;
     }
     Eigen::Matrix3d J_a, J_b;
     const Pose2 next = Compose(*pose, node.LastAnchor(), &J_a, &J_b);
     if (covariance != nullptr) {
-      *covariance = J_a * *covariance * J_a.transpose() + J_b * node.LastAnchorCovariance() * J_b.transpose();
+      *covariance = J_a * *covariance * J_a.transpose() + J_b * node_covariance() * J_b.transpose();
     }
     *pose = next;
   }

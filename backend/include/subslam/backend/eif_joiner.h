@@ -309,6 +309,8 @@ class EifJoiner final : public MapJoiner {
     // The levers from the start anchor to the end anchor and to each landmark at the
     // linearisation (what LinearizationError needs).
     std::vector<Eigen::Vector2d> levers;
+    // rᵀ Q⁻¹ r at the linearisation point (the factor's term of Cost() there).
+    double cost = 0.0;
     double covariance_min_eigenvalue = 0.0;  // of Q (set while relinearize_linearization_chi2 > 0)
     // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
     // factor; computed once, shared by copies.
@@ -358,8 +360,11 @@ class EifJoiner final : public MapJoiner {
   // solve; write the estimate back.
   absl::Status Rebuild(bool only_last_factor);
   // Factorises Λ afresh (the symbolic analysis reused while Λ's pattern is unchanged),
-  // with spare slots for the next joins' new variables.
+  // with spare slots for the next joins' new variables; counted.
   absl::Status FullFactorization();
+  // The factorisation itself: with incremental_factorization, spare slots and the last
+  // anchor ordered last (for the rank updates of the next joins); without, neither.
+  absl::Status FactorizeLambda();
   // Λ's lower triangle (its pattern, values left unset) and lambda_slots_ from the
   // factors' variable blocks.
   void BuildLambdaPattern() const;
@@ -386,6 +391,7 @@ class EifJoiner final : public MapJoiner {
     Eigen::VectorXd b;
     double start_theta = 0.0, end_theta = 0.0;
     std::vector<Eigen::Vector2d> levers;
+    double cost = 0.0;
   };
   static void SwapLinearization(Factor* f, Linearization* l);
   // With the factors linearised at the estimate x, and the factor (and x) still of the

@@ -27,6 +27,7 @@
 #define SUBSLAM_BACKEND_TREE_JOINER_H_
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -80,6 +81,9 @@ class TreeJoiner final : public MapJoiner {
   struct Node {
     std::unique_ptr<MapJoiner> map;
     int level = 0;
+    // map's LastAnchorCovariance(), kept until map changes (Chain asks at every local map,
+    // and only the newest nodes change).
+    mutable std::optional<Eigen::Matrix3d> last_anchor_covariance;
   };
   const MapJoiner& Whole() const;
   // The last anchor chained over the nodes' last anchors, and its covariance (first order)
