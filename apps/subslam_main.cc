@@ -94,6 +94,9 @@ ABSL_FLAG(std::string, initial, "dead-reckoning",
           "solve: start from dead-reckoning | file (the file's vertex estimates)");
 ABSL_FLAG(int, poses_per_map, subslam::pipeline::SolveOptions{}.poses_per_map,
           "solve: poses per local map of the submap route (methods submaps, submaps-lm)");
+ABSL_FLAG(bool, tree_joining, subslam::pipeline::SolveOptions{}.tree_joining,
+          "solve: the submap route (submaps, submaps-lm) joins its local maps pairwise in a binary tree; false: in "
+          "order into one map");
 ABSL_FLAG(bool, write_local_maps, false,
           "solve: also write the submap routes' local maps (METHOD_submaps.jsonl) for `subslam join`");
 ABSL_FLAG(bool, progress, true, "show a progress line on a terminal");
@@ -273,6 +276,7 @@ int Solve() {
   }
   options.initial_from_file = initial == "file";
   options.poses_per_map = absl::GetFlag(FLAGS_poses_per_map);
+  options.tree_joining = absl::GetFlag(FLAGS_tree_joining);
   auto backend = subslam::cli::BackendOptionsFromFlags();
   if (!backend.ok()) return Fail(backend.status());
   options.eif = backend->eif;

@@ -77,7 +77,7 @@ const std::vector<FlagGroup>& FlagGroups() {
         "keep_freed_memory"}},
       {"Studies", "`subslam study` (docs/reproducing.md).", {"trials", "methods", "workers", "shard", "plots"}},
       {"Graphs", "`subslam solve` (docs/formats.md, \"Graph files\").",
-       {"graph", "format", "noise", "initial", "poses_per_map", "write_local_maps"}},
+       {"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps"}},
       {"Simulation", "Shape the simulated worlds (docs/scenarios.md).",
        {"world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks",
         "path_length", "lattice_spacing", "noise_scale", "signature"}},

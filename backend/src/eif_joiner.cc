@@ -78,6 +78,12 @@ EifJoinerOptions EifJoinerOptions::SingleLinearization() const {
   return o;
 }
 
+EifJoinerOptions EifJoinerOptions::ForTreeNode() const {
+  EifJoinerOptions o = *this;
+  o.incremental_factorization = false;
+  return o;
+}
+
 EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
     : options_(options),
       graph_(initial_pose),

@@ -81,6 +81,7 @@ SolveMethodResult RunMethod(const std::string& name, const posegraph::PoseGraph&
   } else {
     posegraph::SubmapRouteOptions route;
     route.poses_per_map = name == "eif" ? 1 : options.poses_per_map;
+    route.tree = name != "eif" && options.tree_joining;
     route.eif = options.eif;
     auto r = posegraph::SolveBySubmaps(solution, route, local_maps);
     status = r.status();

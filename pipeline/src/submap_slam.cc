@@ -39,14 +39,6 @@ bool EifRelinearizesAtEnd(const BackendOptions& options) {
   return options.eif.relinearize_at_end && options.kind != Backend::kCeres && options.kind != Backend::kTreeCeres;
 }
 
-namespace {
-// A tree node's EIF: every node is one local map or two nodes joined and relinearised
-// whole (TreeJoiner), never a rank update of its factor, so it keeps no spare slots.
-backend::EifJoinerOptions TreeNodeEif(backend::EifJoinerOptions eif) {
-  eif.incremental_factorization = false;
-  return eif;
-}
-}  // namespace
 
 std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose) {
   switch (options.kind) {
@@ -60,7 +52,7 @@ std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, co
     case Backend::kTreeCeres:
       return std::make_unique<backend::TreeJoiner>(
           std::make_unique<backend::CeresJoiner>(initial_pose,
-                                                 backend::CeresJoinerOptions{.eif = TreeNodeEif(options.eif),
+                                                 backend::CeresJoinerOptions{.eif = options.eif.ForTreeNode(),
                                                                              .solve = options.ceres,
                                                                              .solve_every = options.ceres_every}),
           options.tree);
@@ -72,8 +64,8 @@ std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, co
                                                    options.tree);
     }
     case Backend::kTreeEif:
-      return std::make_unique<backend::TreeJoiner>(std::make_unique<backend::EifJoiner>(initial_pose, TreeNodeEif(options.eif)),
-                                                   options.tree);
+      return std::make_unique<backend::TreeJoiner>(
+          std::make_unique<backend::EifJoiner>(initial_pose, options.eif.ForTreeNode()), options.tree);
   }
   return nullptr;
 }

@@ -3,10 +3,12 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Dense>
 #include <cmath>
+#include <memory>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "subslam/backend/tree_joiner.h"
 #include "subslam/posegraph/measurement_residuals.h"
 
 namespace subslam::posegraph {
@@ -251,7 +253,14 @@ absl::StatusOr<SubmapRouteReport> SolveBySubmaps(PoseGraph* graph, const SubmapR
   eif.association.known_association = true;
   eif.validate_joins = false;  // a rejected join would give a point two landmarks
   const Pose2 initial = graph->poses[0].has_estimate ? graph->poses[0].estimate : Pose2();
-  backend::EifJoiner joiner(initial, eif);
+  std::unique_ptr<backend::MapJoiner> joiner_holder;
+  if (options.tree) {
+    joiner_holder = std::make_unique<backend::TreeJoiner>(
+        std::make_unique<backend::EifJoiner>(initial, eif.ForTreeNode()), backend::TreeJoinerOptions{});
+  } else {
+    joiner_holder = std::make_unique<backend::EifJoiner>(initial, eif);
+  }
+  backend::MapJoiner& joiner = *joiner_holder;
   SubmapRouteReport report;
   std::vector<Run> runs;
   for (int first = 0; first < num_poses - 1; first += options.poses_per_map) {

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <boost/math/distributions/chi_squared.hpp>
+#include <utility>
+#include <vector>
 
 #include "posegraph/synthetic_graph.h"
 #include "subslam/posegraph/batch_solver.h"
@@ -86,7 +88,8 @@ TEST(BatchSolver, MethodsAgreeAndTheMinimumHasTheExpectedChi2) {
 }
 
 // The submap route, then Levenberg-Marquardt, reaches the batch minimum; the route's own
-// estimate is already near it; one pose per local map and several agree.
+// estimate is already near it; one pose per local map and several agree, joined in a
+// binary tree or in order.
 TEST(SubmapRoute, ReachesTheBatchMinimum) {
   for (Sightings kind : {Sightings::kPoint, Sightings::kBearingRange}) {
     SCOPED_TRACE(kind == Sightings::kPoint ? "point" : "bearing-range");
@@ -96,13 +99,15 @@ TEST(SubmapRoute, ReachesTheBatchMinimum) {
     for (size_t j = 0; j < batch.points.size(); ++j) batch.points[j].estimate = s.true_points[j];
     ASSERT_TRUE(SolveGraphWithCeres(&batch, {}).ok());
     const double minimum = EvaluateError(batch).error;
-    for (int poses_per_map : {1, 7, 30}) {
-      SCOPED_TRACE(poses_per_map);
+    const std::vector<std::pair<int, bool>> settings = {{1, false}, {7, true}, {7, false}, {30, true}};
+    for (const auto& [poses_per_map, tree] : settings) {
+      SCOPED_TRACE(::testing::Message() << poses_per_map << " poses per map, " << (tree ? "tree" : "in order"));
       PoseGraph g = s.graph;
       g.poses[0].estimate = s.true_poses[0];  // the gauge where the batch solution has it
       g.poses[0].has_estimate = true;
       SubmapRouteOptions options;
       options.poses_per_map = poses_per_map;
+      options.tree = tree;
       auto r = SolveBySubmaps(&g, options);
       ASSERT_TRUE(r.ok()) << r.status();
       EXPECT_EQ(r->local_maps, (149 + poses_per_map - 1) / poses_per_map);
@@ -110,8 +115,11 @@ TEST(SubmapRoute, ReachesTheBatchMinimum) {
       EXPECT_LT(route, 1.05 * minimum);
       ASSERT_TRUE(SolveGraphWithCeres(&g, {}).ok());
       EXPECT_NEAR(EvaluateError(g).error, minimum, 1e-6 * minimum);
+      // The same minimum, not another of the same cost: the points agree to what Ceres's
+      // stop leaves open (a cost change below 1e-12 of the cost moves a point seen with
+      // σ ≈ 0.2 m by about 1e-5 m), far below the spacing of other minima.
       for (size_t j = 0; j < g.points.size(); ++j) {
-        EXPECT_NEAR((g.points[j].estimate - batch.points[j].estimate).norm(), 0.0, 1e-5);
+        EXPECT_NEAR((g.points[j].estimate - batch.points[j].estimate).norm(), 0.0, 1e-4);
       }
     }
   }

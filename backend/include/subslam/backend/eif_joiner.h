@@ -216,6 +216,11 @@ struct EifJoinerOptions {
   // one at the end) and no association revision (it relinearises every factor): the
   // single-linearisation EIF of Combined SLAM.
   EifJoinerOptions SingleLinearization() const;
+  // These options for a node of a binary tree (backend/tree_joiner.h): a node is one
+  // local map, or two nodes joined and relinearised whole, never a rank update of its
+  // factor, so it keeps no spare slots and no constrained ordering
+  // (incremental_factorization off).
+  EifJoinerOptions ForTreeNode() const;
 };
 
 class EifJoiner final : public MapJoiner {

@@ -6,7 +6,8 @@
 //                    Gauss-Newton) from the start estimate;
 //   eif              the incremental EIF over the measurements in time order: the submap
 //                    route with one odometry step per local map (posegraph/submap_route.h);
-//   submaps          the submap route with SolveOptions::poses_per_map poses per local map;
+//   submaps          the submap route with SolveOptions::poses_per_map poses per local map,
+//                    joined in a binary tree (SolveOptions::tree_joining);
 //   submaps-lm       the submap route, then Levenberg-Marquardt from its estimate.
 // The start estimate: dead reckoning (posegraph::InitializeByDeadReckoning), or the file's
 // vertex estimates (`initial_from_file`); the submap routes start from dead reckoning
@@ -42,6 +43,10 @@ struct SolveOptions {
   // that dead reckoning holds within them, long enough that a join's fixed cost is shared
   // (bench/RESULTS.md, "Graph solvers").
   int poses_per_map = 20;
+  // The submap route joins its local maps in a binary tree (`submaps`, `submaps-lm`;
+  // SubmapRouteOptions::tree); false: in order into one map. `eif` joins in order always:
+  // it is the incremental EIF.
+  bool tree_joining = true;
   backend::CeresSolveOptions ceres = [] {
     backend::CeresSolveOptions o;
     o.max_iterations = 200;

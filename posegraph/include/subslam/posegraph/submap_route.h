@@ -3,8 +3,10 @@
 // into runs of consecutive poses; each run becomes one local map — its poses and the
 // points they see solved by Gauss-Newton in the frame of its first pose, then reduced to
 // one Gaussian over [last pose, points] (the interior poses marginalised); the local maps
-// are joined in order by the exactly sparse EIF (backend/eif_joiner.h) with the graph's
-// association; the interior poses are put back through their joined anchors.
+// are joined by the exactly sparse EIF (backend/eif_joiner.h) with the graph's
+// association — pairwise in a binary tree (backend/tree_joiner.h), each join iterated to
+// convergence, or in order into one growing map; the interior poses are put back through
+// their joined anchors.
 //
 // A local map is a Gaussian approximation of its run (the measurements linearised at the
 // run's own solution, which is where dead reckoning is still good), so the joined
@@ -34,6 +36,12 @@ struct SubmapRouteOptions {
   int max_local_iterations = 20;  // Gauss-Newton on each run, until the step is below 1e-9
   // The joiner; its association is forced to the graph's (known association).
   backend::EifJoinerOptions eif;
+  // Join the local maps pairwise in a binary tree (TreeJoiner over EIF nodes) rather
+  // than in order into one map. The tree's joins cost in proportion to their own size, so
+  // the whole route costs O(n log n); in order, each relinearisation is of the whole map
+  // joined so far (Victoria Park, 349 maps of 20 poses: 0.14–0.32 s against 0.49–0.75 s,
+  // the same minimum after the polish; bench/RESULTS.md).
+  bool tree = true;
 
   absl::Status Validate() const;
 };
