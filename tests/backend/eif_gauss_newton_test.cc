@@ -239,6 +239,37 @@ TEST(EifJoiner, RelinearisationStopsAtItsBestIterateAfterTooManyCostRises) {
   }
 }
 
+// Gauss-Newton cut short by max_relinearizations: the watch linearises once more at the
+// last iterate for its cost, and then the linearisation that iterate solves must be the
+// one the factors keep, as without the watch — a copy assembles Λ from the factors again,
+// and the joins after it build on them.
+TEST(EifJoiner, RelinearisationCutShortKeepsTheLinearisationItsEstimateSolves) {
+  SyntheticRun run = MakeRun(4, 24);
+  for (int k = 5; k < 24; k += 6) run.submaps[k].mean[2] += (k % 12 == 5 ? 0.8 : -0.8);
+  const auto joined = [&](int rises, int limit) {
+    EifJoinerOptions options;
+    options.association.known_association = true;
+    options.relinearize_heading_change = 0.0;
+    options.relinearize_linearization_chi2 = 0.0;
+    options.relinearize_every = 6;  // Gauss-Newton after joins 6, 12 and 18
+    options.relinearize_at_end = false;
+    options.max_relinearizations = limit;
+    options.divergence_rises = rises;
+    auto eif = std::make_unique<EifJoiner>(run.anchors[0], options);
+    for (int k = 0; k < 20; ++k) EXPECT_TRUE(eif->Join(run.submaps[k]).ok());
+    return eif;
+  };
+  const std::unique_ptr<EifJoiner> watched = joined(2, 2), unwatched = joined(0, 2), uncut = joined(2, 20);
+  EXPECT_GT(uncut->counters().relinearizations, watched->counters().relinearizations);  // the limit cut
+  EXPECT_EQ(watched->counters().relinearizations_diverged, 0);
+  EXPECT_EQ(watched->counters().relinearizations, unwatched->counters().relinearizations);
+  EXPECT_TRUE(MatricesNear(StackedEstimate(*watched), StackedEstimate(*unwatched), 1e-12));
+  const std::unique_ptr<MapJoiner> watched_copy = watched->Clone(), unwatched_copy = unwatched->Clone();
+  const Eigen::MatrixXd lambda(dynamic_cast<const EifJoiner&>(*unwatched_copy).information());
+  EXPECT_TRUE(MatricesNear(Eigen::MatrixXd(dynamic_cast<const EifJoiner&>(*watched_copy).information()), lambda,
+                           1e-12 * lambda.norm()));
+}
+
 // The last local map of a run may span one step: no features, and a pose covariance of
 // rank 2 that only rounding keeps positive definite. Joined as is it made CHOLMOD fail
 // (and `subslam run` abort); it is now rejected with a clear error, and joins once

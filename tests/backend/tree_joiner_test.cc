@@ -6,6 +6,7 @@
 #include <memory>
 #include <numeric>
 #include <set>
+#include <utility>
 
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/ekf_joiner.h"
@@ -66,20 +67,25 @@ std::unique_ptr<TreeJoiner> Tree(std::unique_ptr<MapJoiner> prototype, bool runn
 }
 
 // Relinearised to convergence, the information-form tree reaches the same optimum as
-// the sequential EIF (batch Gauss-Newton on the same graph), in both modes.
+// the sequential EIF (batch Gauss-Newton on the same graph), in both modes, with nodes
+// as the sequential joiner's or without spare slots (EifJoinerOptions::ForTreeNode).
 TEST(TreeJoiner, EifTreeEqualsSequentialEifAtConvergence) {
   const SyntheticRun run = MakeRun(7, 12, 3.0);
   EifJoiner sequential(run.anchors[0], ConvergingKnownAssociation());
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(sequential.Join(s).ok());
   ASSERT_TRUE(sequential.Finish().ok());
-  for (const bool running : {true, false}) {
-    auto tree = Tree(std::make_unique<EifJoiner>(run.anchors[0], ConvergingKnownAssociation()), running);
+  for (const auto& [running, node] : {std::pair{true, ConvergingKnownAssociation()},
+                                      std::pair{false, ConvergingKnownAssociation()},
+                                      std::pair{true, ConvergingKnownAssociation().ForTreeNode()}}) {
+    SCOPED_TRACE(::testing::Message() << (running ? "running" : "batch")
+                                      << (node.incremental_factorization ? "" : ", tree nodes"));
+    auto tree = Tree(std::make_unique<EifJoiner>(run.anchors[0], node), running);
     for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(tree->Join(s).ok());
     ASSERT_TRUE(tree->Finish().ok());
     EXPECT_EQ(tree->num_nodes(), 1);
     EXPECT_EQ(tree->tree_joins(), 11);  // n − 1 joins of two maps
     EXPECT_EQ(tree->counters().joins, 12);
-    EXPECT_LT(MaxNormalizedDifference(*tree, sequential), 1e-8) << (running ? "running" : "batch");
+    EXPECT_LT(MaxNormalizedDifference(*tree, sequential), 1e-8);
     // The marginals agree too (the same Λ at the same point).
     EXPECT_TRUE(testing::MatricesNear(sequential.AnchorCovariance(12), tree->AnchorCovariance(12), 1e-9));
   }
