@@ -187,7 +187,8 @@ struct EifJoinerOptions {
   // rank-(3+2n) update (CHOLMOD update/downdate; new variables last in the ordering)
   // instead of refactorising Λ; a full factorisation (with a fresh ordering) is done
   // when the spare slots run out, when L's fill has grown by `refactorize_fill_ratio`
-  // since the last one, at every relinearisation, or if an update fails.
+  // since the last one, at every relinearisation, or if an update fails. Off, every join
+  // refactorises, with neither spare slots nor the last anchor ordered last (ForTreeNode).
   bool incremental_factorization = true;
   double refactorize_fill_ratio = 1.5;
   // The fill-reducing ordering of a full factorisation (fill_reducing_ordering.h). The
