@@ -8,6 +8,7 @@ uses --threads 1 (results do not depend on the thread count).
   bench/association_sweep.py hybrid   [--seeds 1-20]   # HybridSLAM Table 1's four (alpha, beta)
   bench/association_sweep.py combined [--seeds 1-20]   # combined-2km, RBPF maps, revision on/off
   bench/association_sweep.py victoria [--seeds 1-8]    # Victoria Park, filter seeds, no calibration
+  bench/association_sweep.py backends [--seeds 1-20]   # every joining back-end on combined-2km's RBPF maps
 
 Options: --bin PATH (default build/apps/subslam), --out DIR (default /tmp/subslam_sweep),
 --jobs N (default 2), extra flags after `--` go to every run.
@@ -112,6 +113,43 @@ def combined(args):
               f"{statistics.median(r['time_seconds']['total'] for r in rs):.2f} |")
 
 
+def backends(args):
+    """Every joining back-end on the same recorded combined-2km RBPF local maps."""
+    jobs, maps = [], []
+    for s in args.seeds:
+        out = os.path.join(args.out, f"combined_s{s}")
+        jobs.append([args.bin, "run", "--scenario", "combined-2km", "--seed", str(s), "--frontend", "rbpf",
+                     "--backend", "eif", "--threads", "1", "--progress=false", "--out", out])
+        maps.append((s, out))
+    pool(args, jobs)
+    # The last: the EIF linearised once per join, as the dense EKF joiners are.
+    names = ["eif", "ceres", "ekf", "tree-ekf", "tree-eif", "tree-ceres", "eif --single_linearization"]
+    jobs, cells = [], {}
+    for s, out in maps:
+        for name in names:
+            b, *flags = name.split()
+            j = os.path.join(args.out, f"combined_s{s}_backend_{name.replace(' --', '_')}")
+            jobs.append([args.bin, "join", "--submaps", os.path.join(out, "submaps.jsonl"), "--backend", b,
+                         "--scenario", "combined-2km", "--seed", str(s), "--progress=false", "--out", j] + flags +
+                        args.extra)
+            cells[(name, s)] = j
+    pool(args, jobs)
+    rms = lambda b, s: report(cells[(b, s)])["metrics"]["anchors"]["rms_position_m"]
+    print("| back-end | final anchor RMS median (max) [m] | seeds above 1.5x the EIF's | loop re-observations "
+          "merged / missed | duplicates | wrong merges (sharing no true landmark) | join time median [s] |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    for b in names:
+        rs = [report(cells[(b, s)]) for s in args.seeds]
+        v = [rms(b, s) for s in args.seeds]
+        above = [s for s in args.seeds if rms(b, s) > 1.5 * rms("eif", s)]
+        a = [r["metrics"]["association_vs_truth_id"] for r in rs]
+        print(f"| `{b}` | {statistics.median(v):.2f} ({max(v):.2f}) | {len(above)} {above if above else ''} | "
+              f"{sum(x['reobserved_loop_merged'] for x in a)} / {sum(x['reobserved_loop_missed'] for x in a)} | "
+              f"{sum(r['metrics']['map']['duplicates'] for r in rs)} | {sum(x['wrong_merges'] for x in a)} "
+              f"({sum(x['wrong_merges_sharing_no_true_landmark'] for x in a)}) | "
+              f"{statistics.median(r['time_seconds']['total'] for r in rs):.2f} |")
+
+
 def victoria(args):
     data = os.environ.get("SUBSLAM_VICTORIA_PARK", os.path.join(ROOT, "..", "shared", "data", "victoria_park"))
     variants = {"rbpf+eif": ["--frontend", "rbpf", "--backend", "eif"], "ekfslam": ["--frontend", "ekfslam"]}
@@ -144,7 +182,7 @@ def main():
         extra = argv[argv.index("--") + 1:]
         argv = argv[:argv.index("--")]
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("sweep", choices=["hybrid", "combined", "victoria"])
+    p.add_argument("sweep", choices=["hybrid", "combined", "victoria", "backends"])
     p.add_argument("--seeds", type=seeds)
     p.add_argument("--bin", default=os.path.join(ROOT, "build", "apps", "subslam"))
     p.add_argument("--out", default="/tmp/subslam_sweep")
@@ -152,9 +190,9 @@ def main():
     p.add_argument("--reuse", action="store_true", help="keep the outputs of runs already in --out")
     args = p.parse_args(argv)
     args.extra = extra
-    args.seeds = args.seeds or seeds({"hybrid": "1-20", "combined": "1-20", "victoria": "1-8"}[args.sweep])
+    args.seeds = args.seeds or seeds({"hybrid": "1-20", "combined": "1-20", "victoria": "1-8", "backends": "1-20"}[args.sweep])
     os.makedirs(args.out, exist_ok=True)
-    {"hybrid": hybrid, "combined": combined, "victoria": victoria}[args.sweep](args)
+    {"hybrid": hybrid, "combined": combined, "victoria": victoria, "backends": backends}[args.sweep](args)
 
 
 if __name__ == "__main__":

@@ -87,9 +87,10 @@ ABSL_FLAG(double, join_split_level, EifDefaults().revision.split_probability,
 ABSL_FLAG(int, join_revise_every, EifDefaults().revision.every_joins,
           "also run the merge and split tests every K joins (besides after relinearisations, "
           "whole-map joins and at the end; 0: not on a schedule)");
-ABSL_FLAG(int, join_loop_confirmation_maps, EifDefaults().loop_confirmation_maps,
-          "eif: undo a loop closure made under an uncertain anchor unless one of this many next "
-          "local maps pairs a feature with another old landmark (0: off)");
+ABSL_FLAG(int, join_loop_confirmation_maps, EifDefaults().association.loop_confirmation_maps,
+          "eif, and the tree joiners' whole-map joins: undo a loop closure made under an "
+          "uncertain anchor unless one of this many next local maps pairs a feature with "
+          "another old landmark (0: off)");
 ABSL_FLAG(bool, validate_joins, EifDefaults().validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
           "(the map is joined again without associations)");
@@ -164,7 +165,7 @@ backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.loop_ambiguity_test = absl::GetFlag(FLAGS_join_loop_ambiguity);
   o.association.keep_certain_loop_pairings = absl::GetFlag(FLAGS_join_keep_certain_loop_pairings);
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
-  o.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
+  o.association.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
   o.revision = RevisionOptionsFromFlags();
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);

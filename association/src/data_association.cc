@@ -76,13 +76,16 @@ class Jcbb {
     for (int j = 0; j < m; ++j) {
       if (!problem.candidates[j].empty()) branching_.push_back(j);
     }
-    // The fewest candidates first (ties in detection order): the narrow levels at the top
-    // of the tree, where every branch is paid for again below. On combined-2km's joins
-    // under an uncertain anchor (40-70 candidates per detection) it visits fewer nodes
-    // and hits the node budget less often (bench/RESULTS.md).
+    // The required pairings first; then the fewest candidates first (ties in detection
+    // order): the narrow levels at the top of the tree, where every branch is paid for
+    // again below. On combined-2km's joins under an uncertain anchor (40-70 candidates
+    // per detection) it visits fewer nodes and hits the node budget less often
+    // (bench/RESULTS.md).
     std::stable_sort(branching_.begin(), branching_.end(), [&](int a, int b) {
+      if (Required(a) != Required(b)) return Required(a);
       return problem.candidates[a].size() < problem.candidates[b].size();
     });
+    for (int j : branching_) num_required_ += Required(j) ? 1 : 0;
     row_stamp_.assign(m, 0);
     rows_before_.assign(m, 0);
     for (size_t t = 0; t < branching_.size(); ++t) rows_before_[branching_[t]] = static_cast<int>(t);
@@ -117,7 +120,22 @@ class Jcbb {
       }
       return;
     }
+    if (t == num_required_) {  // the required pairings placed: what the others are gated given
+      base_pairings_ = k;
+      base_d2_ = d2;
+    }
     const int j = branching_[t];
+    if (Required(j)) {  // its one candidate, ungated (a decided pairing), no star branch
+      const AssociationCandidate& c = p_.candidates[j].front();
+      double new_d2;
+      if (!Extend(j, k, c, &solved_[first_pair_[j]], &new_d2)) return;
+      current_[j] = c.landmark;
+      paired_detection_.push_back(j);
+      Recurse(t + 1, k + 1, new_d2);
+      paired_detection_.pop_back();
+      current_[j] = -1;
+      return;
+    }
     for (size_t ci = 0; ci < p_.candidates[j].size(); ++ci) {
       const AssociationCandidate& c = p_.candidates[j][ci];
       bool taken = false;  // one-to-one: by an earlier detection of this hypothesis
@@ -125,7 +143,7 @@ class Jcbb {
       if (taken) continue;
       double new_d2;
       if (!Extend(j, k, c, &solved_[first_pair_[j] + ci], &new_d2)) continue;
-      if (new_d2 > gates_[k]) continue;
+      if (new_d2 - base_d2_ > gates_[k - base_pairings_]) continue;
       current_[j] = c.landmark;
       paired_detection_.push_back(j);
       Recurse(t + 1, k + 1, new_d2);
@@ -135,6 +153,8 @@ class Jcbb {
     // The star branch: leave detection j unpaired if that can still beat the best.
     if (k + (m - t - 1) >= best_.pairings) Recurse(t + 1, k, d2);
   }
+
+  bool Required(int j) const { return !p_.required.empty() && p_.required[j]; }
 
   // The forward substitution of one candidate pairing, row by row (see the class comment).
   struct Solved {
@@ -218,6 +238,9 @@ class Jcbb {
   std::vector<int> current_;           // landmark per detection in the hypothesis
   std::vector<int> paired_detection_;  // detection of block row a
   std::vector<int> branching_;         // detections with a candidate, fewest candidates first
+  int num_required_ = 0;               // the first num_required_ of branching_ are required
+  int base_pairings_ = 0;              // pairings and joint d² of the required ones
+  double base_d2_ = 0.0;
   AssociationResult best_;
 };
 

@@ -26,13 +26,6 @@ absl::Status EifJoinerOptions::Validate() const {
   if (!(validation_probability > 0 && validation_probability < 1)) {
     return absl::InvalidArgumentError("validation_probability must be in (0, 1)");
   }
-  if (loop_confirmation_maps < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_maps must be >= 0, got ", loop_confirmation_maps));
-  }
-  if (!(loop_confirmation_min_sigma_radius_m >= 0 && std::isfinite(loop_confirmation_min_sigma_radius_m))) {
-    return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_min_sigma_radius_m must be finite and >= 0 [m], got ",
-                                                   loop_confirmation_min_sigma_radius_m));
-  }
   if (relinearize_every < 0) {
     return absl::InvalidArgumentError(absl::StrCat("relinearize_every must be >= 0, got ", relinearize_every));
   }
@@ -250,7 +243,7 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
       return absl::OkStatus();
     }
   }
-  if (last - closing < options_.loop_confirmation_maps) return absl::OkStatus();
+  if (last - closing < options_.association.loop_confirmation_maps) return absl::OkStatus();
   // Unconfirmed: back to the joiner before the closing map, whose work stays counted,
   // and the maps since joined again, the closing one without loop pairings.
   PendingLoopClosure pending = std::move(*pending_loop_);
@@ -304,9 +297,12 @@ void EifJoiner::CountDecisions(const SubmapAssociation& a) {
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
   if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
   if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
+  counters_.loop_closures_confirmed += a.loop_closures_confirmed;
+  counters_.loop_closures_unconfirmed += a.loop_closures_unconfirmed;
 }
 
-SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
+SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start,
+                                         const std::vector<std::vector<int>>* whole_map_groups) {
   StageTimer timer(&times_, "association");
   const long columns_before = solver_->factor.columns_solved(), reach_before = solver_->factor.reach_solved();
   // Each recovered landmark marginal is today's, so it bounds every later one (Λ grows).
@@ -325,8 +321,8 @@ SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start, bool a
       [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
         return JointCovariance(anchors, landmarks);
       },
-      anchor_prefilter, pair_covariance,
-      options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr);
+      /*anchor_prefilter=*/whole_map_groups == nullptr, pair_covariance,
+      options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr, whole_map_groups);
   times_["covariance_recovery"] += a.covariance_seconds;
   CountDecisions(a);
   counters_.candidates += a.candidates;
@@ -352,16 +348,16 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
       CountDecisions(a);
       ++counters_.associations_replayed;
     } else {
-      a = AssociateAt(s, start, /*anchor_prefilter=*/true);
+      a = AssociateAt(s, start);
     }
     assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
     if (suppress_loop_closure_) {
       // The closing map of an unconfirmed loop closure: without its loop pairings.
       for (int i : a.uncertain_loop_features) assoc[i] = -1;
-    } else if (!a.uncertain_loop_features.empty() && options_.loop_confirmation_maps > 0 &&
+    } else if (!a.uncertain_loop_features.empty() && options_.association.loop_confirmation_maps > 0 &&
                options_.RelinearizesAfterJoins() && !pending_loop_ &&
-               3.0 * a.start_position_sigma_m >= options_.loop_confirmation_min_sigma_radius_m) {
+               3.0 * a.start_position_sigma_m >= options_.association.loop_confirmation_min_sigma_radius_m) {
       pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
                                          std::move(a)};
       // Its decisions are counted again on an undo (its work is not): not twice.
@@ -496,7 +492,10 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   const int start = graph_.num_anchors() - 1;
   const int n = right.graph_.num_landmarks();
   std::vector<int> assoc(n, -1);
-  if (!graph_.factors().empty()) assoc = AssociateAt(*summary, start, /*anchor_prefilter=*/false).landmark_of_feature;
+  if (!graph_.factors().empty()) {
+    const std::vector<std::vector<int>> groups = WholeMapGroups(right.graph_);
+    assoc = AssociateAt(*summary, start, &groups).landmark_of_feature;
+  }
   // Right's anchors and unmatched landmarks, through the last anchor (headings continuous).
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
   std::vector<int> anchor_map = {start};

@@ -228,18 +228,21 @@ void EkfJoiner::DropVariable(int offset, int size) {
   }
 }
 
-std::vector<int> EkfJoiner::AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter) {
+std::vector<int> EkfJoiner::AssociateAt(const LocalSubmap& s, int start,
+                                        const std::vector<std::vector<int>>* whole_map_groups) {
   StageTimer timer(&times_, "association");
   SubmapAssociation a = associator_.Associate(
       s, start, graph_,
       [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
         return JointCovariance(anchors, landmarks);
       },
-      anchor_prefilter);
+      /*anchor_prefilter=*/whole_map_groups == nullptr, nullptr, nullptr, whole_map_groups);
   times_["covariance_recovery"] += a.covariance_seconds;
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
   if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
   if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
+  counters_.loop_closures_confirmed += a.loop_closures_confirmed;
+  counters_.loop_closures_unconfirmed += a.loop_closures_unconfirmed;
   return std::move(a.landmark_of_feature);
 }
 
@@ -250,7 +253,7 @@ absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
                                                    " before the previous one ended (", last_t_end_, ")"));
   }
   const int start = graph_.num_anchors() - 1;
-  if (absl::Status st = JoinAssociated(s, AssociateAt(s, start, /*anchor_prefilter=*/true)); !st.ok()) return st;
+  if (absl::Status st = JoinAssociated(s, AssociateAt(s, start)); !st.ok()) return st;
   const int every = options_.revision.every_joins;
   if (every > 0 && counters_.joins % every == 0) return ReviseAssociation();
   return absl::OkStatus();
@@ -419,7 +422,10 @@ absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
   const int start = graph_.num_anchors() - 1;
   const int n = right.graph_.num_landmarks();
   std::vector<int> assoc(n, -1);
-  if (!graph_.factors().empty()) assoc = AssociateAt(*summary, start, /*anchor_prefilter=*/false);
+  if (!graph_.factors().empty()) {
+    const std::vector<std::vector<int>> groups = WholeMapGroups(right.graph_);
+    assoc = AssociateAt(*summary, start, &groups);
+  }
   // Augment right's anchors, its new landmarks, then the copies of its matched ones.
   std::vector<Block> blocks;
   for (int k = 1; k < right.graph_.num_anchors(); ++k) blocks.push_back({right.anchor_offset_[k], 3});

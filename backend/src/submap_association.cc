@@ -3,7 +3,10 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <optional>
 
+#include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "subslam/association/data_association.h"
 #include "subslam/models/gating.h"
@@ -24,7 +27,21 @@ absl::Status SubmapAssociationOptions::Validate() const {
   if (recent_maps < 0 || !(loop_test_min_sigma_radius_m >= 0)) {
     return absl::InvalidArgumentError("recent_maps and loop_test_min_sigma_radius_m must be >= 0");
   }
+  if (loop_confirmation_maps < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_maps must be >= 0, got ", loop_confirmation_maps));
+  }
+  if (!(loop_confirmation_min_sigma_radius_m >= 0 && std::isfinite(loop_confirmation_min_sigma_radius_m))) {
+    return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_min_sigma_radius_m must be finite and >= 0 [m], got ",
+                                                   loop_confirmation_min_sigma_radius_m));
+  }
   return absl::OkStatus();
+}
+
+std::vector<std::vector<int>> WholeMapGroups(const SubmapGraph& graph) {
+  std::vector<std::vector<int>> groups;
+  groups.reserve(graph.factors().size());
+  for (const SubmapFactor& f : graph.factors()) groups.push_back(f.landmark_of_feature);
+  return groups;
 }
 
 SubmapAssociator::SubmapAssociator(const SubmapAssociationOptions& options) : options_(options) {}
@@ -226,12 +243,14 @@ struct CandidateGeometry {
 // loop tests apply while the start anchor is uncertain (`regime`).
 struct LoopFlags {
   bool regime = false;
+  double sigma_xy = 0.0;  // of the start anchor's position [m]
   std::vector<char> recent, certain;
 };
 
 LoopFlags FlagLoopLandmarks(const SubmapAssociationOptions& o, const SubmapGraph& graph, double sigma_xy,
                             const std::vector<int>& candidates, const CandidateGeometry& geometry) {
   LoopFlags flags;
+  flags.sigma_xy = sigma_xy;
   flags.regime = o.min_loop_pairings > 1 && 3.0 * sigma_xy >= o.loop_test_min_sigma_radius_m;
   if (!flags.regime) return flags;
   flags.recent.assign(graph.num_landmarks(), 0);
@@ -324,6 +343,173 @@ association::AssociationProblem IndividualCompatibility(const LocalSubmap& s, co
   return problem;
 }
 
+// Step 4 for a whole map, group by group (the features of each of its local maps, in
+// order): each group's JCBB given the pairings the groups before it kept (required, their
+// innovations gated conditionally on them, as if fused), then the loop tests on that
+// group's pairings alone, as sequential joining applies them to each local map. A feature
+// left unpaired is decided again by a later group that holds it. Once a group has closed a
+// loop (min_loop_pairings kept), the later groups are gated given that closure and the
+// loop tests no longer apply, as after a sequential join has fused it; under a lost
+// anchor the closure must be confirmed by one of the next loop_confirmation_maps groups,
+// or the decisions from its group on are made again without its loop pairings.
+class GroupedAssociation {
+ public:
+  GroupedAssociation(const SubmapAssociationOptions& o, const LocalSubmap& s, const std::vector<int>& candidates,
+                     const LoopFlags& loop, const association::AssociationProblem& problem, SubmapAssociation* out)
+      : o_(o), s_(s), candidates_(candidates), loop_(loop), problem_(problem), out_(out) {}
+
+  association::AssociationResult Solve(const std::vector<std::vector<int>>& groups) {
+    State state;
+    state.landmark_of_feature.assign(s_.num_landmarks(), -1);
+    state.paired_landmark.assign(candidates_.size(), 0);
+    state.loop_open = loop_.regime;
+    const bool confirm = loop_.regime && o_.loop_confirmation_maps > 0 &&
+                         3.0 * loop_.sigma_xy >= o_.loop_confirmation_min_sigma_radius_m;
+    std::optional<State> before_closure;  // the state before a closure waiting for confirmation
+    int closing_group = -1, suppressed_group = -1;
+    const int num_groups = static_cast<int>(groups.size());
+    for (int g = 0; g <= num_groups; ++g) {
+      // Unconfirmed by the next loop_confirmation_maps groups, or still waiting after the
+      // last one (the maps that would confirm it come in a later join, which can close the
+      // loop with them): the decisions from the closing group on are made again, without
+      // its loop pairings. Closing groups only move on, so this ends.
+      const bool waiting_at_end = g == num_groups && before_closure.has_value();
+      if (waiting_at_end || (before_closure.has_value() && g - closing_group > o_.loop_confirmation_maps)) {
+        ++out_->loop_closures_unconfirmed;
+        state = std::move(*before_closure);
+        before_closure.reset();
+        suppressed_group = closing_group;
+        g = closing_group;
+      }
+      if (g == num_groups) break;
+      State before = confirm && !before_closure.has_value() ? state : State();
+      const GroupOutcome outcome = AssociateGroup(groups[g], /*suppress_loop=*/g == suppressed_group, &state);
+      if (before_closure.has_value()) {
+        if (outcome.found_old_landmark) {
+          ++out_->loop_closures_confirmed;
+          before_closure.reset();
+        }
+      } else if (outcome.closed_loop && confirm) {
+        before_closure = std::move(before);
+        closing_group = g;
+      }
+    }
+    association::AssociationResult result;
+    result.landmark_of_detection = std::move(state.landmark_of_feature);
+    result.pairings = static_cast<int>(state.decided.size());
+    out_->uncertain_loop_features = std::move(state.uncertain_loop_features);
+    return result;
+  }
+
+ private:
+  struct State {
+    std::vector<int> landmark_of_feature;  // candidate index per feature (−1: none yet)
+    std::vector<int> decided;              // features paired so far, in order
+    std::vector<char> paired_landmark;     // by candidate index
+    std::vector<int> uncertain_loop_features;
+    bool loop_open = false;
+  };
+  struct GroupOutcome {
+    bool closed_loop = false;         // kept at least min_loop_pairings loop pairings
+    bool found_old_landmark = false;  // paired an old landmark no earlier group had paired
+  };
+
+  // Associates the group's undecided features given the decided ones.
+  GroupOutcome AssociateGroup(const std::vector<int>& group, bool suppress_loop, State* state) {
+    const int n = s_.num_landmarks();
+    std::vector<int> detections = state->decided;
+    for (int i : group) {
+      if (i < 0 || i >= n || state->landmark_of_feature[i] >= 0 || problem_.candidates[i].empty()) continue;
+      if (std::find(detections.begin() + state->decided.size(), detections.end(), i) == detections.end()) {
+        detections.push_back(i);
+      }
+    }
+    const int num_decided = static_cast<int>(state->decided.size()), count = static_cast<int>(detections.size());
+    GroupOutcome outcome;
+    if (count == num_decided) return outcome;
+    association::AssociationProblem sub;
+    sub.candidates.resize(count);
+    sub.required.assign(count, 0);
+    for (int d = 0; d < count; ++d) {
+      const int i = detections[d];
+      if (d < num_decided) {
+        for (const association::AssociationCandidate& cand : problem_.candidates[i]) {
+          if (cand.landmark == state->landmark_of_feature[i]) sub.candidates[d].push_back(cand);
+        }
+        sub.required[d] = 1;
+      } else {
+        sub.candidates[d] = problem_.candidates[i];
+      }
+    }
+    sub.covariance_block = [&](int d1, int a, int d2, int b) {
+      return problem_.covariance_block(detections[d1], a, detections[d2], b);
+    };
+    // An old landmark: one no recent map saw and no earlier group paired (outside the
+    // loop regime no landmark is flagged recent, and none is needed).
+    const auto old = [&](int c) {
+      return c >= 0 && (loop_.recent.empty() || !loop_.recent[candidates_[c]]) && !state->paired_landmark[c];
+    };
+    const auto loop_pairings_of = [&](const association::AssociationResult& r) {
+      int k = 0;
+      for (int d = num_decided; d < count; ++d) k += old(r.landmark_of_detection[d]) ? 1 : 0;
+      return k;
+    };
+    association::AssociationResult r = association::JointCompatibility(sub, o_.gate_probability, o_.jcbb_max_nodes);
+    out_->jcbb_truncated = out_->jcbb_truncated || r.truncated;
+    for (int d = 0; d < num_decided; ++d) {
+      if (r.landmark_of_detection[d] < 0) return outcome;  // could not condition on them: unpaired
+    }
+    const int loop_pairings = loop_pairings_of(r);
+    outcome.found_old_landmark = loop_pairings > 0;
+    if (state->loop_open && loop_pairings > 0) {
+      bool drop = suppress_loop || loop_pairings < o_.min_loop_pairings;
+      if (!suppress_loop && loop_pairings < o_.min_loop_pairings) out_->loop_pairings_dropped += loop_pairings;
+      if (!drop && o_.loop_ambiguity_test) {
+        association::AssociationProblem alternative = sub;
+        for (int d = num_decided; d < count; ++d) {
+          const int c = r.landmark_of_detection[d];
+          if (!old(c)) continue;
+          std::erase_if(alternative.candidates[d],
+                        [c](const association::AssociationCandidate& x) { return x.landmark == c; });
+        }
+        const association::AssociationResult other =
+            association::JointCompatibility(alternative, o_.gate_probability, o_.jcbb_max_nodes);
+        if (loop_pairings_of(other) >= o_.min_loop_pairings) {
+          drop = true;
+          out_->loop_ambiguous = true;
+        }
+      }
+      if (drop) {
+        for (int d = num_decided; d < count; ++d) {
+          int& c = r.landmark_of_detection[d];
+          if (old(c) && !loop_.certain[candidates_[c]]) c = -1;
+        }
+      } else {
+        for (int d = num_decided; d < count; ++d) {
+          if (old(r.landmark_of_detection[d])) state->uncertain_loop_features.push_back(detections[d]);
+        }
+        state->loop_open = false;
+        outcome.closed_loop = true;
+      }
+    }
+    for (int d = num_decided; d < count; ++d) {
+      const int i = detections[d], c = r.landmark_of_detection[d];
+      if (c < 0) continue;
+      state->landmark_of_feature[i] = c;
+      state->paired_landmark[c] = 1;
+      state->decided.push_back(i);
+    }
+    return outcome;
+  }
+
+  const SubmapAssociationOptions& o_;
+  const LocalSubmap& s_;
+  const std::vector<int>& candidates_;
+  const LoopFlags& loop_;
+  const association::AssociationProblem& problem_;
+  SubmapAssociation* out_;
+};
+
 // Step 4: JCBB over the individually compatible pairings, with the joint covariance of P_s
 // and those candidates only; then the loop-closure ambiguity test: with the hypothesis'
 // loop pairings struck out, does another jointly compatible hypothesis still pair as many
@@ -333,6 +519,7 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
                                                  int start_anchor, const std::vector<int>& candidates,
                                                  const CandidateGeometry& geometry, const LoopFlags& loop,
                                                  const TimedCovariance& timed_covariance,
+                                                 const std::vector<std::vector<int>>* groups,
                                                  association::AssociationProblem* problem, SubmapAssociation* out) {
   const int c_count = static_cast<int>(candidates.size());
   std::vector<int> slot(c_count, -1), compatible;
@@ -376,6 +563,7 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
     }
     return projected[key] + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
   };
+  if (groups != nullptr) return GroupedAssociation(o, s, candidates, loop, *problem, out).Solve(*groups);
   association::AssociationResult result = association::JointCompatibility(*problem, o.gate_probability, o.jcbb_max_nodes);
   out->jcbb_truncated = result.truncated;
   const auto closes_loop = [&](int c) { return c >= 0 && !loop.recent[candidates[c]]; };
@@ -441,7 +629,8 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
                                               const JointCovarianceFn& joint_covariance,
                                               bool anchor_prefilter,
                                               const PairCovarianceFn& pair_covariance,
-                                              const PairBoundFn& pair_bound) const {
+                                              const PairBoundFn& pair_bound,
+                                              const std::vector<std::vector<int>>* groups) const {
   if (options_.known_association) return AssociateByTruth(s);
   const int n = s.num_landmarks();
   SubmapAssociation out;
@@ -467,14 +656,15 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
                                               timed_covariance, &out.covariance_seconds);
   association::AssociationProblem problem = IndividualCompatibility(s, candidates, placed, graph, geometry, gate);
   const LoopFlags loop = FlagLoopLandmarks(options_, graph, placed.sigma_xy, candidates, geometry);
+  const bool by_group = groups != nullptr && options_.joint_compatibility;
   association::AssociationResult result =
-      options_.joint_compatibility
-          ? JointlyCompatible(options_, s, start_anchor, candidates, geometry, loop, timed_covariance, &problem, &out)
-          : association::NearestNeighbour(problem);
+      options_.joint_compatibility ? JointlyCompatible(options_, s, start_anchor, candidates, geometry, loop,
+                                                       timed_covariance, by_group ? groups : nullptr, &problem, &out)
+                                   : association::NearestNeighbour(problem);
   for (int i = 0; i < n; ++i) {
     if (result.landmark_of_detection[i] >= 0) out.landmark_of_feature[i] = candidates[result.landmark_of_detection[i]];
   }
-  ApplyLoopPairingTest(options_, loop, &out);
+  if (!by_group) ApplyLoopPairingTest(options_, loop, &out);  // the grouped search applied it per group
   return out;
 }
 

@@ -25,7 +25,7 @@ absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
   std::unique_ptr<MapJoiner> leaf = prototype_->NewEmpty(nodes_.empty() ? initial_pose_ : Pose2());
   if (absl::Status st = leaf->Join(submap); !st.ok()) return st;
   folded_.reset();
-  nodes_.push_back({std::move(leaf), 0});
+  nodes_.push_back({std::move(leaf), 0, std::nullopt});
   if (!options_.running) return absl::OkStatus();
   while (nodes_.size() >= 2 && nodes_[nodes_.size() - 2].level == nodes_.back().level) {
     Node right = std::move(nodes_.back());

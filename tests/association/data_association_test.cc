@@ -4,6 +4,7 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <cmath>
 #include <Eigen/LU>
 #include <functional>
 #include <numeric>
@@ -63,6 +64,30 @@ TEST(JointCompatibility, PrefersConsistentShiftedHypothesis) {
   const AssociationResult r = JointCompatibility(p, 0.99, 1000);
   EXPECT_EQ(r.pairings, 2);
   EXPECT_EQ(r.landmark_of_detection, (std::vector<int>{0, 1}));
+}
+
+// Required pairings are in every hypothesis, ungated, and the others are gated given
+// them: d² − d²_required against χ²_{2k} for their k pairings. Detection 1's pairing
+// (d² = 10, independent of detection 0's) fails χ²₂(0.99) = 9.21 given detection 0's;
+// searched together with detection 0's instead, the pair passes χ²₄(0.99) = 13.28.
+TEST(JointCompatibility, GatesTheOtherPairingsGivenTheRequiredOnes) {
+  AssociationProblem p;
+  p.candidates = {{C(0, 0.0, 0.0)}, {C(1, std::sqrt(10.0), 0.0)}};
+  p.covariance_block = [](int, int a, int, int b) -> Eigen::Matrix2d {
+    return Eigen::Matrix2d::Identity() * (a == b ? 1.0 : 0.0);
+  };
+  EXPECT_EQ(JointCompatibility(p, 0.99, 1000).pairings, 2);
+  p.required = {1, 0};
+  const AssociationResult given = JointCompatibility(p, 0.99, 1000);
+  EXPECT_EQ(given.landmark_of_detection, (std::vector<int>{0, -1}));
+  // A required pairing is kept whatever its d² (decided before), and counted.
+  p.candidates = {{C(0, 4.0, 0.0)}, {C(1, 1.0, 0.0)}};
+  const AssociationResult kept = JointCompatibility(p, 0.99, 1000);
+  EXPECT_EQ(kept.landmark_of_detection, (std::vector<int>{0, 1}));
+  EXPECT_NEAR(kept.joint_d2, 17.0, 1e-12);
+  // Not required, the first pairing alone fails its gate (16 > 9.21).
+  p.required.clear();
+  EXPECT_EQ(JointCompatibility(p, 0.99, 1000).landmark_of_detection, (std::vector<int>{-1, 1}));
 }
 
 // The joint d² JCBB reports for its hypothesis (built one 2 × 2 block row of the

@@ -103,9 +103,9 @@ int ClosingPairings(const EifJoiner& j) {
 TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
   using loop_confirmation::ClosingPairings;
   EifJoinerOptions options;
-  ASSERT_EQ(options.loop_confirmation_maps, 3);
+  ASSERT_EQ(options.association.loop_confirmation_maps, 3);
   EifJoinerOptions off = options;
-  off.loop_confirmation_maps = 0;
+  off.association.loop_confirmation_maps = 0;
   // A true closure: confirmed by the next map, and kept.
   {
     EifJoiner eif(Pose2(0, 0, 0), options);

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <vector>
 
 namespace subslam::backend {
@@ -179,10 +180,74 @@ TEST(SubmapAssociator, AmbiguityTestDropsALoopClosureThatAShiftedRowFitsAsWell) 
   EXPECT_EQ(clear.landmark_of_feature, (std::vector<int>{row[0], row[1], row[2], row[3]}));
 }
 
+// A whole map (tree joining) is associated group by group, each group one of its local
+// maps: the loop tests weigh each group's own pairings, as sequential joins would. Two
+// local maps that each see two old landmarks make two thin closures, both dropped; one
+// JCBB over the whole map would see four and keep them.
+TEST(SubmapAssociator, WholeMapLoopTestsApplyToEachLocalMap) {
+  const LoopFixture f;
+  const SubmapAssociator associator{SubmapAssociationOptions{}};
+  const LocalSubmap whole = f.NewMap(4);  // features: 2 recent, then old landmarks 0-3
+  const std::vector<std::vector<int>> two_maps = {{0, 1, 2, 3}, {0, 1, 4, 5}};
+  const SubmapAssociation grouped =
+      associator.Associate(whole, 4, f.graph, Covariance(3.0), /*anchor_prefilter=*/false, nullptr, nullptr,
+                           &two_maps);
+  EXPECT_EQ(OldPairings(grouped), 0);
+  EXPECT_EQ(grouped.loop_pairings_dropped, 4);  // 2 + 2
+  EXPECT_EQ(grouped.landmark_of_feature[0], 5);
+  EXPECT_EQ(grouped.landmark_of_feature[1], 6);
+  const SubmapAssociation at_once = associator.Associate(whole, 4, f.graph, Covariance(3.0), false);
+  EXPECT_EQ(OldPairings(at_once), 4);
+  // One local map that sees all four closes the loop.
+  const std::vector<std::vector<int>> one_map = {{0, 1}, {0, 1, 2, 3, 4, 5}};
+  const SubmapAssociation closed =
+      associator.Associate(whole, 4, f.graph, Covariance(3.0), false, nullptr, nullptr, &one_map);
+  EXPECT_EQ(OldPairings(closed), 4);
+  EXPECT_EQ(closed.uncertain_loop_features, (std::vector<int>{2, 3, 4, 5}));
+}
+
+// loop_confirmation_maps within a whole map: under a lost start anchor (3σ ≥ 60 m) a
+// closure by one local map stands only if a later one pairs another old landmark; one
+// made by the whole map's last local map waits for maps a later join brings, so it is
+// undone here. With the anchor known better (3σ < 60 m) it stands at once.
+TEST(SubmapAssociator, WholeMapLoopClosuresUnderALostAnchorNeedConfirmation) {
+  const LoopFixture f;
+  SubmapAssociationOptions options;
+  options.loop_ambiguity_test = false;  // a row 12 m apart under σ = 25 m is ambiguous
+  ASSERT_EQ(options.loop_confirmation_maps, 3);
+  const SubmapAssociator associator(options);
+  const LocalSubmap whole = f.NewMap(5);  // 2 recent, then old landmarks 0-4
+  const auto associate = [&](const std::vector<std::vector<int>>& groups, double sigma) {
+    return associator.Associate(whole, 4, f.graph, Covariance(sigma), false, nullptr, nullptr, &groups);
+  };
+  const SubmapAssociation confirmed = associate({{0, 1, 2, 3, 4, 5}, {0, 1}, {0, 1, 6}}, 25.0);
+  EXPECT_EQ(OldPairings(confirmed), 5);
+  EXPECT_EQ(confirmed.loop_closures_confirmed, 1);
+  EXPECT_EQ(confirmed.loop_closures_unconfirmed, 0);
+  // Landmark 4 seen only after three more maps: too late.
+  const SubmapAssociation late = associate({{0, 1, 2, 3, 4, 5}, {0, 1}, {0, 1}, {0, 1}, {0, 1, 6}}, 25.0);
+  EXPECT_EQ(late.loop_closures_unconfirmed, 1);
+  EXPECT_EQ(late.landmark_of_feature[2], -1);  // the closing map's loop pairings are gone
+  EXPECT_EQ(late.landmark_of_feature[0], 5);
+  const SubmapAssociation at_end = associate({{0, 1}, {0, 1, 2, 3, 4, 5}}, 25.0);
+  EXPECT_EQ(OldPairings(at_end), 0);
+  EXPECT_EQ(at_end.loop_closures_unconfirmed, 1);
+  EXPECT_EQ(at_end.loop_pairings_dropped, 0);  // undone, not thin
+  const SubmapAssociation known = associate({{0, 1}, {0, 1, 2, 3, 4, 5}}, 15.0);
+  EXPECT_EQ(OldPairings(known), 4);
+  EXPECT_EQ(known.loop_closures_unconfirmed, 0);
+}
+
 TEST(SubmapAssociationOptions, ValidationRejectsNonsense) {
   SubmapAssociationOptions o;
   EXPECT_TRUE(o.Validate().ok());
   o.loop_test_min_sigma_radius_m = -1.0;
+  EXPECT_FALSE(o.Validate().ok());
+  o = SubmapAssociationOptions();
+  o.loop_confirmation_maps = -1;
+  EXPECT_FALSE(o.Validate().ok());
+  o = SubmapAssociationOptions();
+  o.loop_confirmation_min_sigma_radius_m = NAN;
   EXPECT_FALSE(o.Validate().ok());
 }
 

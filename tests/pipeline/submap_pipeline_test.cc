@@ -532,10 +532,10 @@ TEST(BackendOptions, RejectsBadInput) {
   o.eif.relinearize_step_chi2 = NAN;
   EXPECT_FALSE(o.Validate().ok());
   o = {};
-  o.eif.loop_confirmation_maps = -1;  // --join_loop_confirmation_maps
+  o.eif.association.loop_confirmation_maps = -1;  // --join_loop_confirmation_maps
   EXPECT_FALSE(o.Validate().ok());
   o = {};
-  o.eif.loop_confirmation_min_sigma_radius_m = NAN;
+  o.eif.association.loop_confirmation_min_sigma_radius_m = NAN;
   EXPECT_FALSE(o.Validate().ok());
   o = {};
   o.eif.max_relinearizations = 0;  // --max_relinearizations

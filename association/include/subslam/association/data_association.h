@@ -14,7 +14,8 @@
 //    the detections with the fewest candidates first (ties in detection order). The
 //    joint test uses an incrementally extended Cholesky factor, O(k²) per node; the
 //    search stops after `max_nodes` nodes and returns the best hypothesis found so far
-//    (reported).
+//    (reported). Pairings decided beforehand can be given as required (the
+//    innovations are then gated conditionally on them).
 //
 // Not thread-safe per problem; the functions are re-entrant.
 #ifndef SUBSLAM_ASSOCIATION_DATA_ASSOCIATION_H_
@@ -46,6 +47,11 @@ struct AssociationProblem {
   // and pairing (detection j, landmark b); the diagonal (i = j, a = b) includes the
   // measurement noise. Needed by JointCompatibility only.
   std::function<Eigen::Matrix2d(int i, int a, int j, int b)> covariance_block;
+  // JointCompatibility only: detections whose pairing is already decided (their one
+  // candidate is in every hypothesis; empty: none). The search conditions on them, as a
+  // filter that had fused them would: the other pairings' joint innovation given theirs,
+  // d² − d²_required, must pass χ²_{2k} for those k pairings.
+  std::vector<char> required;
 };
 
 struct AssociationResult {

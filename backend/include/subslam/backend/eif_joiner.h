@@ -82,32 +82,12 @@ struct EifJoinerOptions {
   // correction).
   bool validate_joins = false;
   double validation_probability = 0.999;
-  // Loop-closure confirmation (beyond the papers).
-  //  - When: a loop closure made while the start anchor is lost, 3σ of its position at
-  //    least `loop_confirmation_min_sigma_radius_m` (default association's 2·TH1: the map
-  //    could lie anywhere in an area wider than the sensor's reach, so matching it is
-  //    relocalisation, where chance fits of a few features abound).
-  //  - Rule: it stands only if one of the next `loop_confirmation_maps` local maps pairs
-  //    a feature with an old landmark the closure did not use — one that existed before
-  //    the closing map, that the recent maps before it did not see, and that no map since
-  //    has seen. A true closure leads on into mapped ground; a chance fit finds nothing
-  //    more.
-  //  - Otherwise: every join from the closing map on is undone (the joiner returns to its
-  //    state before that map) and the maps are joined again, the closing one without its
-  //    loop pairings (its features become new landmarks). The online estimate carries the
-  //    closure meanwhile; a closure still waiting at Finish() or at a whole-map (tree)
-  //    join stands.
-  //  - Scope: it rides on association's loop regime (min_loop_pairings > 1, estimated
-  //    association), and needs the estimate after the closure to be right, so it applies
-  //    only while the joiner relinearises after joins (RelinearizesAfterJoins()). With a
-  //    single linearisation the estimate after a correction of a hundred
-  //    metres is too far off for the next maps to find the old map: combined-2km's
-  //    correct closures were all undone. 0 maps: off.
-  //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
-  //    wrong closure (RBPF maps, seed 7) found no such landmark in its next three maps;
-  //    every correct first closure found one within three (bench/RESULTS.md).
-  int loop_confirmation_maps = 3;
-  double loop_confirmation_min_sigma_radius_m = 60.0;
+  // Loop-closure confirmation: association.loop_confirmation_maps (submap_association.h).
+  // The sequential EIF undoes an unconfirmed closure's joins and joins the maps again;
+  // it needs the estimate after the closure to be right, so it confirms only while it
+  // relinearises after joins (RelinearizesAfterJoins()). With a single linearisation the
+  // estimate after a correction of a hundred metres is too far off for the next maps to
+  // find the old map: combined-2km's correct closures were all undone.
   // Relinearisation.
   int relinearize_every = 0;       // every K joins (0: not on a schedule)
   // At Finish(): Gauss-Newton to convergence, so that the final anchors and map are the
@@ -419,8 +399,10 @@ class EifJoiner final : public MapJoiner {
   // For each landmark, the 5 × 5 marginal of [anchor, landmark] where a factor couples
   // the two (read off the sparse inverse on the factor's pattern).
   std::vector<Matrix5d> FactorMarginals(int anchor, const std::vector<int>& landmarks) const;
-  // Association of `s` (starting at anchor `start`) with the map, timed and counted.
-  SubmapAssociation AssociateAt(const LocalSubmap& s, int start, bool anchor_prefilter);
+  // Association of `s` (starting at anchor `start`) with the map, timed and counted: a
+  // local map, or with `whole_map_groups` a whole map's summary (SubmapAssociator::Associate).
+  SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
+                  const std::vector<std::vector<int>>* whole_map_groups = nullptr);
   Eigen::VectorXd StateVector() const;
   void SetState(const Eigen::VectorXd& x);
   // The same for the listed state rows only (the rest already hold x).

@@ -39,7 +39,8 @@ struct JoinerCounters {
   long loop_closures_thin = 0;
   long loop_closures_ambiguous = 0;
   // Loop closures made under an uncertain start anchor that the next local maps did or
-  // did not confirm (the EIF's loop_confirmation_maps); unconfirmed ones were undone.
+  // did not confirm (association.loop_confirmation_maps: the sequential EIF, and every
+  // whole-map join); unconfirmed ones were undone.
   long loop_closures_confirmed = 0;
   long loop_closures_unconfirmed = 0;
   // Closing maps of unconfirmed loop closures joined again with their first association

@@ -82,6 +82,27 @@ struct SubmapAssociationOptions {
   bool keep_certain_loop_pairings = true;
   int recent_maps = 2;
   double loop_test_min_sigma_radius_m = 5.0;
+  // Loop-closure confirmation (beyond the papers).
+  //  - When: a loop closure made while the start anchor is lost, 3σ of its position at
+  //    least `loop_confirmation_min_sigma_radius_m` (default 2·TH1: the map could lie
+  //    anywhere in an area wider than the sensor's reach, so matching it is
+  //    relocalisation, where chance fits of a few features abound).
+  //  - Rule: it stands only if one of the next `loop_confirmation_maps` local maps pairs
+  //    a feature with an old landmark the closure did not use — one that existed before
+  //    the closing map, that the recent maps before it did not see, and that no map since
+  //    has seen. A true closure leads on into mapped ground; a chance fit finds nothing
+  //    more.
+  //  - Otherwise: the closing map is associated again without its loop pairings (its
+  //    features become new landmarks), and the maps after it again after it. The
+  //    sequential EIF applies it across joins (eif_joiner.h: it undoes the joins since);
+  //    a whole-map join applies it across the groups of its association (a closure
+  //    still waiting at the last group stands).
+  //  - Scope: it rides on the loop regime (min_loop_pairings > 1). 0 maps: off.
+  //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
+  //    wrong closure (RBPF maps, seed 7) found no such landmark in its next three maps;
+  //    every correct first closure found one within three (bench/RESULTS.md).
+  int loop_confirmation_maps = 3;
+  double loop_confirmation_min_sigma_radius_m = 60.0;
 
   absl::Status Validate() const;
 };
@@ -94,6 +115,10 @@ struct SubmapAssociation {
   // keep_certain_loop_pairings, included).
   int loop_pairings_dropped = 0;
   bool loop_ambiguous = false;           // a loop closure dropped by loop_ambiguity_test
+  // Whole-map joins: loop closures by a group that a later group did or did not confirm
+  // (loop_confirmation_maps; an unconfirmed one was undone).
+  int loop_closures_confirmed = 0;
+  int loop_closures_unconfirmed = 0;
   // A loop closure kept under an uncertain start anchor (the regime of the loop tests):
   // the features paired with landmarks no recent map saw (empty: none kept, or the anchor
   // was certain).
@@ -107,6 +132,10 @@ struct SubmapAssociation {
   // √ of the largest eigenvalue of its position block [m] (unset under known association).
   double start_position_sigma_m = NAN;
 };
+
+// The features of each local map of `graph` (its landmarks, as SummarizeAsLocalSubmap
+// numbers them), in the order the maps were joined: Associate's groups for a whole-map join.
+std::vector<std::vector<int>> WholeMapGroups(const SubmapGraph& graph);
 
 class SubmapAssociator {
  public:
@@ -133,11 +162,18 @@ class SubmapAssociator {
   // (the current estimate), with the landmarks of `graph`. `anchor_prefilter` false skips
   // step 1's anchor test (every landmark near a feature is a candidate): for joining a
   // whole map, whose features lie far from its start anchor (tree joining).
+  // `groups` (optional, with joint compatibility): the submap is a whole map and these are
+  // the features of each of its local maps, in time order (WholeMapGroups). Steps 4-5 then
+  // run group by group, each given the pairings kept before it, with the loop tests on
+  // each group's own pairings: one JCBB over hundreds of features would exhaust its node
+  // budget, and the loop tests, made for one local map's few features, would weigh a whole
+  // map's pairings against chance fits of its many others.
   SubmapAssociation Associate(const LocalSubmap& submap, int start_anchor, const SubmapGraph& graph,
                               const JointCovarianceFn& joint_covariance,
                               bool anchor_prefilter = true,
                               const PairCovarianceFn& pair_covariance = nullptr,
-                              const PairBoundFn& pair_bound = nullptr) const;
+                              const PairBoundFn& pair_bound = nullptr,
+                              const std::vector<std::vector<int>>* groups = nullptr) const;
 
   // After the join: `landmark_of_feature` is the final landmark of each feature; landmarks
   // numbered `first_new_landmark` and up were created by this join. Records signatures and,
