@@ -74,6 +74,10 @@ ABSL_FLAG(bool, join_merge, EifDefaults().revision.merge,
           "point (chi2 test on their difference with their joint marginal; never two that one "
           "local map holds apart; mutual best partners, unambiguous, their relative position "
           "known to 3 sigma below --join_loop_test_sigma)");
+ABSL_FLAG(bool, join_merge_loops, EifDefaults().revision.merge_loops,
+          "also merge pairs known relative to each other only to metres when at least "
+          "--join_min_loop_pairings of them are jointly compatible and unambiguous (a loop "
+          "closure too thin for any one local map)");
 ABSL_FLAG(bool, join_merge_unresolved, EifDefaults().revision.merge_unresolved,
           "also merge a pair that a single local map could not tell apart (the test with each "
           "landmark's typical feature covariance)");
@@ -148,6 +152,7 @@ backend::LandmarkRevisionOptions RevisionOptionsFromFlags() {
   backend::LandmarkRevisionOptions o;
   o.merge = absl::GetFlag(FLAGS_join_merge);
   o.merge_unresolved = absl::GetFlag(FLAGS_join_merge_unresolved);
+  o.merge_loops = absl::GetFlag(FLAGS_join_merge_loops);
   o.merge_probability = absl::GetFlag(FLAGS_join_merge_gate);
   o.split = absl::GetFlag(FLAGS_join_split);
   o.split_probability = absl::GetFlag(FLAGS_join_split_level);

@@ -353,7 +353,9 @@ absl::Status EkfJoiner::ReviseAssociation() {
   for (int j = 0; j < graph_.num_landmarks(); ++j) marginals[j] = P_.block<2, 2>(landmark_offset_[j], landmark_offset_[j]);
   const std::vector<LandmarkMerge> merges = FindLandmarkMerges(
       graph_, marginals, [this](int a, int b) -> Eigen::Matrix4d { return JointCovariance({}, {a, b}); },
-      options_.revision, options_.association.loop_test_min_sigma_radius_m);
+      options_.revision, options_.association.loop_test_min_sigma_radius_m, {},
+      LoopMergeTests{options_.association.min_loop_pairings, options_.association.loop_confirmation_min_sigma_radius_m,
+                     [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }});
   for (const LandmarkMerge& m : merges) {  // drop descending: later indices stay valid
     if (absl::Status st = MergeLandmarks(m.keep, m.drop); !st.ok()) return st;
   }

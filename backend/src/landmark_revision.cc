@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "subslam/association/data_association.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
@@ -48,6 +49,70 @@ double LargestSigma(const Eigen::Matrix2d& m) {
   return std::sqrt(std::max(0.0, largest));
 }
 
+// Loop merges: among the candidate pairs (each passing the χ² test, each known only to
+// metres), the largest set whose differences are jointly compatible (JCBB: the newer
+// landmark of each pair a detection, its older partners the candidates), kept when it has
+// at least `min_pairings` pairs and no other jointly compatible set of as many remains
+// with its pairs struck out. Disjoint pairs only.
+std::vector<LandmarkMerge> LoopMerges(const SubmapGraph& graph, const std::vector<LandmarkMerge>& pairs,
+                                      const LandmarkJointCovarianceFn& joint_covariance, double probability,
+                                      int min_pairings) {
+  std::vector<LandmarkMerge> out;
+  std::vector<int> newer;  // the detections
+  for (const LandmarkMerge& m : pairs) {
+    if (std::find(newer.begin(), newer.end(), m.drop) == newer.end()) newer.push_back(m.drop);
+  }
+  if (static_cast<int>(newer.size()) < min_pairings) return out;
+  std::vector<int> involved;  // every landmark of a pair: the joint marginal's order
+  for (const LandmarkMerge& m : pairs) {
+    for (int j : {m.keep, m.drop}) {
+      if (std::find(involved.begin(), involved.end(), j) == involved.end()) involved.push_back(j);
+    }
+  }
+  const Eigen::MatrixXd Sigma = joint_covariance(involved);
+  const auto row = [&](int j) {
+    return 2 * static_cast<int>(std::find(involved.begin(), involved.end(), j) - involved.begin());
+  };
+  const auto& L = graph.landmarks();
+  association::AssociationProblem problem;
+  problem.candidates.resize(newer.size());
+  for (const LandmarkMerge& m : pairs) {
+    const int d = static_cast<int>(std::find(newer.begin(), newer.end(), m.drop) - newer.begin());
+    problem.candidates[d].push_back({m.keep, m.d2, L[m.drop] - L[m.keep]});
+  }
+  for (auto& list : problem.candidates) {
+    std::sort(list.begin(), list.end(), [](const association::AssociationCandidate& x,
+                                           const association::AssociationCandidate& y) {
+      return x.d2 < y.d2 || (x.d2 == y.d2 && x.landmark < y.landmark);
+    });
+  }
+  // Cov(L_d − L_a, L_e − L_b).
+  problem.covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
+    const int d = row(newer[i]), e = row(newer[k]), ra = row(a), rb = row(b);
+    return Sigma.block<2, 2>(d, e) - Sigma.block<2, 2>(d, rb) - Sigma.block<2, 2>(ra, e) + Sigma.block<2, 2>(ra, rb);
+  };
+  constexpr long kMaxNodes = 20000;
+  const association::AssociationResult best = association::JointCompatibility(problem, probability, kMaxNodes);
+  if (best.pairings < min_pairings) return out;
+  association::AssociationProblem alternative = problem;
+  for (size_t d = 0; d < newer.size(); ++d) {
+    const int a = best.landmark_of_detection[d];
+    std::erase_if(alternative.candidates[d], [a](const association::AssociationCandidate& c) { return c.landmark == a; });
+  }
+  if (association::JointCompatibility(alternative, probability, kMaxNodes).pairings >= min_pairings) return out;
+  std::vector<char> used(graph.num_landmarks(), 0);
+  for (size_t d = 0; d < newer.size(); ++d) {
+    const int a = best.landmark_of_detection[d];
+    if (a < 0) continue;
+    if (used[a] || used[newer[d]]) return {};  // a chain of copies: left to the pairwise test
+    used[a] = used[newer[d]] = 1;
+    double d2 = NAN;
+    for (const association::AssociationCandidate& c : problem.candidates[d]) d2 = c.landmark == a ? c.d2 : d2;
+    out.push_back({a, newer[d], d2});
+  }
+  return out;
+}
+
 }  // namespace
 
 std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
@@ -55,7 +120,8 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
                                               const LandmarkPairCovarianceFn& pair_covariance,
                                               const LandmarkRevisionOptions& options,
                                               double loop_sigma_radius_m,
-                                              const std::vector<char>& touched) {
+                                              const std::vector<char>& touched,
+                                              const LoopMergeTests& loop_merges) {
   const int n = graph.num_landmarks();
   std::vector<LandmarkMerge> out;
   if (!options.merge || n < 2) return out;
@@ -97,7 +163,7 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
   // Pairs that pass a test: along any direction u, uᵀ Cov(Δ) u ≤ (σ_a + σ_b)² (and
   // uᵀ (Q̃_a + Q̃_b) u ≤ σ̃_a² + σ̃_b²), so |Δ|² / (σ_a + σ_b)² bounds d² from below and
   // the pre-filter loses no such pair.
-  std::vector<LandmarkMerge> passing;
+  std::vector<LandmarkMerge> passing, uncertain;
   for (int p = 0; p < n; ++p) {
     const int a = by_x[p];
     for (int q = p + 1; q < n; ++q) {
@@ -121,7 +187,12 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
       if (!(d2 < gate) && !(d2_res < gate)) continue;
       // A pair whose relative position is uncertain to 3σ ≥ loop_sigma_radius_m is a loop
       // closure with one pairing, in the regime where association asks for several.
-      if (3.0 * LargestSigma(C) >= loop_sigma_radius_m) continue;
+      if (3.0 * LargestSigma(C) >= loop_sigma_radius_m) {
+        if (d2 < gate && 3.0 * LargestSigma(C) < loop_merges.max_sigma_radius_m) {
+          uncertain.push_back({std::min(a, b), std::max(a, b), d2});
+        }
+        continue;
+      }
       passing.push_back({std::min(a, b), std::max(a, b), d2});
     }
   }
@@ -148,6 +219,15 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
     if (best[m.keep] != p || best[m.drop] != p) continue;
     if (ambiguous(m.keep, m.drop) || ambiguous(m.drop, m.keep)) continue;
     out.push_back(m);
+  }
+  if (options.merge_loops && loop_merges.joint_covariance && loop_merges.min_pairings >= 1) {
+    std::vector<char> merged(n, 0);
+    for (const LandmarkMerge& m : out) merged[m.keep] = merged[m.drop] = 1;
+    std::erase_if(uncertain, [&](const LandmarkMerge& m) { return merged[m.keep] || merged[m.drop]; });
+    for (const LandmarkMerge& m : LoopMerges(graph, uncertain, loop_merges.joint_covariance,
+                                             options.merge_probability, loop_merges.min_pairings)) {
+      out.push_back(m);
+    }
   }
   std::sort(out.begin(), out.end(), [](const LandmarkMerge& x, const LandmarkMerge& y) { return x.drop > y.drop; });
   return out;

@@ -333,6 +333,80 @@ TEST(LandmarkRevision, BadEkfRequestsGetAClearError) {
   EXPECT_EQ(ekf.num_landmarks(), n);
 }
 
+// Loop merges: old landmarks held by one local map, and copies of some of them made by a
+// later map after a long drift (their offset known only to σ = 2 m, one offset common to
+// them all: the drift). Each pair passes the χ² test but is known only to 3σ = 6 m, so no
+// pair merges alone; four jointly compatible pairs close the loop together.
+struct LoopCopies {
+  SubmapGraph graph{Pose2(0, 0, 0)};
+  std::vector<int> old_landmarks, copies;
+  Eigen::MatrixXd Sigma;  // joint marginal of every landmark
+
+  // Old landmarks 0 … num_old − 1 on a row `spacing` m apart; copies of the first
+  // `num_copies`, offset by `offset` plus each copy's own `scatter` (m).
+  LoopCopies(int num_old, double spacing, int num_copies, const Eigen::Vector2d& offset,
+             const std::vector<Eigen::Vector2d>& scatter = {}) {
+    graph.AddAnchor(Pose2(10, 0, 0));
+    graph.AddAnchor(Pose2(20, 0, 0));
+    for (int i = 0; i < num_old; ++i) old_landmarks.push_back(graph.AddLandmark(Eigen::Vector2d(spacing * i, 8.0)));
+    for (int i = 0; i < num_copies; ++i) {
+      const Eigen::Vector2d own = scatter.empty() ? Eigen::Vector2d::Zero() : scatter[i];
+      copies.push_back(graph.AddLandmark(graph.landmarks()[old_landmarks[i]] + offset + own));
+    }
+    // The local maps' own features (their covariance is what the merge test reads).
+    const auto map_of = [](int features) {
+      LocalSubmap s;
+      s.mean = Eigen::VectorXd::Zero(3 + 2 * features);
+      s.covariance = 0.01 * Eigen::MatrixXd::Identity(3 + 2 * features, 3 + 2 * features);
+      return s;
+    };
+    graph.AddFactor({map_of(num_old), 0, 1, old_landmarks});
+    graph.AddFactor({map_of(num_copies), 1, 2, copies});
+    const int n = graph.num_landmarks();
+    Sigma = 0.01 * Eigen::MatrixXd::Identity(2 * n, 2 * n);
+    for (int a : copies) {
+      for (int b : copies) Sigma.block<2, 2>(2 * a, 2 * b) += 4.0 * Eigen::Matrix2d::Identity();
+    }
+  }
+
+  std::vector<LandmarkMerge> Merges(int min_loop_pairings, bool merge_loops = true,
+                                    double max_sigma_radius_m = 60.0) const {
+    std::vector<Eigen::Matrix2d> marginals;
+    for (int j = 0; j < graph.num_landmarks(); ++j) marginals.push_back(Sigma.block<2, 2>(2 * j, 2 * j));
+    LandmarkRevisionOptions options;
+    options.merge_loops = merge_loops;
+    const auto pair = [this](int a, int b) -> Eigen::Matrix4d {
+      const std::vector<int> rows = {2 * a, 2 * a + 1, 2 * b, 2 * b + 1};
+      return Sigma(rows, rows);
+    };
+    const auto joint = [this](const std::vector<int>& landmarks) -> Eigen::MatrixXd {
+      std::vector<int> rows;
+      for (int j : landmarks) rows.insert(rows.end(), {2 * j, 2 * j + 1});
+      return Sigma(rows, rows);
+    };
+    return FindLandmarkMerges(graph, marginals, pair, options, /*loop_sigma_radius_m=*/5.0, {},
+                              LoopMergeTests{min_loop_pairings, max_sigma_radius_m, joint});
+  }
+};
+
+TEST(LandmarkRevision, CopiesOfALoopMergeTogetherWhenEnoughAgree) {
+  const Eigen::Vector2d offset(3.0, 1.0);
+  const LoopCopies four(4, 12.0, 4, offset);
+  const std::vector<LandmarkMerge> merges = four.Merges(4);
+  ASSERT_EQ(merges.size(), 4u);
+  for (const LandmarkMerge& m : merges) EXPECT_EQ(m.drop, four.copies[m.keep]) << m.keep;  // copy i with old i
+  EXPECT_TRUE(four.Merges(4, /*merge_loops=*/false).empty());
+  // Known only to 3σ = 6 m: beyond a 5 m confirmation radius, relocalisation, not merged.
+  EXPECT_TRUE(four.Merges(4, true, /*max_sigma_radius_m=*/5.0).empty());
+  // Three pairs: a thin loop closure, not made.
+  EXPECT_TRUE(LoopCopies(4, 12.0, 3, offset).Merges(4).empty());
+  // Four copies whose own offsets disagree by metres: no common drift explains them.
+  const std::vector<Eigen::Vector2d> scatter = {{2.5, 0}, {-2.5, 0}, {0, 2.5}, {0, -2.5}};
+  EXPECT_TRUE(LoopCopies(4, 12.0, 4, offset, scatter).Merges(4).empty());
+  // A row 2 m apart: the copies fit the row shifted by one landmark about as well.
+  EXPECT_TRUE(LoopCopies(6, 2.0, 4, offset).Merges(4).empty());
+}
+
 TEST(LandmarkRevision, OptionsAreValidated) {
   LandmarkRevisionOptions o;
   EXPECT_TRUE(o.Validate().ok());

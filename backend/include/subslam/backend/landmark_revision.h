@@ -16,6 +16,18 @@
 //    regime where association asks for several (min_loop_pairings): not a merge.
 //    (Also, with merge_unresolved, a pair closer than any one local map could resolve.)
 //    The joiner then solves for the merged landmark (the conditional mean given Δ = 0).
+//  - loop merge (merge_loops): pairs that pass the χ² test but are known relative to
+//    each other only to metres are merged together when there are at least the
+//    association's min_loop_pairings of them whose differences are jointly compatible
+//    (JCBB over the candidate pairs with their differences' joint covariance: one loop
+//    offset explains them all) and no other jointly compatible choice of as many pairs
+//    remains once theirs are struck out (the association's ambiguity test). Copies left
+//    by loop closures too thin to make at join time — local maps with fewer features than
+//    min_loop_pairings, as when few landmarks are detected — so close the loop once
+//    enough of them have accumulated. Only pairs known to 3σ below the association's
+//    loop_confirmation_min_sigma_radius_m take part: beyond it a match is relocalisation,
+//    where association makes no closure without the confirmation of later maps, and a
+//    merge has no later maps to ask.
 //  - split: a feature i of a local map leaves its landmark j (for a landmark of its own)
 //    when its residual r = P_s⁻¹·L_j − l_i fails the outlier test: rᵀ C⁻¹ r with
 //    C = Q_ii − J Σ Jᵀ, the residual's covariance in the linear-Gaussian model (Q_ii the
@@ -65,6 +77,7 @@ struct LandmarkRevisionOptions {
   // the Gauss-Newton after each applied merge, Victoria Park's command takes 1.5× as
   // long as without merges (bench/RESULTS.md).
   int every_joins = 10;
+  bool merge_loops = true;
 
   bool enabled() const { return merge || split; }
   absl::Status Validate() const;
@@ -84,6 +97,8 @@ struct FeatureSplit {
 
 // Joint marginal covariance [L_a, L_b] (4 × 4).
 using LandmarkPairCovarianceFn = std::function<Eigen::Matrix4d(int a, int b)>;
+// Joint marginal covariance of the listed landmarks (2 rows each, in order).
+using LandmarkJointCovarianceFn = std::function<Eigen::MatrixXd(const std::vector<int>& landmarks)>;
 // For each landmark, the 5 × 5 marginal of [anchor, landmark] (a fixed anchor: zero rows).
 using AnchorLandmarkCovarianceFn =
     std::function<std::vector<Eigen::Matrix<double, 5, 5>>(int anchor, const std::vector<int>& landmarks)>;
@@ -95,12 +110,19 @@ using AnchorLandmarkCovarianceFn =
 // the pre-filter: a pair farther apart than √gate · (σ_a + σ_b), σ the largest standard
 // deviation, cannot pass). With `touched` (one flag per landmark) only pairs with a
 // touched landmark are tested: those whose own evidence changed since the last pass.
+// Loop merges need `joint_covariance` and the association's loop tests (`loop_merges`).
+struct LoopMergeTests {
+  int min_pairings = 0;                   // min_loop_pairings (< 1: no loop merges)
+  double max_sigma_radius_m = 0.0;        // loop_confirmation_min_sigma_radius_m
+  LandmarkJointCovarianceFn joint_covariance;
+};
 std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
                                               const std::vector<Eigen::Matrix2d>& marginals,
                                               const LandmarkPairCovarianceFn& pair_covariance,
                                               const LandmarkRevisionOptions& options,
                                               double loop_sigma_radius_m,
-                                              const std::vector<char>& touched = {});
+                                              const std::vector<char>& touched = {},
+                                              const LoopMergeTests& loop_merges = {});
 
 // The worst feature whose residual fails the outlier test (empty: none fails), of a
 // landmark that keeps at least one other feature.
