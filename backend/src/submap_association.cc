@@ -3,7 +3,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <memory>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
