@@ -58,27 +58,29 @@ std::vector<LandmarkMerge> LoopMerges(const SubmapGraph& graph, const std::vecto
                                       const LandmarkJointCovarianceFn& joint_covariance, double probability,
                                       int min_pairings) {
   std::vector<LandmarkMerge> out;
-  std::vector<int> newer;  // the detections
+  const int n = graph.num_landmarks();
+  std::vector<int> newer;                 // the detections
+  std::vector<int> detection_of(n, -1);   // by landmark
+  std::vector<int> involved;              // every landmark of a pair: the joint marginal's order
+  std::vector<int> row_of(n, -1);         // its first row there
   for (const LandmarkMerge& m : pairs) {
-    if (std::find(newer.begin(), newer.end(), m.drop) == newer.end()) newer.push_back(m.drop);
-  }
-  if (static_cast<int>(newer.size()) < min_pairings) return out;
-  std::vector<int> involved;  // every landmark of a pair: the joint marginal's order
-  for (const LandmarkMerge& m : pairs) {
+    if (detection_of[m.drop] < 0) {
+      detection_of[m.drop] = static_cast<int>(newer.size());
+      newer.push_back(m.drop);
+    }
     for (int j : {m.keep, m.drop}) {
-      if (std::find(involved.begin(), involved.end(), j) == involved.end()) involved.push_back(j);
+      if (row_of[j] >= 0) continue;
+      row_of[j] = 2 * static_cast<int>(involved.size());
+      involved.push_back(j);
     }
   }
+  if (static_cast<int>(newer.size()) < min_pairings) return out;
   const Eigen::MatrixXd Sigma = joint_covariance(involved);
-  const auto row = [&](int j) {
-    return 2 * static_cast<int>(std::find(involved.begin(), involved.end(), j) - involved.begin());
-  };
   const auto& L = graph.landmarks();
   association::AssociationProblem problem;
   problem.candidates.resize(newer.size());
   for (const LandmarkMerge& m : pairs) {
-    const int d = static_cast<int>(std::find(newer.begin(), newer.end(), m.drop) - newer.begin());
-    problem.candidates[d].push_back({m.keep, m.d2, L[m.drop] - L[m.keep]});
+    problem.candidates[detection_of[m.drop]].push_back({m.keep, m.d2, L[m.drop] - L[m.keep]});
   }
   for (auto& list : problem.candidates) {
     std::sort(list.begin(), list.end(), [](const association::AssociationCandidate& x,
@@ -88,7 +90,7 @@ std::vector<LandmarkMerge> LoopMerges(const SubmapGraph& graph, const std::vecto
   }
   // Cov(L_d − L_a, L_e − L_b).
   problem.covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
-    const int d = row(newer[i]), e = row(newer[k]), ra = row(a), rb = row(b);
+    const int d = row_of[newer[i]], e = row_of[newer[k]], ra = row_of[a], rb = row_of[b];
     return Sigma.block<2, 2>(d, e) - Sigma.block<2, 2>(d, rb) - Sigma.block<2, 2>(ra, e) + Sigma.block<2, 2>(ra, rb);
   };
   constexpr long kMaxNodes = 20000;

@@ -83,8 +83,10 @@ struct EifJoinerOptions {
   bool validate_joins = false;
   double validation_probability = 0.999;
   // Loop-closure confirmation: association.loop_confirmation_maps (submap_association.h).
-  // The sequential EIF undoes an unconfirmed closure's joins and joins the maps again;
-  // it needs the estimate after the closure to be right, so it confirms only while it
+  // The sequential EIF undoes an unconfirmed closure's joins and joins the maps again
+  // (the online estimate carries the closure meanwhile; one still waiting at Finish() or
+  // at a whole-map join stands); it needs the estimate after the closure to be right, so
+  // it confirms only while it
   // relinearises after joins (RelinearizesAfterJoins()). With a single linearisation the
   // estimate after a correction of a hundred metres is too far off for the next maps to
   // find the old map: combined-2km's correct closures were all undone.
@@ -402,7 +404,7 @@ class EifJoiner final : public MapJoiner {
   // Association of `s` (starting at anchor `start`) with the map, timed and counted: a
   // local map, or with `whole_map_groups` a whole map's summary (SubmapAssociator::Associate).
   SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
-                  const std::vector<std::vector<int>>* whole_map_groups = nullptr);
+                                const std::vector<std::vector<int>>* whole_map_groups = nullptr);
   Eigen::VectorXd StateVector() const;
   void SetState(const Eigen::VectorXd& x);
   // The same for the listed state rows only (the rest already hold x).

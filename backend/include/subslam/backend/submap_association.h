@@ -94,9 +94,10 @@ struct SubmapAssociationOptions {
   //    more.
   //  - Otherwise: the closing map is associated again without its loop pairings (its
   //    features become new landmarks), and the maps after it again after it. The
-  //    sequential EIF applies it across joins (eif_joiner.h: it undoes the joins since);
-  //    a whole-map join applies it across the groups of its association (a closure
-  //    still waiting at the last group stands).
+  //    sequential EIF applies it across joins (eif_joiner.h: it undoes the joins since;
+  //    a closure still waiting at Finish() stands); a whole-map join applies it across
+  //    the groups of its association, and undoes a closure still waiting after the last
+  //    group (the maps that would confirm it come in a later join).
   //  - Scope: it rides on the loop regime (min_loop_pairings > 1). 0 maps: off.
   //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
   //    wrong closure (RBPF maps, seed 7) found no such landmark in its next three maps;
