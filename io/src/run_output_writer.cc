@@ -1,5 +1,6 @@
 #include "subslam/io/run_output_writer.h"
 
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -21,14 +22,40 @@ absl::Status WriteTextFile(const std::string& path, const std::string& content) 
   return absl::OkStatus();
 }
 
+namespace {
+
+// The per-step files (a trajectory per step of a run: 70,000 rows on Victoria Park) are
+// written with std::to_chars, which gives printf's "%.6f" and "%.10g" to the character
+// (in the C locale) at a fraction of a formatting library's cost.
+void AppendFixed6(double v, std::string* text) {
+  char buffer[64];
+  text->append(buffer, std::to_chars(buffer, buffer + sizeof(buffer), v, std::chars_format::fixed, 6).ptr);
+}
+
+void AppendGeneral10(double v, std::string* text) {
+  char buffer[64];
+  text->append(buffer, std::to_chars(buffer, buffer + sizeof(buffer), v, std::chars_format::general, 10).ptr);
+}
+
+// t (%.6f), then each value (%.10g), separated by `separator`, and a newline.
+void AppendRow(double t, std::initializer_list<double> values, char separator, std::string* text) {
+  AppendFixed6(t, text);
+  for (double v : values) {
+    text->push_back(separator);
+    AppendGeneral10(v, text);
+  }
+  text->push_back('\n');
+}
+
+}  // namespace
+
 absl::Status WriteTrajectoryCsv(const std::string& path, const Trajectory& trajectory) {
   std::string text = "t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt\n";
   text.reserve(trajectory.size() * 160);
   for (const PoseEstimate& p : trajectory) {
     const Eigen::Matrix3d& c = p.covariance;
-    absl::StrAppendFormat(&text, "%.6f,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g,%.10g\n",
-                          p.t, p.pose.x, p.pose.y, p.pose.theta, c(0, 0), c(0, 1), c(0, 2),
-                          c(1, 1), c(1, 2), c(2, 2));
+    AppendRow(p.t, {p.pose.x, p.pose.y, p.pose.theta, c(0, 0), c(0, 1), c(0, 2), c(1, 1), c(1, 2), c(2, 2)}, ',',
+              &text);
   }
   return WriteTextFile(path, text);
 }
@@ -47,8 +74,7 @@ absl::Status WriteLandmarksCsv(const std::string& path,
 namespace {
 
 void AppendTumPose(double t, const Pose2& pose, std::string* text) {
-  absl::StrAppendFormat(text, "%.6f %.10g %.10g 0 0 0 %.10g %.10g\n", t, pose.x, pose.y, std::sin(pose.theta / 2),
-                        std::cos(pose.theta / 2));
+  AppendRow(t, {pose.x, pose.y, 0.0, 0.0, 0.0, std::sin(pose.theta / 2), std::cos(pose.theta / 2)}, ' ', text);
 }
 
 }  // namespace
@@ -70,9 +96,7 @@ absl::Status WriteTumTrajectory(const std::string& path, const std::vector<Timed
 absl::Status WriteTruthTrajectoryCsv(const std::string& path, const std::vector<TimedPose>& poses) {
   std::string text = "t,x,y,theta\n";
   text.reserve(poses.size() * 60);
-  for (const TimedPose& p : poses) {
-    absl::StrAppendFormat(&text, "%.6f,%.10g,%.10g,%.10g\n", p.t, p.pose.x, p.pose.y, p.pose.theta);
-  }
+  for (const TimedPose& p : poses) AppendRow(p.t, {p.pose.x, p.pose.y, p.pose.theta}, ',', &text);
   return WriteTextFile(path, text);
 }
 
