@@ -27,6 +27,7 @@
 #include "cli_reference.h"
 #include "backend_flags.h"
 #include "frontend_flags.h"
+#include "flags_read_by_command.h"
 #include "keep_freed_memory_flag.h"
 #include "subslam/pipeline/join_pipeline.h"
 #include "subslam/pipeline/run_pipeline.h"
@@ -353,13 +354,27 @@ int Study(const std::vector<char*>& args) {
         "study needs a name (", absl::StrJoin(subslam::study::StudyNames(), ", "), ") or merge DIR...")));
   }
   const std::string out = absl::GetFlag(FLAGS_out);
+  // A study runs each method with its paper's settings (`--methods` chooses among them):
+  // a front-end or back-end flag would change nothing, so it is refused.
+  constexpr std::string_view kWhy = "each method runs with its paper's settings, recorded in its command";
   if (std::string(args[2]) == "merge") {
+    if (absl::Status s = subslam::cli::CheckOnlyFlagsReadBy("study merge", {"out", "quiet", "plots", "keep_freed_memory"}, kWhy);
+        !s.ok()) {
+      return Fail(s);
+    }
     std::vector<std::string> dirs(args.begin() + 3, args.end());
     if (absl::Status s = subslam::study::MergeStudy(dirs, out); !s.ok()) return Fail(s);
     if (!absl::GetFlag(FLAGS_quiet)) std::printf("merged %zu slices -> %s/summary.md\n", dirs.size(), out.c_str());
     return absl::GetFlag(FLAGS_plots) ? Plot({out}, /*list_files=*/false) : 0;
   }
   if (args.size() != 3) return Fail(absl::InvalidArgumentError("study takes one study name"));
+  if (absl::Status s = subslam::cli::CheckOnlyFlagsReadBy(
+          "study", {"out", "trials", "workers", "methods", "dataset", "shard", "progress", "quiet", "plots",
+                    "keep_freed_memory"},
+          kWhy);
+      !s.ok()) {
+    return Fail(s);
+  }
   auto study = subslam::study::MakeStudy(args[2]);
   if (!study.ok()) return Fail(study.status());
   subslam::study::StudyOptions options;
@@ -397,6 +412,11 @@ int main(int argc, char** argv) {
   subslam::pipeline::ApplyKeepFreedMemoryFlag();
   if (args.size() >= 2 && std::string(args[1]) == "study") return Study(args);
   if (args.size() >= 2 && std::string(args[1]) == "plot") {
+    if (absl::Status s = subslam::cli::CheckOnlyFlagsReadBy("plot", {"quiet", "keep_freed_memory"},
+                                                            "it draws what the output directories hold");
+        !s.ok()) {
+      return Fail(s);
+    }
     return Plot(std::vector<std::string>(args.begin() + 2, args.end()), !absl::GetFlag(FLAGS_quiet));
   }
   if (args.size() != 2) {

@@ -350,5 +350,30 @@ TEST(HybridSlamStudy, EachMethodIsItsRecordedCommand) {
   }
 }
 
+// The tool refuses a run or join flag given to `subslam study` (its methods carry their
+// papers' settings, so the flag would change nothing) and runs no trial.
+TEST(StudyTool, RefusesFlagsItDoesNotRead) {
+  const std::string dir = FreshDir("refused_flags");
+  std::filesystem::create_directories(dir);
+  const std::string err = dir + "/stderr.txt";
+  for (const std::string flags : {"--join_merge_loops=false --particles 7", "--backend ceres"}) {
+    SCOPED_TRACE(flags);
+    const std::string command = absl::StrCat(SUBSLAM_TOOL, " study fmj --trials 1 --quiet --progress=false --out ",
+                                             dir, "/study ", flags, " 2> ", err);
+    EXPECT_NE(std::system(command.c_str()), 0);
+    const std::string message = Slurp(err);
+    EXPECT_NE(message.find("study does not read"), std::string::npos) << message;
+    for (const char* name : {"--join_merge_loops", "--particles", "--backend"}) {
+      EXPECT_EQ(message.find(name) != std::string::npos, flags.find(name) != std::string::npos) << name;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir + "/study/runs.csv"));
+  }
+  // The flags it reads pass.
+  const std::string command = absl::StrCat(SUBSLAM_TOOL, " study fmj --trials 1 --methods ekfslam --plots=false",
+                                           " --quiet --progress=false --out ", dir, "/study 2> ", err);
+  EXPECT_EQ(std::system(command.c_str()), 0) << Slurp(err);
+  EXPECT_TRUE(std::filesystem::exists(dir + "/study/runs.csv"));
+}
+
 }  // namespace
 }  // namespace subslam::study
