@@ -95,6 +95,10 @@ ABSL_FLAG(int, join_loop_confirmation_maps, EifDefaults().association.loop_confi
           "eif, and the tree joiners' whole-map joins: undo a loop closure made under an "
           "uncertain anchor unless one of this many next local maps pairs a feature with "
           "another old landmark (0: off)");
+ABSL_FLAG(bool, join_confirm_thin_loops, EifDefaults().association.confirm_thin_loops,
+          "eif: hold a loop closure with fewer than --join_min_loop_pairings pairings (under an "
+          "uncertain, not lost, anchor) until the next --join_loop_confirmation_maps local maps pair "
+          "that many other old landmarks, and undo it otherwise (false: drop it at once)");
 ABSL_FLAG(bool, validate_joins, EifDefaults().validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
           "(the map is joined again without associations)");
@@ -171,6 +175,7 @@ backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.keep_certain_loop_pairings = absl::GetFlag(FLAGS_join_keep_certain_loop_pairings);
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
   o.association.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
+  o.association.confirm_thin_loops = absl::GetFlag(FLAGS_join_confirm_thin_loops);
   o.revision = RevisionOptionsFromFlags();
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);

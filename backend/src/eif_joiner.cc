@@ -238,12 +238,22 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   }
   for (int j : graph_.factors()[last].landmark_of_feature) {
     if (j < old_landmarks && !used[j]) {
-      pending_loop_.reset();
-      ++counters_.loop_closures_confirmed;
-      return absl::OkStatus();
+      used[j] = 1;  // counted once
+      ++pending_loop_->confirmations;
     }
   }
+  if (pending_loop_->confirmations >= pending_loop_->needed) {
+    pending_loop_.reset();
+    ++counters_.loop_closures_confirmed;
+    return absl::OkStatus();
+  }
   if (last - closing < options_.association.loop_confirmation_maps) return absl::OkStatus();
+  return UndoPendingLoopClosure();
+}
+
+absl::Status EifJoiner::UndoPendingLoopClosure() {
+  const int last = static_cast<int>(graph_.factors().size()) - 1;
+  const int closing = pending_loop_->factor;
   // Unconfirmed: back to the joiner before the closing map, whose work stays counted,
   // and the maps since joined again, the closing one without loop pairings.
   PendingLoopClosure pending = std::move(*pending_loop_);
@@ -355,6 +365,24 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     if (suppress_loop_closure_) {
       // The closing map of an unconfirmed loop closure: without its loop pairings.
       for (int i : a.uncertain_loop_features) assoc[i] = -1;
+    } else if (!a.thin_loop_pairings.empty() && options_.association.confirm_thin_loops &&
+               options_.association.loop_confirmation_maps > 0 && options_.RelinearizesAfterJoins() &&
+               3.0 * a.start_position_sigma_m < options_.association.loop_confirmation_min_sigma_radius_m) {
+      // A thin closure, held for confirmation; or, while a closure is held, more of the
+      // same evidence (this map was associated given it).
+      a.uncertain_loop_features.clear();
+      for (const auto& [feature, landmark] : a.thin_loop_pairings) {
+        assoc[feature] = landmark;
+        a.uncertain_loop_features.push_back(feature);
+      }
+      if (!pending_loop_) {
+        // A full closure's worth of other old landmarks: evidence the held pairings, which
+        // the later maps are gated given, cannot lend each other.
+        const int needed = options_.association.min_loop_pairings;
+        pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
+                                           std::move(a), std::max(1, needed), 0, /*thin=*/true};
+        pending_loop_->before.counters = counters_before;
+      }
     } else if (!a.uncertain_loop_features.empty() && options_.association.loop_confirmation_maps > 0 &&
                options_.RelinearizesAfterJoins() && !pending_loop_ &&
                3.0 * a.start_position_sigma_m >= options_.association.loop_confirmation_min_sigma_radius_m) {
@@ -429,7 +457,12 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
 }
 
 absl::Status EifJoiner::Finish() {
-  pending_loop_.reset();  // a closure still waiting at the end stands: no more maps to ask
+  // A closure under a lost anchor still waiting at the end stands (no more maps to ask);
+  // a thin one has not brought the pairings it lacks and is undone.
+  while (pending_loop_ && pending_loop_->thin) {  // (a map joined again may hold a later one)
+    if (absl::Status st = UndoPendingLoopClosure(); !st.ok()) return st;
+  }
+  pending_loop_.reset();
   if (!estimate_exact_ && !factors_.empty() && !(options_.relinearize_at_end)) {
     // The changes the partial recoveries left out, made good: Λx = η exactly (Gauss-Newton
     // at the end solves exactly anyway).

@@ -569,7 +569,22 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
   const auto loop_pairings_of = [&](const association::AssociationResult& r) {
     return static_cast<int>(std::count_if(r.landmark_of_detection.begin(), r.landmark_of_detection.end(), closes_loop));
   };
-  if (o.loop_ambiguity_test && loop.regime && loop_pairings_of(result) >= o.min_loop_pairings) {
+  const int loop_pairings = loop.regime ? loop_pairings_of(result) : 0;  // (flags only in the regime)
+  if (o.loop_ambiguity_test && loop.regime && loop_pairings > 0 && loop_pairings < o.min_loop_pairings) {
+    // A thin closure: offered for confirmation (SubmapAssociation::thin_loop_pairings)
+    // only if no other hypothesis pairs as many features with old landmarks once its loop
+    // pairings are struck out.
+    association::AssociationProblem alternative = *problem;
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      const int c = result.landmark_of_detection[i];
+      if (!closes_loop(c)) continue;
+      std::erase_if(alternative.candidates[i], [c](const association::AssociationCandidate& x) { return x.landmark == c; });
+    }
+    const association::AssociationResult other =
+        association::JointCompatibility(alternative, o.gate_probability, o.jcbb_max_nodes);
+    out->thin_loop_unambiguous = loop_pairings_of(other) < loop_pairings;
+  }
+  if (o.loop_ambiguity_test && loop.regime && loop_pairings >= o.min_loop_pairings) {
     association::AssociationProblem alternative = *problem;
     for (int i = 0; i < s.num_landmarks(); ++i) {
       const int c = result.landmark_of_detection[i];
@@ -597,9 +612,13 @@ void ApplyLoopPairingTest(const SubmapAssociationOptions& o, const LoopFlags& fl
   int loop_pairings = 0;
   for (int j : out->landmark_of_feature) loop_pairings += (j >= 0 && !flags.recent[j]) ? 1 : 0;
   if (loop_pairings > 0 && loop_pairings < o.min_loop_pairings) {
-    for (int& j : out->landmark_of_feature) {
-      if (j >= 0 && !flags.recent[j] && !flags.certain[j]) j = -1;
+    for (size_t i = 0; i < out->landmark_of_feature.size(); ++i) {
+      int& j = out->landmark_of_feature[i];
+      if (j < 0 || flags.recent[j] || flags.certain[j]) continue;
+      if (out->thin_loop_unambiguous) out->thin_loop_pairings.push_back({static_cast<int>(i), j});
+      j = -1;
     }
+    if (!out->thin_loop_unambiguous) out->thin_loop_pairings.clear();
     out->loop_pairings_dropped = loop_pairings;
   } else {
     for (size_t i = 0; i < out->landmark_of_feature.size(); ++i) {

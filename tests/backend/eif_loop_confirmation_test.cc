@@ -1,4 +1,4 @@
-// The EIF joiner's confirmation of loop closures made under a lost anchor.
+// The EIF joiner's confirmation of loop closures made under a lost anchor, and of thin ones.
 
 #include "subslam/backend/eif_joiner.h"
 
@@ -98,6 +98,33 @@ int ClosingPairings(const EifJoiner& j) {
   return n;
 }
 
+// A loop of four legs whose odometry leaves the closing map's start anchor uncertain but
+// not lost (3σ ≈ 25 m), then a closing map that sees two of map 0's trees, and three more
+// maps: the first of them sees `confirming` more of map 0's trees, the others new ones.
+std::vector<LocalSubmap> ThinRun(int confirming) {
+  const std::vector<Tree> old = {{0, {5, 8}},  {1, {12, -6}}, {2, {18, 9}},  {3, {25, -4}},
+                                 {4, {30, 7}}, {5, {36, -8}}, {6, {42, 5}}, {7, {50, -3}}};
+  const Pose2 origin(0, 0, 0), a(20, 0, 0), b(120, 0, kPi / 2), c(120, 150, kPi), d(0, 150, -kPi / 2);
+  std::vector<LocalSubmap> maps;
+  maps.push_back(Map(0, origin, a, old, 0.1, 0.005));
+  const std::vector<Pose2> loop = {a, b, c, d, origin};
+  for (int k = 0; k < 4; ++k) {
+    const Pose2& s = loop[k];
+    maps.push_back(Map(1 + k, s, loop[k + 1],
+                       {{100 + 2 * k, TransformFrom(s, Eigen::Vector2d(5, 10))},
+                        {101 + 2 * k, TransformFrom(s, Eigen::Vector2d(8, -10))}},
+                       k == 0 ? 0.5 : 4.0, 0.02));
+  }
+  maps.push_back(Map(5, origin, Pose2(10, 0, 0), {old[0], old[1]}, 0.1, 0.005));
+  const Pose2 e(30, 0, 0), f(50, 0, 0), g(70, 0, 0);
+  std::vector<Tree> next(old.begin() + 2, old.begin() + 2 + confirming);
+  next.push_back({200, {30, 20}});
+  maps.push_back(Map(6, Pose2(10, 0, 0), e, next, 0.1, 0.005));
+  maps.push_back(Map(7, e, f, {{202, {55, 15}}, {203, {60, -15}}}, 0.1, 0.005));
+  maps.push_back(Map(8, f, g, {{204, {75, 12}}, {205, {80, -14}}}, 0.1, 0.005));
+  return maps;
+}
+
 }  // namespace loop_confirmation
 
 TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
@@ -169,6 +196,81 @@ TEST(EifJoiner, UndoesALoopClosureOfALostAnchorThatTheNextMapsDoNotConfirm) {
     EXPECT_LT(PoseDifference(eif.anchor(k), never.anchor(k)).cwiseAbs().maxCoeff(), 1e-6) << "anchor " << k;
   }
   EXPECT_TRUE(MatricesNear(eif.AnchorCovariance(10), never.AnchorCovariance(10), 1e-6));
+}
+
+// A thin loop closure (two pairings where min_loop_pairings asks four) is held until the
+// next maps pair as many other old landmarks as one map would have needed, and undone when
+// they do not — also when the run ends first. Without the rule it is dropped at once.
+TEST(EifJoiner, HoldsAThinLoopClosureUntilTheNextMapsConfirmIt) {
+  EifJoinerOptions options;
+  ASSERT_EQ(options.association.min_loop_pairings, 4);
+  ASSERT_TRUE(options.association.confirm_thin_loops);
+  EifJoinerOptions off = options;
+  off.association.confirm_thin_loops = false;
+  const auto closing_pairings = [](const EifJoiner& j) {
+    const std::vector<int>& map0 = j.graph().factors()[0].landmark_of_feature;
+    int n = 0;
+    for (int l : j.graph().factors()[5].landmark_of_feature) n += std::count(map0.begin(), map0.end(), l) > 0 ? 1 : 0;
+    return n;
+  };
+  {
+    // Confirmed by the next map's four other old trees: the loop is closed, every tree once.
+    EifJoiner eif(Pose2(0, 0, 0), options);
+    const std::vector<LocalSubmap> maps = loop_confirmation::ThinRun(4);
+    for (const LocalSubmap& s : maps) ASSERT_TRUE(eif.Join(s).ok());
+    ASSERT_TRUE(eif.Finish().ok());
+    EXPECT_EQ(eif.counters().loop_closures_thin, 1);
+    EXPECT_EQ(eif.counters().loop_closures_confirmed, 1);
+    EXPECT_EQ(eif.counters().loop_closures_unconfirmed, 0);
+    EXPECT_EQ(closing_pairings(eif), 2);
+    EXPECT_EQ(eif.num_landmarks(), 8 + 8 + 1 + 4);
+    // Dropped at once without the rule: the closing map's trees become copies.
+    EifJoiner dropped(Pose2(0, 0, 0), off);
+    for (const LocalSubmap& s : maps) ASSERT_TRUE(dropped.Join(s).ok());
+    EXPECT_EQ(dropped.counters().loop_closures_thin, 1);
+    EXPECT_EQ(closing_pairings(dropped), 0);
+  }
+  for (int confirming : {0, 2}) {
+    // Fewer than four other old trees in the next three maps: undone, the closing map's
+    // trees new.
+    SCOPED_TRACE(confirming);
+    EifJoiner eif(Pose2(0, 0, 0), options);
+    const std::vector<LocalSubmap> maps = loop_confirmation::ThinRun(confirming);
+    for (const LocalSubmap& s : maps) {
+      ASSERT_TRUE(eif.Join(s).ok());
+      if (s.id >= 5 && s.id < 8) {
+        EXPECT_EQ(closing_pairings(eif), 2) << "after map " << s.id;  // held
+      }
+    }
+    EXPECT_EQ(closing_pairings(eif), 0);
+    EXPECT_EQ(eif.counters().loop_closures_unconfirmed, 1);
+    EXPECT_EQ(eif.counters().loop_closures_confirmed, 0);
+    ASSERT_TRUE(eif.Finish().ok());
+    if (confirming == 0) {
+      EXPECT_EQ(closing_pairings(eif), 0);
+      EXPECT_EQ(eif.counters().loop_closures_unconfirmed, 1);
+      EXPECT_EQ(eif.num_landmarks(), 8 + 8 + 2 + 1 + 4);
+    } else {
+      // Joined again, map 6's two old trees held a thin closure of their own, undone at
+      // Finish(); the revision's loop merges then take the four copies together (four
+      // agreeing pairs, landmark_revision.h): every tree once.
+      EXPECT_EQ(eif.counters().loop_closures_unconfirmed, 2);
+      EXPECT_EQ(eif.counters().landmarks_merged, 4);
+      EXPECT_EQ(closing_pairings(eif), 2);
+      EXPECT_EQ(eif.num_landmarks(), 8 + 8 + 1 + 4);
+    }
+  }
+  {
+    // The run ends while the closure waits: undone at Finish().
+    EifJoiner eif(Pose2(0, 0, 0), options);
+    std::vector<LocalSubmap> maps = loop_confirmation::ThinRun(0);
+    maps.resize(7);
+    for (const LocalSubmap& s : maps) ASSERT_TRUE(eif.Join(s).ok());
+    EXPECT_EQ(closing_pairings(eif), 2);
+    ASSERT_TRUE(eif.Finish().ok());
+    EXPECT_EQ(closing_pairings(eif), 0);
+    EXPECT_EQ(eif.counters().loop_closures_unconfirmed, 1);
+  }
 }
 
 }  // namespace

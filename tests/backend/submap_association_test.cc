@@ -83,6 +83,9 @@ TEST(SubmapAssociator, DropsThinLoopClosuresUnderLargeUncertainty) {
   EXPECT_EQ(OldPairings(thin), 0);
   EXPECT_EQ(thin.landmark_of_feature[0], 5);  // the recent ones are kept
   EXPECT_EQ(thin.landmark_of_feature[1], 6);
+  // Dropped, but offered for confirmation (no other hypothesis pairs two old landmarks).
+  EXPECT_TRUE(thin.thin_loop_unambiguous);
+  EXPECT_EQ(thin.thin_loop_pairings, (std::vector<std::pair<int, int>>{{2, 0}, {3, 1}}));
 
   const SubmapAssociation thick = associator.Associate(f.NewMap(4), 4, f.graph, Covariance(3.0));
   EXPECT_EQ(thick.loop_pairings_dropped, 0);
@@ -178,6 +181,19 @@ TEST(SubmapAssociator, AmbiguityTestDropsALoopClosureThatAShiftedRowFitsAsWell) 
   const SubmapAssociation clear = tested.Associate(s, 4, graph, Covariance(2.5));
   EXPECT_FALSE(clear.loop_ambiguous);
   EXPECT_EQ(clear.landmark_of_feature, (std::vector<int>{row[0], row[1], row[2], row[3]}));
+  // A thin closure (two of the row's landmarks) is offered for confirmation only when the
+  // shifted row does not fit as well.
+  LocalSubmap two = s;
+  two.mean.conservativeResize(3 + 2 * 2);
+  two.landmarks.resize(2);
+  two.covariance = 0.01 * Eigen::MatrixXd::Identity(two.mean.size(), two.mean.size());
+  const SubmapAssociation thin_ambiguous = tested.Associate(two, 4, graph, Covariance(6.0));
+  EXPECT_EQ(thin_ambiguous.loop_pairings_dropped, 2);
+  EXPECT_FALSE(thin_ambiguous.thin_loop_unambiguous);
+  EXPECT_TRUE(thin_ambiguous.thin_loop_pairings.empty());
+  const SubmapAssociation thin_clear = tested.Associate(two, 4, graph, Covariance(2.5));
+  EXPECT_EQ(thin_clear.loop_pairings_dropped, 2);
+  EXPECT_EQ(thin_clear.thin_loop_pairings, (std::vector<std::pair<int, int>>{{0, row[0]}, {1, row[1]}}));
 }
 
 // A whole map (tree joining) is associated group by group, each group one of its local

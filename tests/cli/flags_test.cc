@@ -17,6 +17,7 @@ ABSL_DECLARE_FLAG(double, submap_max_duration);
 ABSL_DECLARE_FLAG(std::string, backend);
 ABSL_DECLARE_FLAG(bool, single_linearization);
 ABSL_DECLARE_FLAG(bool, join_merge);
+ABSL_DECLARE_FLAG(bool, join_confirm_thin_loops);
 ABSL_DECLARE_FLAG(std::string, ceres_method);
 ABSL_DECLARE_FLAG(double, eif_recovery_threshold);
 ABSL_DECLARE_FLAG(std::string, ekf_fusion);
@@ -63,6 +64,7 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   absl::SetFlag(&FLAGS_known_association, true);
   absl::SetFlag(&FLAGS_single_linearization, true);
   absl::SetFlag(&FLAGS_join_merge, false);
+  absl::SetFlag(&FLAGS_join_confirm_thin_loops, false);
   absl::SetFlag(&FLAGS_ceres_method, "dogleg");
   absl::SetFlag(&FLAGS_ceres_every, 5);
   absl::SetFlag(&FLAGS_eif_recovery_threshold, 1e-6);
@@ -74,6 +76,7 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   EXPECT_EQ(o->eif.relinearize_at_end, false);  // the single linearisation
   EXPECT_FALSE(o->eif.revision.merge);
   EXPECT_FALSE(o->ekf.revision.merge);
+  EXPECT_FALSE(o->eif.association.confirm_thin_loops);
   EXPECT_EQ(o->ceres.method, backend::CeresMethod::kDogleg);
   EXPECT_EQ(o->ceres_every, 5);
   EXPECT_EQ(o->eif.recovery_change_threshold, 1e-6);

@@ -82,11 +82,12 @@ struct EifJoinerOptions {
   // correction).
   bool validate_joins = false;
   double validation_probability = 0.999;
-  // Loop-closure confirmation: association.loop_confirmation_maps (submap_association.h).
-  // The sequential EIF undoes an unconfirmed closure's joins and joins the maps again
-  // (the online estimate carries the closure meanwhile; one still waiting at Finish() or
-  // at a whole-map join stands); it needs the estimate after the closure to be right, so
-  // it confirms only while it
+  // Loop-closure confirmation: association.loop_confirmation_maps and confirm_thin_loops
+  // (submap_association.h). The sequential EIF undoes an unconfirmed closure's joins and
+  // joins the maps again (the online estimate carries the closure meanwhile; one under a
+  // lost anchor still waiting at Finish() or at a whole-map join stands, a thin one is
+  // undone); it needs the estimate after the closure to be right, so it confirms only
+  // while it
   // relinearises after joins (RelinearizesAfterJoins()). With a single linearisation the
   // estimate after a correction of a hundred metres is too far off for the next maps to
   // find the old map: combined-2km's correct closures were all undone.
@@ -486,11 +487,16 @@ class EifJoiner final : public MapJoiner {
   // A loop closure waiting for confirmation: the joiner before its map was joined (taken
   // after that map's association, with the counters from before it), the index of its
   // map's factor, the rejected_ entries then, and that map's association.
+  // `needed`: distinct old landmarks the later maps must pair for it to stand (1 for a
+  // closure under a lost anchor; for a thin closure, what it lacks of min_loop_pairings).
   struct PendingLoopClosure {
     Snapshot before;
     int factor = 0;
     size_t rejected = 0;
     SubmapAssociation association;
+    int needed = 1;
+    int confirmations = 0;
+    bool thin = false;
   };
   std::optional<PendingLoopClosure> pending_loop_;
   bool suppress_loop_closure_ = false;  // while joining again a map whose closure was undone
@@ -505,6 +511,9 @@ class EifJoiner final : public MapJoiner {
   void Restore(Snapshot snapshot);
   // After a join: confirm the pending loop closure, or undo it once its window is over.
   absl::Status CheckPendingLoopClosure();
+  // Undoes the pending loop closure: back to the joiner before its map, and the maps
+  // since joined again, that map without its loop pairings.
+  absl::Status UndoPendingLoopClosure();
   std::map<std::string, double> times_;
   JoinerCounters counters_;
   double last_t_end_ = -1e300;
