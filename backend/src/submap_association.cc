@@ -569,36 +569,29 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
   const auto loop_pairings_of = [&](const association::AssociationResult& r) {
     return static_cast<int>(std::count_if(r.landmark_of_detection.begin(), r.landmark_of_detection.end(), closes_loop));
   };
+  // With the hypothesis' loop pairings struck out: how many features does the best other
+  // jointly compatible hypothesis pair with old landmarks?
+  const auto other_loop_pairings = [&]() {
+    association::AssociationProblem alternative = *problem;
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      const int c = result.landmark_of_detection[i];
+      if (!closes_loop(c)) continue;
+      std::erase_if(alternative.candidates[i], [c](const association::AssociationCandidate& x) { return x.landmark == c; });
+    }
+    return loop_pairings_of(association::JointCompatibility(alternative, o.gate_probability, o.jcbb_max_nodes));
+  };
   const int loop_pairings = loop.regime ? loop_pairings_of(result) : 0;  // (flags only in the regime)
   if (o.loop_ambiguity_test && loop.regime && loop_pairings > 0 && loop_pairings < o.min_loop_pairings) {
     // A thin closure: offered for confirmation (SubmapAssociation::thin_loop_pairings)
-    // only if no other hypothesis pairs as many features with old landmarks once its loop
-    // pairings are struck out.
-    association::AssociationProblem alternative = *problem;
-    for (int i = 0; i < s.num_landmarks(); ++i) {
-      const int c = result.landmark_of_detection[i];
-      if (!closes_loop(c)) continue;
-      std::erase_if(alternative.candidates[i], [c](const association::AssociationCandidate& x) { return x.landmark == c; });
-    }
-    const association::AssociationResult other =
-        association::JointCompatibility(alternative, o.gate_probability, o.jcbb_max_nodes);
-    out->thin_loop_unambiguous = loop_pairings_of(other) < loop_pairings;
+    // only if no other hypothesis pairs as many features with old landmarks.
+    out->thin_loop_unambiguous = other_loop_pairings() < loop_pairings;
   }
-  if (o.loop_ambiguity_test && loop.regime && loop_pairings >= o.min_loop_pairings) {
-    association::AssociationProblem alternative = *problem;
-    for (int i = 0; i < s.num_landmarks(); ++i) {
-      const int c = result.landmark_of_detection[i];
-      if (!closes_loop(c)) continue;
-      std::erase_if(alternative.candidates[i], [c](const association::AssociationCandidate& x) { return x.landmark == c; });
+  if (o.loop_ambiguity_test && loop.regime && loop_pairings >= o.min_loop_pairings &&
+      other_loop_pairings() >= o.min_loop_pairings) {
+    for (int& c : result.landmark_of_detection) {
+      if (closes_loop(c) && !loop.certain[candidates[c]]) c = -1;
     }
-    const association::AssociationResult other =
-        association::JointCompatibility(alternative, o.gate_probability, o.jcbb_max_nodes);
-    if (loop_pairings_of(other) >= o.min_loop_pairings) {
-      for (int& c : result.landmark_of_detection) {
-        if (closes_loop(c) && !loop.certain[candidates[c]]) c = -1;
-      }
-      out->loop_ambiguous = true;
-    }
+    out->loop_ambiguous = true;
   }
   return result;
 }

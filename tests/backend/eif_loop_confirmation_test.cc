@@ -52,22 +52,31 @@ LocalSubmap Map(int id, const Pose2& start, const Pose2& end, const std::vector<
   return m;
 }
 
-std::vector<LocalSubmap> Run(bool true_closure) {
-  const std::vector<Tree> old = {{0, {5, 8}},   {1, {12, -6}}, {2, {18, 9}},  {3, {25, -4}},
-                                 {4, {30, 7}},  {5, {36, -8}}, {6, {42, 5}},  {7, {50, -3}}};
+const std::vector<Tree> kOld = {{0, {5, 8}},  {1, {12, -6}}, {2, {18, 9}},  {3, {25, -4}},
+                                {4, {30, 7}}, {5, {36, -8}}, {6, {42, 5}}, {7, {50, -3}}};
+
+// Map 0 seeing the old trees, then a loop of four maps back to the origin, two new trees
+// near each start; odometry good on the first leg, then σ `sigma_leg` per map.
+std::vector<LocalSubmap> Loop(double sigma_leg) {
   const Pose2 origin(0, 0, 0), a(20, 0, 0), b(120, 0, kPi / 2), c(120, 150, kPi), d(0, 150, -kPi / 2);
   std::vector<LocalSubmap> maps;
-  maps.push_back(Map(0, origin, a, old, 0.1, 0.005));
-  // The loop: two new trees near each start; odometry good on the first leg, then weak
-  // (σ 20 m per map), so the closing map's start anchor has 3σ ≈ 100 m.
+  maps.push_back(Map(0, origin, a, kOld, 0.1, 0.005));
   const std::vector<Pose2> loop = {a, b, c, d, origin};
   for (int k = 0; k < 4; ++k) {
     const Pose2& s = loop[k];
     maps.push_back(Map(1 + k, s, loop[k + 1],
                        {{100 + 2 * k, TransformFrom(s, Eigen::Vector2d(5, 10))},
                         {101 + 2 * k, TransformFrom(s, Eigen::Vector2d(8, -10))}},
-                       k == 0 ? 0.5 : 20.0, 0.02));
+                       k == 0 ? 0.5 : sigma_leg, 0.02));
   }
+  return maps;
+}
+
+std::vector<LocalSubmap> Run(bool true_closure) {
+  const std::vector<Tree>& old = kOld;
+  const Pose2 origin(0, 0, 0), a(20, 0, 0);
+  // σ 20 m per map: the closing map's start anchor has 3σ ≈ 100 m.
+  std::vector<LocalSubmap> maps = Loop(20.0);
   // The closing map: where its estimate puts it, it sees trees 0-3's layout.
   std::vector<Tree> closing(old.begin(), old.begin() + 4);
   if (!true_closure) {
@@ -102,19 +111,9 @@ int ClosingPairings(const EifJoiner& j) {
 // not lost (3σ ≈ 25 m), then a closing map that sees two of map 0's trees, and three more
 // maps: the first of them sees `confirming` more of map 0's trees, the others new ones.
 std::vector<LocalSubmap> ThinRun(int confirming) {
-  const std::vector<Tree> old = {{0, {5, 8}},  {1, {12, -6}}, {2, {18, 9}},  {3, {25, -4}},
-                                 {4, {30, 7}}, {5, {36, -8}}, {6, {42, 5}}, {7, {50, -3}}};
-  const Pose2 origin(0, 0, 0), a(20, 0, 0), b(120, 0, kPi / 2), c(120, 150, kPi), d(0, 150, -kPi / 2);
-  std::vector<LocalSubmap> maps;
-  maps.push_back(Map(0, origin, a, old, 0.1, 0.005));
-  const std::vector<Pose2> loop = {a, b, c, d, origin};
-  for (int k = 0; k < 4; ++k) {
-    const Pose2& s = loop[k];
-    maps.push_back(Map(1 + k, s, loop[k + 1],
-                       {{100 + 2 * k, TransformFrom(s, Eigen::Vector2d(5, 10))},
-                        {101 + 2 * k, TransformFrom(s, Eigen::Vector2d(8, -10))}},
-                       k == 0 ? 0.5 : 4.0, 0.02));
-  }
+  const std::vector<Tree>& old = kOld;
+  const Pose2 origin(0, 0, 0);
+  std::vector<LocalSubmap> maps = Loop(4.0);
   maps.push_back(Map(5, origin, Pose2(10, 0, 0), {old[0], old[1]}, 0.1, 0.005));
   const Pose2 e(30, 0, 0), f(50, 0, 0), g(70, 0, 0);
   std::vector<Tree> next(old.begin() + 2, old.begin() + 2 + confirming);
