@@ -17,7 +17,8 @@ namespace subslam::cli {
 // `read`, as "--name", sorted.
 std::vector<std::string> FlagsGivenButNotRead(const std::vector<std::string_view>& read);
 
-// OK, or InvalidArgument naming each flag so set that `command` does not read, and `why` (what the command takes its settings from instead).
+// OK, or InvalidArgument naming each flag so set that `command` does not read, and `why`
+// (what the command takes its settings from instead).
 absl::Status CheckOnlyFlagsReadBy(std::string_view command, const std::vector<std::string_view>& read,
                                   std::string_view why);
 

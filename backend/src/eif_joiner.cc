@@ -376,11 +376,10 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
         a.uncertain_loop_features.push_back(feature);
       }
       if (!pending_loop_) {
-        // A full closure's worth of other old landmarks: evidence the held pairings, which
-        // the later maps are gated given, cannot lend each other.
-        const int needed = options_.association.min_loop_pairings;
+        // It needs a full closure's worth of other old landmarks: the later maps are gated
+        // given the held pairings, so those lend them no evidence.
         pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
-                                           std::move(a), std::max(1, needed), 0, /*thin=*/true};
+                                           std::move(a), options_.association.min_loop_pairings, 0, /*thin=*/true};
         pending_loop_->before.counters = counters_before;
       }
     } else if (!a.uncertain_loop_features.empty() && options_.association.loop_confirmation_maps > 0 &&

@@ -581,7 +581,8 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
     return loop_pairings_of(association::JointCompatibility(alternative, o.gate_probability, o.jcbb_max_nodes));
   };
   const int loop_pairings = loop.regime ? loop_pairings_of(result) : 0;  // (flags only in the regime)
-  if (o.loop_ambiguity_test && loop.regime && loop_pairings > 0 && loop_pairings < o.min_loop_pairings) {
+  if (o.confirm_thin_loops && o.loop_ambiguity_test && loop.regime && loop_pairings > 0 &&
+      loop_pairings < o.min_loop_pairings) {
     // A thin closure: offered for confirmation (SubmapAssociation::thin_loop_pairings)
     // only if no other hypothesis pairs as many features with old landmarks.
     out->thin_loop_unambiguous = other_loop_pairings() < loop_pairings;

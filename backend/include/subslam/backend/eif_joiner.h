@@ -87,8 +87,7 @@ struct EifJoinerOptions {
   // joins the maps again (the online estimate carries the closure meanwhile; one under a
   // lost anchor still waiting at Finish() or at a whole-map join stands, a thin one is
   // undone); it needs the estimate after the closure to be right, so it confirms only
-  // while it
-  // relinearises after joins (RelinearizesAfterJoins()). With a single linearisation the
+  // while it relinearises after joins (RelinearizesAfterJoins()). With a single linearisation the
   // estimate after a correction of a hundred metres is too far off for the next maps to
   // find the old map: combined-2km's correct closures were all undone.
   // Relinearisation.
@@ -487,8 +486,8 @@ class EifJoiner final : public MapJoiner {
   // A loop closure waiting for confirmation: the joiner before its map was joined (taken
   // after that map's association, with the counters from before it), the index of its
   // map's factor, the rejected_ entries then, and that map's association.
-  // `needed`: distinct old landmarks the later maps must pair for it to stand (1 for a
-  // closure under a lost anchor; for a thin closure, what it lacks of min_loop_pairings).
+  // `needed`: distinct old landmarks it did not use that the later maps must pair for it
+  // to stand (1 for a closure under a lost anchor, min_loop_pairings for a thin one).
   struct PendingLoopClosure {
     Snapshot before;
     int factor = 0;

@@ -110,9 +110,8 @@ struct SubmapAssociationOptions {
   //    under an uncertain start anchor (the thin-closure test above), but not a lost one
   //    (3σ below loop_confirmation_min_sigma_radius_m: relocalisation needs its pairings
   //    in one map), and no other hypothesis pairs as many once its loop pairings are
-  //    struck out. Maps of few features
-  //    (2–6 on hybrid-120m at α = 1, 0–3 at α = 0.1) can never bring min_loop_pairings in
-  //    one map, and a loop missed there stays missed.
+  //    struck out. Maps of few features (2–6 on hybrid-120m at α = 1, 0–3 at α = 0.1)
+  //    can never bring min_loop_pairings in one map, and a loop missed there stays missed.
   //  - Rule: the closure is held, and stands once the next `loop_confirmation_maps` local
   //    maps (each associated given it) have paired at least min_loop_pairings old
   //    landmarks it did not use, as one map would have had to; otherwise it is undone as
@@ -133,9 +132,10 @@ struct SubmapAssociation {
   int loop_pairings_dropped = 0;
   bool loop_ambiguous = false;           // a loop closure dropped by loop_ambiguity_test
   // A thin closure (fewer than min_loop_pairings loop pairings) that no other hypothesis
-  // explains as well (with joint compatibility and loop_ambiguity_test; not for whole-map
-  // groups): its dropped uncertain pairings, (feature, landmark), for a joiner that can
-  // hold the closure until the next local maps confirm it (eif_joiner.h). Empty otherwise.
+  // explains as well (with confirm_thin_loops, joint compatibility and loop_ambiguity_test;
+  // not for whole-map groups): its dropped uncertain pairings, (feature, landmark), for a
+  // joiner that can hold the closure until the next local maps confirm it (eif_joiner.h).
+  // Empty otherwise.
   bool thin_loop_unambiguous = false;
   std::vector<std::pair<int, int>> thin_loop_pairings;
   // Whole-map joins: loop closures by a group that a later group did or did not confirm
