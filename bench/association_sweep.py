@@ -93,7 +93,8 @@ def combined(args):
         for name, flags in variants.items():
             j = out + "_join_" + name.replace(" ", "_")
             jobs.append([args.bin, "join", "--submaps", os.path.join(out, "submaps.jsonl"), "--backend", "eif",
-                         "--scenario", "combined-2km", "--seed", str(s), "--progress=false", "--out", j] + flags)
+                         "--scenario", "combined-2km", "--seed", str(s), "--progress=false", "--out", j] + flags +
+                        args.extra)
             cells.append((name, s, j))
     pool(args, jobs)
     print("| back-end association | duplicates | wrong merges (sharing no true landmark) | 10-sigma failures | "

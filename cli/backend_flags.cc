@@ -99,6 +99,10 @@ ABSL_FLAG(bool, join_confirm_thin_loops, EifDefaults().association.confirm_thin_
           "eif: hold a loop closure with fewer than --join_min_loop_pairings pairings (under an "
           "uncertain, not lost, anchor) until the next --join_loop_confirmation_maps local maps pair "
           "that many other old landmarks, and undo it otherwise (false: drop it at once)");
+ABSL_FLAG(double, join_map_rotation_sigma, EifDefaults().association.map_rotation_sigma_rad,
+          "eif and ekf: test each local map for a rotation about its start against the landmarks "
+          "the previous local maps saw (chi2, 1 dof, at --join_gate) and join a map that fails it "
+          "rotated by the fitted rotation and widened by a rotation of this sigma [rad] (0: off)");
 ABSL_FLAG(bool, validate_joins, EifDefaults().validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
           "(the map is joined again without associations)");
@@ -176,6 +180,7 @@ backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
   o.association.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
   o.association.confirm_thin_loops = absl::GetFlag(FLAGS_join_confirm_thin_loops);
+  o.association.map_rotation_sigma_rad = absl::GetFlag(FLAGS_join_map_rotation_sigma);
   o.revision = RevisionOptionsFromFlags();
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);

@@ -13,6 +13,7 @@
 #include "subslam/backend/internal/sparse_cholesky.h"
 #include "eif_solver.h"
 #include "state_blocks.h"
+#include "subslam/backend/local_map_rotation.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
@@ -309,6 +310,7 @@ void EifJoiner::CountDecisions(const SubmapAssociation& a) {
   if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
   counters_.loop_closures_confirmed += a.loop_closures_confirmed;
   counters_.loop_closures_unconfirmed += a.loop_closures_unconfirmed;
+  if (a.map_rotated) ++counters_.maps_widened;
 }
 
 SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start,
@@ -347,6 +349,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   std::vector<int> assoc(s.num_landmarks(), -1);
   // The start anchor's marginal before this join (NaN without one: no bounds then).
   Eigen::Matrix3d start_covariance = Eigen::Matrix3d::Constant(NAN);
+  std::optional<LocalSubmap> widened;
   if (associate) {
     const JoinerCounters counters_before = counters_;  // a pending closure's snapshot keeps these
     SubmapAssociation a;
@@ -362,6 +365,10 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     }
     assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
+    if (a.map_rotated) {
+      // A rotated map (SubmapAssociationOptions::map_rotation_sigma_rad): joined widened.
+      widened = WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad), a.map_widening_rad);
+    }
     if (suppress_loop_closure_) {
       // The closing map of an unconfirmed loop closure: without its loop pairings.
       for (int i : a.uncertain_loop_features) assoc[i] = -1;
@@ -391,37 +398,38 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
       pending_loop_->before.counters = counters_before;
     }
   }
+  const LocalSubmap& m = widened ? *widened : s;  // the map joined
   const int first_new_landmark = graph_.num_landmarks();
   // Initialise the end anchor and the new landmarks through the start anchor.
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
-  const Pose2 end_local = s.end_pose();
+  const Pose2 end_local = m.end_pose();
   const Pose2 end = Compose(P_s, end_local);
   const int end_anchor = graph_.AddAnchor(Pose2(end.x, end.y, WrapAngle(end.theta)));
   anchor_theta_.push_back(anchor_theta_[start] + end_local.theta);
   anchor_offset_.push_back(dim_);
   dim_ += 3;
-  for (int i = 0; i < s.num_landmarks(); ++i) {
+  for (int i = 0; i < m.num_landmarks(); ++i) {
     if (assoc[i] >= 0) {
       ++counters_.associated;
     } else {
       Matrix23d J_frame;
       Eigen::Matrix2d J_point;
-      assoc[i] = graph_.AddLandmark(TransformFrom(P_s, s.landmark(i), &J_frame, &J_point));
+      assoc[i] = graph_.AddLandmark(TransformFrom(P_s, m.landmark(i), &J_frame, &J_point));
       landmark_offset_.push_back(dim_);
       dim_ += 2;
       ++counters_.new_landmarks;
       // Its marginal given the data before this join and its own feature alone — the
       // start anchor's marginal carried through the feature — bounds its marginal given
       // everything (in the linearised model, more data never widens a marginal).
-      const Eigen::Matrix2d Q = s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+      const Eigen::Matrix2d Q = m.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
       marginal_bound_.push_back(J_frame * start_covariance * J_frame.transpose() + J_point * Q * J_point.transpose());
     }
   }
   // A rejected map joined again (associate false) must not redefine its landmarks.
-  associator_.Record(s, assoc, first_new_landmark, /*define_truth=*/associate);
+  associator_.Record(m, assoc, first_new_landmark, /*define_truth=*/associate);
   touched_.resize(graph_.num_landmarks(), 1);
   for (int j : assoc) touched_[j] = 1;
-  graph_.AddFactor({s, start, end_anchor, assoc});
+  graph_.AddFactor({m, start, end_anchor, assoc});
   Factor f = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
   {
     StageTimer timer(&times_, "update");

@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "state_blocks.h"
+#include "subslam/backend/local_map_rotation.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
@@ -228,7 +229,7 @@ void EkfJoiner::DropVariable(int offset, int size) {
   }
 }
 
-std::vector<int> EkfJoiner::AssociateAt(const LocalSubmap& s, int start,
+SubmapAssociation EkfJoiner::AssociateAt(const LocalSubmap& s, int start,
                                         const std::vector<std::vector<int>>* whole_map_groups) {
   StageTimer timer(&times_, "association");
   SubmapAssociation a = associator_.Associate(
@@ -243,7 +244,8 @@ std::vector<int> EkfJoiner::AssociateAt(const LocalSubmap& s, int start,
   if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
   counters_.loop_closures_confirmed += a.loop_closures_confirmed;
   counters_.loop_closures_unconfirmed += a.loop_closures_unconfirmed;
-  return std::move(a.landmark_of_feature);
+  if (a.map_rotated) ++counters_.maps_widened;
+  return a;
 }
 
 absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
@@ -253,7 +255,14 @@ absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
                                                    " before the previous one ended (", last_t_end_, ")"));
   }
   const int start = graph_.num_anchors() - 1;
-  if (absl::Status st = JoinAssociated(s, AssociateAt(s, start)); !st.ok()) return st;
+  SubmapAssociation a = AssociateAt(s, start);
+  if (a.map_rotated) {
+    // A rotated map (SubmapAssociationOptions::map_rotation_sigma_rad): joined widened.
+    const LocalSubmap widened = WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad), a.map_widening_rad);
+    if (absl::Status st = JoinAssociated(widened, std::move(a.landmark_of_feature)); !st.ok()) return st;
+  } else if (absl::Status st = JoinAssociated(s, std::move(a.landmark_of_feature)); !st.ok()) {
+    return st;
+  }
   const int every = options_.revision.every_joins;
   if (every > 0 && counters_.joins % every == 0) return ReviseAssociation();
   return absl::OkStatus();
@@ -426,7 +435,7 @@ absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
   std::vector<int> assoc(n, -1);
   if (!graph_.factors().empty()) {
     const std::vector<std::vector<int>> groups = WholeMapGroups(right.graph_);
-    assoc = AssociateAt(*summary, start, &groups);
+    assoc = AssociateAt(*summary, start, &groups).landmark_of_feature;
   }
   // Augment right's anchors, its new landmarks, then the copies of its matched ones.
   std::vector<Block> blocks;

@@ -25,6 +25,7 @@ std::span<const JoinerCounters::Field> JoinerCounters::Fields() {
       {"loop_closures_confirmed", &C::loop_closures_confirmed},
       {"loop_closures_unconfirmed", &C::loop_closures_unconfirmed},
       {"associations_replayed", &C::associations_replayed},
+      {"maps_widened", &C::maps_widened},
       {"rejected", &C::rejected_joins},
       {"revision_passes", &C::revision_passes},
       {"landmarks_merged", &C::landmarks_merged},

@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "subslam/association/data_association.h"
+#include "subslam/backend/local_map_rotation.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
@@ -32,6 +33,10 @@ absl::Status SubmapAssociationOptions::Validate() const {
   if (!(loop_confirmation_min_sigma_radius_m >= 0 && std::isfinite(loop_confirmation_min_sigma_radius_m))) {
     return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_min_sigma_radius_m must be finite and >= 0 [m], got ",
                                                    loop_confirmation_min_sigma_radius_m));
+  }
+  if (!(map_rotation_sigma_rad >= 0 && std::isfinite(map_rotation_sigma_rad))) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("map_rotation_sigma_rad must be finite and >= 0 [rad], got ", map_rotation_sigma_rad));
   }
   return absl::OkStatus();
 }
@@ -194,10 +199,14 @@ class GateTest {
 };
 
 // Step 2: the candidates that could pass the gate with some feature under the joiner's
-// upper bound on their marginal (a candidate without a bound is kept).
+// upper bound on their marginal (a candidate without a bound is kept); and those that
+// `keep_if_near` flags near a feature of the map placed as `wide` (the rotation test's
+// recent landmarks: few, and no linearised gate holds for a map rotated by tenths of a
+// radian).
 std::vector<int> PossiblyCompatible(const std::vector<int>& candidates,
                                     const std::vector<std::optional<Matrix5d>>& bounds, const PlacedMap& m,
-                                    const SubmapGraph& graph, const LocalSubmap& s, const GateTest& gate) {
+                                    const SubmapGraph& graph, const LocalSubmap& s, const GateTest& gate,
+                                    const PlacedMap* wide = nullptr, const std::vector<char>* keep_if_near = nullptr) {
   std::vector<int> kept;
   for (size_t c = 0; c < candidates.size(); ++c) {
     const int j = candidates[c];
@@ -208,6 +217,10 @@ std::vector<int> PossiblyCompatible(const std::vector<int>& candidates,
     const Eigen::Vector2d predicted = TransformTo(m.P_s, graph.landmarks()[j], &J_frame, &J_point);
     J << J_frame, J_point;
     for (int i = 0; i < s.num_landmarks() && !may_pass; ++i) {
+      if (wide != nullptr && (*keep_if_near)[j] && wide->Near(graph.landmarks()[j], i)) {
+        may_pass = true;
+        break;
+      }
       if (!m.Near(graph.landmarks()[j], i)) continue;
       const Eigen::Matrix2d S_upper = J * *bounds[c] * J.transpose() + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
       // The relative slack keeps a pairing that the bound and the exact test would put
@@ -509,6 +522,68 @@ class GroupedAssociation {
   SubmapAssociation* out_;
 };
 
+// The joint innovation covariance JCBB asks for: Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with
+// Σ the joint marginal of P_s and the candidates compatible with some feature (asked of the
+// joiner once, for those only), J over [P_s, candidate], and Q the local map's covariance.
+// J_a Σ J_bᵀ is computed once per pair of candidates (JCBB asks for it at every node).
+class InnovationCovariance {
+ public:
+  InnovationCovariance(const association::AssociationProblem& problem, int start_anchor,
+                       const std::vector<int>& candidates, const CandidateGeometry& geometry,
+                       const TimedCovariance& timed_covariance)
+      : geometry_(geometry), slot_(candidates.size(), -1) {
+    std::vector<int> compatible;
+    for (const auto& list : problem.candidates) {
+      for (const association::AssociationCandidate& cand : list) {
+        if (slot_[cand.landmark] < 0) {
+          slot_[cand.landmark] = static_cast<int>(compatible.size());
+          compatible.push_back(candidates[cand.landmark]);
+        }
+      }
+    }
+    if (geometry.full_joint.size() > 0) {
+      std::vector<int> rows(3 + 2 * compatible.size());  // of full_joint, per slot
+      rows[0] = 0, rows[1] = 1, rows[2] = 2;
+      for (size_t c = 0; c < slot_.size(); ++c) {
+        if (slot_[c] < 0) continue;
+        rows[3 + 2 * slot_[c]] = 3 + 2 * static_cast<int>(c);
+        rows[4 + 2 * slot_[c]] = 4 + 2 * static_cast<int>(c);
+      }
+      Sigma_ = geometry.full_joint(rows, rows);
+    } else if (!compatible.empty()) {
+      Sigma_ = timed_covariance({start_anchor}, compatible);
+    }
+    c_n_ = compatible.size();
+    projected_.resize(c_n_ * c_n_);
+    projected_known_.assign(c_n_ * c_n_, 0);
+  }
+
+  // The block of pairings (feature i, candidate a) and (feature k, candidate b), for a local
+  // map of covariance Q.
+  Eigen::Matrix2d operator()(const Eigen::MatrixXd& Q, int i, int a, int k, int b) const {
+    const size_t key = static_cast<size_t>(slot_[a]) * c_n_ + slot_[b];
+    if (!projected_known_[key]) {
+      const int oa = 3 + 2 * slot_[a], ob = 3 + 2 * slot_[b];
+      const std::vector<Matrix23d>& J_frame = geometry_.J_frame;
+      const std::vector<Eigen::Matrix2d>& J_point = geometry_.J_point;
+      projected_[key] = J_frame[a] * Sigma_.topLeftCorner<3, 3>() * J_frame[b].transpose() +
+                        J_frame[a] * Sigma_.block<3, 2>(0, ob) * J_point[b].transpose() +
+                        J_point[a] * Sigma_.block<2, 3>(oa, 0) * J_frame[b].transpose() +
+                        J_point[a] * Sigma_.block<2, 2>(oa, ob) * J_point[b].transpose();
+      projected_known_[key] = 1;
+    }
+    return projected_[key] + Q.block<2, 2>(3 + 2 * i, 3 + 2 * k);
+  }
+
+ private:
+  const CandidateGeometry& geometry_;
+  std::vector<int> slot_;  // per candidate: its place in Σ (−1: compatible with no feature)
+  size_t c_n_ = 0;
+  Eigen::MatrixXd Sigma_;
+  mutable std::vector<Eigen::Matrix2d> projected_;
+  mutable std::vector<char> projected_known_;
+};
+
 // Step 4: JCBB over the individually compatible pairings, with the joint covariance of P_s
 // and those candidates only; then the loop-closure ambiguity test: with the hypothesis'
 // loop pairings struck out, does another jointly compatible hypothesis still pair as many
@@ -520,48 +595,8 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
                                                  const TimedCovariance& timed_covariance,
                                                  const std::vector<std::vector<int>>* groups,
                                                  association::AssociationProblem* problem, SubmapAssociation* out) {
-  const int c_count = static_cast<int>(candidates.size());
-  std::vector<int> slot(c_count, -1), compatible;
-  for (const auto& list : problem->candidates) {
-    for (const association::AssociationCandidate& cand : list) {
-      if (slot[cand.landmark] < 0) {
-        slot[cand.landmark] = static_cast<int>(compatible.size());
-        compatible.push_back(candidates[cand.landmark]);
-      }
-    }
-  }
-  Eigen::MatrixXd Sigma;
-  if (geometry.full_joint.size() > 0) {
-    std::vector<int> rows(3 + 2 * compatible.size());  // of full_joint, per slot
-    rows[0] = 0, rows[1] = 1, rows[2] = 2;
-    for (int c = 0; c < c_count; ++c) {
-      if (slot[c] < 0) continue;
-      rows[3 + 2 * slot[c]] = 3 + 2 * c;
-      rows[4 + 2 * slot[c]] = 4 + 2 * c;
-    }
-    Sigma = geometry.full_joint(rows, rows);
-  } else if (!compatible.empty()) {
-    Sigma = timed_covariance({start_anchor}, compatible);
-  }
-  // Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with J over [P_s, candidate]; J_a Σ J_bᵀ is
-  // computed once per pair of candidates (JCBB asks for it at every node).
-  const int c_n = static_cast<int>(compatible.size());
-  std::vector<Eigen::Matrix2d> projected(static_cast<size_t>(c_n) * c_n);
-  std::vector<char> projected_known(static_cast<size_t>(c_n) * c_n, 0);
-  const std::vector<Matrix23d>& J_frame = geometry.J_frame;
-  const std::vector<Eigen::Matrix2d>& J_point = geometry.J_point;
-  problem->covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
-    const size_t key = static_cast<size_t>(slot[a]) * c_n + slot[b];
-    if (!projected_known[key]) {
-      const int oa = 3 + 2 * slot[a], ob = 3 + 2 * slot[b];
-      projected[key] = J_frame[a] * Sigma.topLeftCorner<3, 3>() * J_frame[b].transpose() +
-                       J_frame[a] * Sigma.block<3, 2>(0, ob) * J_point[b].transpose() +
-                       J_point[a] * Sigma.block<2, 3>(oa, 0) * J_frame[b].transpose() +
-                       J_point[a] * Sigma.block<2, 2>(oa, ob) * J_point[b].transpose();
-      projected_known[key] = 1;
-    }
-    return projected[key] + s.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * k);
-  };
+  const InnovationCovariance covariance(*problem, start_anchor, candidates, geometry, timed_covariance);
+  problem->covariance_block = [&](int i, int a, int k, int b) { return covariance(s.covariance, i, a, k, b); };
   if (groups != nullptr) return GroupedAssociation(o, s, candidates, loop, *problem, out).Solve(*groups);
   association::AssociationResult result = association::JointCompatibility(*problem, o.gate_probability, o.jcbb_max_nodes);
   out->jcbb_truncated = result.truncated;
@@ -622,6 +657,187 @@ void ApplyLoopPairingTest(const SubmapAssociationOptions& o, const LoopFlags& fl
   }
 }
 
+// Flags, by landmark, those the last `maps` local maps of the graph saw.
+std::vector<char> RecentLandmarks(const SubmapGraph& graph, int maps) {
+  std::vector<char> recent(graph.num_landmarks(), 0);
+  const int num_factors = static_cast<int>(graph.factors().size());
+  for (int f = std::max(0, num_factors - maps); f < num_factors; ++f) {
+    for (int j : graph.factors()[f].landmark_of_feature) recent[j] = 1;
+  }
+  return recent;
+}
+
+// Adds to the (ascending) candidates the recent landmarks near a feature of the map placed
+// as `m` that are not among them yet.
+void AddRecentCandidates(const SubmapGraph& graph, const PlacedMap& m, const std::vector<char>& recent,
+                         std::vector<int>* candidates) {
+  const auto before = static_cast<std::ptrdiff_t>(candidates->size());
+  for (int j = 0; j < graph.num_landmarks(); ++j) {
+    if (!recent[j] || std::binary_search(candidates->begin(), candidates->begin() + before, j)) continue;
+    for (size_t i = 0; i < m.world.size(); ++i) {
+      if (m.Near(graph.landmarks()[j], static_cast<int>(i))) {
+        candidates->push_back(j);
+        break;
+      }
+    }
+  }
+  std::inplace_merge(candidates->begin(), candidates->begin() + before, candidates->end());
+}
+
+// The rotation test (map_rotation_sigma_rad) of a local map against the landmarks the last
+// recent_maps (at least one) local maps saw. Those are known relative to the start anchor
+// about as well as that map's own features were: a map whose features cannot be paired
+// with them as they are, but can once rotated about its start, is wrong in itself, and a
+// rotation is how a particle filter's map over a turn is wrong.
+//  1. A first δ by a vote over rotations within ±3σ in steps of σ/10, the map widened by
+//     one step at each: the rotation under which the most features find an individually
+//     compatible recent landmark (the smaller sum of their best d² breaking a tie).
+//  2. The features are paired with the recent landmarks by JCBB with the map rotated by δ
+//     and widened by a rotation of σ about its start.
+//  3. δ is fitted to those pairings: Gauss-Newton on d²(δ) = ν(δ)ᵀ S(δ)⁻¹ ν(δ), the joint
+//     innovation of the pairings with the map rotated by δ (its covariance with it). Steps
+//     2-3 repeat until the pairings stand. (Pairing is linearised at δ, not at 0: a
+//     rotation of 0.1 rad moves a feature 15 m away by 0.08 m along its range through the
+//     second-order term alone, more than a range error a map over one second admits.)
+//  4. The statistic is the likelihood ratio d²(0) − d²(δ̂) of those pairings (at least two):
+//     χ²₁ for a map that is not rotated.
+struct RotationFit {
+  double delta_rad = 0.0;
+  double statistic = NAN;  // NaN: fewer than two pairings
+  double variance_rad2 = NAN;  // of δ̂, given the pairings
+};
+
+RotationFit FitRecentRotation(const SubmapAssociationOptions& o, const LocalSubmap& s, const PlacedMap& placed,
+                              const Eigen::Matrix3d& Sigma_s, int start_anchor, const std::vector<int>& candidates,
+                              const SubmapGraph& graph, const CandidateGeometry& geometry, const GateTest& gate,
+                              const TimedCovariance& timed_covariance, const std::vector<char>& recent,
+                              const std::vector<int>& own_pairing) {
+  constexpr int kRounds = 3, kGaussNewtonIterations = 8;
+  const double sigma = o.map_rotation_sigma_rad;
+  Eigen::Matrix3d Sigma_widened = Sigma_s;
+  Sigma_widened(2, 2) += sigma * sigma;  // the search radii grow as for the start heading
+  RotationFit fit;
+  // The recent landmarks individually compatible with each feature of the map rotated by
+  // `d` and widened.
+  const auto compatible_recent = [&](double d, LocalSubmap* widened) {
+    *widened = WidenedByRotation(RotatedAboutStart(s, d), sigma);
+    const PlacedMap placed_widened = Place(*widened, placed.P_s, Sigma_widened, o.landmark_search_radius_m);
+    association::AssociationProblem problem =
+        IndividualCompatibility(*widened, candidates, placed_widened, graph, geometry, gate);
+    for (auto& list : problem.candidates) {
+      std::erase_if(list, [&](const association::AssociationCandidate& x) { return !recent[candidates[x.landmark]]; });
+    }
+    return problem;
+  };
+  // Step 1.
+  std::vector<int> recent_candidates;  // indices into candidates
+  std::vector<Eigen::Matrix2d> relative;
+  for (int c = 0; c < static_cast<int>(candidates.size()); ++c) {
+    if (!recent[candidates[c]]) continue;
+    recent_candidates.push_back(c);
+    relative.push_back(geometry.Relative(c));
+  }
+  if (recent_candidates.size() < 2) return fit;
+  constexpr int kVoteSteps = 30;
+  const double step = sigma / 10.0;
+  int best_count = 0;
+  double best_sum = INFINITY, delta = 0.0;
+  for (int k = -kVoteSteps; k <= kVoteSteps; ++k) {
+    const LocalSubmap w = WidenedByRotation(RotatedAboutStart(s, k * step), step);
+    int count = 0;
+    double sum = 0.0;
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      double best = INFINITY;
+      for (size_t r = 0; r < recent_candidates.size(); ++r) {
+        const int c = recent_candidates[r];
+        const std::optional<double> score =
+            gate(i, candidates[c], geometry.predicted[c] - w.landmark(i),
+                 relative[r] + w.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i), 1.0);
+        if (score.has_value()) best = std::min(best, *score);
+      }
+      if (std::isfinite(best)) {
+        ++count;
+        sum += best;
+      }
+    }
+    if (count > best_count || (count == best_count && sum < best_sum)) {
+      best_count = count;
+      best_sum = sum;
+      delta = k * step;
+    }
+  }
+  if (best_count < 2) return fit;
+  // Steps 2-3.
+  LocalSubmap widened;
+  std::vector<int> hypothesis;  // candidate per feature of the last round's pairings
+  for (int round = 0; round < kRounds; ++round) {
+    association::AssociationProblem problem = compatible_recent(delta, &widened);
+    const InnovationCovariance covariance(problem, start_anchor, candidates, geometry, timed_covariance);
+    problem.covariance_block = [&](int i, int a, int k, int b) { return covariance(widened.covariance, i, a, k, b); };
+    const association::AssociationResult r =
+        association::JointCompatibility(problem, o.gate_probability, o.jcbb_max_nodes);
+    if (r.pairings < 2) return RotationFit{};
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      const int j = own_pairing[i];
+      if (j >= 0 && recent[j] && (r.landmark_of_detection[i] < 0 || candidates[r.landmark_of_detection[i]] != j)) {
+        return RotationFit{};  // another explanation of what the map explains as it is
+      }
+    }
+    if (r.landmark_of_detection == hypothesis) break;
+    hypothesis = r.landmark_of_detection;
+    std::vector<std::pair<int, int>> pairs;  // (feature, candidate)
+    for (int i = 0; i < s.num_landmarks(); ++i) {
+      if (hypothesis[i] >= 0) pairs.push_back({i, hypothesis[i]});
+    }
+    const int k = static_cast<int>(pairs.size());
+    // d²(δ), and with `g` its innovation's derivative ∂ν/∂δ = −(−y, x) of each rotated feature.
+    const auto joint = [&](double d, Eigen::VectorXd* nu, Eigen::MatrixXd* S, Eigen::VectorXd* g) {
+      const LocalSubmap rotated = RotatedAboutStart(s, d);
+      nu->resize(2 * k);
+      g->resize(2 * k);
+      S->resize(2 * k, 2 * k);
+      for (int p = 0; p < k; ++p) {
+        const Eigen::Vector2d l = rotated.landmark(pairs[p].first);
+        nu->segment<2>(2 * p) = geometry.predicted[pairs[p].second] - l;
+        g->segment<2>(2 * p) = Eigen::Vector2d(l.y(), -l.x());
+        for (int q = 0; q < k; ++q) {
+          S->block<2, 2>(2 * p, 2 * q) =
+              covariance(rotated.covariance, pairs[p].first, pairs[p].second, pairs[q].first, pairs[q].second);
+        }
+      }
+    };
+    Eigen::VectorXd nu, g;
+    Eigen::MatrixXd S;
+    const auto d2_at = [&](double d) {
+      joint(d, &nu, &S, &g);
+      const Eigen::LLT<Eigen::MatrixXd> llt(S);
+      return llt.info() == Eigen::Success ? nu.dot(llt.solve(nu)) : NAN;
+    };
+    const double d2_zero = d2_at(0.0);
+    double d2 = d2_at(delta);
+    for (int it = 0; it < kGaussNewtonIterations && std::isfinite(d2); ++it) {
+      const Eigen::LLT<Eigen::MatrixXd> llt(S);
+      const Eigen::VectorXd w = llt.solve(g);
+      const double information = g.dot(w);
+      if (!(information > 0)) break;
+      const double increment = -w.dot(nu) / information;
+      const double next = delta + increment, d2_next = d2_at(next);
+      if (!(d2_next < d2)) {
+        d2_at(delta);  // back to the iterate's linearisation
+        break;
+      }
+      delta = next;
+      d2 = d2_next;
+      if (std::abs(increment) < 1e-9) break;
+    }
+    fit.delta_rad = delta;
+    fit.statistic = d2_zero - d2;
+    const Eigen::LLT<Eigen::MatrixXd> llt(S);  // S, g at δ̂
+    fit.variance_rad2 = 1.0 / g.dot(llt.solve(g));
+  }
+  return fit;
+}
+
 }  // namespace
 
 SubmapAssociation SubmapAssociator::AssociateByTruth(const LocalSubmap& s) const {
@@ -653,31 +869,75 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   const PlacedMap placed = Place(s, graph.anchors()[start_anchor], Sigma_s, options_.landmark_search_radius_m);
   out.start_position_sigma_m = placed.sigma_xy;
   std::vector<int> candidates = NearbyLandmarks(graph, placed, anchor_prefilter, options_.anchor_search_radius_m);
+  // The rotation test (map_rotation_sigma_rad) looks for the recent landmarks as far as the
+  // widened map's features reach. (A map joined widened once, and associated again after an
+  // undone loop closure, is not tested again.)
+  const double sigma_rotation = options_.map_rotation_sigma_rad;
+  const bool test_rotation = sigma_rotation > 0 && options_.joint_compatibility && groups == nullptr &&
+                             !(s.rotation_widening_rad > 0);
+  std::optional<PlacedMap> placed_widened;
+  Eigen::Matrix3d Sigma_widened = Sigma_s;
+  Sigma_widened(2, 2) += sigma_rotation * sigma_rotation;  // the search radii grow as for the start heading
+  std::vector<char> recent;
+  if (test_rotation) {
+    placed_widened = Place(s, placed.P_s, Sigma_widened, options_.landmark_search_radius_m);
+    recent = RecentLandmarks(graph, std::max(1, options_.recent_maps));
+    AddRecentCandidates(graph, *placed_widened, recent, &candidates);
+  }
   out.candidates = static_cast<int>(candidates.size());
   const GateTest gate(s, *this);
   if (pair_bound && pair_covariance) {
     const absl::Time t0 = absl::Now();
     const std::vector<std::optional<Matrix5d>> bounds = pair_bound(start_anchor, candidates);
     out.covariance_seconds += absl::ToDoubleSeconds(absl::Now() - t0);
-    std::vector<int> kept = PossiblyCompatible(candidates, bounds, placed, graph, s, gate);
+    std::vector<int> kept =
+        test_rotation ? PossiblyCompatible(candidates, bounds, placed, graph, s, gate, &*placed_widened, &recent)
+                      : PossiblyCompatible(candidates, bounds, placed, graph, s, gate);
     out.candidates_bounded_out = static_cast<int>(candidates.size() - kept.size());
     candidates.swap(kept);
   }
   if (candidates.empty()) return out;
   const CandidateGeometry geometry = Geometry(start_anchor, candidates, placed.P_s, graph, pair_covariance,
                                               timed_covariance, &out.covariance_seconds);
-  association::AssociationProblem problem = IndividualCompatibility(s, candidates, placed, graph, geometry, gate);
   const LoopFlags loop = FlagLoopLandmarks(options_, graph, placed.sigma_xy, candidates, geometry);
   const bool by_group = groups != nullptr && options_.joint_compatibility;
-  association::AssociationResult result =
-      options_.joint_compatibility ? JointlyCompatible(options_, s, start_anchor, candidates, geometry, loop,
-                                                       timed_covariance, by_group ? groups : nullptr, &problem, &out)
-                                   : association::NearestNeighbour(problem);
-  for (int i = 0; i < n; ++i) {
-    if (result.landmark_of_detection[i] >= 0) out.landmark_of_feature[i] = candidates[result.landmark_of_detection[i]];
-  }
-  if (!by_group) ApplyLoopPairingTest(options_, loop, &out);  // the grouped search applied it per group
-  return out;
+  // Steps 3-5 for the map `m` (the local map, or it widened by a rotation) placed as `placed_m`.
+  const auto associate_features = [&](const LocalSubmap& m, const PlacedMap& placed_m, SubmapAssociation* a) {
+    association::AssociationProblem problem = IndividualCompatibility(m, candidates, placed_m, graph, geometry, gate);
+    association::AssociationResult result =
+        options_.joint_compatibility ? JointlyCompatible(options_, m, start_anchor, candidates, geometry, loop,
+                                                         timed_covariance, by_group ? groups : nullptr, &problem, a)
+                                     : association::NearestNeighbour(problem);
+    for (int i = 0; i < n; ++i) {
+      if (result.landmark_of_detection[i] >= 0) a->landmark_of_feature[i] = candidates[result.landmark_of_detection[i]];
+    }
+    if (!by_group) ApplyLoopPairingTest(options_, loop, a);  // the grouped search applied it per group
+  };
+  associate_features(s, placed, &out);
+  if (!test_rotation) return out;
+  const RotationFit fit = FitRecentRotation(options_, s, placed, Sigma_s, start_anchor, candidates, graph, geometry, gate,
+                                            timed_covariance, recent, out.landmark_of_feature);
+  out.map_rotation_statistic = fit.statistic;
+  if (!(fit.statistic >= models::ChiSquareQuantile(options_.gate_probability, 1))) return out;
+  // The map is rotated beyond its covariance: associated, and joined, widened.
+  SubmapAssociation again;
+  again.landmark_of_feature.assign(n, -1);
+  // The rotation's spread, as the data show it: δ̂ ~ N(0, σ² + var δ̂) for a map rotated by
+  // N(0, σ²) gives σ̂² = δ̂² − var δ̂ (positive: the test passed).
+  const double widening = std::sqrt(std::max(0.0, fit.delta_rad * fit.delta_rad - fit.variance_rad2));
+  const LocalSubmap joined = WidenedByRotation(RotatedAboutStart(s, fit.delta_rad), widening);
+  associate_features(joined, Place(joined, placed.P_s, Sigma_widened, options_.landmark_search_radius_m), &again);
+  again.map_rotated = true;
+  again.map_rotation_rad = fit.delta_rad;
+  again.map_widening_rad = widening;
+  again.map_rotation_statistic = fit.statistic;
+  again.jcbb_truncated = again.jcbb_truncated || out.jcbb_truncated;
+  again.covariance_seconds = out.covariance_seconds;
+  again.candidates = out.candidates;
+  again.candidates_bounded_out = out.candidates_bounded_out;
+  again.start_anchor_covariance = out.start_anchor_covariance;
+  again.start_position_sigma_m = out.start_position_sigma_m;
+  return again;
 }
 
 }  // namespace subslam::backend

@@ -39,24 +39,6 @@ void JoinAll(EifJoiner* eif, const std::vector<LocalSubmap>& maps) {
   ASSERT_TRUE(eif->Finish().ok());
 }
 
-// Landmarks by truth: how many distinct truths, and landmarks holding features of two.
-struct TruthCount {
-  int landmarks = 0, truths = 0, mixed = 0;
-};
-TruthCount CountByTruth(const SubmapGraph& g) {
-  std::map<int, std::set<int>> truths_of;
-  std::set<int> truths;
-  for (const SubmapFactor& f : g.factors()) {
-    for (int i = 0; i < f.submap.num_landmarks(); ++i) {
-      truths_of[f.landmark_of_feature[i]].insert(*f.submap.landmarks[i].truth_id);
-      truths.insert(*f.submap.landmarks[i].truth_id);
-    }
-  }
-  TruthCount c{g.num_landmarks(), static_cast<int>(truths.size()), 0};
-  for (const auto& [j, t] : truths_of) c.mixed += t.size() > 1 ? 1 : 0;
-  return c;
-}
-
 // The landmark a joiner made of `truth` (−1: none).
 int LandmarkOfTruth(const MapJoiner& joiner, int truth) {
   const std::vector<int> ids = joiner.associator().TruthIds(joiner.num_landmarks());

@@ -6,7 +6,9 @@
 
 #include <Eigen/Cholesky>
 #include <cmath>
+#include <map>
 #include <random>
+#include <set>
 #include <vector>
 
 #include "subslam/backend/eif_joiner.h"
@@ -112,6 +114,24 @@ inline double AnchorRms(const SubmapGraph& graph, const SyntheticRun& run) {
     sum += (graph.anchors()[k].translation() - run.anchors[k].translation()).squaredNorm();
   }
   return std::sqrt(sum / (graph.num_anchors() - 1));
+}
+
+// Landmarks by truth: how many distinct truths, and landmarks holding features of two.
+struct TruthCount {
+  int landmarks = 0, truths = 0, mixed = 0;
+};
+inline TruthCount CountByTruth(const SubmapGraph& g) {
+  std::map<int, std::set<int>> truths_of;
+  std::set<int> truths;
+  for (const SubmapFactor& f : g.factors()) {
+    for (int i = 0; i < f.submap.num_landmarks(); ++i) {
+      truths_of[f.landmark_of_feature[i]].insert(*f.submap.landmarks[i].truth_id);
+      truths.insert(*f.submap.landmarks[i].truth_id);
+    }
+  }
+  TruthCount c{g.num_landmarks(), static_cast<int>(truths.size()), 0};
+  for (const auto& [j, t] : truths_of) c.mixed += t.size() > 1 ? 1 : 0;
+  return c;
 }
 
 }  // namespace subslam::backend

@@ -120,8 +120,8 @@ class EkfJoiner final : public MapJoiner {
                                const std::vector<char>& matched);
   // Association of `s` (starting at anchor `start`) with the map, timed and counted: a
   // local map, or with `whole_map_groups` a whole map's summary (SubmapAssociator::Associate).
-  std::vector<int> AssociateAt(const LocalSubmap& s, int start,
-                               const std::vector<std::vector<int>>* whole_map_groups = nullptr);
+  SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
+                                const std::vector<std::vector<int>>* whole_map_groups = nullptr);
   // Join with the given association (−1: a new landmark).
   absl::Status JoinAssociated(const LocalSubmap& s, std::vector<int> assoc);
   // Every local map of the graph joined again, from an empty map, with the graph's

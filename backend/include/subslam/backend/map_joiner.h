@@ -46,6 +46,9 @@ struct JoinerCounters {
   // Closing maps of unconfirmed loop closures joined again with their first association
   // (the joiner restored to the state it was made in), not a second search.
   long associations_replayed = 0;
+  // Local maps found rotated beyond their covariance and joined widened
+  // (SubmapAssociationOptions::map_rotation_sigma_rad).
+  long maps_widened = 0;
   long rejected_joins = 0;    // failed validation: joined again without associations
   // Revisions of the association (landmark_revision.h): passes run, landmarks merged into
   // another, features split off to a landmark of their own.

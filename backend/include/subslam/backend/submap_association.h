@@ -119,6 +119,23 @@ struct SubmapAssociationOptions {
   //    pairings do not count: the later maps are gated given them.
   //  - Joiners that cannot undo a join (EKF, Ceres, whole-map joins) drop thin closures.
   bool confirm_thin_loops = true;
+  // Rotated local maps (beyond the papers; local_map_rotation.h).
+  //  - Test: the map's rotation δ about its start is fitted to its features' pairings with
+  //    the landmarks the last recent_maps local maps saw (found by a vote over rotations
+  //    within ±3σ, σ = map_rotation_sigma_rad, then JCBB with the map rotated by δ and
+  //    widened by σ, then Gauss-Newton on δ; at least two pairings), and the likelihood
+  //    ratio d²(0) − d²(δ̂) of those pairings is tested at χ²₁(gate_probability).
+  //  - Rule: a map that fails it is associated again, and joined, rotated by δ̂ and widened
+  //    by a rotation of σ̂ about its start, σ̂² = δ̂² − var δ̂ (the rotation's spread as the
+  //    data show it): the graph then weighs its rotation against the landmarks it shares
+  //    with its neighbours (SubmapAssociation::map_rotated). Not for whole-map groups or
+  //    nearest neighbour. 0: off.
+  //  - Why: a particle filter's local map over a sharp turn can be wrong in its heading
+  //    after the turn beyond its covariance (sample impoverishment); its features then miss
+  //    the previous map's landmarks (duplicates), and its stiff factor bends the trajectory
+  //    so that a later loop is not found. On hybrid-120m, seeds 1-100, such maps were off
+  //    by 0.1-0.2 rad (bench/RESULTS.md); σ = 0.3 rad lets the vote reach 0.9 rad.
+  double map_rotation_sigma_rad = 0.3;
 
   absl::Status Validate() const;
 };
@@ -146,6 +163,15 @@ struct SubmapAssociation {
   // the features paired with landmarks no recent map saw (empty: none kept, or the anchor
   // was certain).
   std::vector<int> uncertain_loop_features;
+  // The rotation test (map_rotation_sigma_rad): its statistic (NaN: not reached), and
+  // whether the map failed it, with the rotation fitted and the spread it is widened by.
+  // Then the association is that of the map the joiner joins:
+  // WidenedByRotation(RotatedAboutStart(map, map_rotation_rad), map_widening_rad)
+  // (local_map_rotation.h).
+  double map_rotation_statistic = NAN;
+  bool map_rotated = false;
+  double map_rotation_rad = 0.0;
+  double map_widening_rad = 0.0;
   double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
   int candidates = 0;                    // candidate landmarks (step 1)
   int candidates_bounded_out = 0;        // of those, dropped under the joiner's bound (step 2)

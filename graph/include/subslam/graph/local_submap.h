@@ -43,6 +43,10 @@ struct LocalSubmap {
   // How many times the conversion had to repair the covariance to make it positive
   // definite and well conditioned (0 normally; reported, never silent).
   int covariance_repairs = 0;
+  // Set by the back-end only: σ [rad] of the rotation about the start that the covariance
+  // was widened by when association found the map rotated beyond it (its mean then rotated
+  // by the fitted rotation; 0: neither; subslam/backend/local_map_rotation.h).
+  double rotation_widening_rad = 0.0;
 
   int num_landmarks() const { return static_cast<int>(landmarks.size()); }
   Pose2 end_pose() const { return Pose2::FromVector(mean.head<3>()); }
