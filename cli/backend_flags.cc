@@ -100,9 +100,12 @@ ABSL_FLAG(bool, join_confirm_thin_loops, EifDefaults().association.confirm_thin_
           "uncertain, not lost, anchor) until the next --join_loop_confirmation_maps local maps pair "
           "that many other old landmarks, and undo it otherwise (false: drop it at once)");
 ABSL_FLAG(double, join_map_rotation_sigma, EifDefaults().association.map_rotation_sigma_rad,
-          "eif and ekf: test each local map for a rotation about its start against the landmarks "
-          "the previous local maps saw (chi2, 1 dof, at --join_gate) and join a map that fails it "
-          "rotated by the fitted rotation and widened by a rotation of this sigma [rad] (0: off)");
+          "eif and ekf: test each local map for a rotation about its start, searched within 3 "
+          "sigma [rad] of none, against the landmarks the previous local maps saw, and join a map "
+          "that fails the test rotated back and widened by the rotation's spread (0: off)");
+ABSL_FLAG(double, join_map_rotation_level, EifDefaults().association.map_rotation_probability,
+          "rotation test (--join_map_rotation_sigma): chi2 (1 dof) probability that a map that is "
+          "not rotated passes");
 ABSL_FLAG(bool, validate_joins, EifDefaults().validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
           "(the map is joined again without associations)");
@@ -181,6 +184,7 @@ backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
   o.association.confirm_thin_loops = absl::GetFlag(FLAGS_join_confirm_thin_loops);
   o.association.map_rotation_sigma_rad = absl::GetFlag(FLAGS_join_map_rotation_sigma);
+  o.association.map_rotation_probability = absl::GetFlag(FLAGS_join_map_rotation_level);
   o.revision = RevisionOptionsFromFlags();
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);

@@ -34,6 +34,10 @@ absl::Status SubmapAssociationOptions::Validate() const {
     return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_min_sigma_radius_m must be finite and >= 0 [m], got ",
                                                    loop_confirmation_min_sigma_radius_m));
   }
+  if (!(map_rotation_probability > 0 && map_rotation_probability < 1)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("map_rotation_probability must be in (0, 1), got ", map_rotation_probability));
+  }
   if (!(map_rotation_sigma_rad >= 0 && std::isfinite(map_rotation_sigma_rad))) {
     return absl::InvalidArgumentError(
         absl::StrCat("map_rotation_sigma_rad must be finite and >= 0 [rad], got ", map_rotation_sigma_rad));
@@ -918,7 +922,7 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   const RotationFit fit = FitRecentRotation(options_, s, placed, Sigma_s, start_anchor, candidates, graph, geometry, gate,
                                             timed_covariance, recent, out.landmark_of_feature);
   out.map_rotation_statistic = fit.statistic;
-  if (!(fit.statistic >= models::ChiSquareQuantile(options_.gate_probability, 1))) return out;
+  if (!(fit.statistic >= models::ChiSquareQuantile(options_.map_rotation_probability, 1))) return out;
   // The map is rotated beyond its covariance: associated, and joined, widened.
   SubmapAssociation again;
   again.landmark_of_feature.assign(n, -1);

@@ -125,7 +125,7 @@ TEST(SubmapAssociator, FindsAMapRotatedAboutItsStartAndPairsItRotatedBack) {
   const SubmapAssociation a = associator.Associate(f.NewMap(0.15), 1, f.graph, RecentFixture::Covariance);
   EXPECT_TRUE(a.map_rotated);
   EXPECT_NEAR(a.map_rotation_rad, -0.15, 0.01);
-  EXPECT_GE(a.map_rotation_statistic, models::ChiSquareQuantile(0.99, 1));
+  EXPECT_GE(a.map_rotation_statistic, models::ChiSquareQuantile(associator.options().map_rotation_probability, 1));
   EXPECT_GT(a.map_widening_rad, 0.0);
   EXPECT_LE(a.map_widening_rad, std::abs(a.map_rotation_rad));
   for (int i = 0; i < static_cast<int>(f.landmarks.size()); ++i) EXPECT_EQ(a.landmark_of_feature[i], i);
@@ -151,6 +151,10 @@ TEST(SubmapAssociationOptions, RejectsABadRotationSigma) {
   EXPECT_EQ(o.Validate().code(), absl::StatusCode::kInvalidArgument);
   o.map_rotation_sigma_rad = 0.0;
   EXPECT_TRUE(o.Validate().ok());
+  for (double p : {0.0, 1.0, std::nan("")}) {
+    o.map_rotation_probability = p;
+    EXPECT_EQ(o.Validate().code(), absl::StatusCode::kInvalidArgument) << p;
+  }
 }
 
 // Unknown association, without revision (the association alone is under test).
@@ -216,8 +220,8 @@ TEST(RotatedLocalMap, IsJoinedRotatedBackByTheEifAndTheEkf) {
   }
 }
 
-// On consistent local maps the test is a χ²₁ test at gate_probability: the number of maps
-// it widens is bounded by the binomial quantile over the maps joined.
+// On consistent local maps the test is a χ²₁ test at map_rotation_probability: the number
+// of maps it widens is bounded by the binomial quantile over the maps joined.
 TEST(RotatedLocalMap, FewConsistentMapsAreWidened) {
   long joins = 0, widened = 0;
   for (uint64_t seed = 101; seed < 116; ++seed) {
@@ -228,7 +232,8 @@ TEST(RotatedLocalMap, FewConsistentMapsAreWidened) {
     widened += eif.counters().maps_widened;
   }
   ASSERT_GT(joins, 200);
-  const double bound = boost::math::quantile(boost::math::binomial(static_cast<double>(joins), 0.01), 0.999);
+  const double level = 1.0 - SubmapAssociationOptions{}.map_rotation_probability;
+  const double bound = boost::math::quantile(boost::math::binomial(static_cast<double>(joins), level), 0.999);
   EXPECT_LE(widened, bound) << widened << " of " << joins << " maps widened";
 }
 

@@ -18,6 +18,8 @@ ABSL_DECLARE_FLAG(std::string, backend);
 ABSL_DECLARE_FLAG(bool, single_linearization);
 ABSL_DECLARE_FLAG(bool, join_merge);
 ABSL_DECLARE_FLAG(bool, join_confirm_thin_loops);
+ABSL_DECLARE_FLAG(double, join_map_rotation_sigma);
+ABSL_DECLARE_FLAG(double, join_map_rotation_level);
 ABSL_DECLARE_FLAG(std::string, ceres_method);
 ABSL_DECLARE_FLAG(double, eif_recovery_threshold);
 ABSL_DECLARE_FLAG(std::string, ekf_fusion);
@@ -65,6 +67,8 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   absl::SetFlag(&FLAGS_single_linearization, true);
   absl::SetFlag(&FLAGS_join_merge, false);
   absl::SetFlag(&FLAGS_join_confirm_thin_loops, false);
+  absl::SetFlag(&FLAGS_join_map_rotation_sigma, 0.2);
+  absl::SetFlag(&FLAGS_join_map_rotation_level, 0.95);
   absl::SetFlag(&FLAGS_ceres_method, "dogleg");
   absl::SetFlag(&FLAGS_ceres_every, 5);
   absl::SetFlag(&FLAGS_eif_recovery_threshold, 1e-6);
@@ -77,6 +81,10 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   EXPECT_FALSE(o->eif.revision.merge);
   EXPECT_FALSE(o->ekf.revision.merge);
   EXPECT_FALSE(o->eif.association.confirm_thin_loops);
+  EXPECT_EQ(o->eif.association.map_rotation_sigma_rad, 0.2);
+  EXPECT_EQ(o->ekf.association.map_rotation_sigma_rad, 0.2);
+  EXPECT_EQ(o->eif.association.map_rotation_probability, 0.95);
+  EXPECT_EQ(o->ekf.association.map_rotation_probability, 0.95);
   EXPECT_EQ(o->ceres.method, backend::CeresMethod::kDogleg);
   EXPECT_EQ(o->ceres_every, 5);
   EXPECT_EQ(o->eif.recovery_change_threshold, 1e-6);

@@ -124,7 +124,8 @@ struct SubmapAssociationOptions {
   //    the landmarks the last recent_maps local maps saw (found by a vote over rotations
   //    within ±3σ, σ = map_rotation_sigma_rad, then JCBB with the map rotated by δ and
   //    widened by σ, then Gauss-Newton on δ; at least two pairings), and the likelihood
-  //    ratio d²(0) − d²(δ̂) of those pairings is tested at χ²₁(gate_probability).
+  //    ratio d²(0) − d²(δ̂) of those pairings is tested at χ²₁(map_rotation_probability):
+  //    the probability that a map that is not rotated passes.
   //  - Rule: a map that fails it is associated again, and joined, rotated by δ̂ and widened
   //    by a rotation of σ̂ about its start, σ̂² = δ̂² − var δ̂ (the rotation's spread as the
   //    data show it): the graph then weighs its rotation against the landmarks it shares
@@ -136,6 +137,7 @@ struct SubmapAssociationOptions {
   //    so that a later loop is not found. On hybrid-120m, seeds 1-100, such maps were off
   //    by 0.1-0.2 rad (bench/RESULTS.md); σ = 0.3 rad lets the vote reach 0.9 rad.
   double map_rotation_sigma_rad = 0.3;
+  double map_rotation_probability = 0.99;
 
   absl::Status Validate() const;
 };
