@@ -365,8 +365,10 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     }
     assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
-    if (a.map_rotated) {
-      // A rotated map (SubmapAssociationOptions::map_rotation_sigma_rad): joined widened.
+    if (a.map_rotated && !(s.rotation_widening_rad > 0)) {
+      // A rotated map (SubmapAssociationOptions::map_rotation_sigma_rad): joined rotated
+      // back and widened. (The closing map of an undone loop closure comes back from the
+      // graph already so, with its first association.)
       widened = WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad), a.map_widening_rad);
     }
     if (suppress_loop_closure_) {

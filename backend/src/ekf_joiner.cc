@@ -230,7 +230,7 @@ void EkfJoiner::DropVariable(int offset, int size) {
 }
 
 SubmapAssociation EkfJoiner::AssociateAt(const LocalSubmap& s, int start,
-                                        const std::vector<std::vector<int>>* whole_map_groups) {
+                                         const std::vector<std::vector<int>>* whole_map_groups) {
   StageTimer timer(&times_, "association");
   SubmapAssociation a = associator_.Associate(
       s, start, graph_,
@@ -257,7 +257,8 @@ absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
   const int start = graph_.num_anchors() - 1;
   SubmapAssociation a = AssociateAt(s, start);
   if (a.map_rotated) {
-    // A rotated map (SubmapAssociationOptions::map_rotation_sigma_rad): joined widened.
+    // A rotated map (SubmapAssociationOptions::map_rotation_sigma_rad): joined rotated back
+    // and widened.
     const LocalSubmap widened = WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad), a.map_widening_rad);
     if (absl::Status st = JoinAssociated(widened, std::move(a.landmark_of_feature)); !st.ok()) return st;
   } else if (absl::Status st = JoinAssociated(s, std::move(a.landmark_of_feature)); !st.ok()) {
