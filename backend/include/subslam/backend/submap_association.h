@@ -135,7 +135,7 @@ struct SubmapAssociationOptions {
   //    after the turn beyond its covariance (sample impoverishment); its features then miss
   //    the previous map's landmarks (duplicates), and its stiff factor bends the trajectory
   //    so that a later loop is not found. On hybrid-120m, seeds 1-100, such maps were off
-  //    by 0.1-0.2 rad (bench/RESULTS.md); σ = 0.3 rad lets the vote reach 0.9 rad.
+  //    by 0.1-0.15 rad (bench/RESULTS.md); σ = 0.3 rad lets the vote reach 0.9 rad.
   double map_rotation_sigma_rad = 0.3;
   double map_rotation_probability = 0.99;
 
