@@ -13,7 +13,6 @@
 #include "subslam/backend/internal/sparse_cholesky.h"
 #include "eif_solver.h"
 #include "state_blocks.h"
-#include "subslam/backend/local_map_rotation.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
@@ -349,7 +348,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   std::vector<int> assoc(s.num_landmarks(), -1);
   // The start anchor's marginal before this join (NaN without one: no bounds then).
   Eigen::Matrix3d start_covariance = Eigen::Matrix3d::Constant(NAN);
-  std::optional<LocalSubmap> widened;
+  std::optional<LocalSubmap> rotated_back;
   if (associate) {
     const JoinerCounters counters_before = counters_;  // a pending closure's snapshot keeps these
     SubmapAssociation a;
@@ -365,12 +364,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     }
     assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
-    if (a.map_rotated && !(s.rotation_widening_rad > 0)) {
-      // A rotated map (SubmapAssociationOptions::map_rotation_sigma_rad): joined rotated
-      // back and widened. (The closing map of an undone loop closure comes back from the
-      // graph already so, with its first association.)
-      widened = WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad), a.map_widening_rad);
-    }
+    rotated_back = RotatedBack(s, a);  // a map the rotation test found rotated
     if (suppress_loop_closure_) {
       // The closing map of an unconfirmed loop closure: without its loop pairings.
       for (int i : a.uncertain_loop_features) assoc[i] = -1;
@@ -400,7 +394,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
       pending_loop_->before.counters = counters_before;
     }
   }
-  const LocalSubmap& m = widened ? *widened : s;  // the map joined
+  const LocalSubmap& m = rotated_back ? *rotated_back : s;  // the map joined
   const int first_new_landmark = graph_.num_landmarks();
   // Initialise the end anchor and the new landmarks through the start anchor.
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);

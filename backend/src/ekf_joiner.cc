@@ -8,7 +8,6 @@
 
 #include "absl/strings/str_cat.h"
 #include "state_blocks.h"
-#include "subslam/backend/local_map_rotation.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
@@ -256,12 +255,8 @@ absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
   }
   const int start = graph_.num_anchors() - 1;
   SubmapAssociation a = AssociateAt(s, start);
-  if (a.map_rotated) {
-    // A rotated map (SubmapAssociationOptions::map_rotation_sigma_rad): joined rotated back
-    // and widened.
-    const LocalSubmap widened = WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad), a.map_widening_rad);
-    if (absl::Status st = JoinAssociated(widened, std::move(a.landmark_of_feature)); !st.ok()) return st;
-  } else if (absl::Status st = JoinAssociated(s, std::move(a.landmark_of_feature)); !st.ok()) {
+  const std::optional<LocalSubmap> rotated_back = RotatedBack(s, a);  // found rotated by the rotation test
+  if (absl::Status st = JoinAssociated(rotated_back ? *rotated_back : s, std::move(a.landmark_of_feature)); !st.ok()) {
     return st;
   }
   const int every = options_.revision.every_joins;

@@ -52,6 +52,11 @@ std::vector<std::vector<int>> WholeMapGroups(const SubmapGraph& graph) {
   return groups;
 }
 
+std::optional<LocalSubmap> RotatedBack(const LocalSubmap& s, const SubmapAssociation& a) {
+  if (!a.map_rotated || s.rotation_widening_rad > 0) return std::nullopt;
+  return WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad), a.map_widening_rad);
+}
+
 SubmapAssociator::SubmapAssociator(const SubmapAssociationOptions& options) : options_(options) {}
 
 double SubmapAssociator::MeanSignature(int landmark) const {
@@ -705,21 +710,21 @@ void AddRecentCandidates(const SubmapGraph& graph, const PlacedMap& m, const std
 //     second-order term alone, more than a range error a map over one second admits.)
 //  4. The statistic is the likelihood ratio d²(0) − d²(δ̂) of those pairings (at least two):
 //     χ²₁ for a map that is not rotated.
+// A hypothesis that pairs a feature the map's own association paired with a recent landmark
+// otherwise (with another, or none) explains again what the map explains as it is: no fit.
 struct RotationFit {
   double delta_rad = 0.0;
-  double statistic = NAN;  // NaN: fewer than two pairings
+  double statistic = NAN;  // NaN: fewer than two pairings, or a re-pairing (see above)
   double variance_rad2 = NAN;  // of δ̂, given the pairings
 };
 
 RotationFit FitRecentRotation(const SubmapAssociationOptions& o, const LocalSubmap& s, const PlacedMap& placed,
-                              const Eigen::Matrix3d& Sigma_s, int start_anchor, const std::vector<int>& candidates,
+                              const Eigen::Matrix3d& Sigma_widened, int start_anchor, const std::vector<int>& candidates,
                               const SubmapGraph& graph, const CandidateGeometry& geometry, const GateTest& gate,
                               const TimedCovariance& timed_covariance, const std::vector<char>& recent,
                               const std::vector<int>& own_pairing) {
   constexpr int kRounds = 3, kGaussNewtonIterations = 8;
   const double sigma = o.map_rotation_sigma_rad;
-  Eigen::Matrix3d Sigma_widened = Sigma_s;
-  Sigma_widened(2, 2) += sigma * sigma;  // the search radii grow as for the start heading
   RotationFit fit;
   // The recent landmarks individually compatible with each feature of the map rotated by
   // `d` and widened.
@@ -784,7 +789,7 @@ RotationFit FitRecentRotation(const SubmapAssociationOptions& o, const LocalSubm
     for (int i = 0; i < s.num_landmarks(); ++i) {
       const int j = own_pairing[i];
       if (j >= 0 && recent[j] && (r.landmark_of_detection[i] < 0 || candidates[r.landmark_of_detection[i]] != j)) {
-        return RotationFit{};  // another explanation of what the map explains as it is
+        return RotationFit{};
       }
     }
     if (r.landmark_of_detection == hypothesis) break;
@@ -794,16 +799,17 @@ RotationFit FitRecentRotation(const SubmapAssociationOptions& o, const LocalSubm
       if (hypothesis[i] >= 0) pairs.push_back({i, hypothesis[i]});
     }
     const int k = static_cast<int>(pairs.size());
-    // d²(δ), and with `g` its innovation's derivative ∂ν/∂δ = −(−y, x) of each rotated feature.
+    // d²(δ), and with `g` its innovation's derivative ∂ν/∂δ: ν = prediction − feature, so
+    // minus the rotated feature's own.
     const auto joint = [&](double d, Eigen::VectorXd* nu, Eigen::MatrixXd* S, Eigen::VectorXd* g) {
       const LocalSubmap rotated = RotatedAboutStart(s, d);
+      const Eigen::VectorXd feature_rate = RotationAboutStart(rotated);
       nu->resize(2 * k);
       g->resize(2 * k);
       S->resize(2 * k, 2 * k);
       for (int p = 0; p < k; ++p) {
-        const Eigen::Vector2d l = rotated.landmark(pairs[p].first);
-        nu->segment<2>(2 * p) = geometry.predicted[pairs[p].second] - l;
-        g->segment<2>(2 * p) = Eigen::Vector2d(l.y(), -l.x());
+        nu->segment<2>(2 * p) = geometry.predicted[pairs[p].second] - rotated.landmark(pairs[p].first);
+        g->segment<2>(2 * p) = -feature_rate.segment<2>(3 + 2 * pairs[p].first);
         for (int q = 0; q < k; ++q) {
           S->block<2, 2>(2 * p, 2 * q) =
               covariance(rotated.covariance, pairs[p].first, pairs[p].second, pairs[q].first, pairs[q].second);
@@ -919,22 +925,21 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   };
   associate_features(s, placed, &out);
   if (!test_rotation) return out;
-  const RotationFit fit = FitRecentRotation(options_, s, placed, Sigma_s, start_anchor, candidates, graph, geometry, gate,
+  const RotationFit fit = FitRecentRotation(options_, s, placed, Sigma_widened, start_anchor, candidates, graph, geometry, gate,
                                             timed_covariance, recent, out.landmark_of_feature);
   out.map_rotation_statistic = fit.statistic;
   if (!(fit.statistic >= models::ChiSquareQuantile(options_.map_rotation_probability, 1))) return out;
   // The map is rotated beyond its covariance: associated, and joined, widened.
   SubmapAssociation again;
   again.landmark_of_feature.assign(n, -1);
-  // The rotation's spread, as the data show it: δ̂ ~ N(0, σ² + var δ̂) for a map rotated by
-  // N(0, σ²) gives σ̂² = δ̂² − var δ̂ (positive: the test passed).
-  const double widening = std::sqrt(std::max(0.0, fit.delta_rad * fit.delta_rad - fit.variance_rad2));
-  const LocalSubmap joined = WidenedByRotation(RotatedAboutStart(s, fit.delta_rad), widening);
-  associate_features(joined, Place(joined, placed.P_s, Sigma_widened, options_.landmark_search_radius_m), &again);
   again.map_rotated = true;
   again.map_rotation_rad = fit.delta_rad;
-  again.map_widening_rad = widening;
+  // The rotation's spread, as the data show it: δ̂ ~ N(0, σ² + var δ̂) for a map rotated by
+  // N(0, σ²) gives σ̂² = δ̂² − var δ̂ (positive: the test passed).
+  again.map_widening_rad = std::sqrt(std::max(0.0, fit.delta_rad * fit.delta_rad - fit.variance_rad2));
   again.map_rotation_statistic = fit.statistic;
+  const LocalSubmap joined = *RotatedBack(s, again);
+  associate_features(joined, Place(joined, placed.P_s, Sigma_widened, options_.landmark_search_radius_m), &again);
   again.jcbb_truncated = again.jcbb_truncated || out.jcbb_truncated;
   again.covariance_seconds = out.covariance_seconds;
   again.candidates = out.candidates;

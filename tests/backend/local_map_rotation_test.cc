@@ -7,6 +7,7 @@
 #include <boost/math/distributions/binomial.hpp>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "subslam/backend/eif_joiner.h"
@@ -129,11 +130,20 @@ TEST(SubmapAssociator, FindsAMapRotatedAboutItsStartAndPairsItRotatedBack) {
   EXPECT_GT(a.map_widening_rad, 0.0);
   EXPECT_LE(a.map_widening_rad, std::abs(a.map_rotation_rad));
   for (int i = 0; i < static_cast<int>(f.landmarks.size()); ++i) EXPECT_EQ(a.landmark_of_feature[i], i);
+  // What the joiners join: the map rotated back onto the landmarks, widened, and only once.
+  const std::optional<LocalSubmap> back = RotatedBack(f.NewMap(0.15), a);
+  ASSERT_TRUE(back.has_value());
+  EXPECT_DOUBLE_EQ(back->rotation_widening_rad, a.map_widening_rad);
+  for (int i = 0; i < static_cast<int>(f.landmarks.size()); ++i) {
+    EXPECT_LT((back->landmark(i) - TransformTo(f.graph.anchors()[1], f.landmarks[i])).norm(), 0.05);
+  }
+  EXPECT_FALSE(RotatedBack(*back, a).has_value());
 
   const SubmapAssociation still = associator.Associate(f.NewMap(0.0), 1, f.graph, RecentFixture::Covariance);
   EXPECT_FALSE(still.map_rotated);
   EXPECT_TRUE(std::isfinite(still.map_rotation_statistic));
   EXPECT_LT(still.map_rotation_statistic, 1e-6);
+  EXPECT_FALSE(RotatedBack(f.NewMap(0.0), still).has_value());
   for (int i = 0; i < static_cast<int>(f.landmarks.size()); ++i) EXPECT_EQ(still.landmark_of_feature[i], i);
 
   // A map already widened (joined so before an undone loop closure) is not tested again.

@@ -167,9 +167,7 @@ struct SubmapAssociation {
   std::vector<int> uncertain_loop_features;
   // The rotation test (map_rotation_sigma_rad): its statistic (NaN: not reached), and
   // whether the map failed it, with the rotation fitted and the spread it is widened by.
-  // Then the association is that of the map the joiner joins:
-  // WidenedByRotation(RotatedAboutStart(map, map_rotation_rad), map_widening_rad)
-  // (local_map_rotation.h).
+  // Then the association is that of the map the joiner joins (RotatedBack).
   double map_rotation_statistic = NAN;
   bool map_rotated = false;
   double map_rotation_rad = 0.0;
@@ -187,6 +185,13 @@ struct SubmapAssociation {
 // The features of each local map of `graph` (its landmarks, as SummarizeAsLocalSubmap
 // numbers them), in the order the maps were joined: Associate's groups for a whole-map join.
 std::vector<std::vector<int>> WholeMapGroups(const SubmapGraph& graph);
+
+// The local map `s` as a joiner joins it after association `a`, when the rotation test
+// found it rotated: WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad),
+// a.map_widening_rad) (local_map_rotation.h). nullopt when `s` is joined as it is: not
+// found rotated, or rotated back already (a map taken back from the graph, whose first
+// association is replayed after an undone loop closure).
+std::optional<LocalSubmap> RotatedBack(const LocalSubmap& s, const SubmapAssociation& a);
 
 class SubmapAssociator {
  public:
