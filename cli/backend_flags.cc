@@ -100,9 +100,10 @@ ABSL_FLAG(bool, join_confirm_thin_loops, EifDefaults().association.confirm_thin_
           "uncertain, not lost, anchor) until the next --join_loop_confirmation_maps local maps pair "
           "that many other old landmarks, and undo it otherwise (false: drop it at once)");
 ABSL_FLAG(double, join_map_rotation_sigma, EifDefaults().association.map_rotation_sigma_rad,
-          "eif and ekf: test each local map for a rotation about its start, searched within 3 "
-          "sigma [rad] of none, against the landmarks the previous local maps saw, and join a map "
-          "that fails the test rotated back and widened by the rotation's spread (0: off)");
+          "every joiner: test each local map for a rotation about its start, searched within 3 "
+          "sigma [rad] of none, against the landmarks the previous local maps saw (the tree "
+          "joiners: the previous local map's), and join a map that fails the test rotated back "
+          "and widened by the rotation's spread (0: off)");
 ABSL_FLAG(double, join_map_rotation_level, EifDefaults().association.map_rotation_probability,
           "rotation test (--join_map_rotation_sigma): chi2 (1 dof) probability that a map that is "
           "not rotated passes");

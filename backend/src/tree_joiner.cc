@@ -21,9 +21,13 @@ std::unique_ptr<MapJoiner> TreeJoiner::NewEmpty(const Pose2& initial_pose) const
 absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
   if (finished_) return absl::FailedPreconditionError("the tree is finished");
   if (!status_.ok()) return status_;
+  if (absl::Status v = submap.Validate(); !v.ok()) return v;
+  const std::optional<LocalSubmap> rotated_back = RotatedAgainstPrevious(submap);
   // A leaf lives in the frame of its start anchor; the leftmost in the world frame.
   std::unique_ptr<MapJoiner> leaf = prototype_->NewEmpty(nodes_.empty() ? initial_pose_ : Pose2());
-  if (absl::Status st = leaf->Join(submap); !st.ok()) return st;
+  if (absl::Status st = leaf->Join(rotated_back ? *rotated_back : submap); !st.ok()) return st;
+  if (rotated_back) ++maps_widened_;
+  previous_leaf_ = leaf->Clone();
   folded_.reset();
   nodes_.push_back({std::move(leaf), 0, std::nullopt});
   if (!options_.running) return absl::OkStatus();
@@ -40,6 +44,19 @@ absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
     ++tree_joins_;
   }
   return absl::OkStatus();
+}
+
+std::optional<LocalSubmap> TreeJoiner::RotatedAgainstPrevious(const LocalSubmap& submap) const {
+  if (previous_leaf_ == nullptr) return std::nullopt;
+  const MapJoiner& previous = *previous_leaf_;
+  const SubmapAssociationOptions& o = previous.associator().options();
+  if (!(o.map_rotation_sigma_rad > 0) || !o.joint_compatibility || o.known_association) return std::nullopt;
+  const SubmapAssociation a =
+      previous.associator().Associate(submap, previous.num_anchors() - 1, previous.graph(),
+                                      [&previous](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
+                                        return previous.JointCovariance(anchors, landmarks);
+                                      });
+  return RotatedBack(submap, a);
 }
 
 absl::Status TreeJoiner::Finish() {
@@ -143,6 +160,7 @@ const JoinerCounters& TreeJoiner::counters() const {
   for (const Node& node : nodes_) {
     counters_ += node.map->counters();
   }
+  counters_.maps_widened += maps_widened_;
   return counters_;
 }
 

@@ -13,6 +13,7 @@
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/ekf_joiner.h"
 #include "subslam/backend/submap_association.h"
+#include "subslam/backend/tree_joiner.h"
 #include "subslam/models/gating.h"
 #include "synthetic_run.h"
 
@@ -175,15 +176,21 @@ Options AssociationOnly(Options o) {
   return o;
 }
 
-std::unique_ptr<MapJoiner> MakeJoiner(bool ekf, const Pose2& initial, double sigma_rotation) {
-  if (ekf) {
+enum class Kind { kEif, kEkf, kTreeEif, kTreeEkf };
+
+std::unique_ptr<MapJoiner> MakeJoiner(Kind kind, const Pose2& initial, double sigma_rotation) {
+  std::unique_ptr<MapJoiner> node;
+  if (kind == Kind::kEkf || kind == Kind::kTreeEkf) {
     EkfJoinerOptions o = AssociationOnly(EkfJoinerOptions{});
     o.association.map_rotation_sigma_rad = sigma_rotation;
-    return std::make_unique<EkfJoiner>(initial, o);
+    node = std::make_unique<EkfJoiner>(initial, o);
+  } else {
+    EifJoinerOptions o = AssociationOnly(ConvergingKnownAssociation());
+    o.association.map_rotation_sigma_rad = sigma_rotation;
+    node = std::make_unique<EifJoiner>(initial, o);
   }
-  EifJoinerOptions o = AssociationOnly(ConvergingKnownAssociation());
-  o.association.map_rotation_sigma_rad = sigma_rotation;
-  return std::make_unique<EifJoiner>(initial, o);
+  if (kind == Kind::kEif || kind == Kind::kEkf) return node;
+  return std::make_unique<TreeJoiner>(std::move(node), TreeJoinerOptions{});
 }
 
 // The joint NEES of every anchor but the fixed first against the truth.
@@ -200,16 +207,17 @@ double AnchorNees(const MapJoiner& j, const SyntheticRun& run) {
 
 // One straight leg's map of a synthetic run rotated by 0.12 rad about its start with its
 // covariance unchanged (as a particle filter's map over a turn can be): without the test
-// its features become duplicates and the estimate is inconsistent; with it, both back-ends
-// pair them as in the untouched run, and the estimate is consistent.
-TEST(RotatedLocalMap, IsJoinedRotatedBackByTheEifAndTheEkf) {
-  for (bool ekf : {false, true}) {
-    SCOPED_TRACE(ekf ? "ekf" : "eif");
+// its features become duplicates and the estimate is inconsistent; with it, the sequential
+// back-ends pair them as in the untouched run, and the estimate is consistent. The tree
+// joiners test the map against the map before it, before it becomes a leaf.
+TEST(RotatedLocalMap, IsJoinedRotatedBackBySequentialAndTreeJoiners) {
+  for (Kind kind : {Kind::kEif, Kind::kEkf, Kind::kTreeEif, Kind::kTreeEkf}) {
+    SCOPED_TRACE(::testing::Message() << "joiner " << static_cast<int>(kind));
     const SyntheticRun run = MakeRun(7, 9);
     std::vector<LocalSubmap> rotated = run.submaps;
     rotated[3] = RotatedAboutStart(rotated[3], 0.12);
     const auto join_all = [&](const std::vector<LocalSubmap>& maps, double sigma) {
-      std::unique_ptr<MapJoiner> j = MakeJoiner(ekf, run.anchors[0], sigma);
+      std::unique_ptr<MapJoiner> j = MakeJoiner(kind, run.anchors[0], sigma);
       for (const LocalSubmap& s : maps) EXPECT_TRUE(j->Join(s).ok());
       EXPECT_TRUE(j->Finish().ok());
       return j;
@@ -231,20 +239,25 @@ TEST(RotatedLocalMap, IsJoinedRotatedBackByTheEifAndTheEkf) {
 }
 
 // On consistent local maps the test is a χ²₁ test at map_rotation_probability: the number
-// of maps it widens is bounded by the binomial quantile over the maps joined.
+// of maps it widens is bounded by the binomial quantile over the maps joined, in the
+// sequential EIF (against the recent maps' landmarks) and in the tree (against the map
+// before).
 TEST(RotatedLocalMap, FewConsistentMapsAreWidened) {
-  long joins = 0, widened = 0;
-  for (uint64_t seed = 101; seed < 116; ++seed) {
-    const SyntheticRun run = MakeRun(seed, 15);
-    EifJoiner eif(run.anchors[0], AssociationOnly(ConvergingKnownAssociation()));
-    for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(eif.Join(s).ok());
-    joins += eif.counters().joins;
-    widened += eif.counters().maps_widened;
+  for (Kind kind : {Kind::kEif, Kind::kTreeEif}) {
+    SCOPED_TRACE(kind == Kind::kEif ? "eif" : "tree-eif");
+    long joins = 0, widened = 0;
+    for (uint64_t seed = 101; seed < 116; ++seed) {
+      const SyntheticRun run = MakeRun(seed, 15);
+      std::unique_ptr<MapJoiner> j = MakeJoiner(kind, run.anchors[0], SubmapAssociationOptions{}.map_rotation_sigma_rad);
+      for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(j->Join(s).ok());
+      joins += j->counters().joins;
+      widened += j->counters().maps_widened;
+    }
+    ASSERT_GT(joins, 200);
+    const double level = 1.0 - SubmapAssociationOptions{}.map_rotation_probability;
+    const double bound = boost::math::quantile(boost::math::binomial(static_cast<double>(joins), level), 0.999);
+    EXPECT_LE(widened, bound) << widened << " of " << joins << " maps widened";
   }
-  ASSERT_GT(joins, 200);
-  const double level = 1.0 - SubmapAssociationOptions{}.map_rotation_probability;
-  const double bound = boost::math::quantile(boost::math::binomial(static_cast<double>(joins), level), 0.999);
-  EXPECT_LE(widened, bound) << widened << " of " << joins << " maps widened";
 }
 
 }  // namespace

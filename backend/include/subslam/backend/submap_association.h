@@ -129,8 +129,9 @@ struct SubmapAssociationOptions {
   //  - Rule: a map that fails it is associated again, and joined, rotated by δ̂ and widened
   //    by a rotation of σ̂ about its start, σ̂² = δ̂² − var δ̂ (the rotation's spread as the
   //    data show it): the graph then weighs its rotation against the landmarks it shares
-  //    with its neighbours (SubmapAssociation::map_rotated). Not for whole-map groups or
-  //    nearest neighbour. 0: off.
+  //    with its neighbours (SubmapAssociation::map_rotated). Not for whole-map groups
+  //    (the tree joiners test each local map against the one before it instead,
+  //    tree_joiner.h) or nearest neighbour. 0: off.
   //  - Why: a particle filter's local map over a sharp turn can be wrong in its heading
   //    after the turn beyond its covariance (sample impoverishment); its features then miss
   //    the previous map's landmarks (duplicates), and its stiff factor bends the trajectory

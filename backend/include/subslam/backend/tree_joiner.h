@@ -9,6 +9,16 @@
 // landmarks with the left's (the shared association module, every left landmark near a
 // right feature a candidate), brings the right into the left's frame and fuses.
 //
+// Rotated local maps: the grouped association of a whole-map join does not test a map's
+// rotation (SubmapAssociationOptions::map_rotation_sigma_rad), so each new local map is
+// tested before it becomes a leaf, against the local map before it alone (that map's leaf:
+// the new map starts at its last anchor, and the landmarks it shares with it are what the
+// test fits the rotation to). A map that fails becomes a leaf rotated back and widened
+// (RotatedBack), as the sequential joiners join it. In the tree every map but the first
+// starts the right node of exactly one join, so this is the test the sequential joiners
+// make, with the relative uncertainty of two consecutive maps instead of the global
+// marginals.
+//
 // Modes:
 //  * running (default): a binary counter — each new leaf is pushed on a stack and the
 //    two top nodes are joined while they have the same level, so the partial tree is
@@ -32,6 +42,8 @@
 #include <vector>
 
 #include "subslam/backend/map_joiner.h"
+#include "subslam/backend/submap_association.h"
+#include "subslam/graph/local_submap.h"
 
 namespace subslam::backend {
 
@@ -86,6 +98,9 @@ class TreeJoiner final : public MapJoiner {
     mutable std::optional<Eigen::Matrix3d> last_anchor_covariance;
   };
   const MapJoiner& Whole() const;
+  // `submap` rotated back and widened when the rotation test against the previous local
+  // map's leaf finds it rotated (nullopt: joined as it is, or the first map).
+  std::optional<LocalSubmap> RotatedAgainstPrevious(const LocalSubmap& submap) const;
   // The last anchor chained over the nodes' last anchors, and its covariance (first order)
   // unless `covariance` is null.
   void Chain(Pose2* pose, Eigen::Matrix3d* covariance) const;
@@ -94,6 +109,8 @@ class TreeJoiner final : public MapJoiner {
   TreeJoinerOptions options_;
   Pose2 initial_pose_;
   std::vector<Node> nodes_;  // left to right (running: levels strictly decreasing)
+  std::unique_ptr<MapJoiner> previous_leaf_;  // a copy of the last local map's leaf
+  long maps_widened_ = 0;                     // leaves joined rotated back and widened
   bool finished_ = false;
   int tree_joins_ = 0;
   absl::Status status_;
