@@ -221,6 +221,36 @@ absl::Status EifJoiner::JoinOne(const LocalSubmap& s) {
   return JoinWith(s, /*associate=*/false);
 }
 
+void EifJoiner::AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covariance) const {
+  const PendingLoopClosure& pending = *pending_loop_;
+  *pose = pending.before.graph.anchors().back();  // the closing map's start anchor
+  if (covariance != nullptr) *covariance = pending.association.start_anchor_covariance;
+  for (int f = pending.factor; f < static_cast<int>(graph_.factors().size()); ++f) {
+    const LocalSubmap& m = graph_.factors()[f].submap;
+    Eigen::Matrix3d J_a, J_e;
+    const Pose2 next = Compose(*pose, m.end_pose(), &J_a, &J_e);
+    if (covariance != nullptr) {
+      *covariance = J_a * *covariance * J_a.transpose() + J_e * m.covariance.topLeftCorner<3, 3>() * J_e.transpose();
+    }
+    *pose = next;
+  }
+}
+
+Pose2 EifJoiner::LastAnchor() const {
+  if (!pending_loop_) return MapJoiner::LastAnchor();
+  Pose2 p;
+  AnchorWithoutPendingClosure(&p, nullptr);
+  return p;
+}
+
+Eigen::Matrix3d EifJoiner::LastAnchorCovariance() const {
+  if (!pending_loop_) return MapJoiner::LastAnchorCovariance();
+  Pose2 p;
+  Eigen::Matrix3d c;
+  AnchorWithoutPendingClosure(&p, &c);
+  return c;
+}
+
 absl::Status EifJoiner::CheckPendingLoopClosure() {
   if (!pending_loop_) return absl::OkStatus();
   const int last = static_cast<int>(graph_.factors().size()) - 1;

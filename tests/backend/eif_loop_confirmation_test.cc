@@ -272,5 +272,41 @@ TEST(EifJoiner, HoldsAThinLoopClosureUntilTheNextMapsConfirmIt) {
   }
 }
 
+// While a loop closure waits for confirmation, the online anchor (LastAnchor) is the
+// estimate without it — what a joiner that dropped the closure reports —, though the
+// graph carries it; once the closure is confirmed or undone, the graph's last anchor.
+TEST(EifJoiner, OnlineAnchorDoesNotCarryAHeldLoopClosure) {
+  EifJoinerOptions options;
+  EifJoinerOptions off = options;
+  off.association.confirm_thin_loops = false;
+  const auto same_pose = [](const Pose2& a, const Pose2& b) {
+    return PoseDifference(a, b).cwiseAbs().maxCoeff() < 1e-6;
+  };
+  const auto same_covariance = [](const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+    return (a - b).norm() <= 1e-6 * b.norm();
+  };
+  for (int confirming : {0, 4}) {
+    SCOPED_TRACE(confirming);
+    EifJoiner held(Pose2(0, 0, 0), options), dropped(Pose2(0, 0, 0), off);
+    for (const LocalSubmap& s : loop_confirmation::ThinRun(confirming)) {
+      ASSERT_TRUE(held.Join(s).ok());
+      ASSERT_TRUE(dropped.Join(s).ok());
+      const int last = held.num_anchors() - 1;
+      const bool waiting = s.id == 5 || (confirming == 0 && s.id > 5 && s.id < 8);
+      if (waiting) {
+        // The graph's last anchor carries the two held pairings: far more certain.
+        EXPECT_LT(held.AnchorCovariance(last).trace(), 0.5 * held.LastAnchorCovariance().trace()) << "map " << s.id;
+        EXPECT_TRUE(same_pose(held.LastAnchor(), dropped.LastAnchor())) << "map " << s.id;
+        EXPECT_TRUE(same_covariance(held.LastAnchorCovariance(), dropped.LastAnchorCovariance())) << "map " << s.id;
+      } else {
+        EXPECT_TRUE(same_pose(held.LastAnchor(), held.anchor(last))) << "map " << s.id;
+        EXPECT_TRUE(same_covariance(held.LastAnchorCovariance(), held.AnchorCovariance(last))) << "map " << s.id;
+      }
+    }
+    EXPECT_EQ(held.counters().loop_closures_confirmed, confirming == 4 ? 1 : 0);
+    EXPECT_EQ(held.counters().loop_closures_unconfirmed, confirming == 4 ? 0 : 1);
+  }
+}
+
 }  // namespace
 }  // namespace subslam::backend

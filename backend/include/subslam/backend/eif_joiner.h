@@ -84,9 +84,11 @@ struct EifJoinerOptions {
   double validation_probability = 0.999;
   // Loop-closure confirmation: association.loop_confirmation_maps and confirm_thin_loops
   // (submap_association.h). The sequential EIF undoes an unconfirmed closure's joins and
-  // joins the maps again (the online estimate carries the closure meanwhile; one under a
-  // lost anchor still waiting at Finish() or at a whole-map join stands, a thin one is
-  // undone); it needs the estimate after the closure to be right, so it confirms only
+  // joins the maps again (one under a lost anchor still waiting at Finish() or at a
+  // whole-map join stands, a thin one is undone). While a closure waits, the online
+  // estimate (LastAnchor) does not carry it: a decision not yet taken must not move the
+  // pose a navigation stack reads, nor shrink its covariance (a thin closure by a chance
+  // fit would put it metres off with centimetres of σ). It needs the estimate after the closure to be right, so it confirms only
   // while it relinearises after joins (RelinearizesAfterJoins()). With a single linearisation the
   // estimate after a correction of a hundred metres is too far off for the next maps to
   // find the old map: combined-2km's correct closures were all undone.
@@ -238,6 +240,12 @@ class EifJoiner final : public MapJoiner {
   double MaxLinearizationError() const;
 
   const SubmapGraph& graph() const override { return graph_; }
+  // The last anchor; while a loop closure waits for confirmation, the start anchor of its
+  // map as estimated before it (and that anchor's marginal), composed with the end poses
+  // of the local maps joined since (first order, their end-pose covariances): the
+  // estimate without the closure.
+  Pose2 LastAnchor() const override;
+  Eigen::Matrix3d LastAnchorCovariance() const override;
   // Marginal covariances by sparse solves with the factor.
   Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
                                   const std::vector<int>& landmarks) const override;
@@ -498,6 +506,8 @@ class EifJoiner final : public MapJoiner {
     bool thin = false;
   };
   std::optional<PendingLoopClosure> pending_loop_;
+  // LastAnchor() and LastAnchorCovariance() while a closure waits (`covariance` may be null).
+  void AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covariance) const;
   bool suppress_loop_closure_ = false;  // while joining again a map whose closure was undone
   // Set while that map is joined again: its association, reused (the joiner is restored to
   // the state it was found in).
