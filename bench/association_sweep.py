@@ -61,21 +61,23 @@ def hybrid(args):
                 cells.append((a, b, s, known, out))
     pool(args, jobs)
     print("| alpha | beta | duplicates / true landmarks seen | median final RMS est / known [m] | "
-          "median online RMS est / known [m] | 10-sigma successes est / known | merges / splits |")
-    print("| --- | --- | --- | --- | --- | --- | --- |")
+          "median online RMS est / known [m] | 10-sigma successes est / known | "
+          "online 10-sigma successes est / known | merges / splits |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     for a, b in settings:
         rows = {k: [report(o) for (aa, bb, s, kn, o) in cells if (aa, bb, kn) == (a, b, k)] for k in (False, True)}
         est, kn = rows[False], rows[True]
         dup = sum(r["metrics"]["map"]["duplicates"] for r in est)
         seen = sum(r["metrics"]["map"]["matched"] for r in est)
         med = lambda rs, key: statistics.median(r["metrics"][key]["rms_position_m"] for r in rs)
-        ok = lambda rs: sum(not r["metrics"]["trajectory"]["failed_10_sigma_test"] for r in rs)
+        ok = lambda rs, key="trajectory": sum(not r["metrics"][key]["failed_10_sigma_test"] for r in rs)
         merges = sum(r["estimator_counters"].get("join_landmarks_merged", 0) for r in est)
         splits = sum(r["estimator_counters"].get("join_features_split", 0) for r in est)
         print(f"| {a} | {b} | {dup} / {seen} ({100.0 * dup / max(seen, 1):.1f} %) | "
               f"{med(est, 'trajectory'):.3f} / {med(kn, 'trajectory'):.3f} | "
               f"{med(est, 'trajectory_online'):.3f} / {med(kn, 'trajectory_online'):.3f} | "
-              f"{ok(est)} / {ok(kn)} of {len(est)} | {merges} / {splits} |")
+              f"{ok(est)} / {ok(kn)} of {len(est)} | "
+              f"{ok(est, 'trajectory_online')} / {ok(kn, 'trajectory_online')} of {len(est)} | {merges} / {splits} |")
 
 
 def combined(args):

@@ -46,6 +46,9 @@ class CeresJoiner final : public MapJoiner {
   }
   std::vector<Eigen::Matrix3d> AnchorCovariances() const override { return eif_.AnchorCovariances(); }
   std::vector<Eigen::Matrix2d> LandmarkCovariances() const override { return eif_.LandmarkCovariances(); }
+  // The EIF's (without a loop closure that waits for confirmation).
+  Pose2 LastAnchor() const override { return eif_.LastAnchor(); }
+  Eigen::Matrix3d LastAnchorCovariance() const override { return eif_.LastAnchorCovariance(); }
   const std::vector<int>& last_association() const override { return eif_.last_association(); }
   // The EIF's stages, and "ceres_solve_and_adopt".
   std::map<std::string, double> stage_times() const override;

@@ -117,7 +117,8 @@ struct SubmapAssociationOptions {
   //    landmarks it did not use, as one map would have had to; otherwise it is undone as
   //    an unconfirmed closure is (above), also when the run ends first. The held
   //    pairings do not count: the later maps are gated given them.
-  //  - Joiners that cannot undo a join (EKF, Ceres, whole-map joins) drop thin closures.
+  //  - Joiners that cannot undo a join (EKF, whole-map joins) drop thin closures (Ceres
+  //    joins through the sequential EIF, and holds them as it does).
   bool confirm_thin_loops = true;
   // Rotated local maps (beyond the papers; local_map_rotation.h).
   //  - Test: the map's rotation δ about its start is fitted to its features' pairings with
