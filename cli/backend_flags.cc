@@ -96,7 +96,7 @@ ABSL_FLAG(int, join_loop_confirmation_maps, EifDefaults().association.loop_confi
           "uncertain anchor unless one of this many next local maps pairs a feature with "
           "another old landmark (0: off)");
 ABSL_FLAG(bool, join_confirm_thin_loops, EifDefaults().association.confirm_thin_loops,
-          "eif: hold a loop closure with fewer than --join_min_loop_pairings pairings (under an "
+          "eif and ceres: hold a loop closure with fewer than --join_min_loop_pairings pairings (under an "
           "uncertain, not lost, anchor) until the next --join_loop_confirmation_maps local maps pair "
           "that many other old landmarks, and undo it otherwise (false: drop it at once)");
 ABSL_FLAG(double, join_map_rotation_sigma, EifDefaults().association.map_rotation_sigma_rad,

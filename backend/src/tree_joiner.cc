@@ -27,7 +27,7 @@ absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
   std::unique_ptr<MapJoiner> leaf = prototype_->NewEmpty(nodes_.empty() ? initial_pose_ : Pose2());
   if (absl::Status st = leaf->Join(rotated_back ? *rotated_back : submap); !st.ok()) return st;
   if (rotated_back) ++maps_widened_;
-  previous_leaf_ = leaf->Clone();
+  if (TestsRotation()) previous_leaf_ = leaf->Clone();
   folded_.reset();
   nodes_.push_back({std::move(leaf), 0, std::nullopt});
   if (!options_.running) return absl::OkStatus();
@@ -46,17 +46,22 @@ absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
   return absl::OkStatus();
 }
 
-std::optional<LocalSubmap> TreeJoiner::RotatedAgainstPrevious(const LocalSubmap& submap) const {
-  if (previous_leaf_ == nullptr) return std::nullopt;
+std::optional<LocalSubmap> TreeJoiner::RotatedAgainstPrevious(const LocalSubmap& submap) {
+  if (previous_leaf_ == nullptr || !TestsRotation()) return std::nullopt;
+  const absl::Time start = absl::Now();
   const MapJoiner& previous = *previous_leaf_;
-  const SubmapAssociationOptions& o = previous.associator().options();
-  if (!(o.map_rotation_sigma_rad > 0) || !o.joint_compatibility || o.known_association) return std::nullopt;
   const SubmapAssociation a =
       previous.associator().Associate(submap, previous.num_anchors() - 1, previous.graph(),
                                       [&previous](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
                                         return previous.JointCovariance(anchors, landmarks);
                                       });
+  rotation_test_seconds_ += absl::ToDoubleSeconds(absl::Now() - start);
   return RotatedBack(submap, a);
+}
+
+bool TreeJoiner::TestsRotation() const {
+  const SubmapAssociationOptions& o = prototype_->associator().options();
+  return o.map_rotation_sigma_rad > 0 && o.joint_compatibility && !o.known_association;
 }
 
 absl::Status TreeJoiner::Finish() {
@@ -152,6 +157,7 @@ std::map<std::string, double> TreeJoiner::stage_times() const {
     for (const auto& [stage, seconds] : node.map->stage_times()) out[stage] += seconds;
   }
   out["fold"] = fold_seconds_;
+  out["leaf_rotation_test"] = rotation_test_seconds_;
   return out;
 }
 

@@ -10,10 +10,12 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <memory>
 #include <random>
 #include <set>
 #include <sstream>
 
+#include "subslam/backend/ceres_joiner.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/moment_matching.h"
 #include "dense_gauss_newton.h"
@@ -274,37 +276,53 @@ TEST(EifJoiner, HoldsAThinLoopClosureUntilTheNextMapsConfirmIt) {
 
 // While a loop closure waits for confirmation, the online anchor (LastAnchor) is the
 // estimate without it — what a joiner that dropped the closure reports —, though the
-// graph carries it; once the closure is confirmed or undone, the graph's last anchor.
+// graph carries it; once the closure is undone, that joiner's again, and once it is
+// confirmed, the graph's, which carries it. The same through Ceres, which joins by the EIF.
 TEST(EifJoiner, OnlineAnchorDoesNotCarryAHeldLoopClosure) {
-  EifJoinerOptions options;
-  EifJoinerOptions off = options;
-  off.association.confirm_thin_loops = false;
   const auto same_pose = [](const Pose2& a, const Pose2& b) {
     return PoseDifference(a, b).cwiseAbs().maxCoeff() < 1e-6;
   };
   const auto same_covariance = [](const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
     return (a - b).norm() <= 1e-6 * b.norm();
   };
-  for (int confirming : {0, 4}) {
-    SCOPED_TRACE(confirming);
-    EifJoiner held(Pose2(0, 0, 0), options), dropped(Pose2(0, 0, 0), off);
-    for (const LocalSubmap& s : loop_confirmation::ThinRun(confirming)) {
-      ASSERT_TRUE(held.Join(s).ok());
-      ASSERT_TRUE(dropped.Join(s).ok());
-      const int last = held.num_anchors() - 1;
-      const bool waiting = s.id == 5 || (confirming == 0 && s.id > 5 && s.id < 8);
-      if (waiting) {
-        // The graph's last anchor carries the two held pairings: far more certain.
-        EXPECT_LT(held.AnchorCovariance(last).trace(), 0.5 * held.LastAnchorCovariance().trace()) << "map " << s.id;
-        EXPECT_TRUE(same_pose(held.LastAnchor(), dropped.LastAnchor())) << "map " << s.id;
-        EXPECT_TRUE(same_covariance(held.LastAnchorCovariance(), dropped.LastAnchorCovariance())) << "map " << s.id;
-      } else {
-        EXPECT_TRUE(same_pose(held.LastAnchor(), held.anchor(last))) << "map " << s.id;
-        EXPECT_TRUE(same_covariance(held.LastAnchorCovariance(), held.AnchorCovariance(last))) << "map " << s.id;
+  const auto make = [](bool ceres, bool confirm) -> std::unique_ptr<MapJoiner> {
+    EifJoinerOptions o;
+    o.association.confirm_thin_loops = confirm;
+    if (!ceres) return std::make_unique<EifJoiner>(Pose2(0, 0, 0), o);
+    CeresJoinerOptions c;
+    c.eif = o;
+    return std::make_unique<CeresJoiner>(Pose2(0, 0, 0), c);
+  };
+  for (bool ceres : {false, true}) {
+    for (int confirming : {0, 4}) {
+      SCOPED_TRACE(::testing::Message() << (ceres ? "ceres" : "eif") << ", " << confirming << " confirming trees");
+      std::unique_ptr<MapJoiner> held = make(ceres, true), dropped = make(ceres, false);
+      double waiting_trace = 0.0;  // of the online anchor's covariance, while the closure waits
+      for (const LocalSubmap& s : loop_confirmation::ThinRun(confirming)) {
+        ASSERT_TRUE(held->Join(s).ok());
+        ASSERT_TRUE(dropped->Join(s).ok());
+        const int last = held->num_anchors() - 1;
+        const bool waiting = s.id == 5 || (confirming == 0 && s.id > 5 && s.id < 8);
+        const bool confirmed = confirming == 4 && s.id >= 6;
+        if (confirmed) {
+          // The graph's last anchor, which carries the closure: far more certain than
+          // the estimate reported while it waited.
+          EXPECT_TRUE(same_pose(held->LastAnchor(), held->anchor(last))) << "map " << s.id;
+          EXPECT_LT(held->LastAnchorCovariance().trace(), 0.01 * waiting_trace) << "map " << s.id;
+          continue;
+        }
+        if (waiting) {
+          waiting_trace = held->LastAnchorCovariance().trace();
+          // The graph's last anchor carries the two held pairings: far more certain.
+          EXPECT_LT(held->AnchorCovariance(last).trace(), 0.5 * held->LastAnchorCovariance().trace())
+              << "map " << s.id;
+        }
+        EXPECT_TRUE(same_pose(held->LastAnchor(), dropped->LastAnchor())) << "map " << s.id;
+        EXPECT_TRUE(same_covariance(held->LastAnchorCovariance(), dropped->LastAnchorCovariance())) << "map " << s.id;
       }
+      EXPECT_EQ(held->counters().loop_closures_confirmed, confirming == 4 ? 1 : 0);
+      EXPECT_EQ(held->counters().loop_closures_unconfirmed, confirming == 4 ? 0 : 1);
     }
-    EXPECT_EQ(held.counters().loop_closures_confirmed, confirming == 4 ? 1 : 0);
-    EXPECT_EQ(held.counters().loop_closures_unconfirmed, confirming == 4 ? 0 : 1);
   }
 }
 

@@ -85,13 +85,14 @@ struct EifJoinerOptions {
   // Loop-closure confirmation: association.loop_confirmation_maps and confirm_thin_loops
   // (submap_association.h). The sequential EIF undoes an unconfirmed closure's joins and
   // joins the maps again (one under a lost anchor still waiting at Finish() or at a
-  // whole-map join stands, a thin one is undone). While a closure waits, the online
-  // estimate (LastAnchor) does not carry it: a decision not yet taken must not move the
-  // pose a navigation stack reads, nor shrink its covariance (a thin closure by a chance
-  // fit would put it metres off with centimetres of σ). It needs the estimate after the closure to be right, so it confirms only
-  // while it relinearises after joins (RelinearizesAfterJoins()). With a single linearisation the
-  // estimate after a correction of a hundred metres is too far off for the next maps to
-  // find the old map: combined-2km's correct closures were all undone.
+  // whole-map join stands, a thin one is undone). Confirmation needs the estimate after
+  // the closure to be right, so it runs only while the joiner relinearises after joins
+  // (RelinearizesAfterJoins()): with a single linearisation the estimate after a
+  // correction of a hundred metres is too far off for the next maps to find the old map
+  // (combined-2km's correct closures were all undone). While a closure waits, the online
+  // anchor (LastAnchor) does not carry it: a decision not yet taken must not move the pose
+  // a navigation stack reads, nor shrink its covariance (a thin closure by a chance fit
+  // would put it metres off with centimetres of σ).
   // Relinearisation.
   int relinearize_every = 0;       // every K joins (0: not on a schedule)
   // At Finish(): Gauss-Newton to convergence, so that the final anchors and map are the
@@ -243,7 +244,8 @@ class EifJoiner final : public MapJoiner {
   // The last anchor; while a loop closure waits for confirmation, the start anchor of its
   // map as estimated before it (and that anchor's marginal), composed with the end poses
   // of the local maps joined since (first order, their end-pose covariances): the
-  // estimate without the closure.
+  // estimate without the closure, to first order, less what those maps share with the
+  // maps before them (conservative).
   Pose2 LastAnchor() const override;
   Eigen::Matrix3d LastAnchorCovariance() const override;
   // Marginal covariances by sparse solves with the factor.

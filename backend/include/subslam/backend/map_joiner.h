@@ -133,7 +133,8 @@ class MapJoiner {
   virtual std::vector<Eigen::Matrix2d> LandmarkCovariances() const;
 
   // The last anchor and its marginal covariance: the reference of the online pose. A
-  // joiner may answer without forming the whole map (the tree joiner does).
+  // joiner may answer without forming the whole map (the tree joiner does), and without a
+  // decision it has not taken yet (the EIF: a loop closure that waits for confirmation).
   virtual Pose2 LastAnchor() const { return anchor(num_anchors() - 1); }
   virtual Eigen::Matrix3d LastAnchorCovariance() const { return AnchorCovariance(num_anchors() - 1); }
 

@@ -15,9 +15,11 @@
 // the new map starts at its last anchor, and the landmarks it shares with it are what the
 // test fits the rotation to). A map that fails becomes a leaf rotated back and widened
 // (RotatedBack), as the sequential joiners join it. In the tree every map but the first
-// starts the right node of exactly one join, so this is the test the sequential joiners
-// make, with the relative uncertainty of two consecutive maps instead of the global
-// marginals.
+// starts the right node of exactly one join, which does not test it. The test is the
+// sequential joiners' against one map only (they look at the last recent_maps maps, so a
+// map after a map of no feature is tested there and not here), with the relative
+// uncertainty of two consecutive maps instead of the global marginals. Its time is the
+// stage "leaf_rotation_test".
 //
 // Modes:
 //  * running (default): a binary counter — each new leaf is pushed on a stack and the
@@ -74,7 +76,8 @@ class TreeJoiner final : public MapJoiner {
   // Chained over the nodes (no fold).
   Pose2 LastAnchor() const override;
   Eigen::Matrix3d LastAnchorCovariance() const override;
-  // Summed over the nodes (each holds its subtree's), plus "fold" for on-demand folds.
+  // Summed over the nodes (each holds its subtree's), plus "fold" for on-demand folds and
+  // "leaf_rotation_test" for the rotation tests of new local maps.
   std::map<std::string, double> stage_times() const override;
   const JoinerCounters& counters() const override;
   // The whole map's (e.g. the Ceres root's solve figures).
@@ -100,7 +103,9 @@ class TreeJoiner final : public MapJoiner {
   const MapJoiner& Whole() const;
   // `submap` rotated back and widened when the rotation test against the previous local
   // map's leaf finds it rotated (nullopt: joined as it is, or the first map).
-  std::optional<LocalSubmap> RotatedAgainstPrevious(const LocalSubmap& submap) const;
+  std::optional<LocalSubmap> RotatedAgainstPrevious(const LocalSubmap& submap);
+  // The node kind's association options ask for the rotation test.
+  bool TestsRotation() const;
   // The last anchor chained over the nodes' last anchors, and its covariance (first order)
   // unless `covariance` is null.
   void Chain(Pose2* pose, Eigen::Matrix3d* covariance) const;
@@ -111,6 +116,7 @@ class TreeJoiner final : public MapJoiner {
   std::vector<Node> nodes_;  // left to right (running: levels strictly decreasing)
   std::unique_ptr<MapJoiner> previous_leaf_;  // a copy of the last local map's leaf
   long maps_widened_ = 0;                     // leaves joined rotated back and widened
+  double rotation_test_seconds_ = 0.0;
   bool finished_ = false;
   int tree_joins_ = 0;
   absl::Status status_;
