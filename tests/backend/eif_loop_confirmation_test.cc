@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "subslam/backend/ceres_joiner.h"
+#include "subslam/backend/local_map_rotation.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/moment_matching.h"
 #include "dense_gauss_newton.h"
@@ -324,6 +325,37 @@ TEST(EifJoiner, OnlineAnchorDoesNotCarryAHeldLoopClosure) {
       EXPECT_EQ(held->counters().loop_closures_unconfirmed, confirming == 4 ? 0 : 1);
     }
   }
+}
+
+// A closing map that the rotation test finds rotated is joined rotated back and widened;
+// when its thin closure goes unconfirmed it is joined again with its first association
+// from the graph's copy, which is rotated back already: not rotated a second time.
+TEST(EifJoiner, ReplaysARotatedClosingMapWithoutRotatingItAgain) {
+  using loop_confirmation::Map;
+  using loop_confirmation::Tree;
+  std::vector<LocalSubmap> maps = loop_confirmation::ThinRun(0);
+  // Two trees by the loop's end that the last leg's map sees and the closing map again.
+  const std::vector<Tree> shared = {{150, {-6, 5}}, {151, {-9, -4}}};
+  const Pose2 d(0, 150, -kPi / 2);
+  std::vector<Tree> leg = {{106, TransformFrom(d, Eigen::Vector2d(5, 10))},
+                           {107, TransformFrom(d, Eigen::Vector2d(8, -10))}};
+  leg.insert(leg.end(), shared.begin(), shared.end());
+  maps[4] = Map(4, d, Pose2(0, 0, 0), leg, 0.1, 0.005);  // tied to its end: the shared trees are recent
+  std::vector<Tree> closing = {loop_confirmation::kOld[0], loop_confirmation::kOld[1]};
+  closing.insert(closing.end(), shared.begin(), shared.end());
+  const LocalSubmap as_built = Map(5, Pose2(0, 0, 0), Pose2(10, 0, 0), closing, 0.1, 0.005);
+  constexpr double kRotation = 0.15;
+  maps[5] = RotatedAboutStart(as_built, kRotation);
+  EifJoiner eif(Pose2(0, 0, 0), EifJoinerOptions{});
+  for (const LocalSubmap& s : maps) ASSERT_TRUE(eif.Join(s).ok());
+  EXPECT_EQ(eif.counters().loop_closures_unconfirmed, 1);
+  EXPECT_EQ(eif.counters().associations_replayed, 1);
+  EXPECT_EQ(eif.counters().maps_widened, 1);
+  // The closing map as the graph holds it: rotated back once, to the map as built.
+  const LocalSubmap& joined = eif.graph().factors()[5].submap;
+  EXPECT_GT(joined.rotation_widening_rad, 0.0);
+  EXPECT_NEAR(joined.end_pose().theta, as_built.end_pose().theta, 0.01);
+  EXPECT_LT((joined.mean - as_built.mean).cwiseAbs().maxCoeff(), 0.05);
 }
 
 }  // namespace

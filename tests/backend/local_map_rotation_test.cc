@@ -248,7 +248,8 @@ TEST(RotatedLocalMap, FewConsistentMapsAreWidened) {
     long joins = 0, widened = 0;
     for (uint64_t seed = 101; seed < 116; ++seed) {
       const SyntheticRun run = MakeRun(seed, 15);
-      std::unique_ptr<MapJoiner> j = MakeJoiner(kind, run.anchors[0], SubmapAssociationOptions{}.map_rotation_sigma_rad);
+      std::unique_ptr<MapJoiner> j =
+          MakeJoiner(kind, run.anchors[0], SubmapAssociationOptions{}.map_rotation_sigma_rad);
       for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(j->Join(s).ok());
       joins += j->counters().joins;
       widened += j->counters().maps_widened;
