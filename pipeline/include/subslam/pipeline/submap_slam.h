@@ -23,7 +23,8 @@
 //
 // pose() is the current start anchor composed with the local map's pose; its covariance
 // adds the anchor's marginal and the local pose's covariance (their correlation is
-// ignored).
+// ignored). The start anchor is the joiner's MapJoiner::LastAnchor(), which leaves out a
+// loop closure still waiting for confirmation (eif, ceres).
 //
 // Background joins (BackendOptions::background, the default): each closed local map is
 // joined on a thread of its own while the front-end goes on with the next map, and while
