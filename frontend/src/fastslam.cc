@@ -79,6 +79,7 @@ FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
                           : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   pool_ = std::make_unique<WorkerPool>(std::min(threads, options_.num_particles));
   scratch_.resize(pool_->threads());
+  blocks_ = std::make_unique<ParticleBlock[]>(pool_->threads());
   particle_rngs_.reserve(options_.num_particles);
   for (int p = 0; p < options_.num_particles; ++p) {
     std::seed_seq seq{options_.seed, static_cast<uint64_t>(p)};
@@ -202,23 +203,36 @@ void FastSlam::Update(const Scan& scan) {
   if (threads > 0 && threads < pool_->threads()) ++counters_.scans_with_fewer_threads;
   {
     StageTimer timer(&times_, "associate");
-    // Particles are handed out in small chunks as threads become free (the threads do
-    // not run at the same speed); which thread takes a particle changes nothing in the
-    // result, because each slot draws from its own stream.
-    std::atomic<int> next_chunk{0};
+    // Each thread takes its own contiguous block of particles first, so that a particle is
+    // updated on the same core scan after scan and its landmarks stay in that core's cache
+    // (particles handed out in small chunks to whichever thread is free move between cores
+    // from scan to scan, which costs more than the second thread gains on machines whose
+    // cores pass cache lines slowly). A thread that
+    // finishes its block takes small chunks from the others' (the threads do not always
+    // run at the same speed: another process may hold a core). Which thread takes a
+    // particle changes nothing in the result: each slot draws from its own stream.
+    const int T = threads > 0 ? std::min(threads, pool_->threads()) : pool_->threads();
+    for (int b = 0; b < T; ++b) {
+      blocks_[b].next.store(b * P / T, std::memory_order_relaxed);
+      blocks_[b].end = (b + 1) * P / T;
+    }
     owner_.resize(P);
     pool_->Run([&](int t) {
       Scratch& scratch = scratch_[t];
-      for (int begin = next_chunk.fetch_add(kChunk); begin < P; begin = next_chunk.fetch_add(kChunk)) {
-        for (int p = begin; p < std::min(P, begin + kChunk); ++p) {
-          owner_[p] = t;
-          Particle& particle = particles_[p];
-          int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
-          UpdateParticle(&particle, DetectionsSeenBy(particle, &scratch), signature_, decisions, &scratch,
-                         &particle_rngs_[p]);
-          for (int j = 0; j < m; ++j) {
-            decision_label_[p * m + j] =
-                decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
+      for (int k = 0; k < T; ++k) {
+        ParticleBlock& block = blocks_[(t + k) % T];
+        for (int begin = block.next.fetch_add(kChunk, std::memory_order_relaxed); begin < block.end;
+             begin = block.next.fetch_add(kChunk, std::memory_order_relaxed)) {
+          for (int p = begin; p < std::min(block.end, begin + kChunk); ++p) {
+            owner_[p] = t;
+            Particle& particle = particles_[p];
+            int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
+            UpdateParticle(&particle, DetectionsSeenBy(particle, &scratch), signature_, decisions, &scratch,
+                           &particle_rngs_[p]);
+            for (int j = 0; j < m; ++j) {
+              decision_label_[p * m + j] =
+                  decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
+            }
           }
         }
       }
@@ -332,9 +346,14 @@ void FastSlam::Resample() {
   for (int i = 0; i < P; ++i) {
     const double u = u0 + static_cast<double>(i) / P;
     while (u > cumulative && source + 1 < P) cumulative += std::exp(particles_[++source].log_weight);
-    resampled_[i] = particles_[source];  // copies landmark pointers, not landmarks
     parent_[i] = source;
   }
+  // Copied (landmark pointers, not landmarks) by the threads whose blocks of particles the
+  // copies fall in (Update()), so that each particle's record stays with its core.
+  const int threads = thread_limit_ > 0 ? std::min(thread_limit_, pool_->threads()) : pool_->threads();
+  pool_->Run([&](int t) {
+    for (int i = t * P / threads; i < (t + 1) * P / threads; ++i) resampled_[i] = particles_[parent_[i]];
+  }, threads);
   particles_.swap(resampled_);
   genealogy_.AddResampling(parent_);
   resample_pending_ = false;

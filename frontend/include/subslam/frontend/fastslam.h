@@ -51,6 +51,7 @@
 #ifndef SUBSLAM_FRONTEND_FASTSLAM_H_
 #define SUBSLAM_FRONTEND_FASTSLAM_H_
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <random>
@@ -340,6 +341,11 @@ class FastSlam final : public OnlineEstimator {
   long scans_at_reset_ = 0;
   std::vector<Scratch> scratch_;                // one per thread
   std::vector<int> owner_;                      // the thread that associated each particle
+  struct alignas(64) ParticleBlock {            // a thread's own particles in Update(); a cache line apart
+    std::atomic<int> next{0};                   // the first not yet taken
+    int end = 0;                                // one past the last
+  };
+  std::unique_ptr<ParticleBlock[]> blocks_;     // one per thread
   static constexpr int kChunk = 4;              // particles a thread takes at a time
   int next_feature_ = 0;
   // Scratch reused across scans.
