@@ -117,8 +117,10 @@ struct FastSlamOptions {
   // max_feature_sigma_ratio rule leaves out.
   bool correct_shared_ancestry = true;
   // Threads for the per-particle part of a scan (association, the proposal, the pose
-  // sample, the landmark updates), run on oneTBB's shared workers, which sleep when idle.
-  // The results do not depend on it: each particle slot draws from its own random
+  // sample, the landmark updates, the copies of resampling), run on oneTBB's shared
+  // workers, which sleep when idle. Each thread keeps a fixed block of particle slots from
+  // scan to scan, so that their landmarks stay in its core's cache, and takes chunks of
+  // another's block when it finishes first. The results do not depend on it: each particle slot draws from its own random
   // stream, seeded from `seed` and the slot. 0: std::thread::hardware_concurrency().
   int num_threads = 1;
   // The sensor's yaw on the vehicle as an uncertain parameter of each local map: at
@@ -346,7 +348,7 @@ class FastSlam final : public OnlineEstimator {
     int end = 0;                                // one past the last
   };
   std::unique_ptr<ParticleBlock[]> blocks_;     // one per thread
-  static constexpr int kChunk = 4;              // particles a thread takes at a time
+  static constexpr int kChunk = 4;              // particles a thread takes from a block at a time
   int next_feature_ = 0;
   // Scratch reused across scans.
   std::vector<int> decisions_;        // particles × detections: landmark index | kNew | kIgnore
