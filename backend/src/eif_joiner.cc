@@ -227,12 +227,9 @@ void EifJoiner::AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covari
   if (covariance != nullptr) *covariance = pending.association.start_anchor_covariance;
   for (int f = pending.factor; f < static_cast<int>(graph_.factors().size()); ++f) {
     const LocalSubmap& m = graph_.factors()[f].submap;
-    Eigen::Matrix3d J_a, J_e;
-    const Pose2 next = Compose(*pose, m.end_pose(), &J_a, &J_e);
-    if (covariance != nullptr) {
-      *covariance = J_a * *covariance * J_a.transpose() + J_e * m.covariance.topLeftCorner<3, 3>() * J_e.transpose();
-    }
-    *pose = next;
+    *pose = covariance != nullptr ? ComposeWithCovariance(*pose, *covariance, m.end_pose(),
+                                                          m.covariance.topLeftCorner<3, 3>(), covariance)
+                                  : Compose(*pose, m.end_pose());
   }
 }
 

@@ -129,12 +129,9 @@ void TreeJoiner::Chain(Pose2* pose, Eigen::Matrix3d* covariance) const {
       if (covariance != nullptr) *covariance = node_covariance();
       continue;
     }
-    Eigen::Matrix3d J_a, J_b;
-    const Pose2 next = Compose(*pose, node.LastAnchor(), &J_a, &J_b);
-    if (covariance != nullptr) {
-      *covariance = J_a * *covariance * J_a.transpose() + J_b * node_covariance() * J_b.transpose();
-    }
-    *pose = next;
+    *pose = covariance != nullptr
+                ? ComposeWithCovariance(*pose, *covariance, node.LastAnchor(), node_covariance(), covariance)
+                : Compose(*pose, node.LastAnchor());
   }
 }
 

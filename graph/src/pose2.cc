@@ -31,6 +31,14 @@ Pose2 Compose(const Pose2& a, const Pose2& b, Eigen::Matrix3d* J_ab_a, Eigen::Ma
   return ab;
 }
 
+Pose2 ComposeWithCovariance(const Pose2& a, const Eigen::Matrix3d& cov_a, const Pose2& b,
+                            const Eigen::Matrix3d& cov_b, Eigen::Matrix3d* cov_ab) {
+  Eigen::Matrix3d J_a, J_b;
+  const Pose2 ab = Compose(a, b, &J_a, &J_b);
+  *cov_ab = J_a * cov_a * J_a.transpose() + J_b * cov_b * J_b.transpose();
+  return ab;
+}
+
 Pose2 Inverse(const Pose2& a, Eigen::Matrix3d* J_inv_a) {
   const double c = std::cos(a.theta), s = std::sin(a.theta);
   const Pose2 inv(-c * a.x - s * a.y, s * a.x - c * a.y, WrapAngle(-a.theta));

@@ -152,11 +152,10 @@ void SubmapSlam::JoinClosed() {
       if (ready.restart) RestartJoiner();
       for (const LocalSubmap& s : ready.maps) Submit(s);
     } else {
-      Eigen::Matrix3d J_a, J_e;
-      const Pose2 next = Compose(chain_.back(), c.submap.end_pose(), &J_a, &J_e);
-      chain_covariance_.push_back(J_a * chain_covariance_.back() * J_a.transpose() +
-                                  J_e * c.submap.covariance.topLeftCorner<3, 3>() * J_e.transpose());
-      chain_.push_back(next);
+      Eigen::Matrix3d covariance;
+      chain_.push_back(ComposeWithCovariance(chain_.back(), chain_covariance_.back(), c.submap.end_pose(),
+                                             c.submap.covariance.topLeftCorner<3, 3>(), &covariance));
+      chain_covariance_.push_back(covariance);
     }
     closed_.push_back(std::move(c));
   }
@@ -178,11 +177,8 @@ void SubmapSlam::Submit(const LocalSubmap& s) {
   WaitForJoins();  // the previous map's join
   if (!status_.ok()) return;
   // One join behind: s's start anchor as joined so far, through s's end pose.
-  Eigen::Matrix3d J_a, J_e;
-  const Eigen::Matrix3d start_covariance = joiner_->LastAnchorCovariance();
-  anchor_ = Compose(joiner_->LastAnchor(), s.end_pose(), &J_a, &J_e);
-  anchor_covariance_ = J_a * start_covariance * J_a.transpose() +
-                       J_e * s.covariance.topLeftCorner<3, 3>() * J_e.transpose();
+  anchor_ = ComposeWithCovariance(joiner_->LastAnchor(), joiner_->LastAnchorCovariance(), s.end_pose(),
+                                  s.covariance.topLeftCorner<3, 3>(), &anchor_covariance_);
   {
     std::lock_guard<std::mutex> lock(join_mutex_);
     joining_ = s;
@@ -228,10 +224,10 @@ Eigen::Matrix3d SubmapSlam::AnchorCovariance(int k) const {
 Pose2 SubmapSlam::pose() const { return Compose(anchor_, mapper_->local_pose()); }
 
 Eigen::Matrix3d SubmapSlam::pose_covariance() const {
-  Eigen::Matrix3d J_a, J_l;
-  Compose(anchor_, mapper_->local_pose(), &J_a, &J_l);
-  return J_a * anchor_covariance_ * J_a.transpose() +
-         J_l * mapper_->local_pose_covariance() * J_l.transpose();
+  Eigen::Matrix3d covariance;
+  ComposeWithCovariance(anchor_, anchor_covariance_, mapper_->local_pose(), mapper_->local_pose_covariance(),
+                        &covariance);
+  return covariance;
 }
 
 void SubmapSlam::RecordStep(double t) {
@@ -275,9 +271,9 @@ Trajectory SubmapSlam::FinalTrajectory() const {
       anchor_cov = anchor_covariances.at(r.map);
       cached = r.map;
     }
-    Eigen::Matrix3d J_a, J_l;
-    const Pose2 p = Compose(anchor, r.local, &J_a, &J_l);
-    out.push_back({r.t, p, J_a * anchor_cov * J_a.transpose() + J_l * r.local_covariance * J_l.transpose()});
+    Eigen::Matrix3d covariance;
+    const Pose2 p = ComposeWithCovariance(anchor, anchor_cov, r.local, r.local_covariance, &covariance);
+    out.push_back({r.t, p, covariance});
   }
   return out;
 }

@@ -106,6 +106,32 @@ TEST(Pose2, JacobiansMatchNumericalDifferentiation) {
   }
 }
 
+// The first-order covariance of a ∘ b, propagated through central-difference Jacobians
+// (not Compose's analytic ones); the output may be one of the inputs.
+TEST(Pose2, ComposeWithCovarianceMatchesNumericalPropagation) {
+  const std::vector<Pose2> poses = TestPoses();
+  Eigen::Matrix3d cov_a, cov_b;
+  cov_a << 0.04, 0.01, 0.002, 0.01, 0.09, -0.003, 0.002, -0.003, 0.0025;
+  cov_b << 0.01, -0.002, 0.0, -0.002, 0.02, 0.001, 0.0, 0.001, 0.0004;
+  using Fn = std::function<Eigen::VectorXd(const Eigen::VectorXd&)>;
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const Pose2& a = poses[i];
+    const Pose2& b = poses[(i + 2) % poses.size()];
+    const Fn of_a = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return V(Compose(Pose2::FromVector(v), b)); };
+    const Fn of_b = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return V(Compose(a, Pose2::FromVector(v))); };
+    const Eigen::MatrixXd Ja = testing::NumericalJacobian(of_a, a.vector(), {2});
+    const Eigen::MatrixXd Jb = testing::NumericalJacobian(of_b, b.vector(), {2});
+    const Eigen::Matrix3d expected = Ja * cov_a * Ja.transpose() + Jb * cov_b * Jb.transpose();
+    Eigen::Matrix3d cov_ab;
+    const Pose2 ab = ComposeWithCovariance(a, cov_a, b, cov_b, &cov_ab);
+    EXPECT_TRUE(MatricesNear(V(Compose(a, b)), V(ab), kExactTolerance));
+    EXPECT_TRUE(MatricesNear(expected, cov_ab, kJacobianTolerance));
+    Eigen::Matrix3d in_place = cov_a;
+    ComposeWithCovariance(a, in_place, b, cov_b, &in_place);
+    EXPECT_TRUE(MatricesNear(cov_ab, in_place, kExactTolerance));
+  }
+}
+
 TEST(Pose2, TransformToInvertsTransformFrom) {
   for (const Pose2& a : TestPoses()) {
     const Eigen::Vector2d p(3.5, -2.25);

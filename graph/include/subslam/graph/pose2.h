@@ -51,6 +51,12 @@ std::ostream& operator<<(std::ostream& os, const Pose2& p);
 Pose2 Compose(const Pose2& a, const Pose2& b, Eigen::Matrix3d* J_ab_a = nullptr,
               Eigen::Matrix3d* J_ab_b = nullptr);
 
+// a ∘ b for independent uncertain a and b, with its covariance to first order:
+//   *cov_ab = J_a cov_a J_aᵀ + J_b cov_b J_bᵀ   (J_a, J_b: Compose's Jacobians);
+// cov_ab may be cov_a or cov_b.
+Pose2 ComposeWithCovariance(const Pose2& a, const Eigen::Matrix3d& cov_a, const Pose2& b,
+                            const Eigen::Matrix3d& cov_b, Eigen::Matrix3d* cov_ab);
+
 // a⁻¹, so that Compose(Inverse(a), a) is the identity.
 Pose2 Inverse(const Pose2& a, Eigen::Matrix3d* J_inv_a = nullptr);
 
