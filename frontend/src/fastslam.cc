@@ -203,14 +203,15 @@ void FastSlam::Update(const Scan& scan) {
   if (threads > 0 && threads < pool_->threads()) ++counters_.scans_with_fewer_threads;
   {
     StageTimer timer(&times_, "associate");
-    // Each thread takes its own contiguous block of particles first, so that a particle is
-    // updated on the same core scan after scan and its landmarks stay in that core's cache
-    // (particles handed out in small chunks to whichever thread is free move between cores
-    // from scan to scan, which costs more than the second thread gains on machines whose
-    // cores pass cache lines slowly). A thread that
-    // finishes its block takes small chunks from the others' (the threads do not always
-    // run at the same speed: another process may hold a core). Which thread takes a
-    // particle changes nothing in the result: each slot draws from its own stream.
+    // Each pool index takes its own contiguous block of particles first, the same block
+    // every scan; as the pool offers each index to the thread that ran it before
+    // (WorkerPool), a particle's records tend to stay in one core's cache (particles
+    // handed out in small chunks to whichever thread is free move between cores from scan
+    // to scan, which costs more than a second thread gains on machines whose cores pass
+    // cache lines slowly). An index that finishes its block takes small chunks from the
+    // others' (the threads do not always run at the same speed: another process may hold
+    // a core). Which thread takes a particle changes nothing in the result: each slot
+    // draws from its own stream.
     const int T = threads > 0 ? std::min(threads, pool_->threads()) : pool_->threads();
     for (int b = 0; b < T; ++b) {
       blocks_[b].next.store(b * P / T, std::memory_order_relaxed);
@@ -259,7 +260,7 @@ void FastSlam::Update(const Scan& scan) {
   }
   {
     StageTimer timer(&times_, "update");
-    // Each thread updates the particles it has just associated (they are in its cache).
+    // Each index updates the particles it has just associated (likely in its cache).
     pool_->Run([&](int t) {
       for (int p = 0; p < P; ++p) {
         if (owner_[p] != t) continue;
@@ -348,8 +349,9 @@ void FastSlam::Resample() {
     while (u > cumulative && source + 1 < P) cumulative += std::exp(particles_[++source].log_weight);
     parent_[i] = source;
   }
-  // Copied (landmark pointers, not landmarks) by the threads whose blocks of particles the
-  // copies fall in (Update()), so that each particle's record stays with its core.
+  // Copied (landmark pointers, not landmarks) by the pool index whose block of particles
+  // each copy falls in (Update()), so that a particle's records are written where they
+  // will be updated.
   const int threads = thread_limit_ > 0 ? std::min(thread_limit_, pool_->threads()) : pool_->threads();
   pool_->Run([&](int t) {
     for (int i = t * P / threads; i < (t + 1) * P / threads; ++i) resampled_[i] = particles_[parent_[i]];

@@ -38,10 +38,11 @@ void WorkerPool::Run(const std::function<void(int)>& body, int active) {
   body(0);
   for (std::thread& thread : threads) thread.join();
 #else
-  // One task per index (simple_partitioner: no two indices share a task), so that every
-  // free thread of the arena can take one.
+  // Each index offered to the thread that ran it in the previous Run() (oneTBB's
+  // affinity_partitioner, best effort; no thread is pinned), so that a body that gives
+  // index t the same data every run tends to find it in that thread's cache.
   arena_.execute([&] {
-    oneapi::tbb::parallel_for(0, active, 1, [&](int t) { body(t); }, oneapi::tbb::simple_partitioner());
+    oneapi::tbb::parallel_for(0, active, 1, [&](int t) { body(t); }, affinity_);
   });
 #endif
 }

@@ -118,10 +118,12 @@ struct FastSlamOptions {
   bool correct_shared_ancestry = true;
   // Threads for the per-particle part of a scan (association, the proposal, the pose
   // sample, the landmark updates, the copies of resampling), run on oneTBB's shared
-  // workers, which sleep when idle. Each thread keeps a fixed block of particle slots from
-  // scan to scan, so that their landmarks stay in its core's cache, and takes chunks of
-  // another's block when it finishes first. The results do not depend on it: each particle slot draws from its own random
-  // stream, seeded from `seed` and the slot. 0: std::thread::hardware_concurrency().
+  // workers, which sleep when idle. Each pool index keeps a fixed block of particle slots
+  // from scan to scan (and the pool offers each index to the thread that ran it before),
+  // so that their records tend to stay in one core's cache; an index that finishes its
+  // block takes chunks of another's. The results do not depend on it: each particle slot
+  // draws from its own random stream, seeded from `seed` and the slot.
+  // 0: std::thread::hardware_concurrency().
   int num_threads = 1;
   // The sensor's yaw on the vehicle as an uncertain parameter of each local map: at
   // Reset() every particle draws a yaw ψ ~ N(0, σ²) [rad] and adds it to every bearing it
