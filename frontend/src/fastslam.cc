@@ -212,7 +212,7 @@ void FastSlam::Update(const Scan& scan) {
     // others' (the threads do not always run at the same speed: another process may hold
     // a core). Which thread takes a particle changes nothing in the result: each slot
     // draws from its own stream.
-    const int T = threads > 0 ? std::min(threads, pool_->threads()) : pool_->threads();
+    const int T = pool_->Active(threads);
     for (int b = 0; b < T; ++b) {
       blocks_[b].next.store(b * P / T, std::memory_order_relaxed);
       blocks_[b].end = (b + 1) * P / T;
@@ -352,7 +352,7 @@ void FastSlam::Resample() {
   // Copied (landmark pointers, not landmarks) by the pool index whose block of particles
   // each copy falls in (Update()), so that a particle's records are written where they
   // will be updated.
-  const int threads = thread_limit_ > 0 ? std::min(thread_limit_, pool_->threads()) : pool_->threads();
+  const int threads = pool_->Active(thread_limit_);
   pool_->Run([&](int t) {
     for (int i = t * P / threads; i < (t + 1) * P / threads; ++i) resampled_[i] = particles_[parent_[i]];
   }, threads);

@@ -24,7 +24,7 @@ WorkerPool::WorkerPool(int threads) : threads_(threads), arena_(std::max(threads
 }
 
 void WorkerPool::Run(const std::function<void(int)>& body, int active) {
-  active = active > 0 ? std::min(active, threads_) : threads_;
+  active = Active(active);
   if (active == 1) {
     body(0);
     return;

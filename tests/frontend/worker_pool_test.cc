@@ -49,6 +49,7 @@ TEST(WorkerPool, RunsOnlyTheActiveThreadIndices) {
     std::vector<std::atomic<int>> calls(3);
     pool.Run([&](int t) { calls[t].fetch_add(1, std::memory_order_relaxed); }, active);
     const int expected = active == 0 || active > 3 ? 3 : active;
+    ASSERT_EQ(pool.Active(active), expected) << "run " << run;
     for (int t = 0; t < 3; ++t) ASSERT_EQ(calls[t].load(), t < expected ? 1 : 0) << "run " << run << ", thread " << t;
   }
 }

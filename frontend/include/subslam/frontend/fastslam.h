@@ -344,13 +344,13 @@ class FastSlam final : public OnlineEstimator {
   long yaw_maps_ = 0;
   long scans_at_reset_ = 0;
   std::vector<Scratch> scratch_;                // one per thread
-  std::vector<int> owner_;                      // the thread that associated each particle
-  struct alignas(64) ParticleBlock {            // a thread's own particles in Update(); a cache line apart
+  std::vector<int> owner_;                      // the pool index that associated each particle
+  struct alignas(64) ParticleBlock {            // a pool index's own particles in Update(); a cache line apart
     std::atomic<int> next{0};                   // the first not yet taken
     int end = 0;                                // one past the last
   };
-  std::unique_ptr<ParticleBlock[]> blocks_;     // one per thread
-  static constexpr int kChunk = 4;              // particles a thread takes from a block at a time
+  std::unique_ptr<ParticleBlock[]> blocks_;     // one per pool index
+  static constexpr int kChunk = 4;              // particles an index takes from a block at a time
   int next_feature_ = 0;
   // Scratch reused across scans.
   std::vector<int> decisions_;        // particles × detections: landmark index | kNew | kIgnore

@@ -28,6 +28,8 @@ class WorkerPool {
   WorkerPool& operator=(const WorkerPool&) = delete;
 
   int threads() const { return threads_; }
+  // How many indices Run(body, active) calls: active if in [1, threads()], else threads().
+  int Active(int active) const { return active > 0 && active < threads_ ? active : threads_; }
   // body(t) for t in [0, active) (0 or more than threads(): every t); with one active
   // index the body runs on the calling thread alone.
   void Run(const std::function<void(int t)>& body, int active = 0);
