@@ -62,8 +62,8 @@ def hybrid(args):
     pool(args, jobs)
     print("| alpha | beta | duplicates / true landmarks seen | median final RMS est / known [m] | "
           "median online RMS est / known [m] | 10-sigma successes est / known | "
-          "online 10-sigma successes est / known | merges / splits |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+          "online 10-sigma successes est / known | wrong merges (sharing no true landmark) | merges / splits |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for a, b in settings:
         rows = {k: [report(o) for (aa, bb, s, kn, o) in cells if (aa, bb, kn) == (a, b, k)] for k in (False, True)}
         est, kn = rows[False], rows[True]
@@ -71,13 +71,15 @@ def hybrid(args):
         seen = sum(r["metrics"]["map"]["matched"] for r in est)
         med = lambda rs, key: statistics.median(r["metrics"][key]["rms_position_m"] for r in rs)
         ok = lambda rs, key="trajectory": sum(not r["metrics"][key]["failed_10_sigma_test"] for r in rs)
+        wrong = lambda key: sum(r["metrics"]["association_vs_truth_id"][key] for r in est)
         merges = sum(r["estimator_counters"].get("join_landmarks_merged", 0) for r in est)
         splits = sum(r["estimator_counters"].get("join_features_split", 0) for r in est)
         print(f"| {a} | {b} | {dup} / {seen} ({100.0 * dup / max(seen, 1):.1f} %) | "
               f"{med(est, 'trajectory'):.3f} / {med(kn, 'trajectory'):.3f} | "
               f"{med(est, 'trajectory_online'):.3f} / {med(kn, 'trajectory_online'):.3f} | "
               f"{ok(est)} / {ok(kn)} of {len(est)} | "
-              f"{ok(est, 'trajectory_online')} / {ok(kn, 'trajectory_online')} of {len(est)} | {merges} / {splits} |")
+              f"{ok(est, 'trajectory_online')} / {ok(kn, 'trajectory_online')} of {len(est)} | "
+              f"{wrong('wrong_merges')} ({wrong('wrong_merges_sharing_no_true_landmark')}) | {merges} / {splits} |")
 
 
 def combined(args):

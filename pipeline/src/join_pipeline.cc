@@ -18,8 +18,12 @@
 
 namespace subslam::pipeline {
 
-AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph) {
+AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph, const std::vector<LocalSubmap>& labelled) {
   AssociationVsTruth c;
+  std::map<std::pair<int, int>, const LocalSubmapLandmark*> label_of;  // (map id, local id)
+  for (const LocalSubmap& s : labelled) {
+    for (const LocalSubmapLandmark& l : s.landmarks) label_of[{s.id, l.local_id}] = &l;
+  }
   // Association against truth ids, from the final association table (factors in time
   // order): global landmark → true ids joined to it, and the reverse.
   std::map<int, std::set<int>> truths_of_global;
@@ -30,13 +34,19 @@ AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph) {
   int map_index = 0;
   for (const SubmapFactor& f : graph.factors()) {
     for (int i = 0; i < f.submap.num_landmarks(); ++i) {
-      const std::optional<int>& t = f.submap.landmarks[i].truth_id;
+      const LocalSubmapLandmark* feature = &f.submap.landmarks[i];
+      if (!labelled.empty()) {
+        const auto it = label_of.find({f.submap.id, feature->local_id});
+        if (it == label_of.end()) continue;
+        feature = it->second;
+      }
+      const std::optional<int>& t = feature->truth_id;
       if (!t.has_value() || *t < 0) continue;
       const int g = f.landmark_of_feature[i];
       truths_of_global[g].insert(*t);
-      const std::optional<int>& mixed = f.submap.landmarks[i].truth_landmarks;
+      const std::optional<int>& mixed = feature->truth_landmarks;
       if (mixed.has_value() && *mixed >= 2) globals_with_mixed_feature.insert(g);
-      const std::vector<int>& ids = f.submap.landmarks[i].truth_ids;
+      const std::vector<int>& ids = feature->truth_ids;
       feature_truths_of_global[g].push_back(ids.empty() ? std::vector<int>{*t} : ids);
       globals_of_truth[*t].insert(g);
       auto seen = last_seen.find(*t);
@@ -139,16 +149,7 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
         options.truth_landmarks);
     if (labelled.labelled > 0) metrics["map_by_truth_label"] = LabelledMapErrorsJson(labelled);
   }
-  const AssociationVsTruth& a = r.association;
-  metrics["association_vs_truth_id"] = {{"true_landmarks_seen", a.correct},
-                                        {"missed_merges", a.missed},
-                                        {"wrong_merges", a.wrong},
-                                        {"wrong_merges_with_mixed_feature", a.wrong_with_mixed_feature},
-                                        {"wrong_merges_sharing_no_true_landmark", a.wrong_sharing_no_true_landmark},
-                                        {"reobserved_recent_merged", a.recent_merged},
-                                        {"reobserved_recent_missed", a.recent_missed},
-                                        {"reobserved_loop_merged", a.loop_merged},
-                                        {"reobserved_loop_missed", a.loop_missed}};
+  metrics["association_vs_truth_id"] = AssociationVsTruthJson(r.association);
   long covariance_repairs = 0;
   for (const LocalSubmap& s : submaps) covariance_repairs += s.covariance_repairs;
   nlohmann::json counts = {{"local_maps", r.local_maps},

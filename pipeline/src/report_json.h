@@ -13,6 +13,7 @@
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
+#include "subslam/pipeline/join_pipeline.h"
 
 namespace subslam::pipeline {
 
@@ -44,6 +45,18 @@ inline nlohmann::json LabelledMapErrorsJson(const eval::LabelledMapErrors& m) {
           {"duplicates", m.duplicates},       {"rms_m", m.rms_m},
           {"rms_x_m", m.rms_x_m},             {"rms_y_m", m.rms_y_m},
           {"mean_landmark_nees", m.mean_nees}, {"fraction_nees_in_95", m.fraction_nees_in_95}};
+}
+
+inline nlohmann::json AssociationVsTruthJson(const AssociationVsTruth& a) {
+  return {{"true_landmarks_seen", a.correct},
+          {"missed_merges", a.missed},
+          {"wrong_merges", a.wrong},
+          {"wrong_merges_with_mixed_feature", a.wrong_with_mixed_feature},
+          {"wrong_merges_sharing_no_true_landmark", a.wrong_sharing_no_true_landmark},
+          {"reobserved_recent_merged", a.recent_merged},
+          {"reobserved_recent_missed", a.recent_missed},
+          {"reobserved_loop_merged", a.loop_merged},
+          {"reobserved_loop_missed", a.loop_missed}};
 }
 
 inline nlohmann::json GpsJson(const eval::GpsComparison& g) {

@@ -6,6 +6,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <future>
@@ -305,6 +306,14 @@ json Evaluate(const io::Dataset& dataset, const RunOptions& options, const Subma
           dataset.truth_landmarks);
       if (r->labelled_map_errors->labelled > 0) {
         metrics["map_by_truth_label"] = LabelledMapErrorsJson(*r->labelled_map_errors);
+      }
+      const bool with_truth_ids = std::any_of(r->local_maps.begin(), r->local_maps.end(), [](const LocalSubmap& s) {
+        return std::any_of(s.landmarks.begin(), s.landmarks.end(),
+                           [](const LocalSubmapLandmark& l) { return l.truth_id.has_value(); });
+      });
+      if (with_truth_ids) {
+        r->association = CountAssociationsAgainstTruth(chain->joiner()->graph(), r->local_maps);
+        metrics["association_vs_truth_id"] = AssociationVsTruthJson(*r->association);
       }
     }
   }

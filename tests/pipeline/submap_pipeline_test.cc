@@ -67,6 +67,34 @@ TEST(CountAssociationsAgainstTruth, CountsWrongMergesByMajorityAndBySharedTrueLa
   EXPECT_EQ(c.missed, 0);
   EXPECT_EQ(c.recent_merged, 1);  // tree 8, seen again by the next map
   EXPECT_EQ(c.recent_missed + c.loop_merged + c.loop_missed, 0);
+
+  // The same table with the true ids held apart from the graph, in local maps of the same
+  // ids (as a run labels its maps after joining them): the same counts; a feature the
+  // labelled maps do not hold is left out.
+  SubmapGraph bare(Pose2(0, 0, 0));
+  for (int k = 1; k <= 4; ++k) bare.AddAnchor(Pose2(k, 0, 0));
+  bare.AddLandmark(Eigen::Vector2d(1, 1));
+  bare.AddLandmark(Eigen::Vector2d(2, 1));
+  std::vector<LocalSubmap> labelled;
+  for (const SubmapFactor& f : g.factors()) {
+    labelled.push_back(f.submap);
+    SubmapFactor stripped = f;
+    for (int i = 0; i < stripped.submap.num_landmarks(); ++i) {
+      stripped.submap.landmarks[i] = LocalSubmapLandmark{};
+      stripped.submap.landmarks[i].local_id = i;
+      labelled.back().landmarks[i].local_id = i;
+    }
+    bare.AddFactor(std::move(stripped));
+  }
+  EXPECT_EQ(CountAssociationsAgainstTruth(bare).correct, 0);  // no true ids in the graph
+  const AssociationVsTruth d = CountAssociationsAgainstTruth(bare, labelled);
+  EXPECT_EQ(d.wrong, c.wrong);
+  EXPECT_EQ(d.wrong_with_mixed_feature, c.wrong_with_mixed_feature);
+  EXPECT_EQ(d.wrong_sharing_no_true_landmark, c.wrong_sharing_no_true_landmark);
+  EXPECT_EQ(d.correct, c.correct);
+  EXPECT_EQ(d.recent_merged, c.recent_merged);
+  labelled[2].landmarks.pop_back();  // map 2's tree 8 unknown: map 3's is then its first sight
+  EXPECT_EQ(CountAssociationsAgainstTruth(bare, labelled).recent_merged, 0);
 }
 
 // Joining closes the loop: the final trajectory passes the 10σ test and is more accurate
@@ -497,6 +525,15 @@ TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
   ASSERT_TRUE(joined->labelled_map_errors.has_value());
   EXPECT_GT(joined->labelled_map_errors->true_landmarks, 300);
   EXPECT_EQ(joined->labelled_map_errors->duplicates, 0);
+  // The run's association against the true ids, from its labelled local maps: every
+  // re-observation joined to its landmark, nothing merged wrongly.
+  ASSERT_TRUE(joined->association.has_value());
+  EXPECT_EQ(joined->association->correct, joined->labelled_map_errors->true_landmarks);
+  EXPECT_EQ(joined->association->missed, 0);
+  EXPECT_EQ(joined->association->wrong, 0);
+  EXPECT_EQ(joined->association->recent_missed + joined->association->loop_missed, 0);
+  EXPECT_GT(joined->association->loop_merged, 0);
+  EXPECT_FALSE(chained->association.has_value());  // nothing joined
   EXPECT_FALSE(joined->errors->failed);
   EXPECT_LT(joined->errors->final_position_error_m, chained->errors->final_position_error_m);
   ASSERT_FALSE(joined->errors->nees.empty());

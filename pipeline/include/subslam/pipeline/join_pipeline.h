@@ -69,8 +69,12 @@ struct AssociationVsTruth {
   long recent_merged = 0, recent_missed = 0, loop_merged = 0, loop_missed = 0;
 };
 
-// Counts them; features without a true id (unknown or false alarm) are left out.
-AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph);
+// Counts them; features without a true id (unknown or false alarm) are left out. The true
+// ids are the graph's own local maps', or with `labelled` those of the local map there
+// with the same id and the feature with the same local id (a run labels its local maps
+// after joining them); features `labelled` does not hold are left out.
+AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph,
+                                                 const std::vector<LocalSubmap>& labelled = {});
 
 struct JoinResult {
   int local_maps = 0;

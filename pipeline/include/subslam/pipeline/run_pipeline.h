@@ -32,6 +32,7 @@
 #include "subslam/graph/estimates.h"
 #include "subslam/io/dataset.h"
 #include "subslam/io/input_screening.h"
+#include "subslam/pipeline/join_pipeline.h"
 
 namespace subslam::pipeline {
 
@@ -117,6 +118,9 @@ struct RunResult {
   // Submap runs with a back-end: the global map against the truth by label (each global
   // landmark's majority true id over the local-map features joined into it).
   std::optional<eval::LabelledMapErrors> labelled_map_errors;
+  // The same runs, when the local maps carry true ids: the joined association against
+  // them (subslam join's report holds the same counts).
+  std::optional<AssociationVsTruth> association;
   std::optional<eval::GpsComparison> gps_online;      // vs GPS, aligned
   std::optional<eval::GpsComparison> gps_final;
   // Local-map front-ends: the local maps (truth ids attached when the data set has
