@@ -81,6 +81,13 @@ ABSL_FLAG(bool, join_merge_loops, EifDefaults().revision.merge_loops,
 ABSL_FLAG(bool, join_merge_unresolved, EifDefaults().revision.merge_unresolved,
           "also merge a pair that a single local map could not tell apart (the test with each "
           "landmark's typical feature covariance)");
+ABSL_FLAG(bool, join_merge_density, EifDefaults().revision.merge_by_density,
+          "also merge a pair the merge test holds apart, inside --join_merge_density_gate, "
+          "when one point explains their difference better than two points at the map's "
+          "local density (landmarks within 10 m)");
+ABSL_FLAG(double, join_merge_density_gate, EifDefaults().revision.density_gate_probability,
+          "density test: chi2 (2 dof) probability of the outer gate, beyond which a pair is "
+          "never merged");
 ABSL_FLAG(double, join_merge_gate, EifDefaults().revision.merge_probability,
           "merge test: chi2 (2 dof) acceptance probability of 'the same point'");
 ABSL_FLAG(bool, join_split, EifDefaults().revision.split,
@@ -164,6 +171,8 @@ backend::LandmarkRevisionOptions RevisionOptionsFromFlags() {
   backend::LandmarkRevisionOptions o;
   o.merge = absl::GetFlag(FLAGS_join_merge);
   o.merge_unresolved = absl::GetFlag(FLAGS_join_merge_unresolved);
+  o.merge_by_density = absl::GetFlag(FLAGS_join_merge_density);
+  o.density_gate_probability = absl::GetFlag(FLAGS_join_merge_density_gate);
   o.merge_loops = absl::GetFlag(FLAGS_join_merge_loops);
   o.merge_probability = absl::GetFlag(FLAGS_join_merge_gate);
   o.split = absl::GetFlag(FLAGS_join_split);

@@ -19,6 +19,12 @@ absl::Status LandmarkRevisionOptions::Validate() const {
     return absl::InvalidArgumentError("split_probability must be in (0, 1)");
   }
   if (every_joins < 0) return absl::InvalidArgumentError("every_joins must be >= 0");
+  if (!(density_gate_probability > 0 && density_gate_probability < 1)) {
+    return absl::InvalidArgumentError("density_gate_probability must be in (0, 1)");
+  }
+  if (!(density_radius_m > 0 && std::isfinite(density_radius_m))) {
+    return absl::InvalidArgumentError("density_radius_m must be positive and finite");
+  }
   return absl::OkStatus();
 }
 
@@ -128,7 +134,9 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
   std::vector<LandmarkMerge> out;
   if (!options.merge || n < 2) return out;
   const double gate = models::ChiSquareQuantile(options.merge_probability, 2);
-  const double root_gate = std::sqrt(gate);
+  const bool density = options.merge_by_density;
+  const double outer_gate = density ? models::ChiSquareQuantile(options.density_gate_probability, 2) : gate;
+  const double root_gate = std::sqrt(std::max(gate, outer_gate));
   const std::vector<std::vector<int>> factors_of = FactorsOfLandmarks(graph);
   // Each landmark's typical single feature, in the world frame: the one of median
   // precision (trace) among its features.
@@ -162,6 +170,15 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
   std::iota(by_x.begin(), by_x.end(), 0);
   const auto& L = graph.landmarks();
   std::sort(by_x.begin(), by_x.end(), [&](int a, int b) { return L[a].x() < L[b].x() || (L[a].x() == L[b].x() && a < b); });
+  // The density of landmarks around `p` [1/m²]: those within density_radius_m, less one
+  // (the pair's reference point), at least one (the pair's other point).
+  const double r = options.density_radius_m;
+  const auto local_density = [&](const Eigen::Vector2d& p) {
+    auto it = std::lower_bound(by_x.begin(), by_x.end(), p.x() - r, [&](int j, double x) { return L[j].x() < x; });
+    int k = 0;
+    for (; it != by_x.end() && L[*it].x() <= p.x() + r; ++it) k += (L[*it] - p).squaredNorm() <= r * r ? 1 : 0;
+    return std::max(1, k - 1) / (M_PI * r * r);
+  };
   // Pairs that pass a test: along any direction u, uᵀ Cov(Δ) u ≤ (σ_a + σ_b)² (and
   // uᵀ (Q̃_a + Q̃_b) u ≤ σ̃_a² + σ̃_b²), so |Δ|² / (σ_a + σ_b)² bounds d² from below and
   // the pre-filter loses no such pair.
@@ -186,7 +203,12 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
         const Eigen::LLT<Eigen::Matrix2d> single(typical[a] + typical[b]);
         if (single.info() == Eigen::Success) d2_res = delta.dot(single.solve(delta));
       }
-      if (!(d2 < gate) && !(d2_res < gate)) continue;
+      if (!(d2 < gate) && !(d2_res < gate)) {
+        // Held apart by the χ² test: merged only where one point is the likelier explanation.
+        if (!density || !(d2 < outer_gate)) continue;
+        const double one_point = std::exp(-0.5 * d2) / (2.0 * M_PI * std::sqrt(C.determinant()));
+        if (!(one_point > local_density(0.5 * (L[a] + L[b])))) continue;
+      }
       // A pair whose relative position is uncertain to 3σ ≥ loop_sigma_radius_m is a loop
       // closure with one pairing, in the regime where association asks for several.
       if (3.0 * LargestSigma(C) >= loop_sigma_radius_m) {

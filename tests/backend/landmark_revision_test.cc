@@ -159,6 +159,7 @@ TEST(LandmarkRevision, DuplicatesOfAStrictJoinGateAreMergedBack) {
     EifJoinerOptions strict = ConvergingUnknownAssociation();
     strict.association.gate_probability = 0.05;
     strict.revision.merge_unresolved = false;  // the exact-marginal test alone
+    strict.revision.merge_by_density = false;
     EifJoinerOptions no_revision = strict;
     no_revision.revision.merge = no_revision.revision.split = false;
     EifJoiner before(run.anchors[0], no_revision), eif(run.anchors[0], strict);
@@ -389,6 +390,65 @@ TEST(LandmarkRevision, CopiesOfALoopMergeTogetherWhenEnoughAgree) {
   EXPECT_TRUE(LoopCopies(6, 2.0, 4, offset).Merges(4).empty());
 }
 
+// Two landmarks `distance` m apart, their difference known to σ `sigma` m, each held by a
+// local map of its own, and `neighbours` more landmarks 6 m around them (far beyond any
+// gate).
+struct NeighbourPair {
+  SubmapGraph graph{Pose2(0, 0, 0)};
+  Eigen::MatrixXd Sigma;
+
+  NeighbourPair(double distance, int neighbours, double sigma = 0.25) {
+    graph.AddAnchor(Pose2(10, 0, 0));
+    const Eigen::Vector2d centre(0, 8);
+    graph.AddLandmark(centre);
+    graph.AddLandmark(centre + Eigen::Vector2d(distance, 0));
+    for (int i = 0; i < neighbours; ++i) {
+      const double angle = 2.0 * M_PI * i / neighbours;
+      graph.AddLandmark(centre + 6.0 * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
+    }
+    LocalSubmap one;
+    one.mean = Eigen::VectorXd::Zero(5);
+    one.covariance = 0.001 * Eigen::MatrixXd::Identity(5, 5);  // resolves every pair here
+    for (int j = 0; j < graph.num_landmarks(); ++j) graph.AddFactor({one, 0, 1, {j}});
+    Sigma = 0.01 * Eigen::MatrixXd::Identity(2 * graph.num_landmarks(), 2 * graph.num_landmarks());
+    Sigma.topLeftCorner<4, 4>() = 0.5 * sigma * sigma * Eigen::Matrix4d::Identity();  // Cov(Δ) = σ² I
+  }
+
+  std::vector<LandmarkMerge> Merges(bool by_density = true, double outer_gate = 0.999) const {
+    std::vector<Eigen::Matrix2d> marginals;
+    for (int j = 0; j < graph.num_landmarks(); ++j) marginals.push_back(Sigma.block<2, 2>(2 * j, 2 * j));
+    LandmarkRevisionOptions options;
+    options.merge_by_density = by_density;
+    options.density_gate_probability = outer_gate;
+    const auto pair = [this](int a, int b) -> Eigen::Matrix4d {
+      const std::vector<int> rows = {2 * a, 2 * a + 1, 2 * b, 2 * b + 1};
+      return Sigma(rows, rows);
+    };
+    return FindLandmarkMerges(graph, marginals, pair, options, /*loop_sigma_radius_m=*/5.0);
+  }
+};
+
+// 0.8 m apart (d² 10.2: held apart by the χ² test at 0.99, inside χ²₂(0.999) = 13.8): the
+// density of one point there, N(Δ; 0, C) = 0.015 /m², exceeds that of another landmark
+// when the pair stands alone (1 / (π 10²) = 0.0032 /m²), so they merge; with ten more
+// landmarks within 10 m (11 / (π 10²) = 0.035 /m²) two points are likelier and they stay
+// apart. Not without the density test, nor beyond the outer gate: 0.38 m apart known to
+// σ 0.1 m (d² 14.4, N = 0.012 /m²) merges only with the gate at χ²₂(0.9999) = 18.4. A pair
+// inside the χ² gate merges however dense its neighbourhood.
+TEST(LandmarkRevision, APairTheGateHoldsApartMergesWhereOnePointIsLikelierThanANeighbour) {
+  const std::vector<LandmarkMerge> alone = NeighbourPair(0.8, 0).Merges();
+  ASSERT_EQ(alone.size(), 1u);
+  EXPECT_EQ(alone[0].keep, 0);
+  EXPECT_EQ(alone[0].drop, 1);
+  EXPECT_NEAR(alone[0].d2, 0.64 / 0.0625, 1e-9);
+  EXPECT_TRUE(NeighbourPair(0.8, 10).Merges().empty());
+  EXPECT_TRUE(NeighbourPair(0.8, 0).Merges(/*by_density=*/false).empty());
+  EXPECT_TRUE(NeighbourPair(0.38, 0, 0.1).Merges().empty());
+  EXPECT_EQ(NeighbourPair(0.38, 0, 0.1).Merges(true, /*outer_gate=*/0.9999).size(), 1u);
+  EXPECT_EQ(NeighbourPair(0.5, 10).Merges().size(), 1u);
+  EXPECT_EQ(NeighbourPair(0.5, 10).Merges(/*by_density=*/false).size(), 1u);
+}
+
 TEST(LandmarkRevision, OptionsAreValidated) {
   LandmarkRevisionOptions o;
   EXPECT_TRUE(o.Validate().ok());
@@ -399,6 +459,14 @@ TEST(LandmarkRevision, OptionsAreValidated) {
   EXPECT_FALSE(o.Validate().ok());
   o = {};
   o.every_joins = -1;
+  EXPECT_FALSE(o.Validate().ok());
+  o = {};
+  o.density_gate_probability = 1.0;
+  EXPECT_FALSE(o.Validate().ok());
+  o.density_gate_probability = 0.9;  // below merge_probability: allowed, adds nothing
+  EXPECT_TRUE(o.Validate().ok());
+  o = {};
+  o.density_radius_m = 0.0;
   EXPECT_FALSE(o.Validate().ok());
 }
 

@@ -14,7 +14,9 @@
 //    (SubmapAssociationOptions::loop_test_min_sigma_radius_m). Two landmarks known
 //    relative to each other only to metres are a loop closure with one pairing, in the
 //    regime where association asks for several (min_loop_pairings): not a merge.
-//    (Also, with merge_unresolved, a pair closer than any one local map could resolve.)
+//    (Also, with merge_unresolved, a pair closer than any one local map could resolve,
+//    and with merge_by_density, a pair the χ² test holds apart that one point explains
+//    better than two points of the map's local density.)
 //    The joiner then solves for the merged landmark (the conditional mean given Δ = 0).
 //  - loop merge (merge_loops): pairs that pass the χ² test but are known relative to
 //    each other only to metres are merged together when there are at least the
@@ -64,6 +66,23 @@ struct LandmarkRevisionOptions {
   // apart at d² 12-42) although no sensor sweep ever resolved two points there. The
   // other conditions of a merge hold as for the first test.
   bool merge_unresolved = true;
+  // Also merge a pair that the χ² test holds apart but that lies inside the outer gate
+  // χ²₂(density_gate_probability), when one point explains their difference better than
+  // two distinct points at the map's local density: N(Δ; 0, Cov(Δ)) > ρ̂ [1/m²], with
+  // ρ̂ = k / (π r²), k the landmarks within r = density_radius_m of the pair's midpoint
+  // other than one of the pair (so at least 1). The likelihood ratio of "one point"
+  // against "another landmark of the neighbourhood", at even prior odds. Local maps
+  // over-confident by a few σ leave copies of one point 3–4σ apart (hybrid-120m: 0.7–0.9 m
+  // apart, their difference known to σ 0.2–0.3 m); where landmarks stand that densely
+  // (a lattice, a row of trees) or the difference is uncertain, two points are the
+  // likelier explanation and the pair stays apart. The other conditions of a merge hold
+  // as for the first test. The outer gate bounds how far off a copy may be: merged, a
+  // feature of a local map over-confident beyond it bends the estimate to fit (at
+  // χ²₂(0.9999) on hybrid-120m α = 1 seed 94, a copy 0.23 m off with σ 0.06 m, d² 16.5,
+  // and the loop closed two maps later was missed: 0.29 → 9.7 m; bench/RESULTS.md).
+  bool merge_by_density = true;
+  double density_gate_probability = 0.999;  // in (0, 1); at or below merge_probability: no effect
+  double density_radius_m = 10.0;  // as the association's candidate radius (TH2)
   // Off by default: on hybrid-120m, combined-2km and Victoria Park it changed no figure
   // while a pass per split doubled Victoria Park's time (bench/RESULTS.md); the wrong
   // merges seen there are joint loop-closure decisions that the estimate bends to fit,
