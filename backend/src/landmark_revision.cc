@@ -206,7 +206,9 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
       if (!(d2 < gate) && !(d2_res < gate)) {
         // Held apart by the χ² test: merged only where one point is the likelier explanation.
         if (!density || !(d2 < outer_gate)) continue;
-        const double one_point = std::exp(-0.5 * d2) / (2.0 * M_PI * std::sqrt(C.determinant()));
+        // √det C from the factor (positive where the factorisation succeeded).
+        const double root_det = llt.matrixLLT()(0, 0) * llt.matrixLLT()(1, 1);
+        const double one_point = std::exp(-0.5 * d2) / (2.0 * M_PI * root_det);
         if (!(one_point > local_density(0.5 * (L[a] + L[b])))) continue;
       }
       // A pair whose relative position is uncertain to 3σ ≥ loop_sigma_radius_m is a loop

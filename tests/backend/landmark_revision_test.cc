@@ -390,28 +390,30 @@ TEST(LandmarkRevision, CopiesOfALoopMergeTogetherWhenEnoughAgree) {
   EXPECT_TRUE(LoopCopies(6, 2.0, 4, offset).Merges(4).empty());
 }
 
-// Two landmarks `distance` m apart, their difference known to σ `sigma` m, each held by a
-// local map of its own, and `neighbours` more landmarks 6 m around them (far beyond any
-// gate).
+// Two landmarks `distance` m apart, their difference known to σ `sigma` m (each only to
+// σ/2, the two anti-correlated, so that the pre-filter's bound √gate · (σ_a + σ_b) is
+// tight), each held by a local map of its own, and `neighbours` more landmarks `ring` m
+// from the pair's midpoint (far beyond any gate), the first on the x axis behind it.
 struct NeighbourPair {
   SubmapGraph graph{Pose2(0, 0, 0)};
   Eigen::MatrixXd Sigma;
 
-  NeighbourPair(double distance, int neighbours, double sigma = 0.25) {
+  NeighbourPair(double distance, int neighbours, double sigma = 0.25, double ring = 6.0) {
     graph.AddAnchor(Pose2(10, 0, 0));
-    const Eigen::Vector2d centre(0, 8);
+    const Eigen::Vector2d centre(0, 8), mid = centre + Eigen::Vector2d(0.5 * distance, 0);
     graph.AddLandmark(centre);
     graph.AddLandmark(centre + Eigen::Vector2d(distance, 0));
     for (int i = 0; i < neighbours; ++i) {
-      const double angle = 2.0 * M_PI * i / neighbours;
-      graph.AddLandmark(centre + 6.0 * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
+      const double angle = M_PI + 2.0 * M_PI * i / neighbours;
+      graph.AddLandmark(mid + ring * Eigen::Vector2d(std::cos(angle), std::sin(angle)));
     }
     LocalSubmap one;
     one.mean = Eigen::VectorXd::Zero(5);
     one.covariance = 0.001 * Eigen::MatrixXd::Identity(5, 5);  // resolves every pair here
     for (int j = 0; j < graph.num_landmarks(); ++j) graph.AddFactor({one, 0, 1, {j}});
     Sigma = 0.01 * Eigen::MatrixXd::Identity(2 * graph.num_landmarks(), 2 * graph.num_landmarks());
-    Sigma.topLeftCorner<4, 4>() = 0.5 * sigma * sigma * Eigen::Matrix4d::Identity();  // Cov(Δ) = σ² I
+    const double q = 0.25 * sigma * sigma;  // Cov(Δ) = q + q + 2q = σ² I
+    Sigma.topLeftCorner<4, 4>() << q, 0, -q, 0, 0, q, 0, -q, -q, 0, q, 0, 0, -q, 0, q;
   }
 
   std::vector<LandmarkMerge> Merges(bool by_density = true, double outer_gate = 0.999) const {
@@ -428,19 +430,25 @@ struct NeighbourPair {
   }
 };
 
-// 0.8 m apart (d² 10.2: held apart by the χ² test at 0.99, inside χ²₂(0.999) = 13.8): the
-// density of one point there, N(Δ; 0, C) = 0.015 /m², exceeds that of another landmark
-// when the pair stands alone (1 / (π 10²) = 0.0032 /m²), so they merge; with ten more
-// landmarks within 10 m (11 / (π 10²) = 0.035 /m²) two points are likelier and they stay
-// apart. Not without the density test, nor beyond the outer gate: 0.38 m apart known to
-// σ 0.1 m (d² 14.4, N = 0.012 /m²) merges only with the gate at χ²₂(0.9999) = 18.4. A pair
-// inside the χ² gate merges however dense its neighbourhood.
+// 0.8 m apart with σ 0.25 m (d² 10.2: held apart by the χ² test at 0.99, inside χ²₂(0.999)
+// = 13.8): one point there has density N(Δ; 0, C) = 0.0152 /m², that of 4.8 landmarks
+// within 10 m. The landmarks within 10 m of the midpoint, less one: with 3 neighbours 4
+// (0.0127 /m²), the pair merges; with 4 neighbours 5 (0.0159 /m²), two points are likelier
+// and it stays apart — unless the neighbours stand just beyond 10 m (10.1 m: the pair alone,
+// 0.0032 /m²; at 9.9 m they count, the one behind the pair on the x axis too). Not without
+// the density test, nor beyond the outer gate: 0.38 m apart known to σ 0.1 m (d² 14.4,
+// N = 0.0116 /m²) merges only with the gate at χ²₂(0.9999) = 18.4. A pair inside the χ²
+// gate merges however dense its neighbourhood.
 TEST(LandmarkRevision, APairTheGateHoldsApartMergesWhereOnePointIsLikelierThanANeighbour) {
   const std::vector<LandmarkMerge> alone = NeighbourPair(0.8, 0).Merges();
   ASSERT_EQ(alone.size(), 1u);
   EXPECT_EQ(alone[0].keep, 0);
   EXPECT_EQ(alone[0].drop, 1);
   EXPECT_NEAR(alone[0].d2, 0.64 / 0.0625, 1e-9);
+  EXPECT_EQ(NeighbourPair(0.8, 3).Merges().size(), 1u);
+  EXPECT_TRUE(NeighbourPair(0.8, 4).Merges().empty());
+  EXPECT_EQ(NeighbourPair(0.8, 4, 0.25, /*ring=*/10.1).Merges().size(), 1u);
+  EXPECT_TRUE(NeighbourPair(0.8, 4, 0.25, /*ring=*/9.9).Merges().empty());
   EXPECT_TRUE(NeighbourPair(0.8, 10).Merges().empty());
   EXPECT_TRUE(NeighbourPair(0.8, 0).Merges(/*by_density=*/false).empty());
   EXPECT_TRUE(NeighbourPair(0.38, 0, 0.1).Merges().empty());

@@ -1,6 +1,7 @@
 // The submap pipeline with the EIF back-end, end to end on simulated data.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include <boost/math/distributions/binomial.hpp>
@@ -69,8 +70,9 @@ TEST(CountAssociationsAgainstTruth, CountsWrongMergesByMajorityAndBySharedTrueLa
   EXPECT_EQ(c.recent_missed + c.loop_merged + c.loop_missed, 0);
 
   // The same table with the true ids held apart from the graph, in local maps of the same
-  // ids (as a run labels its maps after joining them): the same counts; a feature the
-  // labelled maps do not hold is left out.
+  // ids (as a run labels its maps after joining them), listed in another order and with
+  // their features in another order: the same counts; a feature the labelled maps do not
+  // hold is left out.
   SubmapGraph bare(Pose2(0, 0, 0));
   for (int k = 1; k <= 4; ++k) bare.AddAnchor(Pose2(k, 0, 0));
   bare.AddLandmark(Eigen::Vector2d(1, 1));
@@ -81,11 +83,13 @@ TEST(CountAssociationsAgainstTruth, CountsWrongMergesByMajorityAndBySharedTrueLa
     SubmapFactor stripped = f;
     for (int i = 0; i < stripped.submap.num_landmarks(); ++i) {
       stripped.submap.landmarks[i] = LocalSubmapLandmark{};
-      stripped.submap.landmarks[i].local_id = i;
-      labelled.back().landmarks[i].local_id = i;
+      stripped.submap.landmarks[i].local_id = 10 + i;
+      labelled.back().landmarks[i].local_id = 10 + i;
     }
+    std::reverse(labelled.back().landmarks.begin(), labelled.back().landmarks.end());
     bare.AddFactor(std::move(stripped));
   }
+  std::reverse(labelled.begin(), labelled.end());
   EXPECT_EQ(CountAssociationsAgainstTruth(bare).correct, 0);  // no true ids in the graph
   const AssociationVsTruth d = CountAssociationsAgainstTruth(bare, labelled);
   EXPECT_EQ(d.wrong, c.wrong);
@@ -93,7 +97,8 @@ TEST(CountAssociationsAgainstTruth, CountsWrongMergesByMajorityAndBySharedTrueLa
   EXPECT_EQ(d.wrong_sharing_no_true_landmark, c.wrong_sharing_no_true_landmark);
   EXPECT_EQ(d.correct, c.correct);
   EXPECT_EQ(d.recent_merged, c.recent_merged);
-  labelled[2].landmarks.pop_back();  // map 2's tree 8 unknown: map 3's is then its first sight
+  // Map 2 (now second, its features reversed) without tree 8: map 3's is then its first sight.
+  labelled[1].landmarks.erase(labelled[1].landmarks.begin());
   EXPECT_EQ(CountAssociationsAgainstTruth(bare, labelled).recent_merged, 0);
 }
 

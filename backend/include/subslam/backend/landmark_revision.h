@@ -76,10 +76,12 @@ struct LandmarkRevisionOptions {
   // apart, their difference known to σ 0.2–0.3 m); where landmarks stand that densely
   // (a lattice, a row of trees) or the difference is uncertain, two points are the
   // likelier explanation and the pair stays apart. The other conditions of a merge hold
-  // as for the first test. The outer gate bounds how far off a copy may be: merged, a
-  // feature of a local map over-confident beyond it bends the estimate to fit (at
-  // χ²₂(0.9999) on hybrid-120m α = 1 seed 94, a copy 0.23 m off with σ 0.06 m, d² 16.5,
-  // and the loop closed two maps later was missed: 0.29 → 9.7 m; bench/RESULTS.md).
+  // as for the first test, and a pair this test accepts is a partner like one the first
+  // accepts (for "best partner" and "unambiguous"). The outer gate bounds how far off a
+  // copy may be: merged, a feature of a local map over-confident beyond it bends the
+  // estimate to fit (at χ²₂(0.9999) on hybrid-120m α = 1 seed 94, a copy 0.23 m off with
+  // σ 0.06 m, d² 16.5, and the loop at the next local map was missed: 0.34 → 9.72 m;
+  // bench/RESULTS.md).
   bool merge_by_density = true;
   double density_gate_probability = 0.999;  // in (0, 1); at or below merge_probability: no effect
   double density_radius_m = 10.0;  // as the association's candidate radius (TH2)
