@@ -304,14 +304,8 @@ json Evaluate(const io::Dataset& dataset, const RunOptions& options, const Subma
       r->labelled_map_errors = eval::ComputeLabelledMapErrors(
           r->landmarks, eval::GlobalLandmarkTruthLabels(chain->joiner()->graph(), r->local_maps, r->landmarks),
           dataset.truth_landmarks);
-      if (r->labelled_map_errors->labelled > 0) {
+      if (r->labelled_map_errors->labelled > 0) {  // the local maps carry true ids
         metrics["map_by_truth_label"] = LabelledMapErrorsJson(*r->labelled_map_errors);
-      }
-      const bool with_truth_ids = std::any_of(r->local_maps.begin(), r->local_maps.end(), [](const LocalSubmap& s) {
-        return std::any_of(s.landmarks.begin(), s.landmarks.end(),
-                           [](const LocalSubmapLandmark& l) { return l.truth_id.has_value(); });
-      });
-      if (with_truth_ids) {
         r->association = CountAssociationsAgainstTruth(chain->joiner()->graph(), r->local_maps);
         metrics["association_vs_truth_id"] = AssociationVsTruthJson(*r->association);
       }
