@@ -29,6 +29,7 @@
 #include "frontend_flags.h"
 #include "flags_read_by_command.h"
 #include "keep_freed_memory_flag.h"
+#include "subslam/eval/trajectory_errors.h"
 #include "subslam/pipeline/join_pipeline.h"
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/pipeline/solve_pipeline.h"
@@ -179,6 +180,7 @@ int Join() {
     options.initial_pose = dataset->initial_pose;
     options.truth_poses = dataset->truth_poses;
     options.truth_landmarks = dataset->truth_landmarks;
+    options.observed_truth_landmarks = subslam::eval::ObservedTruthLandmarks(*dataset);
   }
   auto r = subslam::pipeline::RunJoin(*submaps, options);
   if (!r.ok()) return Fail(r.status());

@@ -60,21 +60,22 @@ def hybrid(args):
                 jobs.append(cmd)
                 cells.append((a, b, s, known, out))
     pool(args, jobs)
-    print("| alpha | beta | duplicates / true landmarks seen | median final RMS est / known [m] | "
+    print("| alpha | beta | duplicates / true landmarks seen | by the true ids | median final RMS est / known [m] | "
           "median online RMS est / known [m] | 10-sigma successes est / known | "
           "online 10-sigma successes est / known | wrong merges (sharing no true landmark) | merges / splits |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for a, b in settings:
         rows = {k: [report(o) for (aa, bb, s, kn, o) in cells if (aa, bb, kn) == (a, b, k)] for k in (False, True)}
         est, kn = rows[False], rows[True]
         dup = sum(r["metrics"]["map"]["duplicates"] for r in est)
         seen = sum(r["metrics"]["map"]["matched"] for r in est)
+        by_id = sum(r["metrics"]["map_by_truth_label"]["duplicates"] for r in est)
         med = lambda rs, key: statistics.median(r["metrics"][key]["rms_position_m"] for r in rs)
         ok = lambda rs, key="trajectory": sum(not r["metrics"][key]["failed_10_sigma_test"] for r in rs)
         wrong = lambda key: sum(r["metrics"]["association_vs_truth_id"][key] for r in est)
         merges = sum(r["estimator_counters"].get("join_landmarks_merged", 0) for r in est)
         splits = sum(r["estimator_counters"].get("join_features_split", 0) for r in est)
-        print(f"| {a} | {b} | {dup} / {seen} ({100.0 * dup / max(seen, 1):.1f} %) | "
+        print(f"| {a} | {b} | {dup} / {seen} ({100.0 * dup / max(seen, 1):.1f} %) | {by_id} | "
               f"{med(est, 'trajectory'):.3f} / {med(kn, 'trajectory'):.3f} | "
               f"{med(est, 'trajectory_online'):.3f} / {med(kn, 'trajectory_online'):.3f} | "
               f"{ok(est)} / {ok(kn)} of {len(est)} | "
@@ -101,14 +102,15 @@ def combined(args):
                         args.extra)
             cells.append((name, s, j))
     pool(args, jobs)
-    print("| back-end association | duplicates | wrong merges (sharing no true landmark) | 10-sigma failures | "
+    print("| back-end association | duplicates (by the true ids) | wrong merges (sharing no true landmark) | 10-sigma failures | "
           "final anchor RMS median (max) [m] | merges / splits | join time median [s] |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for name in variants:
         rs = [report(j) for (n, s, j) in cells if n == name]
         m = [r["metrics"] for r in rs]
         rms = [x["anchors"]["rms_position_m"] for x in m]
-        print(f"| {name} | {sum(x['map']['duplicates'] for x in m)} | "
+        print(f"| {name} | {sum(x['map']['duplicates'] for x in m)} "
+              f"({sum(x['map_by_truth_label']['duplicates'] for x in m)}) | "
               f"{sum(x['association_vs_truth_id']['wrong_merges'] for x in m)} "
               f"({sum(x['association_vs_truth_id']['wrong_merges_sharing_no_true_landmark'] for x in m)}) | "
               f"{sum(x['anchors']['failed_10_sigma_test'] for x in m)} of {len(m)} | "

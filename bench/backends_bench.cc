@@ -126,6 +126,7 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
     options.initial_pose = in.dataset.initial_pose;
     options.truth_poses = in.dataset.truth_poses;
     options.truth_landmarks = in.dataset.truth_landmarks;
+    options.observed_truth_landmarks = subslam::eval::ObservedTruthLandmarks(in.dataset);
     absl::StatusOr<subslam::pipeline::JoinResult> r = subslam::pipeline::RunJoin(in.maps, options);
     if (!r.ok()) {
       std::printf("%-9s failed: %s\n", subslam::pipeline::ToString(kind), std::string(r.status().message()).c_str());

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <unordered_set>
 
+#include "landmark_matching.h"
 #include "subslam/eval/nees.h"
 #include "subslam/models/gating.h"
 
@@ -72,44 +74,48 @@ MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
                            const std::vector<io::TruthLandmark>& truth, double match_radius_m) {
   MapErrors m;
   m.estimated = static_cast<int>(estimate.size());
-  struct Candidate {
-    double distance;
-    int e, t;
-  };
-  std::vector<Candidate> candidates;
-  for (int i = 0; i < static_cast<int>(estimate.size()); ++i) {
-    for (int j = 0; j < static_cast<int>(truth.size()); ++j) {
-      const double dist = (estimate[i].position - truth[j].p).norm();
-      if (dist <= match_radius_m) candidates.push_back({dist, i, j});
-    }
-  }
-  std::sort(candidates.begin(), candidates.end(),
-            [](const Candidate& a, const Candidate& b) { return a.distance < b.distance; });
-  std::vector<bool> used_e(estimate.size(), false), used_t(truth.size(), false);
+  std::vector<Eigen::Vector2d> estimated(estimate.size()), true_positions(truth.size());
+  for (size_t i = 0; i < estimate.size(); ++i) estimated[i] = estimate[i].position;
+  for (size_t j = 0; j < truth.size(); ++j) true_positions[j] = truth[j].p;
   double sq = 0, sq_x = 0, sq_y = 0, nees = 0;
   int nees_count = 0;
-  for (const Candidate& c : candidates) {
-    if (used_e[c.e] || used_t[c.t]) continue;
-    used_e[c.e] = used_t[c.t] = true;
+  for (const auto& [e, t] : MatchWithinRadius(estimated, true_positions, match_radius_m)) {
     ++m.matched;
-    sq += c.distance * c.distance;
-    const Eigen::Vector2d error = estimate[c.e].position - truth[c.t].p;
+    const Eigen::Vector2d error = estimate[e].position - truth[t].p;
+    sq += error.squaredNorm();
     sq_x += error.x() * error.x();
     sq_y += error.y() * error.y();
-    if (auto v = PointNees(truth[c.t].p, estimate[c.e].position, estimate[c.e].covariance)) {
+    if (auto v = PointNees(truth[t].p, estimate[e].position, estimate[e].covariance)) {
       nees += *v;
       ++nees_count;
     }
   }
-  std::vector<bool> near_truth(estimate.size(), false);
-  for (const Candidate& c : candidates) near_truth[c.e] = true;
-  for (size_t i = 0; i < estimate.size(); ++i) m.spurious += near_truth[i] ? 0 : 1;
+  for (const Eigen::Vector2d& p : estimated) {
+    bool near_truth = false;
+    for (const Eigen::Vector2d& q : true_positions) near_truth = near_truth || (p - q).norm() <= match_radius_m;
+    m.spurious += near_truth ? 0 : 1;
+  }
   m.duplicates = m.estimated - m.matched - m.spurious;
   m.rms_m = m.matched > 0 ? std::sqrt(sq / m.matched) : 0.0;
   m.rms_x_m = m.matched > 0 ? std::sqrt(sq_x / m.matched) : 0.0;
   m.rms_y_m = m.matched > 0 ? std::sqrt(sq_y / m.matched) : 0.0;
   m.mean_nees = nees_count > 0 ? nees / nees_count : 0.0;
   return m;
+}
+
+std::vector<io::TruthLandmark> ObservedTruthLandmarks(const io::Dataset& dataset) {
+  if (!dataset.sensor.has_truth_id) return dataset.truth_landmarks;
+  std::unordered_set<int> seen;
+  for (const Scan& scan : dataset.scans) {
+    for (const Detection& d : scan.detections) {
+      if (d.truth_id >= 0) seen.insert(d.truth_id);
+    }
+  }
+  std::vector<io::TruthLandmark> observed;
+  for (const io::TruthLandmark& l : dataset.truth_landmarks) {
+    if (seen.contains(l.id)) observed.push_back(l);
+  }
+  return observed;
 }
 
 }  // namespace subslam::eval

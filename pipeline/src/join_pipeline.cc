@@ -142,8 +142,10 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     metrics["anchors_online"] = ErrorsJson(eval::ComputeTrajectoryErrors(r.anchors_online, options.truth_poses));
   }
   if (!options.truth_landmarks.empty()) {
-    metrics["map"] = MapErrorsJson(eval::ComputeMapErrors(r.landmarks, options.truth_landmarks),
-                                   options.truth_landmarks.size());
+    const std::vector<io::TruthLandmark>& observed =
+        options.observed_truth_landmarks.empty() ? options.truth_landmarks : options.observed_truth_landmarks;
+    metrics["map"] = MapErrorsJson(eval::ComputeMapErrors(r.landmarks, observed), options.truth_landmarks.size(),
+                                   observed.size());
     const eval::LabelledMapErrors labelled = eval::ComputeLabelledMapErrors(
         r.landmarks, eval::GlobalLandmarkTruthLabels(joiner->graph(), submaps, r.landmarks),
         options.truth_landmarks);

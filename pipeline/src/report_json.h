@@ -33,10 +33,10 @@ inline nlohmann::json ErrorsJson(const eval::TrajectoryErrors& e) {
           {"longest_10_sigma_excursion_steps", e.longest_excursion_steps}};
 }
 
-inline nlohmann::json MapErrorsJson(const eval::MapErrors& m, size_t true_landmarks) {
+inline nlohmann::json MapErrorsJson(const eval::MapErrors& m, size_t true_landmarks, size_t observed) {
   return {{"estimated", m.estimated},   {"matched", m.matched},
           {"spurious", m.spurious},     {"duplicates", m.duplicates},
-          {"true_landmarks", true_landmarks}, {"rms_m", m.rms_m},
+          {"true_landmarks", true_landmarks}, {"true_landmarks_observed", observed}, {"rms_m", m.rms_m},
           {"mean_landmark_nees", m.mean_nees}};
 }
 

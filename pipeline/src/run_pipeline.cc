@@ -298,8 +298,9 @@ json Evaluate(const io::Dataset& dataset, const RunOptions& options, const Subma
     }
   }
   if (!dataset.truth_landmarks.empty()) {
-    r->map_errors = eval::ComputeMapErrors(r->landmarks, dataset.truth_landmarks);
-    metrics["map"] = MapErrorsJson(*r->map_errors, dataset.truth_landmarks.size());
+    const std::vector<io::TruthLandmark> observed = eval::ObservedTruthLandmarks(dataset);
+    r->map_errors = eval::ComputeMapErrors(r->landmarks, observed);
+    metrics["map"] = MapErrorsJson(*r->map_errors, dataset.truth_landmarks.size(), observed.size());
     if (chain != nullptr && chain->joiner() != nullptr) {
       r->labelled_map_errors = eval::ComputeLabelledMapErrors(
           r->landmarks, eval::GlobalLandmarkTruthLabels(chain->joiner()->graph(), r->local_maps, r->landmarks),

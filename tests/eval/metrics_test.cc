@@ -79,6 +79,49 @@ TEST(MapErrors, MatchesNearestAndCountsSpurious) {
   EXPECT_NEAR(m.rms_m, std::sqrt((0.25 + 0.25) / 2), 1e-12);
 }
 
+// Nearest-first would give the one true landmark the second estimate reaches to the first
+// (0.5 m) and call the second a duplicate; each has a true landmark of its own within the
+// radius, so both are matched (1.5 m each).
+TEST(MapErrors, MatchesAsManyAsOneToOneAllowsThenTheNearest) {
+  const std::vector<io::TruthLandmark> truth = {{0, {0, 0}}, {1, {2, 0}}};
+  const std::vector<LandmarkEstimate> est = {{5, {0.5, 0}, Eigen::Matrix2d::Identity()},
+                                             {6, {-1.5, 0}, Eigen::Matrix2d::Identity()}};
+  const MapErrors m = ComputeMapErrors(est, truth, 2.0);
+  EXPECT_EQ(m.matched, 2);
+  EXPECT_EQ(m.duplicates, 0);
+  EXPECT_EQ(m.spurious, 0);
+  EXPECT_NEAR(m.rms_m, 1.5, 1e-6);
+  // Of the two complete matchings, the one of the smaller sum of squared distances
+  // (0.1² + 0.2², not 0.9² + 0.8²).
+  const std::vector<io::TruthLandmark> two = {{0, {0, 0}}, {1, {1, 0}}};
+  const std::vector<LandmarkEstimate> near = {{5, {0.1, 0}, Eigen::Matrix2d::Identity()},
+                                              {6, {0.8, 0}, Eigen::Matrix2d::Identity()}};
+  const MapErrors n = ComputeMapErrors(near, two, 3.0);
+  EXPECT_EQ(n.matched, 2);
+  EXPECT_NEAR(n.rms_m, std::sqrt((0.1 * 0.1 + 0.2 * 0.2) / 2), 1e-6);
+}
+
+// The map metric matches against the true landmarks some detection saw (a false alarm's
+// id names none); without true ids on the detections, against all of them.
+TEST(MapErrors, MatchesAgainstTheTrueLandmarksTheSensorSaw) {
+  io::Dataset d;
+  d.truth_landmarks = {{0, {0, 0}}, {1, {3, 0}}, {2, {30, 0}}};
+  d.sensor.has_truth_id = true;
+  d.scans = {{0.0, {{5.0, 0.0, NAN, 2}, {1.0, 0.5, NAN, kFalseAlarmId}}}, {0.1, {{4.0, 0.1, NAN, 0}}}};
+  const std::vector<io::TruthLandmark> observed = ObservedTruthLandmarks(d);
+  ASSERT_EQ(observed.size(), 2u);
+  EXPECT_EQ(observed[0].id, 0);
+  EXPECT_EQ(observed[1].id, 2);
+  // Two estimates of landmark 0: against every true landmark the copy would take the
+  // unseen landmark 1 (2.5 m off); against those seen it is a duplicate.
+  const std::vector<LandmarkEstimate> est = {{5, {0.1, 0}, Eigen::Matrix2d::Identity()},
+                                             {6, {0.5, 0}, Eigen::Matrix2d::Identity()}};
+  EXPECT_EQ(ComputeMapErrors(est, d.truth_landmarks, 5.0).duplicates, 0);
+  EXPECT_EQ(ComputeMapErrors(est, observed, 5.0).duplicates, 1);
+  d.sensor.has_truth_id = false;
+  EXPECT_EQ(ObservedTruthLandmarks(d).size(), 3u);
+}
+
 // By label, a landmark far from its true position still counts; unknown labels do not;
 // two estimates of one true landmark are a duplicate.
 TEST(MapErrors, LabelledErrorsFollowTheLabelsNotTheDistances) {

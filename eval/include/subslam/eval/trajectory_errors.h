@@ -7,10 +7,15 @@
 // than `failure_sigma` standard deviations — Mahalanobis distance √NEES — from the
 // estimate for more than `failure_steps` consecutive steps).
 //
-// Map: each estimated landmark is matched to the nearest true landmark within
-// `match_radius_m` (one-to-one, greedy by distance); RMS over matched pairs. Unmatched
-// estimates are counted as spurious (no true landmark within the radius: a false alarm
-// or a diverged landmark) or duplicates (a second estimate of a matched landmark).
+// Map: estimated landmarks are matched one-to-one to true landmarks within
+// `match_radius_m`, by the matching with the most pairs and, among those, the smallest
+// sum of squared distances (not nearest-first, which on a displaced map can leave an
+// estimate unmatched that had a true landmark of its own); RMS over matched pairs.
+// Unmatched estimates are counted as spurious (no true landmark within the radius: a
+// false alarm or a diverged landmark) or duplicates (near true landmarks that are all
+// matched: the fewest surplus estimates any one-to-one reading allows). Copies displaced
+// beyond the radius count as spurious; where local maps carry true ids,
+// labelled_map_errors.h counts copies however far.
 #ifndef SUBSLAM_EVAL_TRAJECTORY_ERRORS_H_
 #define SUBSLAM_EVAL_TRAJECTORY_ERRORS_H_
 
@@ -55,16 +60,23 @@ struct MapErrors {
   int estimated = 0;
   int matched = 0;
   int spurious = 0;        // estimates with no true landmark within the radius at all
-  int duplicates = 0;      // unmatched estimates near a true landmark already matched
+  int duplicates = 0;      // unmatched estimates near true landmarks, all matched
   double rms_m = 0.0;      // over matched pairs
   double rms_x_m = 0.0;    // per axis, over matched pairs
   double rms_y_m = 0.0;
   double mean_nees = 0.0;  // over matched pairs
 };
 
+// `truth`: the true landmarks an estimate may stand for — those the sensor saw
+// (ObservedTruthLandmarks). Matched against every true landmark, a copy or a displaced
+// estimate takes an unseen neighbour within the radius and is counted as a match.
 MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
                            const std::vector<io::TruthLandmark>& truth,
                            double match_radius_m = 5.0);
+
+// The true landmarks whose id some detection of `dataset` carries; all of them when its
+// detections carry no true ids (sensor.has_truth_id false).
+std::vector<io::TruthLandmark> ObservedTruthLandmarks(const io::Dataset& dataset);
 
 }  // namespace subslam::eval
 

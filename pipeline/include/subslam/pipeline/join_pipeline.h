@@ -39,9 +39,11 @@ struct JoinOptions {
   Pose2 initial_pose;           // anchor 0
   std::string out_dir;          // empty: write nothing
   // Ground truth for the report (optional): true poses (anchors compared at their times)
-  // and true landmarks (map errors).
+  // and true landmarks (map errors), and of those the ones the sensor saw, which the map
+  // metric matches estimates against (eval::ObservedTruthLandmarks; empty: all).
   std::vector<io::TimedPose> truth_poses;
   std::vector<io::TruthLandmark> truth_landmarks;
+  std::vector<io::TruthLandmark> observed_truth_landmarks;
 };
 
 // Association against truth_id (when the local maps carry them), from a joined graph's

@@ -1,0 +1,81 @@
+#include "landmark_matching.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <boost/graph/adjacency_list.hpp>
+#include <boost/graph/successive_shortest_path_nonnegative_weights.hpp>
+
+namespace subslam::eval {
+namespace {
+
+// The flow network: source → each estimate → each true landmark within the radius → sink,
+// every edge of capacity 1 with its reverse edge of capacity 0 (the residual graph).
+// Costs are squared distances in integer µm² (Dijkstra on reduced costs stays exact).
+using Traits = boost::adjacency_list_traits<boost::vecS, boost::vecS, boost::directedS>;
+using Network = boost::adjacency_list<
+    boost::vecS, boost::vecS, boost::directedS, boost::no_property,
+    boost::property<boost::edge_capacity_t, long,
+                    boost::property<boost::edge_residual_capacity_t, long,
+                                    boost::property<boost::edge_reverse_t, Traits::edge_descriptor,
+                                                    boost::property<boost::edge_weight_t, long>>>>>;
+
+constexpr double kCostPerSquareMetre = 1e12;  // µm² per m²
+
+}  // namespace
+
+std::vector<std::pair<int, int>> MatchWithinRadius(const std::vector<Eigen::Vector2d>& estimates,
+                                                   const std::vector<Eigen::Vector2d>& truth, double radius_m) {
+  const int n = static_cast<int>(estimates.size()), m = static_cast<int>(truth.size());
+  const int source = n + m, sink = n + m + 1;
+  Network g(n + m + 2);
+  auto capacity = boost::get(boost::edge_capacity, g);
+  auto reverse = boost::get(boost::edge_reverse, g);
+  auto weight = boost::get(boost::edge_weight, g);
+  const auto add = [&](int u, int v, long cost) {
+    const Traits::edge_descriptor e = boost::add_edge(u, v, g).first;
+    const Traits::edge_descriptor r = boost::add_edge(v, u, g).first;
+    capacity[e] = 1;
+    capacity[r] = 0;
+    weight[e] = cost;
+    weight[r] = -cost;
+    reverse[e] = r;
+    reverse[r] = e;
+  };
+  // Pairs within the radius, found over the truth sorted by x.
+  std::vector<int> by_x(m);
+  for (int j = 0; j < m; ++j) by_x[j] = j;
+  std::sort(by_x.begin(), by_x.end(), [&](int a, int b) { return truth[a].x() < truth[b].x(); });
+  std::vector<char> has_pair(m, 0);
+  std::vector<std::pair<int, int>> pairs;
+  for (int i = 0; i < n; ++i) {
+    const auto first = std::lower_bound(by_x.begin(), by_x.end(), estimates[i].x() - radius_m,
+                                        [&](int j, double x) { return truth[j].x() < x; });
+    bool any = false;
+    for (auto it = first; it != by_x.end() && truth[*it].x() <= estimates[i].x() + radius_m; ++it) {
+      const double d2 = (estimates[i] - truth[*it]).squaredNorm();
+      if (!(d2 <= radius_m * radius_m)) continue;
+      add(i, n + *it, std::lround(d2 * kCostPerSquareMetre));
+      pairs.push_back({i, *it});
+      has_pair[*it] = 1;
+      any = true;
+    }
+    if (any) add(source, i, 0);
+  }
+  for (int j = 0; j < m; ++j) {
+    if (has_pair[j]) add(n + j, sink, 0);
+  }
+  std::vector<std::pair<int, int>> matched;
+  if (pairs.empty()) return matched;
+  boost::successive_shortest_path_nonnegative_weights(g, source, sink);
+  auto residual = boost::get(boost::edge_residual_capacity, g);
+  for (int i = 0; i < n; ++i) {
+    for (const auto& e : boost::make_iterator_range(boost::out_edges(i, g))) {
+      const int v = static_cast<int>(boost::target(e, g));
+      if (v >= n && v < n + m && capacity[e] == 1 && residual[e] == 0) matched.push_back({i, v - n});
+    }
+  }
+  return matched;
+}
+
+}  // namespace subslam::eval
