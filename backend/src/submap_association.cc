@@ -3,6 +3,8 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <deque>
+#include <memory>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
@@ -364,6 +366,179 @@ association::AssociationProblem IndividualCompatibility(const LocalSubmap& s, co
   return problem;
 }
 
+// The joint innovation covariance JCBB asks for: Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with
+// Σ the joint marginal of P_s and the candidates compatible with some feature (asked of the
+// joiner once, for those only), J over [P_s, candidate], and Q the local map's covariance.
+// J_a Σ J_bᵀ is computed once per pair of candidates (JCBB asks for it at every node).
+class InnovationCovariance {
+ public:
+  InnovationCovariance(const association::AssociationProblem& problem, int start_anchor,
+                       const std::vector<int>& candidates, const CandidateGeometry& geometry,
+                       const TimedCovariance& timed_covariance)
+      : geometry_(geometry), slot_(candidates.size(), -1) {
+    std::vector<int> compatible;
+    for (const auto& list : problem.candidates) {
+      for (const association::AssociationCandidate& cand : list) {
+        if (slot_[cand.landmark] < 0) {
+          slot_[cand.landmark] = static_cast<int>(compatible.size());
+          compatible.push_back(candidates[cand.landmark]);
+        }
+      }
+    }
+    if (geometry.full_joint.size() > 0) {
+      std::vector<int> rows(3 + 2 * compatible.size());  // of full_joint, per slot
+      rows[0] = 0, rows[1] = 1, rows[2] = 2;
+      for (size_t c = 0; c < slot_.size(); ++c) {
+        if (slot_[c] < 0) continue;
+        rows[3 + 2 * slot_[c]] = 3 + 2 * static_cast<int>(c);
+        rows[4 + 2 * slot_[c]] = 4 + 2 * static_cast<int>(c);
+      }
+      Sigma_ = geometry.full_joint(rows, rows);
+    } else if (!compatible.empty()) {
+      Sigma_ = timed_covariance({start_anchor}, compatible);
+    }
+    c_n_ = compatible.size();
+    projected_.resize(c_n_ * c_n_);
+    projected_known_.assign(c_n_ * c_n_, 0);
+  }
+
+  // The block of pairings (feature i, candidate a) and (feature k, candidate b), for a local
+  // map of covariance Q.
+  Eigen::Matrix2d operator()(const Eigen::MatrixXd& Q, int i, int a, int k, int b) const {
+    const size_t key = static_cast<size_t>(slot_[a]) * c_n_ + slot_[b];
+    if (!projected_known_[key]) {
+      const int oa = 3 + 2 * slot_[a], ob = 3 + 2 * slot_[b];
+      const std::vector<Matrix23d>& J_frame = geometry_.J_frame;
+      const std::vector<Eigen::Matrix2d>& J_point = geometry_.J_point;
+      projected_[key] = J_frame[a] * Sigma_.topLeftCorner<3, 3>() * J_frame[b].transpose() +
+                        J_frame[a] * Sigma_.block<3, 2>(0, ob) * J_point[b].transpose() +
+                        J_point[a] * Sigma_.block<2, 3>(oa, 0) * J_frame[b].transpose() +
+                        J_point[a] * Sigma_.block<2, 2>(oa, ob) * J_point[b].transpose();
+      projected_known_[key] = 1;
+    }
+    return projected_[key] + Q.block<2, 2>(3 + 2 * i, 3 + 2 * k);
+  }
+
+ private:
+  const CandidateGeometry& geometry_;
+  std::vector<int> slot_;  // per candidate: its place in Σ (−1: compatible with no feature)
+  size_t c_n_ = 0;
+  Eigen::MatrixXd Sigma_;
+  mutable std::vector<Eigen::Matrix2d> projected_;
+  mutable std::vector<char> projected_known_;
+};
+
+// A whole map's association problem linearised about another start-anchor pose. The
+// prediction of each candidate from a start anchor P ~ N(P̄, Σ) is linearised about P_lin:
+// its mean h(P_lin) + J (P̄ − P_lin), its covariance through J at P_lin (the iterated
+// Kalman filter's form, exact where h is linear between P_lin and the true pose). A whole
+// map hundreds of metres long, joined under a lost start anchor whose heading is off by
+// tenths of a radian, moves a far feature by metres through the second-order term: the
+// pairings that close the loop fit, but every later group's, gated conditionally on them
+// about the prior's P̄, fails, and the closure goes unconfirmed. Once a group closes a
+// loop, the grouped association gates the later groups about the start anchor the
+// closure implies, as a sequential joiner gates its next map after fusing and
+// relinearising.
+class Relinearization {
+ public:
+  Relinearization(const LocalSubmap& s, int start_anchor, const std::vector<int>& candidates,
+                  const SubmapGraph& graph, const CandidateGeometry& prior, const Pose2& P_prior,
+                  const Eigen::Matrix3d& Sigma_s, double landmark_radius, const GateTest& gate,
+                  const TimedCovariance& timed_covariance)
+      : s_(s),
+        start_anchor_(start_anchor),
+        candidates_(candidates),
+        graph_(graph),
+        prior_(prior),
+        P_prior_(P_prior),
+        Sigma_s_(Sigma_s),
+        landmark_radius_(landmark_radius),
+        gate_(gate),
+        timed_covariance_(timed_covariance) {}
+
+  // The start anchor given the pairings (feature, candidate), the candidates' positions
+  // as their marginals give them: the iterated Kalman filter on the anchor alone.
+  Pose2 Fit(const std::vector<std::pair<int, int>>& pairs) const {
+    const int m = static_cast<int>(pairs.size());
+    Pose2 x = P_prior_;
+    if (m == 0) return x;
+    Eigen::MatrixXd H(2 * m, 3), R = Eigen::MatrixXd::Zero(2 * m, 2 * m);
+    Eigen::VectorXd y(2 * m);
+    for (int iteration = 0; iteration < 10; ++iteration) {
+      const Eigen::Vector3d offset = PoseDifference(P_prior_, x);
+      for (int k = 0; k < m; ++k) {
+        const auto [i, c] = pairs[k];
+        Matrix23d J_frame;
+        Eigen::Matrix2d J_point;
+        const Eigen::Vector2d h = TransformTo(x, graph_.landmarks()[candidates_[c]], &J_frame, &J_point);
+        H.block<2, 3>(2 * k, 0) = J_frame;
+        R.block<2, 2>(2 * k, 2 * k) = J_point * prior_.pair[c].bottomRightCorner<2, 2>() * J_point.transpose() +
+                                      s_.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+        y.segment<2>(2 * k) = s_.landmark(i) - h - J_frame * offset;
+      }
+      const Eigen::MatrixXd S = H * Sigma_s_ * H.transpose() + R;
+      const Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
+      if (ldlt.info() != Eigen::Success) return x;
+      const Eigen::Vector3d step = Sigma_s_ * H.transpose() * ldlt.solve(y);
+      const Pose2 next(P_prior_.x + step.x(), P_prior_.y + step.y(), WrapAngle(P_prior_.theta + step.z()));
+      const double moved = PoseDifference(next, x).norm();
+      x = next;
+      if (moved < 1e-9) break;
+    }
+    return x;
+  }
+
+  // The problem about P_lin, with each (feature, candidate) of `keep` among its feature's
+  // candidates even where it fails the gate (the decided pairings it is conditioned on).
+  const association::AssociationProblem& At(const Pose2& P_lin, const std::vector<std::pair<int, int>>& keep) {
+    Linearized& l = built_.emplace_back();
+    l.geometry = prior_;
+    const Eigen::Vector3d offset = PoseDifference(P_prior_, P_lin);
+    for (size_t c = 0; c < candidates_.size(); ++c) {
+      l.geometry.predicted[c] =
+          TransformTo(P_lin, graph_.landmarks()[candidates_[c]], &l.geometry.J_frame[c], &l.geometry.J_point[c]) +
+          l.geometry.J_frame[c] * offset;
+    }
+    const PlacedMap placed = Place(s_, P_lin, Sigma_s_, landmark_radius_);
+    l.problem = IndividualCompatibility(s_, candidates_, placed, graph_, l.geometry, gate_);
+    for (const auto& [i, c] : keep) {
+      auto& list = l.problem.candidates[i];
+      if (std::any_of(list.begin(), list.end(), [c](const association::AssociationCandidate& x) { return x.landmark == c; })) {
+        continue;
+      }
+      const Eigen::Vector2d nu = l.geometry.predicted[c] - s_.landmark(i);
+      const Eigen::Matrix2d S = l.geometry.Relative(c) + s_.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+      list.insert(list.begin(), {c, models::MahalanobisSquared2(nu, S).value_or(INFINITY), nu});
+    }
+    l.covariance = std::make_unique<InnovationCovariance>(l.problem, start_anchor_, candidates_, l.geometry,
+                                                          timed_covariance_);
+    const InnovationCovariance* covariance = l.covariance.get();
+    const LocalSubmap* s = &s_;
+    l.problem.covariance_block = [covariance, s](int i, int a, int k, int b) {
+      return (*covariance)(s->covariance, i, a, k, b);
+    };
+    return l.problem;
+  }
+
+ private:
+  struct Linearized {
+    CandidateGeometry geometry;
+    std::unique_ptr<InnovationCovariance> covariance;
+    association::AssociationProblem problem;
+  };
+  const LocalSubmap& s_;
+  int start_anchor_;
+  const std::vector<int>& candidates_;
+  const SubmapGraph& graph_;
+  const CandidateGeometry& prior_;
+  Pose2 P_prior_;
+  Eigen::Matrix3d Sigma_s_;
+  double landmark_radius_;
+  const GateTest& gate_;
+  const TimedCovariance& timed_covariance_;
+  std::deque<Linearized> built_;  // stable addresses: the problems' covariance blocks point into them
+};
+
 // Step 4 for a whole map, group by group (the features of each of its local maps, in
 // order): each group's JCBB given the pairings the groups before it kept (required, their
 // innovations gated conditionally on them, as if fused), then the loop tests on that
@@ -375,15 +550,20 @@ association::AssociationProblem IndividualCompatibility(const LocalSubmap& s, co
 // or the decisions from its group on are made again without its loop pairings.
 class GroupedAssociation {
  public:
+  // `relinearization`: rebuilds the problem about the start anchor a closure implies (null:
+  // the prior's linearisation throughout).
   GroupedAssociation(const SubmapAssociationOptions& o, const LocalSubmap& s, const std::vector<int>& candidates,
-                     const LoopFlags& loop, const association::AssociationProblem& problem, SubmapAssociation* out)
-      : o_(o), s_(s), candidates_(candidates), loop_(loop), problem_(problem), out_(out) {}
+                     const LoopFlags& loop, const association::AssociationProblem& problem,
+                     Relinearization* relinearization, SubmapAssociation* out)
+      : o_(o), s_(s), candidates_(candidates), loop_(loop), problem_(&problem), relinearization_(relinearization),
+        out_(out) {}
 
   association::AssociationResult Solve(const std::vector<std::vector<int>>& groups) {
     State state;
     state.landmark_of_feature.assign(s_.num_landmarks(), -1);
     state.paired_landmark.assign(candidates_.size(), 0);
     state.loop_open = loop_.regime;
+    state.problem = problem_;
     const bool confirm = loop_.regime && o_.loop_confirmation_maps > 0 &&
                          3.0 * loop_.sigma_xy >= o_.loop_confirmation_min_sigma_radius_m;
     std::optional<State> before_closure;  // the state before a closure waiting for confirmation
@@ -399,12 +579,19 @@ class GroupedAssociation {
         ++out_->loop_closures_unconfirmed;
         state = std::move(*before_closure);
         before_closure.reset();
+        problem_ = state.problem;
         suppressed_group = closing_group;
         g = closing_group;
       }
       if (g == num_groups) break;
       State before = confirm && !before_closure.has_value() ? state : State();
       const GroupOutcome outcome = AssociateGroup(groups[g], /*suppress_loop=*/g == suppressed_group, &state);
+      if (outcome.closed_loop && relinearization_ != nullptr) {
+        std::vector<std::pair<int, int>> pairs;
+        for (int i : state.decided) pairs.push_back({i, state.landmark_of_feature[i]});
+        problem_ = &relinearization_->At(relinearization_->Fit(pairs), pairs);
+        state.problem = problem_;
+      }
       if (before_closure.has_value()) {
         if (outcome.found_old_landmark) {
           ++out_->loop_closures_confirmed;
@@ -429,6 +616,7 @@ class GroupedAssociation {
     std::vector<char> paired_landmark;     // by candidate index
     std::vector<int> uncertain_loop_features;
     bool loop_open = false;
+    const association::AssociationProblem* problem = nullptr;  // the linearisation in use
   };
   struct GroupOutcome {
     bool closed_loop = false;         // kept at least min_loop_pairings loop pairings
@@ -440,7 +628,7 @@ class GroupedAssociation {
     const int n = s_.num_landmarks();
     std::vector<int> detections = state->decided;
     for (int i : group) {
-      if (i < 0 || i >= n || state->landmark_of_feature[i] >= 0 || problem_.candidates[i].empty()) continue;
+      if (i < 0 || i >= n || state->landmark_of_feature[i] >= 0 || problem_->candidates[i].empty()) continue;
       if (std::find(detections.begin() + state->decided.size(), detections.end(), i) == detections.end()) {
         detections.push_back(i);
       }
@@ -454,16 +642,16 @@ class GroupedAssociation {
     for (int d = 0; d < count; ++d) {
       const int i = detections[d];
       if (d < num_decided) {
-        for (const association::AssociationCandidate& cand : problem_.candidates[i]) {
+        for (const association::AssociationCandidate& cand : problem_->candidates[i]) {
           if (cand.landmark == state->landmark_of_feature[i]) sub.candidates[d].push_back(cand);
         }
         sub.required[d] = 1;
       } else {
-        sub.candidates[d] = problem_.candidates[i];
+        sub.candidates[d] = problem_->candidates[i];
       }
     }
     sub.covariance_block = [&](int d1, int a, int d2, int b) {
-      return problem_.covariance_block(detections[d1], a, detections[d2], b);
+      return problem_->covariance_block(detections[d1], a, detections[d2], b);
     };
     // An old landmark: one no recent map saw and no earlier group paired (outside the
     // loop regime no landmark is flagged recent, and none is needed).
@@ -527,70 +715,9 @@ class GroupedAssociation {
   const LocalSubmap& s_;
   const std::vector<int>& candidates_;
   const LoopFlags& loop_;
-  const association::AssociationProblem& problem_;
+  const association::AssociationProblem* problem_;
+  Relinearization* relinearization_;
   SubmapAssociation* out_;
-};
-
-// The joint innovation covariance JCBB asks for: Cov(ν_ia, ν_kb) = J_a Σ J_bᵀ + Q_ik, with
-// Σ the joint marginal of P_s and the candidates compatible with some feature (asked of the
-// joiner once, for those only), J over [P_s, candidate], and Q the local map's covariance.
-// J_a Σ J_bᵀ is computed once per pair of candidates (JCBB asks for it at every node).
-class InnovationCovariance {
- public:
-  InnovationCovariance(const association::AssociationProblem& problem, int start_anchor,
-                       const std::vector<int>& candidates, const CandidateGeometry& geometry,
-                       const TimedCovariance& timed_covariance)
-      : geometry_(geometry), slot_(candidates.size(), -1) {
-    std::vector<int> compatible;
-    for (const auto& list : problem.candidates) {
-      for (const association::AssociationCandidate& cand : list) {
-        if (slot_[cand.landmark] < 0) {
-          slot_[cand.landmark] = static_cast<int>(compatible.size());
-          compatible.push_back(candidates[cand.landmark]);
-        }
-      }
-    }
-    if (geometry.full_joint.size() > 0) {
-      std::vector<int> rows(3 + 2 * compatible.size());  // of full_joint, per slot
-      rows[0] = 0, rows[1] = 1, rows[2] = 2;
-      for (size_t c = 0; c < slot_.size(); ++c) {
-        if (slot_[c] < 0) continue;
-        rows[3 + 2 * slot_[c]] = 3 + 2 * static_cast<int>(c);
-        rows[4 + 2 * slot_[c]] = 4 + 2 * static_cast<int>(c);
-      }
-      Sigma_ = geometry.full_joint(rows, rows);
-    } else if (!compatible.empty()) {
-      Sigma_ = timed_covariance({start_anchor}, compatible);
-    }
-    c_n_ = compatible.size();
-    projected_.resize(c_n_ * c_n_);
-    projected_known_.assign(c_n_ * c_n_, 0);
-  }
-
-  // The block of pairings (feature i, candidate a) and (feature k, candidate b), for a local
-  // map of covariance Q.
-  Eigen::Matrix2d operator()(const Eigen::MatrixXd& Q, int i, int a, int k, int b) const {
-    const size_t key = static_cast<size_t>(slot_[a]) * c_n_ + slot_[b];
-    if (!projected_known_[key]) {
-      const int oa = 3 + 2 * slot_[a], ob = 3 + 2 * slot_[b];
-      const std::vector<Matrix23d>& J_frame = geometry_.J_frame;
-      const std::vector<Eigen::Matrix2d>& J_point = geometry_.J_point;
-      projected_[key] = J_frame[a] * Sigma_.topLeftCorner<3, 3>() * J_frame[b].transpose() +
-                        J_frame[a] * Sigma_.block<3, 2>(0, ob) * J_point[b].transpose() +
-                        J_point[a] * Sigma_.block<2, 3>(oa, 0) * J_frame[b].transpose() +
-                        J_point[a] * Sigma_.block<2, 2>(oa, ob) * J_point[b].transpose();
-      projected_known_[key] = 1;
-    }
-    return projected_[key] + Q.block<2, 2>(3 + 2 * i, 3 + 2 * k);
-  }
-
- private:
-  const CandidateGeometry& geometry_;
-  std::vector<int> slot_;  // per candidate: its place in Σ (−1: compatible with no feature)
-  size_t c_n_ = 0;
-  Eigen::MatrixXd Sigma_;
-  mutable std::vector<Eigen::Matrix2d> projected_;
-  mutable std::vector<char> projected_known_;
 };
 
 // Step 4: JCBB over the individually compatible pairings, with the joint covariance of P_s
@@ -603,10 +730,13 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
                                                  const CandidateGeometry& geometry, const LoopFlags& loop,
                                                  const TimedCovariance& timed_covariance,
                                                  const std::vector<std::vector<int>>* groups,
+                                                 Relinearization* relinearization,
                                                  association::AssociationProblem* problem, SubmapAssociation* out) {
   const InnovationCovariance covariance(*problem, start_anchor, candidates, geometry, timed_covariance);
   problem->covariance_block = [&](int i, int a, int k, int b) { return covariance(s.covariance, i, a, k, b); };
-  if (groups != nullptr) return GroupedAssociation(o, s, candidates, loop, *problem, out).Solve(*groups);
+  if (groups != nullptr) {
+    return GroupedAssociation(o, s, candidates, loop, *problem, relinearization, out).Solve(*groups);
+  }
   association::AssociationResult result = association::JointCompatibility(*problem, o.gate_probability, o.jcbb_max_nodes);
   out->jcbb_truncated = result.truncated;
   const auto closes_loop = [&](int c) { return c >= 0 && !loop.recent[candidates[c]]; };
@@ -914,10 +1044,16 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   // Steps 3-5 for the map `m` (the local map, or it widened by a rotation) placed as `placed_m`.
   const auto associate_features = [&](const LocalSubmap& m, const PlacedMap& placed_m, SubmapAssociation* a) {
     association::AssociationProblem problem = IndividualCompatibility(m, candidates, placed_m, graph, geometry, gate);
+    std::optional<Relinearization> relinearization;
+    if (by_group) {
+      relinearization.emplace(m, start_anchor, candidates, graph, geometry, placed_m.P_s, Sigma_s,
+                              options_.landmark_search_radius_m, gate, timed_covariance);
+    }
     association::AssociationResult result =
-        options_.joint_compatibility ? JointlyCompatible(options_, m, start_anchor, candidates, geometry, loop,
-                                                         timed_covariance, by_group ? groups : nullptr, &problem, a)
-                                     : association::NearestNeighbour(problem);
+        options_.joint_compatibility
+            ? JointlyCompatible(options_, m, start_anchor, candidates, geometry, loop, timed_covariance,
+                                by_group ? groups : nullptr, relinearization ? &*relinearization : nullptr, &problem, a)
+            : association::NearestNeighbour(problem);
     for (int i = 0; i < n; ++i) {
       if (result.landmark_of_detection[i] >= 0) a->landmark_of_feature[i] = candidates[result.landmark_of_detection[i]];
     }

@@ -254,6 +254,54 @@ TEST(SubmapAssociator, WholeMapLoopClosuresUnderALostAnchorNeedConfirmation) {
   EXPECT_EQ(known.loop_closures_unconfirmed, 0);
 }
 
+// A whole map joined under a lost start anchor whose heading is 0.15 rad off (σ 0.3 rad,
+// position σ 30 m): its first local map closes the loop on five landmarks 5-25 m from the
+// start, its second re-observes two 300 m away. About the prior's heading the far
+// features' predictions are 3.4 m off through the second-order term alone, against 0.8 m
+// of σ given the closure, and the closure would go unconfirmed; linearised about the start
+// anchor the closure implies, the second map pairs them and confirms it.
+TEST(SubmapAssociator, WholeMapGroupsAfterAClosureAreGatedAboutTheAnchorItImplies) {
+  SubmapGraph graph(Pose2(0, 0, 0));
+  for (int k = 1; k <= 3; ++k) graph.AddAnchor(Pose2(0, 0, 0));
+  const Pose2 true_start(0, 0, 0.15);
+  const std::vector<Eigen::Vector2d> seen = {{5, 3}, {10, -4}, {15, 6}, {20, -5}, {25, 2}, {300, 10}, {310, -12}};
+  std::vector<int> landmarks;
+  for (const Eigen::Vector2d& l : seen) landmarks.push_back(graph.AddLandmark(TransformFrom(true_start, l)));
+  const LocalSubmap any;
+  graph.AddFactor({any, 0, 1, landmarks});
+  graph.AddFactor({any, 1, 2, {}});
+  graph.AddFactor({any, 2, 3, {}});
+  LocalSubmap whole;
+  whole.mean = Eigen::VectorXd::Zero(3 + 2 * seen.size());
+  for (size_t i = 0; i < seen.size(); ++i) {
+    whole.mean.segment<2>(3 + 2 * i) = seen[i];
+    LocalSubmapLandmark l;
+    l.local_id = static_cast<int>(i);
+    whole.landmarks.push_back(l);
+  }
+  whole.covariance = 0.01 * Eigen::MatrixXd::Identity(whole.mean.size(), whole.mean.size());
+  const SubmapAssociator::JointCovarianceFn covariance = [](const std::vector<int>& anchors,
+                                                            const std::vector<int>& ls) {
+    const int n = 3 * static_cast<int>(anchors.size()) + 2 * static_cast<int>(ls.size());
+    Eigen::MatrixXd m = 0.01 * Eigen::MatrixXd::Identity(n, n);
+    for (size_t a = 0; a < anchors.size(); ++a) m.block<3, 3>(3 * a, 3 * a) = Eigen::Vector3d(900, 900, 0.09).asDiagonal();
+    return m;
+  };
+  const SubmapAssociator associator{SubmapAssociationOptions{}};
+  const std::vector<std::vector<int>> two_maps = {{0, 1, 2, 3, 4}, {5, 6}};
+  const SubmapAssociation a =
+      associator.Associate(whole, 3, graph, covariance, /*anchor_prefilter=*/false, nullptr, nullptr, &two_maps);
+  EXPECT_EQ(a.landmark_of_feature, landmarks);
+  EXPECT_EQ(a.loop_closures_confirmed, 1);
+  EXPECT_EQ(a.loop_closures_unconfirmed, 0);
+  // The first map alone: its closure waits for maps a later join brings, and is undone.
+  const std::vector<std::vector<int>> first_only = {{0, 1, 2, 3, 4}};
+  const SubmapAssociation alone =
+      associator.Associate(whole, 3, graph, covariance, false, nullptr, nullptr, &first_only);
+  EXPECT_EQ(alone.loop_closures_unconfirmed, 1);
+  EXPECT_EQ(alone.landmark_of_feature[0], -1);
+}
+
 TEST(SubmapAssociationOptions, ValidationRejectsNonsense) {
   SubmapAssociationOptions o;
   EXPECT_TRUE(o.Validate().ok());

@@ -98,7 +98,12 @@ struct SubmapAssociationOptions {
   //    sequential EIF applies it across joins (eif_joiner.h: it undoes the joins since;
   //    a closure still waiting at Finish() stands); a whole-map join applies it across
   //    the groups of its association, and undoes a closure still waiting after the last
-  //    group (the maps that would confirm it come in a later join).
+  //    group (the maps that would confirm it come in a later join). After a group's
+  //    closure the later groups are gated about the start anchor the closure's pairings
+  //    imply (an iterated Kalman update of the anchor alone), not about the prior's: a
+  //    whole map hundreds of metres long, under a heading off by tenths of a radian,
+  //    otherwise puts its far features metres off through the linearisation, and no
+  //    correct closure is confirmed (combined-2km seed 20's tree joins, bench/RESULTS.md).
   //  - Scope: it rides on the loop regime (min_loop_pairings > 1). 0 maps: off.
   //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
   //    wrong closure (RBPF maps, seed 7) found no such landmark in its next three maps;
