@@ -11,16 +11,18 @@ namespace {
 
 // The flow network: source → each estimate → each true landmark within the radius → sink,
 // every edge of capacity 1 with its reverse edge of capacity 0 (the residual graph).
-// Costs are squared distances in integer µm² (Dijkstra on reduced costs stays exact).
+// Costs are squared distances in whole units of at most 10⁻⁸ m², held as doubles, the unit
+// chosen so that every sum the algorithm forms (a path's cost, at most the vertex count
+// times the squared radius) stays an integer below 2⁵⁰: the reduced costs Dijkstra checks
+// are then exactly non-negative, and the potentials of vertices the residual graph no
+// longer reaches grow to +∞ (floating point) instead of overflowing an integer.
 using Traits = boost::adjacency_list_traits<boost::vecS, boost::vecS, boost::directedS>;
 using Network = boost::adjacency_list<
     boost::vecS, boost::vecS, boost::directedS, boost::no_property,
     boost::property<boost::edge_capacity_t, long,
                     boost::property<boost::edge_residual_capacity_t, long,
                                     boost::property<boost::edge_reverse_t, Traits::edge_descriptor,
-                                                    boost::property<boost::edge_weight_t, long>>>>>;
-
-constexpr double kCostPerSquareMetre = 1e12;  // µm² per m²
+                                                    boost::property<boost::edge_weight_t, double>>>>>;
 
 }  // namespace
 
@@ -29,10 +31,12 @@ std::vector<std::pair<int, int>> MatchWithinRadius(const std::vector<Eigen::Vect
   const int n = static_cast<int>(estimates.size()), m = static_cast<int>(truth.size());
   const int source = n + m, sink = n + m + 1;
   Network g(n + m + 2);
+  const double cost_per_square_metre =
+      std::min(1e8, std::ldexp(1.0, 50) / ((n + m + 2) * std::max(radius_m * radius_m, 1e-300)));
   auto capacity = boost::get(boost::edge_capacity, g);
   auto reverse = boost::get(boost::edge_reverse, g);
   auto weight = boost::get(boost::edge_weight, g);
-  const auto add = [&](int u, int v, long cost) {
+  const auto add = [&](int u, int v, double cost) {
     const Traits::edge_descriptor e = boost::add_edge(u, v, g).first;
     const Traits::edge_descriptor r = boost::add_edge(v, u, g).first;
     capacity[e] = 1;
@@ -55,7 +59,7 @@ std::vector<std::pair<int, int>> MatchWithinRadius(const std::vector<Eigen::Vect
     for (auto it = first; it != by_x.end() && truth[*it].x() <= estimates[i].x() + radius_m; ++it) {
       const double d2 = (estimates[i] - truth[*it]).squaredNorm();
       if (!(d2 <= radius_m * radius_m)) continue;
-      add(i, n + *it, std::lround(d2 * kCostPerSquareMetre));
+      add(i, n + *it, std::round(d2 * cost_per_square_metre));
       pairs.push_back({i, *it});
       has_pair[*it] = 1;
       any = true;
