@@ -69,7 +69,7 @@ def hybrid(args):
         est, kn = rows[False], rows[True]
         dup = sum(r["metrics"]["map"]["duplicates"] for r in est)
         seen = sum(r["metrics"]["map"]["matched"] for r in est)
-        by_id = sum(r["metrics"]["map_by_truth_label"]["duplicates"] for r in est)
+        by_id = sum(r["metrics"].get("map_by_truth_label", {}).get("duplicates", 0) for r in est)
         med = lambda rs, key: statistics.median(r["metrics"][key]["rms_position_m"] for r in rs)
         ok = lambda rs, key="trajectory": sum(not r["metrics"][key]["failed_10_sigma_test"] for r in rs)
         wrong = lambda key: sum(r["metrics"]["association_vs_truth_id"][key] for r in est)
@@ -110,7 +110,7 @@ def combined(args):
         m = [r["metrics"] for r in rs]
         rms = [x["anchors"]["rms_position_m"] for x in m]
         print(f"| {name} | {sum(x['map']['duplicates'] for x in m)} "
-              f"({sum(x['map_by_truth_label']['duplicates'] for x in m)}) | "
+              f"({sum(x.get('map_by_truth_label', {}).get('duplicates', 0) for x in m)}) | "
               f"{sum(x['association_vs_truth_id']['wrong_merges'] for x in m)} "
               f"({sum(x['association_vs_truth_id']['wrong_merges_sharing_no_true_landmark'] for x in m)}) | "
               f"{sum(x['anchors']['failed_10_sigma_test'] for x in m)} of {len(m)} | "

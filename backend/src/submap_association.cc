@@ -3,7 +3,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <deque>
 #include <memory>
 #include <optional>
 
@@ -437,7 +436,7 @@ class InnovationCovariance {
 // pairings that close the loop fit, but every later group's, gated conditionally on them
 // about the prior's P̄, fails, and the closure goes unconfirmed. Once a group closes a
 // loop, the grouped association gates the later groups about the start anchor the
-// closure implies, as a sequential joiner gates its next map after fusing and
+// decided pairings imply, as a sequential joiner gates its next map after fusing and
 // relinearising.
 class Relinearization {
  public:
@@ -456,30 +455,31 @@ class Relinearization {
         gate_(gate),
         timed_covariance_(timed_covariance) {}
 
-  // The start anchor given the pairings (feature, candidate), the candidates' positions
-  // as their marginals give them: the iterated Kalman filter on the anchor alone.
+  // The start anchor's mean given the pairings (feature, candidate), by the iterated
+  // Kalman update about each iterate: the gain Cov(P_s, ν) S⁻¹, S the pairings' joint
+  // innovation covariance and Cov(P_s, ν_k) = Σ_ss J_frameᵀ + Σ_sc J_pointᵀ, so that a
+  // pairing with a landmark known relative to the anchor (a recent one) moves it little.
   Pose2 Fit(const std::vector<std::pair<int, int>>& pairs) const {
     const int m = static_cast<int>(pairs.size());
     Pose2 x = P_prior_;
     if (m == 0) return x;
-    Eigen::MatrixXd H(2 * m, 3), R = Eigen::MatrixXd::Zero(2 * m, 2 * m);
+    Eigen::MatrixXd S(2 * m, 2 * m), C(3, 2 * m);
     Eigen::VectorXd y(2 * m);
     for (int iteration = 0; iteration < 10; ++iteration) {
-      const Eigen::Vector3d offset = PoseDifference(P_prior_, x);
+      const std::unique_ptr<Linearized> l = Build(x, pairs);
       for (int k = 0; k < m; ++k) {
         const auto [i, c] = pairs[k];
-        Matrix23d J_frame;
-        Eigen::Matrix2d J_point;
-        const Eigen::Vector2d h = TransformTo(x, graph_.landmarks()[candidates_[c]], &J_frame, &J_point);
-        H.block<2, 3>(2 * k, 0) = J_frame;
-        R.block<2, 2>(2 * k, 2 * k) = J_point * prior_.pair[c].bottomRightCorner<2, 2>() * J_point.transpose() +
-                                      s_.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
-        y.segment<2>(2 * k) = s_.landmark(i) - h - J_frame * offset;
+        const CandidateGeometry& g = l->geometry;
+        C.middleCols<2>(2 * k) = Sigma_s_ * g.J_frame[c].transpose() +
+                                 g.pair[c].topRightCorner<3, 2>() * g.J_point[c].transpose();
+        y.segment<2>(2 * k) = s_.landmark(i) - g.predicted[c];
+        for (int q = 0; q < m; ++q) {
+          S.block<2, 2>(2 * k, 2 * q) = l->problem.covariance_block(i, c, pairs[q].first, pairs[q].second);
+        }
       }
-      const Eigen::MatrixXd S = H * Sigma_s_ * H.transpose() + R;
-      const Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
+      const Eigen::LDLT<Eigen::MatrixXd> ldlt(0.5 * (S + S.transpose()));
       if (ldlt.info() != Eigen::Success) return x;
-      const Eigen::Vector3d step = Sigma_s_ * H.transpose() * ldlt.solve(y);
+      const Eigen::Vector3d step = C * ldlt.solve(y);
       const Pose2 next(P_prior_.x + step.x(), P_prior_.y + step.y(), WrapAngle(P_prior_.theta + step.z()));
       const double moved = PoseDifference(next, x).norm();
       x = next;
@@ -491,41 +491,50 @@ class Relinearization {
   // The problem about P_lin, with each (feature, candidate) of `keep` among its feature's
   // candidates even where it fails the gate (the decided pairings it is conditioned on).
   const association::AssociationProblem& At(const Pose2& P_lin, const std::vector<std::pair<int, int>>& keep) {
-    Linearized& l = built_.emplace_back();
-    l.geometry = prior_;
-    const Eigen::Vector3d offset = PoseDifference(P_prior_, P_lin);
-    for (size_t c = 0; c < candidates_.size(); ++c) {
-      l.geometry.predicted[c] =
-          TransformTo(P_lin, graph_.landmarks()[candidates_[c]], &l.geometry.J_frame[c], &l.geometry.J_point[c]) +
-          l.geometry.J_frame[c] * offset;
-    }
-    const PlacedMap placed = Place(s_, P_lin, Sigma_s_, landmark_radius_);
-    l.problem = IndividualCompatibility(s_, candidates_, placed, graph_, l.geometry, gate_);
-    for (const auto& [i, c] : keep) {
-      auto& list = l.problem.candidates[i];
-      if (std::any_of(list.begin(), list.end(), [c](const association::AssociationCandidate& x) { return x.landmark == c; })) {
-        continue;
-      }
-      const Eigen::Vector2d nu = l.geometry.predicted[c] - s_.landmark(i);
-      const Eigen::Matrix2d S = l.geometry.Relative(c) + s_.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
-      list.insert(list.begin(), {c, models::MahalanobisSquared2(nu, S).value_or(INFINITY), nu});
-    }
-    l.covariance = std::make_unique<InnovationCovariance>(l.problem, start_anchor_, candidates_, l.geometry,
-                                                          timed_covariance_);
-    const InnovationCovariance* covariance = l.covariance.get();
-    const LocalSubmap* s = &s_;
-    l.problem.covariance_block = [covariance, s](int i, int a, int k, int b) {
-      return (*covariance)(s->covariance, i, a, k, b);
-    };
-    return l.problem;
+    built_.push_back(Build(P_lin, keep));
+    return built_.back()->problem;
   }
 
  private:
   struct Linearized {
-    CandidateGeometry geometry;
+    CandidateGeometry geometry;  // the prior's [P_s, candidate] marginals, Jacobians at P_lin
     std::unique_ptr<InnovationCovariance> covariance;
     association::AssociationProblem problem;
   };
+
+  std::unique_ptr<Linearized> Build(const Pose2& P_lin, const std::vector<std::pair<int, int>>& keep) const {
+    auto l = std::make_unique<Linearized>();
+    CandidateGeometry& g = l->geometry;
+    g.pair = prior_.pair;  // not the full joint: the innovation covariance asks for its candidates' only
+    const int count = static_cast<int>(candidates_.size());
+    g.J_frame.resize(count);
+    g.J_point.resize(count);
+    g.predicted.resize(count);
+    const Eigen::Vector3d offset = PoseDifference(P_prior_, P_lin);
+    for (int c = 0; c < count; ++c) {
+      g.predicted[c] = TransformTo(P_lin, graph_.landmarks()[candidates_[c]], &g.J_frame[c], &g.J_point[c]) +
+                       g.J_frame[c] * offset;
+    }
+    const PlacedMap placed = Place(s_, P_lin, Sigma_s_, landmark_radius_);
+    l->problem = IndividualCompatibility(s_, candidates_, placed, graph_, g, gate_);
+    for (const auto& [i, c] : keep) {
+      auto& list = l->problem.candidates[i];
+      if (std::any_of(list.begin(), list.end(), [c](const association::AssociationCandidate& x) { return x.landmark == c; })) {
+        continue;
+      }
+      const Eigen::Vector2d nu = g.predicted[c] - s_.landmark(i);
+      const Eigen::Matrix2d S = g.Relative(c) + s_.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+      list.insert(list.begin(), {c, models::MahalanobisSquared2(nu, S).value_or(INFINITY), nu});
+    }
+    l->covariance = std::make_unique<InnovationCovariance>(l->problem, start_anchor_, candidates_, g, timed_covariance_);
+    const InnovationCovariance* covariance = l->covariance.get();
+    const LocalSubmap* s = &s_;
+    l->problem.covariance_block = [covariance, s](int i, int a, int k, int b) {
+      return (*covariance)(s->covariance, i, a, k, b);
+    };
+    return l;
+  }
+
   const LocalSubmap& s_;
   int start_anchor_;
   const std::vector<int>& candidates_;
@@ -536,7 +545,7 @@ class Relinearization {
   double landmark_radius_;
   const GateTest& gate_;
   const TimedCovariance& timed_covariance_;
-  std::deque<Linearized> built_;  // stable addresses: the problems' covariance blocks point into them
+  std::vector<std::unique_ptr<Linearized>> built_;  // the problems' covariance blocks point into them
 };
 
 // Step 4 for a whole map, group by group (the features of each of its local maps, in
@@ -550,7 +559,7 @@ class Relinearization {
 // or the decisions from its group on are made again without its loop pairings.
 class GroupedAssociation {
  public:
-  // `relinearization`: rebuilds the problem about the start anchor a closure implies (null:
+  // `relinearization`: rebuilds the problem about the start anchor the decided pairings imply (null:
   // the prior's linearisation throughout).
   GroupedAssociation(const SubmapAssociationOptions& o, const LocalSubmap& s, const std::vector<int>& candidates,
                      const LoopFlags& loop, const association::AssociationProblem& problem,

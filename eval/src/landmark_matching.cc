@@ -11,7 +11,7 @@ namespace {
 
 // The flow network: source → each estimate → each true landmark within the radius → sink,
 // every edge of capacity 1 with its reverse edge of capacity 0 (the residual graph).
-// Costs are squared distances in whole units of at most 10⁻⁸ m², held as doubles, the unit
+// Costs are squared distances in whole units of at least 10⁻⁸ m², held as doubles, the unit
 // chosen so that every sum the algorithm forms (a path's cost, at most the vertex count
 // times the squared radius) stays an integer below 2⁵⁰: the reduced costs Dijkstra checks
 // are then exactly non-negative, and the potentials of vertices the residual graph no
@@ -26,8 +26,8 @@ using Network = boost::adjacency_list<
 
 }  // namespace
 
-std::vector<std::pair<int, int>> MatchWithinRadius(const std::vector<Eigen::Vector2d>& estimates,
-                                                   const std::vector<Eigen::Vector2d>& truth, double radius_m) {
+LandmarkMatching MatchWithinRadius(const std::vector<Eigen::Vector2d>& estimates,
+                                   const std::vector<Eigen::Vector2d>& truth, double radius_m) {
   const int n = static_cast<int>(estimates.size()), m = static_cast<int>(truth.size());
   const int source = n + m, sink = n + m + 1;
   Network g(n + m + 2);
@@ -51,7 +51,9 @@ std::vector<std::pair<int, int>> MatchWithinRadius(const std::vector<Eigen::Vect
   for (int j = 0; j < m; ++j) by_x[j] = j;
   std::sort(by_x.begin(), by_x.end(), [&](int a, int b) { return truth[a].x() < truth[b].x(); });
   std::vector<char> has_pair(m, 0);
-  std::vector<std::pair<int, int>> pairs;
+  LandmarkMatching out;
+  out.near_truth.assign(n, 0);
+  bool any_pair = false;
   for (int i = 0; i < n; ++i) {
     const auto first = std::lower_bound(by_x.begin(), by_x.end(), estimates[i].x() - radius_m,
                                         [&](int j, double x) { return truth[j].x() < x; });
@@ -60,26 +62,26 @@ std::vector<std::pair<int, int>> MatchWithinRadius(const std::vector<Eigen::Vect
       const double d2 = (estimates[i] - truth[*it]).squaredNorm();
       if (!(d2 <= radius_m * radius_m)) continue;
       add(i, n + *it, std::round(d2 * cost_per_square_metre));
-      pairs.push_back({i, *it});
       has_pair[*it] = 1;
       any = true;
     }
     if (any) add(source, i, 0);
+    out.near_truth[i] = any ? 1 : 0;
+    any_pair = any_pair || any;
   }
   for (int j = 0; j < m; ++j) {
     if (has_pair[j]) add(n + j, sink, 0);
   }
-  std::vector<std::pair<int, int>> matched;
-  if (pairs.empty()) return matched;
+  if (!any_pair) return out;
   boost::successive_shortest_path_nonnegative_weights(g, source, sink);
   auto residual = boost::get(boost::edge_residual_capacity, g);
   for (int i = 0; i < n; ++i) {
     for (const auto& e : boost::make_iterator_range(boost::out_edges(i, g))) {
       const int v = static_cast<int>(boost::target(e, g));
-      if (v >= n && v < n + m && capacity[e] == 1 && residual[e] == 0) matched.push_back({i, v - n});
+      if (v >= n && v < n + m && capacity[e] == 1 && residual[e] == 0) out.pairs.push_back({i, v - n});
     }
   }
-  return matched;
+  return out;
 }
 
 }  // namespace subslam::eval

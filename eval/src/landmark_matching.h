@@ -15,9 +15,13 @@
 
 namespace subslam::eval {
 
-// (estimate index, truth index) pairs, ordered by estimate index.
-std::vector<std::pair<int, int>> MatchWithinRadius(const std::vector<Eigen::Vector2d>& estimates,
-                                                   const std::vector<Eigen::Vector2d>& truth, double radius_m);
+struct LandmarkMatching {
+  std::vector<std::pair<int, int>> pairs;  // (estimate index, truth index), by estimate index
+  std::vector<char> near_truth;            // per estimate: some true landmark within the radius
+};
+
+LandmarkMatching MatchWithinRadius(const std::vector<Eigen::Vector2d>& estimates,
+                                   const std::vector<Eigen::Vector2d>& truth, double radius_m);
 
 }  // namespace subslam::eval
 

@@ -79,7 +79,8 @@ MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
   for (size_t j = 0; j < truth.size(); ++j) true_positions[j] = truth[j].p;
   double sq = 0, sq_x = 0, sq_y = 0, nees = 0;
   int nees_count = 0;
-  for (const auto& [e, t] : MatchWithinRadius(estimated, true_positions, match_radius_m)) {
+  const LandmarkMatching matching = MatchWithinRadius(estimated, true_positions, match_radius_m);
+  for (const auto& [e, t] : matching.pairs) {
     ++m.matched;
     const Eigen::Vector2d error = estimate[e].position - truth[t].p;
     sq += error.squaredNorm();
@@ -90,11 +91,7 @@ MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
       ++nees_count;
     }
   }
-  for (const Eigen::Vector2d& p : estimated) {
-    bool near_truth = false;
-    for (const Eigen::Vector2d& q : true_positions) near_truth = near_truth || (p - q).norm() <= match_radius_m;
-    m.spurious += near_truth ? 0 : 1;
-  }
+  for (char near : matching.near_truth) m.spurious += near ? 0 : 1;
   m.duplicates = m.estimated - m.matched - m.spurious;
   m.rms_m = m.matched > 0 ? std::sqrt(sq / m.matched) : 0.0;
   m.rms_x_m = m.matched > 0 ? std::sqrt(sq_x / m.matched) : 0.0;

@@ -294,6 +294,17 @@ TEST(SubmapAssociator, WholeMapGroupsAfterAClosureAreGatedAboutTheAnchorItImplie
   EXPECT_EQ(a.landmark_of_feature, landmarks);
   EXPECT_EQ(a.loop_closures_confirmed, 1);
   EXPECT_EQ(a.loop_closures_unconfirmed, 0);
+  // The same through the pairwise [anchor, landmark] marginals, as the EIF gives them.
+  const SubmapAssociator::PairCovarianceFn pair_covariance = [](int, const std::vector<int>& ls) {
+    Matrix5d m = Matrix5d::Zero();
+    m.topLeftCorner<3, 3>() = Eigen::Vector3d(900, 900, 0.09).asDiagonal();
+    m.bottomRightCorner<2, 2>() = 0.01 * Eigen::Matrix2d::Identity();
+    return std::vector<Matrix5d>(ls.size(), m);
+  };
+  const SubmapAssociation pairwise =
+      associator.Associate(whole, 3, graph, covariance, false, pair_covariance, nullptr, &two_maps);
+  EXPECT_EQ(pairwise.landmark_of_feature, landmarks);
+  EXPECT_EQ(pairwise.loop_closures_confirmed, 1);
   // The first map alone: its closure waits for maps a later join brings, and is undone.
   const std::vector<std::vector<int>> first_only = {{0, 1, 2, 3, 4}};
   const SubmapAssociation alone =

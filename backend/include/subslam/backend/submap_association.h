@@ -99,7 +99,7 @@ struct SubmapAssociationOptions {
   //    a closure still waiting at Finish() stands); a whole-map join applies it across
   //    the groups of its association, and undoes a closure still waiting after the last
   //    group (the maps that would confirm it come in a later join). After a group's
-  //    closure the later groups are gated about the start anchor the closure's pairings
+  //    closure the later groups are gated about the start anchor the decided pairings
   //    imply (an iterated Kalman update of the anchor alone), not about the prior's: a
   //    whole map hundreds of metres long, under a heading off by tenths of a radian,
   //    otherwise puts its far features metres off through the linearisation, and no
