@@ -22,12 +22,12 @@
 #include <cmath>
 #include <functional>
 #include <optional>
-#include <set>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "studies.h"
 #include "study_method.h"
+#include "subslam/eval/trajectory_errors.h"
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/sim/simulator.h"
 #include "subslam/study/binomial_interval.h"
@@ -143,12 +143,7 @@ class HybridSlamStudy final : public Study {
     scenario.false_alarm_probability = run.setting[1].second;
     absl::StatusOr<io::Dataset> dataset = sim::SimulateScenario("hybrid-120m", scenario);
     if (!dataset.ok()) return dataset.status();
-    std::set<int> seen;
-    for (const Scan& scan : dataset->scans) {
-      for (const Detection& d : scan.detections) {
-        if (d.truth_id >= 0) seen.insert(d.truth_id);
-      }
-    }
+    const size_t seen = eval::ObservedTruthLandmarks(*dataset).size();
     absl::StatusOr<pipeline::RunResult> r = RunMethodWithTruth(*method, *std::move(dataset));
     if (!r.ok()) return r.status();
     const eval::TrajectoryErrors& online = OnlineErrors(*r);
@@ -165,7 +160,7 @@ class HybridSlamStudy final : public Study {
                  absl::StrCat(map.matched),
                  absl::StrCat(map.spurious),
                  absl::StrCat(map.duplicates),
-                 absl::StrCat(seen.size()),
+                 absl::StrCat(seen),
                  absl::StrCat(r->local_maps.size())};
     return m;
   }
