@@ -114,6 +114,11 @@ ABSL_FLAG(double, join_map_rotation_sigma, EifDefaults().association.map_rotatio
 ABSL_FLAG(double, join_map_rotation_level, EifDefaults().association.map_rotation_probability,
           "rotation test (--join_map_rotation_sigma): chi2 (1 dof) probability that a map that is "
           "not rotated passes");
+ABSL_FLAG(double, join_map_rotation_spread_level, EifDefaults().association.map_rotation_spread_probability,
+          "every joiner: once the rotation test's fits reject, at this chi2 level (shared among the "
+          "fits), that the maps' features are as certain of their rotation as their covariances say, "
+          "join each next map with its features widened by the fits' maximum-likelihood spread "
+          "(counter join_maps_spread; 0: off)");
 ABSL_FLAG(bool, validate_joins, EifDefaults().validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
           "(the map is joined again without associations)");
@@ -195,6 +200,7 @@ backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.confirm_thin_loops = absl::GetFlag(FLAGS_join_confirm_thin_loops);
   o.association.map_rotation_sigma_rad = absl::GetFlag(FLAGS_join_map_rotation_sigma);
   o.association.map_rotation_probability = absl::GetFlag(FLAGS_join_map_rotation_level);
+  o.association.map_rotation_spread_probability = absl::GetFlag(FLAGS_join_map_rotation_spread_level);
   o.revision = RevisionOptionsFromFlags();
   o.validate_joins = absl::GetFlag(FLAGS_validate_joins);
   o.relinearize_every = absl::GetFlag(FLAGS_relinearize_every);

@@ -165,7 +165,9 @@ absl::Status EifJoiner::JoinLocalMap(const LocalSubmap& s) {
     return absl::InvalidArgumentError(absl::StrCat("local map ", s.id, " starts at ", s.t_start,
                                                    " before the previous one ended (", last_t_end_, ")"));
   }
-  if (absl::Status st = JoinOne(s); !st.ok()) return st;
+  // Widened by the maps' rotation spread as measured so far (a map joined again after an
+  // undone loop closure is taken back from the graph as it was joined).
+  if (absl::Status st = JoinOne(associator_.WithRotationSpread(s)); !st.ok()) return st;
   return CheckPendingLoopClosure();
 }
 
@@ -389,6 +391,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     } else {
       a = AssociateAt(s, start);
     }
+    associator_.RecordRotationFit(a, s);
     assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
     rotated_back = RotatedBack(s, a);  // a map the rotation test found rotated
@@ -422,6 +425,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     }
   }
   const LocalSubmap& m = rotated_back ? *rotated_back : s;  // the map joined
+  if (m.rotation_spread_rad > 0) ++counters_.maps_spread;
   const int first_new_landmark = graph_.num_landmarks();
   // Initialise the end anchor and the new landmarks through the start anchor.
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);

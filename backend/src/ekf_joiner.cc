@@ -254,11 +254,15 @@ absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
                                                    " before the previous one ended (", last_t_end_, ")"));
   }
   const int start = graph_.num_anchors() - 1;
-  SubmapAssociation a = AssociateAt(s, start);
-  const std::optional<LocalSubmap> rotated_back = RotatedBack(s, a);  // found rotated by the rotation test
-  if (absl::Status st = JoinAssociated(rotated_back ? *rotated_back : s, std::move(a.landmark_of_feature)); !st.ok()) {
+  const LocalSubmap widened = associator_.WithRotationSpread(s);  // by the maps' rotation spread so far
+  SubmapAssociation a = AssociateAt(widened, start);
+  associator_.RecordRotationFit(a, widened);
+  const std::optional<LocalSubmap> rotated_back = RotatedBack(widened, a);  // found rotated by the rotation test
+  if (absl::Status st = JoinAssociated(rotated_back ? *rotated_back : widened, std::move(a.landmark_of_feature));
+      !st.ok()) {
     return st;
   }
+  if (widened.rotation_spread_rad > 0) ++counters_.maps_spread;
   const int every = options_.revision.every_joins;
   if (every > 0 && counters_.joins % every == 0) return ReviseAssociation();
   return absl::OkStatus();

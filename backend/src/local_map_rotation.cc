@@ -28,6 +28,16 @@ LocalSubmap WidenedByRotation(const LocalSubmap& s, double sigma_rad) {
   return w;
 }
 
+LocalSubmap WidenedFeaturesByRotation(const LocalSubmap& s, double sigma_rad) {
+  SUBSLAM_CHECK(sigma_rad >= 0 && std::isfinite(sigma_rad)) << "rotation sigma " << sigma_rad;
+  LocalSubmap w = s;
+  Eigen::VectorXd g = RotationAboutStart(s);
+  g.head<3>().setZero();
+  w.covariance.noalias() += (sigma_rad * sigma_rad) * g * g.transpose();
+  w.rotation_spread_rad = std::hypot(s.rotation_spread_rad, sigma_rad);
+  return w;
+}
+
 LocalSubmap RotatedAboutStart(const LocalSubmap& s, double delta_rad) {
   SUBSLAM_CHECK(std::isfinite(delta_rad)) << "rotation " << delta_rad;
   const int dim = static_cast<int>(s.mean.size());

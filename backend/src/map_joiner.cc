@@ -26,6 +26,7 @@ std::span<const JoinerCounters::Field> JoinerCounters::Fields() {
       {"loop_closures_unconfirmed", &C::loop_closures_unconfirmed},
       {"associations_replayed", &C::associations_replayed},
       {"maps_widened", &C::maps_widened},
+      {"maps_spread", &C::maps_spread},
       {"rejected", &C::rejected_joins},
       {"revision_passes", &C::revision_passes},
       {"landmarks_merged", &C::landmarks_merged},

@@ -39,6 +39,10 @@ absl::Status SubmapAssociationOptions::Validate() const {
     return absl::InvalidArgumentError(
         absl::StrCat("map_rotation_probability must be in (0, 1), got ", map_rotation_probability));
   }
+  if (!(map_rotation_spread_probability >= 0 && map_rotation_spread_probability < 1)) {
+    return absl::InvalidArgumentError(absl::StrCat("map_rotation_spread_probability must be in [0, 1), got ",
+                                                   map_rotation_spread_probability));
+  }
   if (!(map_rotation_sigma_rad >= 0 && std::isfinite(map_rotation_sigma_rad))) {
     return absl::InvalidArgumentError(
         absl::StrCat("map_rotation_sigma_rad must be finite and >= 0 [rad], got ", map_rotation_sigma_rad));
@@ -58,7 +62,21 @@ std::optional<LocalSubmap> RotatedBack(const LocalSubmap& s, const SubmapAssocia
   return WidenedByRotation(RotatedAboutStart(s, a.map_rotation_rad), a.map_widening_rad);
 }
 
-SubmapAssociator::SubmapAssociator(const SubmapAssociationOptions& options) : options_(options) {}
+SubmapAssociator::SubmapAssociator(const SubmapAssociationOptions& options)
+    : options_(options),
+      rotation_spread_(options.map_rotation_sigma_rad > 0 && options.map_rotation_spread_probability > 0 &&
+                               options.map_rotation_spread_probability < 1
+                           ? options.map_rotation_spread_probability
+                           : 0.0,
+                       options.map_rotation_probability > 0 && options.map_rotation_probability < 1
+                           ? options.map_rotation_probability
+                           : 0.99) {}
+
+LocalSubmap SubmapAssociator::WithRotationSpread(const LocalSubmap& s) const { return rotation_spread_.Widened(s); }
+
+void SubmapAssociator::RecordRotationFit(const SubmapAssociation& a, const LocalSubmap& s) {
+  rotation_spread_.Add(a.map_rotation_fit_rad, a.map_rotation_fit_variance_rad2, s.rotation_spread_rad);
+}
 
 double SubmapAssociator::MeanSignature(int landmark) const {
   if (landmark >= static_cast<int>(signature_count_.size()) || signature_count_[landmark] == 0) return NAN;
@@ -1073,6 +1091,10 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   const RotationFit fit = FitRecentRotation(options_, s, placed, Sigma_widened, start_anchor, candidates, graph, geometry, gate,
                                             timed_covariance, recent, out.landmark_of_feature);
   out.map_rotation_statistic = fit.statistic;
+  if (std::isfinite(fit.statistic)) {
+    out.map_rotation_fit_rad = fit.delta_rad;
+    out.map_rotation_fit_variance_rad2 = fit.variance_rad2;
+  }
   if (!(fit.statistic >= models::ChiSquareQuantile(options_.map_rotation_probability, 1))) return out;
   // The map is rotated beyond its covariance: associated, and joined, widened.
   SubmapAssociation again;
@@ -1083,6 +1105,8 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   // N(0, σ²) gives σ̂² = δ̂² − var δ̂ (positive: the test passed).
   again.map_widening_rad = std::sqrt(std::max(0.0, fit.delta_rad * fit.delta_rad - fit.variance_rad2));
   again.map_rotation_statistic = fit.statistic;
+  again.map_rotation_fit_rad = out.map_rotation_fit_rad;
+  again.map_rotation_fit_variance_rad2 = out.map_rotation_fit_variance_rad2;
   const LocalSubmap joined = *RotatedBack(s, again);
   associate_features(joined, Place(joined, placed.P_s, Sigma_widened, options_.landmark_search_radius_m), &again);
   again.jcbb_truncated = again.jcbb_truncated || out.jcbb_truncated;

@@ -12,6 +12,10 @@ TreeJoiner::TreeJoiner(std::unique_ptr<MapJoiner> prototype, const TreeJoinerOpt
       << "the prototype must be an empty joiner";
   initial_pose_ = prototype_->anchor(0);
   SUBSLAM_CHECK(prototype_->NewEmpty(Pose2()) != nullptr) << prototype_->Name() << " cannot be a tree node";
+  const SubmapAssociationOptions& association = prototype_->associator().options();
+  const double spread = association.map_rotation_spread_probability, fit = association.map_rotation_probability;
+  rotation_spread_ = MapRotationSpread(TestsRotation() && spread > 0 && spread < 1 ? spread : 0.0,
+                                       fit > 0 && fit < 1 ? fit : 0.99);
 }
 
 std::unique_ptr<MapJoiner> TreeJoiner::NewEmpty(const Pose2& initial_pose) const {
@@ -22,10 +26,11 @@ absl::Status TreeJoiner::JoinLocalMap(const LocalSubmap& submap) {
   if (finished_) return absl::FailedPreconditionError("the tree is finished");
   if (!status_.ok()) return status_;
   if (absl::Status v = submap.Validate(); !v.ok()) return v;
-  const std::optional<LocalSubmap> rotated_back = RotatedAgainstPrevious(submap);
+  const LocalSubmap widened = rotation_spread_.Widened(submap);  // by the maps' rotation spread so far
+  const std::optional<LocalSubmap> rotated_back = RotatedAgainstPrevious(widened);
   // A leaf lives in the frame of its start anchor; the leftmost in the world frame.
   std::unique_ptr<MapJoiner> leaf = prototype_->NewEmpty(nodes_.empty() ? initial_pose_ : Pose2());
-  if (absl::Status st = leaf->Join(rotated_back ? *rotated_back : submap); !st.ok()) return st;
+  if (absl::Status st = leaf->Join(rotated_back ? *rotated_back : widened); !st.ok()) return st;
   if (rotated_back) ++maps_widened_;
   if (TestsRotation()) previous_leaf_ = leaf->Clone();
   folded_.reset();
@@ -56,6 +61,7 @@ std::optional<LocalSubmap> TreeJoiner::RotatedAgainstPrevious(const LocalSubmap&
                                         return previous.JointCovariance(anchors, landmarks);
                                       });
   rotation_test_seconds_ += absl::ToDoubleSeconds(absl::Now() - start);
+  rotation_spread_.Add(a.map_rotation_fit_rad, a.map_rotation_fit_variance_rad2, submap.rotation_spread_rad);
   return RotatedBack(submap, a);
 }
 

@@ -28,6 +28,12 @@ Eigen::VectorXd RotationAboutStart(const LocalSubmap& s);
 // quadrature with any earlier widening). sigma_rad ≥ 0.
 LocalSubmap WidenedByRotation(const LocalSubmap& s, double sigma_rad);
 
+// The map with its features' covariance widened by a rotation of standard deviation
+// `sigma_rad` about its start, the end pose left as it is: Σ + σ²·g·gᵀ with g =
+// RotationAboutStart(s) but zero in the end pose's rows (rotation_spread_rad records it, in
+// quadrature with any earlier one; map_rotation_spread.h). Its mean unchanged. sigma_rad ≥ 0.
+LocalSubmap WidenedFeaturesByRotation(const LocalSubmap& s, double sigma_rad);
+
 // The map rotated rigidly by `delta_rad` about its start: mean and covariance carried
 // through the rotation exactly (A·Σ·Aᵀ, A rotating each position block, the end heading
 // shifted by delta_rad and wrapped).

@@ -49,6 +49,9 @@ struct JoinerCounters {
   // Local maps found rotated beyond their covariance and joined widened
   // (SubmapAssociationOptions::map_rotation_sigma_rad).
   long maps_widened = 0;
+  // Local maps joined with their features widened by the maps' measured rotation spread
+  // (SubmapAssociationOptions::map_rotation_spread_probability).
+  long maps_spread = 0;
   long rejected_joins = 0;    // failed validation: joined again without associations
   // Revisions of the association (landmark_revision.h): passes run, landmarks merged into
   // another, features split off to a landmark of their own.

@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/backend/map_rotation_spread.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 
@@ -145,6 +146,11 @@ struct SubmapAssociationOptions {
   //    by 0.1-0.15 rad (bench/RESULTS.md); σ = 0.3 rad lets the vote reach 0.9 rad.
   double map_rotation_sigma_rad = 0.3;
   double map_rotation_probability = 0.99;
+  // The spread of the maps' own rotation (map_rotation_spread.h): the rotation test's fits
+  // of the maps joined so far, tested for a spread beyond their covariances at χ²ₙ of this
+  // probability; once it is rejected, each next map is joined with its features widened by
+  // the spread's maximum-likelihood estimate. Needs the rotation test. 0: off.
+  double map_rotation_spread_probability = 0.999;
 
   absl::Status Validate() const;
 };
@@ -179,6 +185,10 @@ struct SubmapAssociation {
   bool map_rotated = false;
   double map_rotation_rad = 0.0;
   double map_widening_rad = 0.0;
+  // The test's fit of the map as associated, with its variance (NaN: not reached): what
+  // SubmapAssociator::RecordRotationFit takes.
+  double map_rotation_fit_rad = NAN;
+  double map_rotation_fit_variance_rad2 = NAN;
   double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
   int candidates = 0;                    // candidate landmarks (step 1)
   int candidates_bounded_out = 0;        // of those, dropped under the joiner's bound (step 2)
@@ -250,6 +260,14 @@ class SubmapAssociator {
   void MergeLandmarks(int keep, int drop);
   void SplitFeature(int from, int to, double signature);
 
+  // The spread of the maps' own rotation (map_rotation_spread.h): `s` with its features
+  // widened by the current estimate (as it is while there is none), and, after `s` was
+  // associated (by `a`), its fit recorded (MapRotationSpread::Add, with the widening `s`
+  // was associated with).
+  LocalSubmap WithRotationSpread(const LocalSubmap& s) const;
+  void RecordRotationFit(const SubmapAssociation& a, const LocalSubmap& s);
+  const MapRotationSpread& rotation_spread() const { return rotation_spread_; }
+
   // Mean signature of the features joined to `landmark` (NaN: none had one).
   double MeanSignature(int landmark) const;
   // The truth id each of the first `num_landmarks` landmarks was defined by (−1: none).
@@ -263,6 +281,7 @@ class SubmapAssociator {
   std::vector<double> signature_sum_;  // per landmark
   std::vector<int> signature_count_;
   std::map<int, int> landmark_of_truth_;
+  MapRotationSpread rotation_spread_;
 };
 
 }  // namespace subslam::backend

@@ -44,6 +44,7 @@
 #include <vector>
 
 #include "subslam/backend/map_joiner.h"
+#include "subslam/backend/map_rotation_spread.h"
 #include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 
@@ -102,7 +103,8 @@ class TreeJoiner final : public MapJoiner {
   };
   const MapJoiner& Whole() const;
   // `submap` rotated back and widened when the rotation test against the previous local
-  // map's leaf finds it rotated (nullopt: joined as it is, or the first map).
+  // map's leaf finds it rotated (nullopt: joined as it is, or the first map). Records the
+  // test's fit in rotation_spread_.
   std::optional<LocalSubmap> RotatedAgainstPrevious(const LocalSubmap& submap);
   // The node kind's association options ask for the rotation test.
   bool TestsRotation() const;
@@ -116,6 +118,9 @@ class TreeJoiner final : public MapJoiner {
   std::vector<Node> nodes_;  // left to right (running: levels strictly decreasing)
   std::unique_ptr<MapJoiner> previous_leaf_;  // a copy of the last local map's leaf
   long maps_widened_ = 0;                     // leaves joined rotated back and widened
+  // The maps' rotation spread over the leaves' rotation tests (map_rotation_spread.h); the
+  // leaves count the maps joined widened by it.
+  MapRotationSpread rotation_spread_;
   double rotation_test_seconds_ = 0.0;
   bool finished_ = false;
   int tree_joins_ = 0;

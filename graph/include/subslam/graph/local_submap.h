@@ -47,6 +47,10 @@ struct LocalSubmap {
   // was widened by when association found the map rotated beyond it (its mean then rotated
   // by the fitted rotation; 0: neither; subslam/backend/local_map_rotation.h).
   double rotation_widening_rad = 0.0;
+  // Set by the back-end only: σ [rad] of the rotation about the start that the features'
+  // covariance (not the end pose's) was widened by, the spread of the maps' own rotation
+  // measured over the run (0: not widened; subslam/backend/map_rotation_spread.h).
+  double rotation_spread_rad = 0.0;
 
   int num_landmarks() const { return static_cast<int>(landmarks.size()); }
   Pose2 end_pose() const { return Pose2::FromVector(mean.head<3>()); }
