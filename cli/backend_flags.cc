@@ -115,10 +115,10 @@ ABSL_FLAG(double, join_map_rotation_level, EifDefaults().association.map_rotatio
           "rotation test (--join_map_rotation_sigma): chi2 (1 dof) probability that a map that is "
           "not rotated passes");
 ABSL_FLAG(double, join_map_rotation_spread_level, EifDefaults().association.map_rotation_spread_probability,
-          "every joiner: once the rotation test's fits reject, at this chi2 level (shared among the "
-          "fits), that the maps' features are as certain of their rotation as their covariances say, "
-          "join each next map with its features widened by the fits' maximum-likelihood spread "
-          "(counter join_maps_spread; 0: off)");
+          "every joiner: while the count of rotation-test fits beyond its bound rejects, at this "
+          "level (spent over the fits), the binomial of maps as certain of their rotation as their "
+          "covariances say, join each next map with its features widened by the fits' "
+          "maximum-likelihood spread (counter join_maps_spread; 0: off)");
 ABSL_FLAG(bool, validate_joins, EifDefaults().validate_joins,
           "eif: test each join's normalised residual against chi2 and undo a failing one "
           "(the map is joined again without associations)");

@@ -378,6 +378,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   // The start anchor's marginal before this join (NaN without one: no bounds then).
   Eigen::Matrix3d start_covariance = Eigen::Matrix3d::Constant(NAN);
   std::optional<LocalSubmap> rotated_back;
+  SubmapAssociation fit;  // the rotation test's fit alone (its association may be moved on)
   if (associate) {
     const JoinerCounters counters_before = counters_;  // a pending closure's snapshot keeps these
     SubmapAssociation a;
@@ -391,7 +392,8 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     } else {
       a = AssociateAt(s, start);
     }
-    associator_.RecordRotationFit(a, s);
+    fit.map_rotation_fit_rad = a.map_rotation_fit_rad;
+    fit.map_rotation_fit_variance_rad2 = a.map_rotation_fit_variance_rad2;
     assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
     rotated_back = RotatedBack(s, a);  // a map the rotation test found rotated
@@ -424,8 +426,14 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
       pending_loop_->before.counters = counters_before;
     }
   }
-  const LocalSubmap& m = rotated_back ? *rotated_back : s;  // the map joined
+  LocalSubmap m = rotated_back ? *rotated_back : s;  // the map joined
   if (m.rotation_spread_rad > 0) ++counters_.maps_spread;
+  // After the snapshot a held loop closure takes, so that its undo and replay record the
+  // closing map's fit once.
+  if (associate) {
+    StampRotationFit(fit, &m);
+    associator_.RecordRotationFit(m);
+  }
   const int first_new_landmark = graph_.num_landmarks();
   // Initialise the end anchor and the new landmarks through the start anchor.
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
@@ -456,7 +464,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   associator_.Record(m, assoc, first_new_landmark, /*define_truth=*/associate);
   touched_.resize(graph_.num_landmarks(), 1);
   for (int j : assoc) touched_[j] = 1;
-  graph_.AddFactor({m, start, end_anchor, assoc});
+  graph_.AddFactor({std::move(m), start, end_anchor, assoc});
   Factor f = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
   {
     StageTimer timer(&times_, "update");

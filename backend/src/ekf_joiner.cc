@@ -256,12 +256,11 @@ absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
   const int start = graph_.num_anchors() - 1;
   const LocalSubmap widened = associator_.WithRotationSpread(s);  // by the maps' rotation spread so far
   SubmapAssociation a = AssociateAt(widened, start);
-  associator_.RecordRotationFit(a, widened);
   const std::optional<LocalSubmap> rotated_back = RotatedBack(widened, a);  // found rotated by the rotation test
-  if (absl::Status st = JoinAssociated(rotated_back ? *rotated_back : widened, std::move(a.landmark_of_feature));
-      !st.ok()) {
-    return st;
-  }
+  LocalSubmap joined = rotated_back ? *rotated_back : widened;
+  StampRotationFit(a, &joined);
+  associator_.RecordRotationFit(joined);
+  if (absl::Status st = JoinAssociated(joined, std::move(a.landmark_of_feature)); !st.ok()) return st;
   if (widened.rotation_spread_rad > 0) ++counters_.maps_spread;
   const int every = options_.revision.every_joins;
   if (every > 0 && counters_.joins % every == 0) return ReviseAssociation();
@@ -401,6 +400,7 @@ absl::Status EkfJoiner::Replay() {
     std::vector<int> assoc;
     for (int j : f.landmark_of_feature) assoc.push_back(new_of_old[j]);
     if (absl::Status st = fresh.JoinAssociated(f.submap, assoc); !st.ok()) return st;
+    fresh.associator_.RecordRotationFit(f.submap);  // the maps' rotation spread kept
     for (size_t i = 0; i < assoc.size(); ++i) new_of_old[f.landmark_of_feature[i]] = fresh.last_association_[i];
   }
   for (int& j : last_association_) j = new_of_old[j];

@@ -23,14 +23,17 @@ void MapRotationSpread::Add(double delta_rad, double variance_rad2, double widen
   delta_.push_back(delta_rad);
   variance_.push_back(variance_rad2);
   if (delta_rad * delta_rad / variance_rad2 > fit_bound_) ++beyond_;
-  // P(at least `beyond_` of n consistent maps beyond the bound), tested after every fit with
-  // the level shared among the tests so far (Bonferroni), so that a run of consistent maps is
-  // rejected at some fit with probability at most 1 − probability.
+  // P(at least k = `beyond_` of n consistent maps beyond the bound), tested after every fit
+  // at α/(k(k + 1)), α = 1 − probability. For a given k that p-value grows with n, so a run
+  // is rejected with the count at k only if it already is at the fit n* where the p-value
+  // last lies below the level, with probability P(X_{n*} ≥ k) ≤ α/(k(k + 1)); over k the
+  // levels sum to α: a run of consistent maps is rejected at some fit with probability at
+  // most α, however long it is.
   const int n = fits();
   if (probability_ > 0.0 && beyond_ > 0) {
     const boost::math::binomial_distribution<double> consistent(n, 1.0 - fit_probability_);
     const double p_value = boost::math::cdf(boost::math::complement(consistent, beyond_ - 1));
-    rejected_ = p_value < (1.0 - probability_) / n;
+    rejected_ = p_value < (1.0 - probability_) / (static_cast<double>(beyond_) * (beyond_ + 1));
   } else {
     rejected_ = false;
   }
@@ -63,7 +66,7 @@ void MapRotationSpread::Estimate() {
     const double next = std::max(0.0, t + score / information);
     const bool converged = std::abs(next - t) <= 1e-9 * std::max(next, 1e-12);
     t = next;
-    if (converged || t == 0.0) break;
+    if (converged) break;  // (from 0 with a positive score it moves on)
   }
   tau2_ = t;
 }

@@ -74,8 +74,14 @@ SubmapAssociator::SubmapAssociator(const SubmapAssociationOptions& options)
 
 LocalSubmap SubmapAssociator::WithRotationSpread(const LocalSubmap& s) const { return rotation_spread_.Widened(s); }
 
-void SubmapAssociator::RecordRotationFit(const SubmapAssociation& a, const LocalSubmap& s) {
-  rotation_spread_.Add(a.map_rotation_fit_rad, a.map_rotation_fit_variance_rad2, s.rotation_spread_rad);
+void SubmapAssociator::RecordRotationFit(const LocalSubmap& joined) {
+  rotation_spread_.Add(joined.rotation_fit_rad, joined.rotation_fit_variance_rad2, joined.rotation_spread_rad);
+}
+
+void StampRotationFit(const SubmapAssociation& a, LocalSubmap* s) {
+  if (std::isfinite(s->rotation_fit_rad)) return;
+  s->rotation_fit_rad = a.map_rotation_fit_rad;
+  s->rotation_fit_variance_rad2 = a.map_rotation_fit_variance_rad2;
 }
 
 double SubmapAssociator::MeanSignature(int landmark) const {

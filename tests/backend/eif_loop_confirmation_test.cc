@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -356,6 +358,12 @@ TEST(EifJoiner, ReplaysARotatedClosingMapWithoutRotatingItAgain) {
   EXPECT_GT(joined.rotation_widening_rad, 0.0);
   EXPECT_NEAR(joined.end_pose().theta, as_built.end_pose().theta, 0.01);
   EXPECT_LT((joined.mean - as_built.mean).cwiseAbs().maxCoeff(), 0.05);
+  // Its rotation fit is kept with it and counted once for the maps' rotation spread, though
+  // it was associated twice.
+  EXPECT_NEAR(joined.rotation_fit_rad, -kRotation, 0.05);  // the turn that takes it back
+  int fitted = 0;
+  for (const SubmapFactor& f : eif.graph().factors()) fitted += std::isfinite(f.submap.rotation_fit_rad) ? 1 : 0;
+  EXPECT_EQ(eif.associator().rotation_spread().fits(), fitted);
 }
 
 }  // namespace

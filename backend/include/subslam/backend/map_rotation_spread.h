@@ -6,12 +6,13 @@
 // the rotation δ̂ of its features about its start and its variance v (given the map's and
 // the landmarks' covariances). If those covariances are right, δ̂ ~ N(0, v), and a fit lies
 // beyond the test's bound (δ̂²/v above χ²₁ at `fit_probability`, the rotation test's own
-// level) with probability 1 − fit_probability, independently from map to map. The count
-// of fits beyond it among the n so far is tested against that binomial after every fit,
-// the level shared among the tests so far (Bonferroni: rejected at fit n when the count's
-// upper-tail probability is below (1 − probability)/n), so that a run of consistent maps
-// is rejected at some fit with probability at most 1 − probability; one grossly rotated
-// map (which the rotation test rotates back) does not reject it. While it is rejected, the
+// level) with probability 1 − fit_probability; the fits are taken as independent from map
+// to map (consecutive maps' fits share some recent landmarks, which this ignores). The
+// count k of fits beyond the bound among the n so far is tested against that binomial after
+// every fit, at α/(k(k + 1)), α = 1 − probability (a new rejection can come only with a
+// fit beyond the bound, and those levels sum to α), so that a run of consistent maps is
+// rejected at some fit with probability at most α; one grossly rotated map (which the
+// rotation test rotates back) does not reject it. While it is rejected, the
 // maps' own rotation, ψ ~ N(0, τ²) with δ̂ ~ N(0, v + τ²), is estimated by maximum
 // likelihood over every fit (Fisher scoring on τ², started from the last estimate), and
 // each next local map is joined with its features' covariance widened by a rotation of τ̂
@@ -24,10 +25,15 @@
 // Park those errors are heavy-tailed: 21 of 326 fitted maps lie beyond the bound at 0.99
 // (hybrid-120m: 5 of 296), and without them the rest sit within their covariances
 // (Σ δ̂²/v = 252 over 305); with them τ̂ ≈ 0.005 rad. Widening every map by that moment
-// lowers the aligned error from 2.49 to 1.85 m, and the simulated worlds are joined
-// as before (bench/RESULTS.md). Fits of maps joined widened are recorded without the
+// lowers the aligned error from 2.49 to about 1.85 m, and the simulated worlds are joined
+// as before (bench/RESULTS.md). Fits of maps joined widened are recorded without their own
 // widening: for the linear fit, widening the features by σ along the fitted rotation
-// leaves δ̂ as it is and adds σ² to its variance, which Add takes off again.
+// leaves δ̂ as it is and adds σ² to its variance, which Add takes off again. The recent
+// landmarks a map is fitted against were built from widened maps too, which Add cannot take
+// off: once maps are widened, v carries part of τ̂² and the estimate leans low (so a
+// rejection can lapse and widening stop). Each joined map's fit counts once (it is kept
+// with the joined map, LocalSubmap::rotation_fit_rad); a join the EIF's validation
+// rejects, joined again without association, has none.
 //
 // Units: radians. Not thread-safe.
 #ifndef SUBSLAM_BACKEND_MAP_ROTATION_SPREAD_H_

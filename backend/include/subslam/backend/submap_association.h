@@ -146,10 +146,11 @@ struct SubmapAssociationOptions {
   //    by 0.1-0.15 rad (bench/RESULTS.md); σ = 0.3 rad lets the vote reach 0.9 rad.
   double map_rotation_sigma_rad = 0.3;
   double map_rotation_probability = 0.99;
-  // The spread of the maps' own rotation (map_rotation_spread.h): the rotation test's fits
-  // of the maps joined so far, tested for a spread beyond their covariances at χ²ₙ of this
-  // probability; once it is rejected, each next map is joined with its features widened by
-  // the spread's maximum-likelihood estimate. Needs the rotation test. 0: off.
+  // The spread of the maps' own rotation (map_rotation_spread.h): the count of the rotation
+  // test's fits beyond its bound among the maps joined so far, tested against the binomial
+  // of consistent maps at this probability (spent over the fits); while it is rejected,
+  // each next map is joined with its features widened by the fits' maximum-likelihood
+  // spread. Needs the rotation test. 0: off.
   double map_rotation_spread_probability = 0.999;
 
   absl::Status Validate() const;
@@ -186,7 +187,7 @@ struct SubmapAssociation {
   double map_rotation_rad = 0.0;
   double map_widening_rad = 0.0;
   // The test's fit of the map as associated, with its variance (NaN: not reached): what
-  // SubmapAssociator::RecordRotationFit takes.
+  // StampRotationFit puts into the map joined.
   double map_rotation_fit_rad = NAN;
   double map_rotation_fit_variance_rad2 = NAN;
   double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
@@ -209,6 +210,10 @@ std::vector<std::vector<int>> WholeMapGroups(const SubmapGraph& graph);
 // found rotated, or rotated back already (a map taken back from the graph, whose first
 // association is replayed after an undone loop closure).
 std::optional<LocalSubmap> RotatedBack(const LocalSubmap& s, const SubmapAssociation& a);
+
+// `s` carrying the rotation fit of association `a` (SubmapAssociation::map_rotation_fit_rad)
+// unless it carries one from an earlier join (LocalSubmap::rotation_fit_rad).
+void StampRotationFit(const SubmapAssociation& a, LocalSubmap* s);
 
 class SubmapAssociator {
  public:
@@ -261,11 +266,11 @@ class SubmapAssociator {
   void SplitFeature(int from, int to, double signature);
 
   // The spread of the maps' own rotation (map_rotation_spread.h): `s` with its features
-  // widened by the current estimate (as it is while there is none), and, after `s` was
-  // associated (by `a`), its fit recorded (MapRotationSpread::Add, with the widening `s`
-  // was associated with).
+  // widened by the current estimate (as it is while there is none); and the fit a joined
+  // map carries (StampRotationFit) recorded, with the widening it was associated with —
+  // once per map joined, also when a joiner joins a map again.
   LocalSubmap WithRotationSpread(const LocalSubmap& s) const;
-  void RecordRotationFit(const SubmapAssociation& a, const LocalSubmap& s);
+  void RecordRotationFit(const LocalSubmap& joined);
   const MapRotationSpread& rotation_spread() const { return rotation_spread_; }
 
   // Mean signature of the features joined to `landmark` (NaN: none had one).

@@ -51,6 +51,13 @@ struct LocalSubmap {
   // covariance (not the end pose's) was widened by, the spread of the maps' own rotation
   // measured over the run (0: not widened; subslam/backend/map_rotation_spread.h).
   double rotation_spread_rad = 0.0;
+  // Set by the back-end only: the association's rotation fit of this map when it was first
+  // joined — the fitted rotation of its features about its start [rad] and that estimate's
+  // variance [rad²] with the map as it was associated (NaN: no fit). Kept with the joined
+  // map so that a map joined again (after an undone loop closure, or when a joiner replays
+  // its maps) counts its fit once (subslam/backend/map_rotation_spread.h).
+  double rotation_fit_rad = std::numeric_limits<double>::quiet_NaN();
+  double rotation_fit_variance_rad2 = std::numeric_limits<double>::quiet_NaN();
 
   int num_landmarks() const { return static_cast<int>(landmarks.size()); }
   Pose2 end_pose() const { return Pose2::FromVector(mean.head<3>()); }
