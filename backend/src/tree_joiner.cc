@@ -12,10 +12,7 @@ TreeJoiner::TreeJoiner(std::unique_ptr<MapJoiner> prototype, const TreeJoinerOpt
       << "the prototype must be an empty joiner";
   initial_pose_ = prototype_->anchor(0);
   SUBSLAM_CHECK(prototype_->NewEmpty(Pose2()) != nullptr) << prototype_->Name() << " cannot be a tree node";
-  const SubmapAssociationOptions& association = prototype_->associator().options();
-  const double spread = association.map_rotation_spread_probability, fit = association.map_rotation_probability;
-  rotation_spread_ = MapRotationSpread(TestsRotation() && spread > 0 && spread < 1 ? spread : 0.0,
-                                       fit > 0 && fit < 1 ? fit : 0.99);
+  rotation_spread_ = prototype_->associator().rotation_spread();  // empty, with the nodes' levels
 }
 
 std::unique_ptr<MapJoiner> TreeJoiner::NewEmpty(const Pose2& initial_pose) const {

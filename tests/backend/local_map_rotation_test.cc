@@ -155,7 +155,7 @@ TEST(SubmapAssociator, FindsAMapRotatedAboutItsStartAndPairsItRotatedBack) {
   EXPECT_TRUE(std::isnan(again.map_rotation_statistic));
 }
 
-TEST(SubmapAssociationOptions, RejectsABadRotationSigma) {
+TEST(SubmapAssociationOptions, RejectsBadRotationSettings) {
   SubmapAssociationOptions o;
   o.map_rotation_sigma_rad = -0.1;
   EXPECT_EQ(o.Validate().code(), absl::StatusCode::kInvalidArgument);
@@ -167,6 +167,15 @@ TEST(SubmapAssociationOptions, RejectsABadRotationSigma) {
     o.map_rotation_probability = p;
     EXPECT_EQ(o.Validate().code(), absl::StatusCode::kInvalidArgument) << p;
   }
+  o.map_rotation_probability = 0.99;
+  for (double p : {-0.1, 1.0, std::nan("")}) {
+    o.map_rotation_spread_probability = p;
+    const absl::Status s = o.Validate();
+    EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument) << p;
+    EXPECT_NE(s.message().find("map_rotation_spread_probability"), std::string::npos) << s;
+  }
+  o.map_rotation_spread_probability = 0.0;  // off
+  EXPECT_TRUE(o.Validate().ok());
 }
 
 // Unknown association, without revision (the association alone is under test).

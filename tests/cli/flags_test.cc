@@ -20,6 +20,7 @@ ABSL_DECLARE_FLAG(bool, join_merge);
 ABSL_DECLARE_FLAG(bool, join_confirm_thin_loops);
 ABSL_DECLARE_FLAG(double, join_map_rotation_sigma);
 ABSL_DECLARE_FLAG(double, join_map_rotation_level);
+ABSL_DECLARE_FLAG(double, join_map_rotation_spread_level);
 ABSL_DECLARE_FLAG(std::string, ceres_method);
 ABSL_DECLARE_FLAG(double, eif_recovery_threshold);
 ABSL_DECLARE_FLAG(std::string, ekf_fusion);
@@ -69,6 +70,7 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   absl::SetFlag(&FLAGS_join_confirm_thin_loops, false);
   absl::SetFlag(&FLAGS_join_map_rotation_sigma, 0.2);
   absl::SetFlag(&FLAGS_join_map_rotation_level, 0.95);
+  absl::SetFlag(&FLAGS_join_map_rotation_spread_level, 0.99);
   absl::SetFlag(&FLAGS_ceres_method, "dogleg");
   absl::SetFlag(&FLAGS_ceres_every, 5);
   absl::SetFlag(&FLAGS_eif_recovery_threshold, 1e-6);
@@ -85,9 +87,21 @@ TEST(BackendFlags, ReachTheBackEndsOptions) {
   EXPECT_EQ(o->ekf.association.map_rotation_sigma_rad, 0.2);
   EXPECT_EQ(o->eif.association.map_rotation_probability, 0.95);
   EXPECT_EQ(o->ekf.association.map_rotation_probability, 0.95);
+  EXPECT_EQ(o->eif.association.map_rotation_spread_probability, 0.99);
+  EXPECT_EQ(o->ekf.association.map_rotation_spread_probability, 0.99);
   EXPECT_EQ(o->ceres.method, backend::CeresMethod::kDogleg);
   EXPECT_EQ(o->ceres_every, 5);
   EXPECT_EQ(o->eif.recovery_change_threshold, 1e-6);
+}
+
+TEST(BackendFlags, ARotationSpreadLevelOutsideItsRangeIsAnErrorThatNamesIt) {
+  for (double bad : {1.0, -0.5}) {
+    absl::FlagSaver restore;
+    absl::SetFlag(&FLAGS_join_map_rotation_spread_level, bad);
+    const absl::StatusOr<pipeline::BackendOptions> o = BackendOptionsFromFlags();
+    ASSERT_FALSE(o.ok()) << bad;
+    EXPECT_NE(o.status().message().find("map_rotation_spread_probability"), std::string_view::npos) << o.status();
+  }
 }
 
 TEST(BackendFlags, AnUnknownNameIsAnErrorThatNamesIt) {
