@@ -13,6 +13,8 @@
 // cue's σ that the RBPF and the back-end's association share.
 ABSL_DECLARE_FLAG(bool, known_association);
 ABSL_DECLARE_FLAG(double, sigma_signature);
+// The back-end's name, which decides which other back-end flags a command reads.
+ABSL_DECLARE_FLAG(std::string, backend);
 
 namespace subslam::cli {
 

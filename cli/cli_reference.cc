@@ -8,11 +8,12 @@
 
 #include "absl/flags/commandlineflag.h"
 #include "absl/flags/reflection.h"
+#include "command_flags.h"
 
 namespace subslam::pipeline {
 namespace {
 
-constexpr std::array<CliCommand, 9> kCommands = {{
+constexpr std::array<CliCommand, 10> kCommands = {{
     {"simulate", "subslam simulate --scenario NAME [--seed S] --out DIR",
      "Simulates a named scenario (docs/scenarios.md) and writes it as a data-set directory "
      "(docs/formats.md, \"Data-set directory\"), with the true poses, the true landmarks and "
@@ -20,14 +21,18 @@ constexpr std::array<CliCommand, 9> kCommands = {{
     {"run",
      "subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend "
      "odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf [--backend none|eif|ceres|ekf|tree-ekf|tree-eif|tree-ceres] "
-     "--out DIR",
+     "[--config DIR/report.json] --out DIR",
      "Runs one estimator over a data set or a simulated scenario, prints a summary table and "
      "writes the run outputs (docs/formats.md, \"Run outputs\"): the online and final "
      "trajectories, the map, `report.json` with the metrics the ground truth allows, and for the "
-     "local-map front-ends (`rbpf`, `ekf`) the local maps as `submaps.jsonl`."},
+     "local-map front-ends (`rbpf`, `ekf`) the local maps as `submaps.jsonl`. `--out` is the "
+     "run's own directory: an earlier output directory of the tool is reused after its earlier "
+     "outputs are removed, any other non-empty directory is refused. `--config DIR/report.json` "
+     "repeats a recorded run (report.json's `invocation` holds the command line and every "
+     "flag's value)."},
     {"join",
      "subslam join --submaps FILE --backend eif|ceres|ekf|tree-ekf|tree-eif|tree-ceres [--known_association] "
-     "[--dataset DIR | --scenario NAME --seed S] --out DIR",
+     "[--dataset DIR | --scenario NAME --seed S] [--config DIR/report.json] --out DIR",
      "Runs a back-end alone on recorded local maps, so that every back-end can be compared on "
      "the same input. With `--dataset` or `--scenario`/`--seed` it takes the initial pose and "
      "the ground truth from there and scores the association against the features' true ids. "
@@ -57,6 +62,10 @@ constexpr std::array<CliCommand, 9> kCommands = {{
     {"scenarios", "subslam scenarios", "Lists the simulated scenarios, one name per line."},
     {"cli-reference", "subslam cli-reference",
      "Prints this reference in Markdown; docs/cli.md is its output."},
+    {"help", "subslam help [COMMAND]",
+     "Prints the commands, or one command's usage and the flags it reads with their defaults "
+     "(also `subslam COMMAND --help` and `-h`). `subslam --version` prints the version, the "
+     "commit and the build type."},
 }};
 
 // Flag groups of the reference, in order. A flag belongs to the first group one of whose
@@ -72,12 +81,13 @@ const std::vector<FlagGroup>& FlagGroups() {
       {"Input and output",
        "Where the data comes from and where the outputs go. The noise and sensor overrides "
        "replace the data set's own values.",
-       {"dataset", "scenario", "seed", "submaps", "out", "known_association", "sensor_yaw",
-        "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "progress", "quiet",
-        "keep_freed_memory"}},
+       {"dataset", "scenario", "seed", "submaps", "out", "config", "known_association", "sensor_yaw",
+        "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "control_spike_sigmas",
+        "time_gap_factor", "progress", "quiet", "keep_freed_memory"}},
       {"Studies", "`subslam study` (docs/reproducing.md).", {"trials", "methods", "workers", "shard", "plots"}},
       {"Graphs", "`subslam solve` (docs/formats.md, \"Graph files\").",
-       {"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps"}},
+       {"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps",
+        "max_iterations"}},
       {"Simulation", "Shape the simulated worlds (docs/scenarios.md).",
        {"world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks",
         "path_length", "lattice_spacing", "noise_scale", "signature"}},
@@ -126,43 +136,98 @@ std::string Cell(std::string_view text) {
   return cell;
 }
 
-}  // namespace
 
-std::span<const CliCommand> CliCommands() { return kCommands; }
-
-std::string CliUsage() {
-  std::string usage = "submap-based landmark SLAM";
-  for (const CliCommand& command : kCommands) Append(usage, {"\n  ", command.synopsis});
-  usage += "\nEvery flag: subslam --help, or docs/cli.md.";
-  return usage;
-}
-
-std::string CliReferenceMarkdown() {
-  // The program's own flags (Abseil's --help, --flagfile, ... are left out), by name.
-  std::map<std::string, const absl::CommandLineFlag*> flags;
-  for (const auto& [name, flag] : absl::GetAllFlags()) {
-    if (flag->IsRetired() || flag->Filename().find("absl/") != std::string::npos) continue;
-    flags.emplace(std::string(name), flag);
-  }
+// The program's own flags (Abseil's --help, --flagfile, ... are left out) that `command`
+// may read (every flag when it is empty), by group of FlagGroups() and then "Other", each
+// group by name.
+std::vector<std::vector<const absl::CommandLineFlag*>> GroupedFlags(std::string_view command) {
   std::vector<std::vector<const absl::CommandLineFlag*>> grouped(FlagGroups().size() + 1);
-  for (const auto& [name, flag] : flags) {
+  for (const std::string& name : cli::ProgramFlagNames()) {
+    if (!command.empty() && !cli::CommandMayReadFlag(name, command)) continue;
     size_t g = 0;
     while (g < FlagGroups().size() &&
            std::none_of(FlagGroups()[g].patterns.begin(), FlagGroups()[g].patterns.end(),
                         [&](std::string_view p) { return Matches(name, p); })) {
       ++g;
     }
-    grouped[g].push_back(flag);
+    grouped[g].push_back(absl::FindCommandLineFlag(name));
   }
+  return grouped;
+}
 
+// `text` wrapped at `width` columns, every line indented by `indent` spaces.
+std::string Wrapped(std::string_view text, size_t indent, size_t width) {
+  std::string out;
+  std::string line(indent, ' ');
+  size_t start = 0;
+  while (start < text.size()) {
+    size_t end = text.find(' ', start);
+    if (end == std::string_view::npos) end = text.size();
+    const std::string_view word = text.substr(start, end - start);
+    if (line.size() > indent && line.size() + 1 + word.size() > width) {
+      Append(out, {line, "\n"});
+      line.assign(indent, ' ');
+    }
+    if (line.size() > indent) line += ' ';
+    line.append(word);
+    start = end + 1;
+  }
+  if (line.size() > indent) Append(out, {line, "\n"});
+  return out;
+}
+
+}  // namespace
+
+std::string CommandHelp(std::string_view name) {
+  const auto command = std::find_if(kCommands.begin(), kCommands.end(),
+                                    [&](const CliCommand& c) { return c.name == name; });
+  if (command == kCommands.end()) return "";
+  std::string help;
+  Append(help, {"Usage: ", command->synopsis, "\n\n", Wrapped(command->description, 0, 92)});
+  const std::vector<std::vector<const absl::CommandLineFlag*>> grouped = GroupedFlags(name);
+  for (size_t g = 0; g < grouped.size(); ++g) {
+    if (grouped[g].empty()) continue;
+    Append(help, {"\n", g == FlagGroups().size() ? "Other" : FlagGroups()[g].title, ":\n"});
+    for (const absl::CommandLineFlag* flag : grouped[g]) {
+      const std::string default_value = flag->DefaultValue();
+      Append(help, {"  --", std::string(flag->Name()), default_value.empty() ? "" : "=", default_value, "\n",
+                    Wrapped(flag->Help(), 6, 92)});
+    }
+  }
+  help += "\nFlags are --name=value or --name value (booleans also --name / --noname); a flag the\n"
+          "command would not read with the other flags given is refused. Every flag: docs/cli.md.\n";
+  return help;
+}
+
+std::string GeneralHelp() {
+  std::string help = "subslam: submap-based landmark SLAM\n\nCommands:\n";
+  for (const CliCommand& command : kCommands) Append(help, {"  ", command.synopsis, "\n"});
+  help += "\n`subslam help COMMAND` (or `subslam COMMAND --help`) prints a command's flags with their defaults;\n"
+          "`subslam --version` the version. Every command and flag: docs/cli.md.\n";
+  return help;
+}
+
+std::span<const CliCommand> CliCommands() { return kCommands; }
+
+std::string CliUsage() {
+  std::string usage = "submap-based landmark SLAM";
+  for (const CliCommand& command : kCommands) Append(usage, {"\n  ", command.synopsis});
+  usage += "\nA command's flags: subslam help COMMAND (or COMMAND --help); every flag: docs/cli.md.";
+  return usage;
+}
+
+std::string CliReferenceMarkdown() {
+  const std::vector<std::vector<const absl::CommandLineFlag*>> grouped = GroupedFlags("");
   std::string md =
       "# Command-line reference\n\n"
       "<!-- Generated by `subslam cli-reference > docs/cli.md` (scripts/update_cli_doc.sh); "
       "a test checks that it is current. Do not edit by hand. -->\n\n"
       "`subslam` is the command-line tool of the library: one command per job. Flags are "
       "given as `--name=value` or `--name value` (booleans also as `--name` / "
-      "`--noname`); a flag that names a front-end or back-end in its text applies to that "
-      "one only. Units are SI, angles in radians (docs/conventions.md).\n\n"
+      "`--noname`). A command reads the flags its \"read by\" column names, with the "
+      "front-end, back-end or input named there; it refuses a flag it would not read, so "
+      "that nothing is silently ignored. `subslam help COMMAND` prints the same per command. "
+      "Units are SI, angles in radians (docs/conventions.md).\n\n"
       "## Commands\n";
   for (const CliCommand& command : kCommands) {
     Append(md, {"\n### `", command.name, "`\n\n```\n", command.synopsis, "\n```\n\n",
@@ -174,7 +239,7 @@ std::string CliReferenceMarkdown() {
     const bool other = g == FlagGroups().size();
     Append(md, {"\n### ", other ? "Other" : FlagGroups()[g].title, "\n\n"});
     if (!other && !FlagGroups()[g].note.empty()) Append(md, {FlagGroups()[g].note, "\n\n"});
-    md += "| flag | default | meaning |\n| --- | --- | --- |\n";
+    md += "| flag | default | meaning | read by |\n| --- | --- | --- | --- |\n";
     for (const absl::CommandLineFlag* flag : grouped[g]) {
       const std::string default_value = flag->DefaultValue();
       std::string shown = "(none)";
@@ -182,8 +247,9 @@ std::string CliReferenceMarkdown() {
         shown = "`";
         Append(shown, {Cell(default_value), "`"});
       }
-      Append(md, {"| `--", std::string(flag->Name()), "` | ", shown, " | ", Cell(flag->Help()),
-                  " |\n"});
+      const std::string name(flag->Name());
+      Append(md, {"| `--", name, "` | ", shown, " | ", Cell(flag->Help()), " | ",
+                  Cell(cli::FlagReaders(name)), " |\n"});
     }
   }
   return md;

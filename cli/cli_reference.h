@@ -22,6 +22,13 @@ std::span<const CliCommand> CliCommands();
 // The usage message: one synopsis line per command.
 std::string CliUsage();
 
+// `subslam help COMMAND`: the command's usage, what it does, and the flags it may read,
+// grouped, each with its default and help text ("" for an unknown command).
+std::string CommandHelp(std::string_view command);
+
+// `subslam help`: every command's synopsis.
+std::string GeneralHelp();
+
 // The reference page in Markdown: every command, then every flag of the program (those
 // defined outside Abseil), grouped by topic, each with its default and help text.
 std::string CliReferenceMarkdown();

@@ -309,7 +309,9 @@ absl::StatusOr<Dataset> ReadDataset(const std::string& directory) {
 }
 
 absl::StatusOr<Dataset> ReadDataset(const std::string& directory, const FileReader& read) {
-  const std::filesystem::path dir(directory);
+  // The manifest's own path names its directory too.
+  std::filesystem::path dir(directory);
+  if (dir.filename() == "dataset.json") dir = dir.parent_path();
   const std::string manifest_path = (dir / "dataset.json").string();
   auto text = read(manifest_path);
   if (!text.ok()) return text.status();

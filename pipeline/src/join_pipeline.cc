@@ -4,6 +4,8 @@
 
 #include "report_json.h"
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -12,8 +14,10 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
+#include "subslam/io/output_directory.h"
 #include "subslam/io/run_output_writer.h"
 
 namespace subslam::pipeline {
@@ -151,7 +155,16 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
         options.truth_landmarks);
     if (labelled.labelled > 0) metrics["map_by_truth_label"] = LabelledMapErrorsJson(labelled);
   }
-  metrics["association_vs_truth_id"] = AssociationVsTruthJson(r.association);
+  if (!options.gps.empty()) {
+    if (auto g = eval::CompareWithGps(r.anchors, options.gps); g.ok()) metrics["gps_anchors"] = GpsJson(*g);
+    if (auto g = eval::CompareWithGps(r.anchors_online, options.gps); g.ok()) {
+      metrics["gps_anchors_online"] = GpsJson(*g);
+    }
+  }
+  const bool truth_ids = std::any_of(submaps.begin(), submaps.end(), [](const LocalSubmap& s) {
+    return std::any_of(s.landmarks.begin(), s.landmarks.end(), [](const auto& f) { return f.truth_id.has_value(); });
+  });
+  if (truth_ids) metrics["association_vs_truth_id"] = AssociationVsTruthJson(r.association);
   long covariance_repairs = 0;
   for (const LocalSubmap& s : submaps) covariance_repairs += s.covariance_repairs;
   nlohmann::json counts = {{"local_maps", r.local_maps},
@@ -185,10 +198,12 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
                 {"stages", stages},
                 {"joiner_all_anchor_covariances", joiner_covariance_seconds}}},
               {"extras", extras},
-              {"metrics", metrics}};
+              {"metrics", metrics},
+              {"build", BuildJson()}};
+  if (!options.invocation.is_null()) r.report["invocation"] = options.invocation;
 
   if (!options.out_dir.empty()) {
-    absl::StatusOr<std::filesystem::path> dir = CreateOutputDirectory(options.out_dir);
+    absl::StatusOr<std::filesystem::path> dir = io::PrepareOutputDirectory(options.out_dir, "join");
     if (!dir.ok()) return dir.status();
     const std::filesystem::path& out = *dir;
     if (auto s = io::WriteTrajectoryCsv((out / "anchors.csv").string(), r.anchors); !s.ok()) return s;
@@ -211,6 +226,58 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
     if (auto s = io::WriteTextFile((out / "report.json").string(), r.report.dump(2) + "\n"); !s.ok()) return s;
   }
   return r;
+}
+
+}  // namespace subslam::pipeline
+
+namespace subslam::pipeline {
+
+std::string JoinSummaryTable(const JoinResult& r) {
+  std::string s;
+  auto row = [&s](const std::string& key, const std::string& value) {
+    absl::StrAppendFormat(&s, "  %-34s %s\n", key, value);
+  };
+  const nlohmann::json& report = r.report;
+  const nlohmann::json& counts = report["counts"];
+  const nlohmann::json& metrics = report["metrics"];
+  row("joined", absl::StrCat(r.local_maps, " local maps by ", report["configuration"]["backend"].get<std::string>()));
+  row("anchors / landmarks in map", absl::StrCat(r.anchors.size(), " / ", r.landmarks.size()));
+  const auto trajectory_row = [&](const char* key, const char* label) {
+    if (!metrics.contains(key)) return;
+    const nlohmann::json& e = metrics[key];
+    row(label, absl::StrFormat("%.3f m / %.3f deg; NEES in 95%% bounds %.1f %%", e["rms_position_m"].get<double>(),
+                               e["rms_heading_rad"].get<double>() * 180.0 / M_PI,
+                               100 * e["fraction_steps_nees_in_95_bounds"].get<double>()));
+  };
+  trajectory_row("anchors", "anchors: RMS position / heading");
+  trajectory_row("anchors_online", "online anchors: RMS pos. / heading");
+  if (metrics.contains("map") && metrics["map"]["estimated"].get<int>() > 0) {
+    const nlohmann::json& m = metrics["map"];
+    row("map: matched / spurious / duplicate",
+        absl::StrFormat("%d / %d / %d, RMS %.3f m", m["matched"].get<int>(), m["spurious"].get<int>(),
+                        m["duplicates"].get<int>(), m["rms_m"].get<double>()));
+  }
+  const auto gps_row = [&](const char* key, const char* label) {
+    if (!metrics.contains(key)) return;
+    const nlohmann::json& g = metrics[key];
+    row(label, absl::StrFormat("%.2f m (%d fixes, %d gross faults dropped)", g["aligned_rms_m"].get<double>(),
+                               g["matched_fixes"].get<int>(), g["rejected_fixes"].get<int>()));
+  };
+  gps_row("gps_anchors", "aligned RMS vs GPS (anchors)");
+  gps_row("gps_anchors_online", "aligned RMS vs GPS (online anchors)");
+  if (metrics.contains("association_vs_truth_id")) {
+    const AssociationVsTruth& a = r.association;
+    row("association vs true ids", absl::StrFormat("%d correct, %d missed, %d wrong merges; loops %d / %d missed",
+                                                   a.correct, a.missed, a.wrong, a.loop_missed,
+                                                   a.loop_merged + a.loop_missed));
+  }
+  if (counts.contains("sensor_yaw_correction")) {
+    row("sensor yaw, online calibration", absl::StrFormat("%+.4f rad (sigma %.4f)",
+                                                          counts["sensor_yaw_correction"].get<double>(),
+                                                          counts["sensor_yaw_correction_sigma"].get<double>()));
+  }
+  row("time", absl::StrFormat("%.3f s joining", r.wall_seconds));
+  return s;
 }
 
 }  // namespace subslam::pipeline

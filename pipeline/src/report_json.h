@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "subslam/pipeline/build_info.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "subslam/eval/gps_alignment.h"
@@ -69,12 +70,9 @@ inline nlohmann::json GpsJson(const eval::GpsComparison& g) {
           {"gps_T_estimate", {g.gps_T_estimate.x, g.gps_T_estimate.y, g.gps_T_estimate.theta}}};
 }
 
-// Creates `dir` (and its parents) for the outputs.
-inline absl::StatusOr<std::filesystem::path> CreateOutputDirectory(const std::string& dir) {
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) return absl::InternalError(absl::StrCat(dir, ": ", ec.message()));
-  return std::filesystem::path(dir);
+// report.json's "build": the version, commit and build type of the library that wrote it.
+inline nlohmann::json BuildJson() {
+  return {{"version", Version()}, {"commit", Commit()}, {"build_type", BuildType()}};
 }
 
 }  // namespace subslam::pipeline

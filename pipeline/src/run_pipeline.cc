@@ -24,6 +24,7 @@
 #include "subslam/graph/enum_names.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "subslam/models/gating.h"
+#include "subslam/io/output_directory.h"
 #include "subslam/io/run_output_writer.h"
 #include "subslam/io/steps.h"
 
@@ -129,15 +130,17 @@ struct CheckedOptions {
   bool known_association = false;
 };
 
+// The SEIF options of the front-end: ISEIF turns the iterated update on.
+frontend::SeifOptions SeifOptionsOf(const RunOptions& options) {
+  frontend::SeifOptions seif = options.seif;
+  seif.iterated.enabled = options.frontend == Frontend::kIseif;
+  return seif;
+}
+
 absl::StatusOr<CheckedOptions> CheckOptions(const io::Dataset& dataset, const RunOptions& options) {
-  if (absl::Status s = options.ekf.Validate(); !s.ok()) return s;
-  if (absl::Status s = options.fastslam.Validate(); !s.ok()) return s;
-  if (absl::Status s = options.policy.Validate(); !s.ok()) return s;
-  if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
+  if (absl::Status s = options.Validate(); !s.ok()) return s;
   CheckedOptions checked;
-  checked.seif = options.seif;
-  checked.seif.iterated.enabled = options.frontend == Frontend::kIseif;
-  if (absl::Status s = checked.seif.Validate(); !s.ok()) return s;
+  checked.seif = SeifOptionsOf(options);
   checked.known_association = checked.seif.landmarks.known_association ||
                               options.ekf.landmarks.known_association ||
                               options.fastslam.landmarks.known_association ||
@@ -451,6 +454,30 @@ json Report(const io::Dataset& dataset, const RunOptions& options, const Checked
         {"iterated_stop_change", seif.iterated.stop_change},
         {"iterated_exact_recoveries", seif.iterated.exact_recoveries}};
   }
+  if (options.frontend == Frontend::kFastSlam || options.frontend == Frontend::kRbpf) {
+    const frontend::FastSlamOptions& f = options.fastslam;
+    report["configuration"]["particle_filter"] = {{"particles", f.num_particles},
+                                                  {"filter_seed", f.seed},
+                                                  {"sample_association", f.sample_association},
+                                                  {"landmark_update_iterations", f.landmark_update_iterations},
+                                                  {"resample_ess_ratio", f.resample_ess_ratio},
+                                                  {"sensor_yaw_sigma", f.sensor_yaw_sigma}};
+  }
+  if (options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal) {
+    const frontend::SubmapPolicyOptions& p = options.policy;
+    report["configuration"]["submap_policy"] = {{"min_duration_s", p.min_duration_s},
+                                                {"max_duration_s", p.max_duration_s},
+                                                {"max_features", p.max_features},
+                                                {"min_ess_ratio", p.min_ess_ratio},
+                                                {"min_lineage_diversity", p.min_lineage_diversity},
+                                                {"max_pose_sigma_ratio", p.max_pose_sigma_ratio},
+                                                {"max_feature_sigma_ratio", p.max_feature_sigma_ratio},
+                                                {"density_min_features", p.density_min_features},
+                                                {"density_min_visible", p.density_min_visible},
+                                                {"delay_while_ambiguous", p.delay_while_ambiguous}};
+  }
+  report["build"] = BuildJson();
+  if (!options.invocation.is_null()) report["invocation"] = options.invocation;
   return report;
 }
 
@@ -552,6 +579,15 @@ absl::StatusOr<Frontend> FrontendFromString(const std::string& name) {
   return ParseEnum(kFrontendNames, name, "front-end");
 }
 
+absl::Status RunOptions::Validate() const {
+  if (absl::Status s = ekf.Validate(); !s.ok()) return s;
+  if (absl::Status s = fastslam.Validate(); !s.ok()) return s;
+  if (absl::Status s = policy.Validate(); !s.ok()) return s;
+  if (absl::Status s = backend.Validate(); !s.ok()) return s;
+  if (absl::Status s = SeifOptionsOf(*this).Validate(); !s.ok()) return s;
+  return inputs.Validate();
+}
+
 absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
   auto positive = [](const std::optional<double>& v, const char* name) -> absl::Status {
     if (v.has_value() && !(std::isfinite(*v) && *v > 0.0)) {
@@ -580,7 +616,6 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
 
 absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& options) {
   if (absl::Status s = options.noise.ApplyTo(&dataset); !s.ok()) return s;
-  if (absl::Status s = options.inputs.Validate(); !s.ok()) return s;
   absl::StatusOr<CheckedOptions> checked = CheckOptions(dataset, options);
   if (!checked.ok()) return checked.status();
   SubmapSlam* chain = nullptr;
@@ -596,7 +631,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   std::optional<std::filesystem::path> out_dir;
   std::future<absl::Status> online_written;
   if (!options.out_dir.empty()) {
-    absl::StatusOr<std::filesystem::path> dir = CreateOutputDirectory(options.out_dir);
+    absl::StatusOr<std::filesystem::path> dir = io::PrepareOutputDirectory(options.out_dir, "run");
     if (!dir.ok()) return dir.status();
     out_dir = *dir;
     online_written = WriteInBackground(
@@ -662,7 +697,7 @@ std::string SummaryTable(const RunResult& r) {
         absl::StrFormat("%.3f m / %.1f %% (trajectory_online.csv)", r.errors_online->rms_position_m,
                         100 * r.errors_online->fraction_nees_in_bounds));
   }
-  if (r.map_errors) {
+  if (r.map_errors && r.map_errors->estimated > 0) {
     row("map: matched / spurious / duplicate",
         absl::StrFormat("%d / %d / %d, RMS %.3f m", r.map_errors->matched, r.map_errors->spurious,
                         r.map_errors->duplicates, r.map_errors->rms_m));
@@ -672,6 +707,10 @@ std::string SummaryTable(const RunResult& r) {
         absl::StrFormat("%.2f m (x %.2f, y %.2f; %d fixes, %d gross faults dropped)", r.gps_final->rms_m,
                         r.gps_final->rms_x_m, r.gps_final->rms_y_m, r.gps_final->matched_fixes,
                         r.gps_final->rejected_fixes));
+  }
+  if (r.gps_online) {
+    row("aligned RMS vs GPS (online)",
+        absl::StrFormat("%.2f m (trajectory_online.csv)", r.gps_online->rms_m));
   }
   if (!r.local_maps.empty()) {
     std::map<std::string, int> reasons;

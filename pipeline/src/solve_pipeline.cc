@@ -9,8 +9,10 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
+#include "subslam/io/output_directory.h"
 #include "subslam/io/run_output_writer.h"
 #include "subslam/io/submaps_jsonl.h"
+#include "report_json.h"
 #include "subslam/posegraph/batch_solver.h"
 #include "subslam/posegraph/graph_format.h"
 #include "subslam/posegraph/submap_route.h"
@@ -60,6 +62,11 @@ nlohmann::json RouteDetails(const posegraph::SubmapRouteReport& r) {
           {"stage_seconds", stages}};
 }
 
+// Whether a Ceres termination type means the solver met its convergence test.
+bool CeresConverged(const std::string& termination) {
+  return termination == "CONVERGENCE" || termination == "USER_SUCCESS";
+}
+
 // One method on its own copy of the graph, started at `start`.
 SolveMethodResult RunMethod(const std::string& name, const posegraph::PoseGraph& start, const SolveOptions& options,
                             posegraph::PoseGraph* solution, std::vector<LocalSubmap>* local_maps) {
@@ -76,6 +83,7 @@ SolveMethodResult RunMethod(const std::string& name, const posegraph::PoseGraph&
     status = r.status();
     if (r.ok()) {
       m.iterations = r->iterations;
+      m.converged = CeresConverged(r->termination);
       m.details = {{"termination", r->termination}};
     }
   } else {
@@ -99,6 +107,7 @@ SolveMethodResult RunMethod(const std::string& name, const posegraph::PoseGraph&
           m.details["route_error"] = before.error;
           m.details["route_relinearizations"] = r->counters.relinearizations;
           m.details["termination"] = polish->termination;
+          m.converged = CeresConverged(polish->termination);
         }
       }
     }
@@ -122,17 +131,21 @@ const std::vector<std::string>& SolveMethodNames() {
   return *names;
 }
 
-absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const SolveOptions& options) {
-  std::vector<std::string> methods = options.methods.empty() ? SolveMethodNames() : options.methods;
+absl::Status SolveOptions::Validate() const {
   for (const std::string& name : methods) {
     if (std::find(SolveMethodNames().begin(), SolveMethodNames().end(), name) == SolveMethodNames().end()) {
       return absl::InvalidArgumentError(
           absl::StrCat("unknown solve method \"", name, "\" (", absl::StrJoin(SolveMethodNames(), ", "), ")"));
     }
   }
-  if (options.poses_per_map < 1) return absl::InvalidArgumentError("poses_per_map must be >= 1");
-  if (absl::Status s = options.ceres.Validate(); !s.ok()) return s;
-  if (absl::Status s = options.eif.Validate(); !s.ok()) return s;
+  if (poses_per_map < 1) return absl::InvalidArgumentError(absl::StrCat("poses_per_map must be >= 1, got ", poses_per_map));
+  if (absl::Status s = ceres.Validate(); !s.ok()) return s;
+  return eif.Validate();
+}
+
+absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const SolveOptions& options) {
+  std::vector<std::string> methods = options.methods.empty() ? SolveMethodNames() : options.methods;
+  if (absl::Status s = options.Validate(); !s.ok()) return s;
   if (absl::Status s = graph.Validate(); !s.ok()) return s;
   posegraph::PoseGraph start = graph;
   if (options.initial_from_file) {
@@ -147,9 +160,7 @@ absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const So
   result.initial_error = initial.error;
   result.initial_chi2 = initial.chi2;
   if (!options.out_dir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(options.out_dir, ec);
-    if (ec) return absl::PermissionDeniedError(absl::StrCat(options.out_dir, ": cannot create: ", ec.message()));
+    if (auto dir = io::PrepareOutputDirectory(options.out_dir, "solve"); !dir.ok()) return dir.status();
   }
   nlohmann::json entries = nlohmann::json::array();
   for (const std::string& name : methods) {
@@ -167,7 +178,7 @@ absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const So
       const std::string path = (std::filesystem::path(options.out_dir) / (name + ".g2o")).string();
       if (absl::Status s = posegraph::WriteGraph(solution, path, write); !s.ok()) return s;
     }
-    nlohmann::json entry = {{"name", m.name},       {"status", m.status},          {"error", m.error},
+    nlohmann::json entry = {{"name", m.name},       {"status", m.status},          {"converged", m.converged},  {"error", m.error},
                             {"chi2", m.chi2},       {"iterations", m.iterations},  {"seconds", m.seconds},
                             {"peak_rss_mb", m.peak_rss_mb}};
     if (!m.details.is_null()) entry["details"] = m.details;
@@ -181,7 +192,9 @@ absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const So
                    {"initial_error", result.initial_error},
                    {"initial_chi2", result.initial_chi2},
                    {"poses_per_map", options.poses_per_map},
-                   {"methods", entries}};
+                   {"methods", entries},
+                   {"build", BuildJson()}};
+  if (!options.invocation.is_null()) result.report["invocation"] = options.invocation;
   if (!options.out_dir.empty()) {
     const std::string path = (std::filesystem::path(options.out_dir) / "report.json").string();
     if (absl::Status s = io::WriteTextFile(path, result.report.dump(2) + "\n"); !s.ok()) return s;
@@ -199,8 +212,10 @@ std::string SolveTable(const SolveResult& result) {
                             m.peak_rss_mb, m.status);
       continue;
     }
-    absl::StrAppendFormat(&out, "%-11s %14.4f %14.4f %10d %9.3f %9.1f  ok\n", m.name, m.error, m.chi2, m.iterations,
-                          m.seconds, m.peak_rss_mb);
+    absl::StrAppendFormat(&out, "%-11s %14.4f %14.4f %10d %9.3f %9.1f  %s\n", m.name, m.error, m.chi2, m.iterations,
+                          m.seconds, m.peak_rss_mb,
+                          m.converged ? "converged"
+                                      : absl::StrCat("NOT CONVERGED: stopped at the iteration limit (--max_iterations)"));
   }
   return out;
 }

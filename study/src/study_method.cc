@@ -26,6 +26,19 @@ const eval::TrajectoryErrors& OnlineErrors(const pipeline::RunResult& r) {
   return r.errors_online ? *r.errors_online : *r.errors;
 }
 
+std::string OneThreadFlags(const StudyMethod& method) {
+  pipeline::RunOptions options;
+  method.configure(&options);
+  using pipeline::Frontend;
+  std::string flags;
+  if (options.frontend == Frontend::kFastSlam || options.frontend == Frontend::kRbpf) flags += " --threads 1";
+  if ((options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal) &&
+      options.backend.kind != pipeline::Backend::kNone) {
+    flags += " --join_in_background=false";
+  }
+  return flags;
+}
+
 const StudyMethod* FindMethod(const std::vector<StudyMethod>& methods, const std::string& name) {
   for (const StudyMethod& m : methods) {
     if (m.name == name) return &m;
@@ -44,7 +57,7 @@ nlohmann::json MethodsJson(const std::vector<StudyMethod>& methods, const std::s
   for (const StudyMethod& m : methods) {
     list.push_back({{"method", m.name},
                     {"description", m.description},
-                    {"command", absl::StrCat(trial_command, " ", m.flags, " ", kOneThreadFlags)}});
+                    {"command", absl::StrCat(trial_command, " ", m.flags, OneThreadFlags(m))}});
   }
   return list;
 }

@@ -24,8 +24,10 @@ struct StudyMethod {
 };
 
 // Every study run uses one thread and joins in the foreground (the online pose holds each
-// join as soon as its map closes); these are the flags that say so.
-inline constexpr char kOneThreadFlags[] = "--threads 1 --join_in_background=false";
+// join as soon as its map closes); the flags that say so for `method` (the tool refuses a
+// flag its front-end and back-end do not read): --threads 1 for the particle filters,
+// --join_in_background=false for local maps joined by a back-end.
+std::string OneThreadFlags(const StudyMethod& method);
 
 // Runs `method` on `dataset` with one thread and foreground joins.
 absl::StatusOr<pipeline::RunResult> RunMethod(const StudyMethod& method, io::Dataset dataset);
@@ -40,7 +42,7 @@ const StudyMethod* FindMethod(const std::vector<StudyMethod>& methods, const std
 std::vector<std::string> MethodNames(const std::vector<StudyMethod>& methods);
 
 // config.json's "methods": name, description and `command` = `trial_command` + flags +
-// kOneThreadFlags.
+// OneThreadFlags.
 nlohmann::json MethodsJson(const std::vector<StudyMethod>& methods, const std::string& trial_command);
 
 }  // namespace subslam::study

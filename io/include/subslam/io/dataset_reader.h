@@ -17,7 +17,8 @@
 
 namespace subslam::io {
 
-// Reads `directory`/dataset.json and the text files it names.
+// Reads `directory`/dataset.json and the text files it names (`directory` may also be
+// the path of the dataset.json itself).
 absl::StatusOr<Dataset> ReadDataset(const std::string& directory);
 
 // Returns the whole content of the file at a path, or an error naming it.

@@ -38,12 +38,19 @@ struct JoinOptions {
   }();
   Pose2 initial_pose;           // anchor 0
   std::string out_dir;          // empty: write nothing
+  // How the job was invoked, recorded as report.json's "invocation" (the tool: its command
+  // line and every flag's value).
+  nlohmann::json invocation;
   // Ground truth for the report (optional): true poses (anchors compared at their times)
   // and true landmarks (map errors), and of those the ones the sensor saw, which the map
   // metric matches estimates against (eval::ObservedTruthLandmarks; empty: all).
   std::vector<io::TimedPose> truth_poses;
   std::vector<io::TruthLandmark> truth_landmarks;
   std::vector<io::TruthLandmark> observed_truth_landmarks;
+  // GPS fixes of the data set the maps were built on (optional): the anchors, interpolated
+  // between them, are compared with them after a rigid alignment (metrics gps_anchors and
+  // gps_anchors_online).
+  std::vector<io::TimedPoint> gps;
 };
 
 // Association against truth_id (when the local maps carry them), from a joined graph's
@@ -93,6 +100,10 @@ struct JoinResult {
 };
 
 absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options);
+
+// A short human-readable summary of a join, in the style of the run's SummaryTable: only
+// the figures the inputs allow (no association counts for maps without true ids).
+std::string JoinSummaryTable(const JoinResult& result);
 
 }  // namespace subslam::pipeline
 

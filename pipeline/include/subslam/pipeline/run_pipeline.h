@@ -72,6 +72,13 @@ struct RunOptions {
   std::string out_dir;          // empty: write nothing
   bool progress = false;        // progress line on stderr (when it is a terminal)
   std::string source;           // what was run, for the report ("scenario hybrid-120m seed 1")
+  // How the run was invoked, recorded as report.json's "invocation" (the tool: its command
+  // line and every flag's value, so that `subslam run --config report.json` repeats it).
+  nlohmann::json invocation;
+
+  // Every option struct's own check (the noise overrides are checked against the data set
+  // they change, by RunPipeline).
+  absl::Status Validate() const;
 };
 
 struct LocalMapSummary {

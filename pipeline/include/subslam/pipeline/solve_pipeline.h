@@ -54,16 +54,25 @@ struct SolveOptions {
   }();
   backend::EifJoinerOptions eif;
   std::string out_dir;  // empty: write nothing
+  // How the job was invoked, recorded as report.json's "invocation" (the tool: its command
+  // line and every flag's value).
+  nlohmann::json invocation;
   // Also write the submap routes' local maps (METHOD_submaps.jsonl in out_dir), so that
   // other back-ends join the same maps (`subslam join --known_association`).
   bool write_local_maps = false;
   // What the report says the graph is (file, format, noise reading).
   nlohmann::json source;
+
+  // Known methods, poses_per_map >= 1, valid Ceres and EIF options.
+  absl::Status Validate() const;
 };
 
 struct SolveMethodResult {
   std::string name;
   std::string status = "ok";  // or why it did not run
+  // Whether the method met its own convergence test; false when Ceres stopped at its
+  // iteration limit (termination NO_CONVERGENCE: raise SolveOptions::ceres.max_iterations).
+  bool converged = true;
   double error = 0.0, chi2 = 0.0;
   int iterations = 0;
   double seconds = 0.0;
