@@ -2,8 +2,9 @@
 # Installs what is missing, builds, and runs the main job on the embedded default
 # scenario hybrid-120m (seed 1): RBPF local maps (FastSLAM 2.0, 300 particles, each map
 # moment-matched into one Gaussian and checked against ground truth) joined by the sparse
-# EIF back-end; then single-map EKF-SLAM and dead reckoning on the same data for
-# comparison. Prints the summary tables and where the outputs went.
+# EIF back-end; then, on the same data for comparison, single-map EKF-SLAM, SEIF, ISEIF
+# and dead reckoning. Prints each run's summary table and where its outputs went
+# (runs/demo/{rbpf_eif,ekfslam,seif,iseif,odometry}/; OUT overrides runs/demo).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 "$ROOT/scripts/setup.sh" > "${TMPDIR:-/tmp}/subslam_demo_build.log" 2>&1 || {

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <set>
 
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
@@ -97,6 +98,46 @@ TEST(KnownAssociation, EkfSlamFeaturesFollowTheTrueIds) {
   ExpectExportCarriesTrueIds(filter.Export(0.0), truth_of_feature);
   EXPECT_EQ(filter.counters().known_ignored, false_alarms);
   EXPECT_EQ(filter.counters().ambiguous, 0);
+}
+
+// A sensor that detects far less often than the filters' existence model assumes (the
+// simulation's α 0.3 against the model's 0.9): with the true ids each landmark exists from
+// its first detection, so misses never drop one from the map.
+TEST(KnownAssociation, MissedDetectionsKeepEveryLandmarkInTheMap) {
+  sim::ScenarioOptions o;
+  o.seed = 5;
+  o.duration_s = 150.0;
+  o.detection_probability = 0.3;
+  absl::StatusOr<io::Dataset> d = sim::SimulateScenario("combined-2km", o);
+  ASSERT_TRUE(d.ok()) << d.status().message();
+  std::set<int> seen;
+  for (const Scan& scan : d->scans) {
+    for (const Detection& z : scan.detections) {
+      if (z.truth_id >= 0 && z.range_m >= d->sensor.range_bearing.min_range_m &&
+          z.range_m <= d->sensor.range_bearing.max_range_m) {
+        seen.insert(z.truth_id);
+      }
+    }
+  }
+  ASSERT_GT(seen.size(), 30u);
+  FastSlamOptions fastslam;
+  fastslam.num_particles = 20;
+  fastslam.num_threads = 1;
+  fastslam.landmarks.known_association = true;
+  FastSlam particles(d->motion.MakeModel(), d->sensor.range_bearing, d->initial_pose, fastslam);
+  EkfSlamOptions ekf;
+  ekf.landmarks.known_association = true;
+  EkfSlam single(d->motion.MakeModel(), d->sensor.range_bearing, d->initial_pose, ekf);
+  for (const io::Step& step : io::BuildSteps(*d)) {
+    particles.Predict(step.control, step.dt);
+    single.Predict(step.control, step.dt);
+    if (step.scan_index < 0) continue;
+    particles.Update(d->scans[step.scan_index]);
+    single.Update(d->scans[step.scan_index]);
+  }
+  EXPECT_EQ(particles.Map().size(), seen.size());
+  EXPECT_EQ(single.Map().size(), seen.size());
+  EXPECT_EQ(single.Export(0.95).features.size(), seen.size());  // a local map's export threshold
 }
 
 // Without the option the same filters never read the true ids: a run on data whose ids
