@@ -344,7 +344,7 @@ void EkfSlam::AddLandmark(const Eigen::Vector2d& z, int truth_id) {
   LandmarkInfo info;
   info.id = next_id_++;
   info.truth_id = truth_id;
-  info.existence = options_.landmarks.InitialExistence();  // the prior and the creating detection
+  info.existence = options_.landmarks.existence.Initial();  // the prior and the creating detection
   info.confirmed = options_.landmarks.existence.Confirms(info.existence);
   landmarks_.push_back(info);
   ++counters_.new_landmarks;

@@ -461,7 +461,7 @@ void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vecto
       }
       LandmarkRecord record;
       record.gaussian = std::move(l);
-      record.existence = options_.landmarks.InitialExistence();  // the prior and the creating detection
+      record.existence = options_.landmarks.existence.Initial();  // the prior and the creating detection
       record.confirmed = options_.landmarks.existence.Confirms(record.existence);
       record.feature = voted_label_[2 * j + 1];
       landmarks.push_back(std::move(record));

@@ -213,7 +213,7 @@ std::vector<int> SeifSlam::ManageLandmarks(const Scan& scan, const std::vector<i
     if (!creates[j]) continue;
     const int l = AddLandmarkSlot(sensor_.InverseObserve(updated, z[j]));
     LandmarkInfo& info = landmarks_[l];
-    info.existence = options_.landmarks.InitialExistence();
+    info.existence = options_.landmarks.existence.Initial();
     info.confirmed = options_.landmarks.existence.Confirms(info.existence);
     info.last_seen_scan = counters_.scans;
     if (options_.landmarks.known_association) {

@@ -19,11 +19,11 @@ struct LandmarkOptions {
   // Known association (simulations; a study option, as in Combined SLAM §7): each
   // detection is paired with the landmark of the same Detection::truth_id, without
   // gating, or starts one; false alarms (no true id) and repeated ids in a scan are
-  // dropped. A true id settles existence too: every landmark exists from its first
-  // detection on (existence at its maximum, confirmed), a miss does not lower it, and no
-  // landmark is culled — so a sensor that detects less often than `existence` assumes
-  // does not drop true landmarks from the map. The exported maps then carry each
-  // feature's true id.
+  // dropped. A true id settles that the landmark exists: a miss does not lower its
+  // existence and no landmark is culled, so a sensor that detects less often than
+  // `existence` assumes does not drop true landmarks from the map; a landmark is
+  // confirmed (reported, exported) by its detections as with unknown association. The
+  // exported maps then carry each feature's true id.
   bool known_association = false;
   // Existence model (HybridSLAM Eq. 11): the filter's α and β (not the simulator's).
   ExistenceModel existence;
@@ -37,13 +37,10 @@ struct LandmarkOptions {
 
   absl::Status Validate() const;
 
-  // A new landmark's existence, and a landmark's existence after a detection or an
-  // expected miss: the existence model's, or its maximum under known association.
-  double InitialExistence() const {
-    return known_association ? existence.max_existence : existence.Initial();
-  }
+  // A landmark's existence after a detection or an expected miss: the existence model's
+  // update, except that under known association a miss leaves it as it is.
   double UpdatedExistence(double current, bool detected) const {
-    return known_association ? existence.max_existence : existence.Update(current, detected);
+    return known_association && !detected ? current : existence.Update(current, detected);
   }
 };
 
