@@ -7,6 +7,8 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include <nlohmann/json.hpp>
+
 #include "absl/strings/str_cat.h"
 
 namespace subslam::io {
@@ -16,6 +18,21 @@ constexpr std::array<std::string_view, 10> kExtensions = {".csv", ".dat", ".json
                                                           ".tum", ".g2o", ".isam", ".toro", ".graph"};
 
 std::string Str(std::string_view text) { return std::string(text); }
+
+// An output directory that a version of the tool before the marker wrote: its report.json
+// (a run's or join's "format": "subslam-…", a solve's "job") or a study's config.json.
+bool HoldsEarlierReport(const std::filesystem::path& dir) {
+  const auto parse = [](const std::filesystem::path& path) {
+    std::ifstream in(path);
+    return in ? nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false) : nlohmann::json();
+  };
+  const nlohmann::json report = parse(dir / "report.json");
+  if (report.is_object() && (report.value("format", "").starts_with("subslam-") || report.contains("job"))) {
+    return true;
+  }
+  const nlohmann::json config = parse(dir / "config.json");
+  return config.is_object() && config.contains("study") && config.contains("runs");
+}
 
 bool IsOutput(const std::filesystem::directory_entry& entry) {
   if (entry.is_directory()) return entry.path().filename() == "plots";
@@ -39,7 +56,7 @@ absl::StatusOr<std::filesystem::path> PrepareOutputDirectory(const std::string& 
   std::vector<std::filesystem::directory_entry> entries;
   for (const auto& entry : std::filesystem::directory_iterator(path, ec)) entries.push_back(entry);
   if (ec) return absl::PermissionDeniedError(absl::StrCat(dir, ": cannot list the output directory: ", ec.message()));
-  const bool ours = std::filesystem::exists(marker, ec);
+  const bool ours = std::filesystem::exists(marker, ec) || HoldsEarlierReport(path);
   if (!entries.empty() && !ours) {
     return absl::FailedPreconditionError(absl::StrCat(
         dir, ": the output directory is not empty and is not an output directory of subslam (it has no ",

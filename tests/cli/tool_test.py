@@ -105,6 +105,16 @@ class OutputDirectory(unittest.TestCase):
         self.assertTrue(os.path.exists(os.path.join(out, "notes.txt")))
         self.assertTrue(os.path.exists(os.path.join(out, "landmarks.csv")))
 
+    def test_an_output_directory_of_an_earlier_version_is_reused(self):
+        out = work("earlier_version")
+        os.makedirs(out)
+        with open(os.path.join(out, "report.json"), "w") as f:
+            json.dump({"format": "subslam-report/1"}, f)
+        with open(os.path.join(out, "joins.csv"), "w") as f:
+            f.write("map_id,seconds\n")
+        self.assertEqual(self.run_into(out)[0], 0)
+        self.assertFalse(os.path.exists(os.path.join(out, "joins.csv")))
+
     def test_a_foreign_non_empty_directory_is_refused_and_left_alone(self):
         out = work("foreign")
         os.makedirs(out)

@@ -1,7 +1,8 @@
 // A command's output directory is its own. Preparing it for a command:
 //   - a directory that does not exist is created (with its parents), an empty one is taken;
 //   - a non-empty directory is taken only when it holds the marker file `.subslam` that an
-//     earlier command of the tool wrote there; the earlier outputs are then removed first:
+//     earlier command of the tool wrote there (or, from versions before the marker, a
+//     subslam report.json or study config.json); the earlier outputs are then removed first:
 //     every file whose name ends in one of OutputExtensions(), and the `plots/`
 //     subdirectory. Other files (a user's notes, say) are left where they are;
 //   - a non-empty directory without the marker is refused, and nothing in it is touched.
