@@ -267,9 +267,9 @@ std::string JoinSummaryTable(const JoinResult& r) {
   gps_row("gps_anchors_online", "aligned RMS vs GPS (online anchors)");
   if (metrics.contains("association_vs_truth_id")) {
     const AssociationVsTruth& a = r.association;
-    row("association vs true ids", absl::StrFormat("%d correct, %d missed, %d wrong merges; loops %d / %d missed",
-                                                   a.correct, a.missed, a.wrong, a.loop_missed,
-                                                   a.loop_merged + a.loop_missed));
+    row("association vs true ids",
+        absl::StrFormat("%d true landmarks seen; %d missed, %d wrong merges; loop re-observations %d / %d missed",
+                        a.correct, a.missed, a.wrong, a.loop_missed, a.loop_merged + a.loop_missed));
   }
   if (counts.contains("sensor_yaw_correction")) {
     row("sensor yaw, online calibration", absl::StrFormat("%+.4f rad (sigma %.4f)",
