@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 
 #include "subslam/models/range_bearing_model.h"
 #include "test_util.h"
@@ -176,6 +178,69 @@ TEST(Simulator, TruthFollowsTheMotionModelAndPath) {
   }
   EXPECT_LT(max_radius_error, 10.0);
   EXPECT_GT(circle->truth_poses.back().t, 2 * kPi * 100 / 3.0);
+}
+
+}  // namespace
+}  // namespace subslam::sim
+
+namespace subslam::sim {
+namespace {
+
+// camera-robot holds what a new robot's manifest does not say: odometry that reports the
+// commanded rates while the robot drives at 0.93× them, gaps in the odometry, moving
+// objects with landmark markers (detections without a true id, as the scenario has no
+// clutter), and a detection probability that falls with range.
+TEST(Simulator, CameraRobotHoldsWhatItsManifestDoesNotSay) {
+  ScenarioOptions o;
+  o.seed = 3;
+  o.duration_s = 300.0;
+  absl::StatusOr<ScenarioConfig> config = MakeScenario("camera-robot", o);
+  ASSERT_TRUE(config.ok());
+  absl::StatusOr<io::Dataset> d = Simulate(*config, o.seed);
+  ASSERT_TRUE(d.ok()) << d.status();
+  // Distance the reported odometry drives (each control held until the next) against the
+  // true path's.
+  double reported = 0.0, driven = 0.0, longest_gap = 0.0;
+  for (size_t i = 0; i + 1 < d->controls.size(); ++i) {
+    const double dt = d->controls[i + 1].t - d->controls[i].t;
+    reported += d->controls[i].u[0] * dt;
+    longest_gap = std::max(longest_gap, dt);
+  }
+  for (size_t k = 0; k + 1 < d->truth_poses.size(); ++k) {
+    driven += (d->truth_poses[k + 1].pose.translation() - d->truth_poses[k].pose.translation()).norm();
+  }
+  EXPECT_NEAR(driven / reported, config->odometry_scale[0], 0.02);
+  EXPECT_GT(longest_gap, 0.2);
+  EXPECT_LE(longest_gap, config->max_control_gap_s + 1.0 / config->control_rate_hz + 1e-9);
+  // Detections per visible landmark near (within the full-probability range) and far.
+  std::map<double, const Scan*> scan_at;
+  for (const Scan& scan : d->scans) scan_at[scan.t] = &scan;
+  const models::RangeBearingModel sensor(config->sensor);
+  long near_visible = 0, near_detected = 0, far_visible = 0, far_detected = 0, moving = 0;
+  for (const Scan& scan : d->scans) {
+    for (const Detection& z : scan.detections) moving += z.truth_id == kFalseAlarmId;
+  }
+  for (size_t k = config->observation_every; k < d->truth_poses.size(); k += config->observation_every) {
+    const io::TimedPose& x = d->truth_poses[k];
+    const auto it = scan_at.find(x.t);
+    for (const io::TruthLandmark& l : config->landmarks) {
+      const Eigen::Vector2d z = sensor.Observe(x.pose, l.p);
+      if (!sensor.IsVisible(z) || (z[0] > 2.0 && z[0] < 6.0)) continue;
+      bool detected = false;
+      if (it != scan_at.end()) {
+        for (const Detection& det : it->second->detections) detected = detected || det.truth_id == l.id;
+      }
+      (z[0] <= 2.0 ? near_visible : far_visible) += 1;
+      (z[0] <= 2.0 ? near_detected : far_detected) += detected;
+    }
+  }
+  ASSERT_GT(near_visible, 200);
+  ASSERT_GT(far_visible, 200);
+  // Binomial: 0.56 within ±4σ near; beyond 6 m the probability is at most 0.56·2.7/6.7.
+  const double near_rate = static_cast<double>(near_detected) / near_visible;
+  EXPECT_NEAR(near_rate, 0.56, 4.0 * std::sqrt(0.56 * 0.44 / near_visible));
+  EXPECT_LT(static_cast<double>(far_detected) / far_visible, 0.56 * 2.7 / 6.7);
+  EXPECT_GT(moving, 20);
 }
 
 }  // namespace

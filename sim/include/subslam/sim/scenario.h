@@ -13,6 +13,13 @@
 //                 astride it, wheelbase 4 m, 3 m/s, max steer 30°, σ (0.3 m/s, 2°),
 //                 σ (0.2 m, 2°), 40 Hz / 5 Hz, 30 m.
 //   random        knobs for scaling studies (world size, landmarks, path length, noise).
+//   camera-robot  a small indoor robot of the MRCLAM kind (ours, from that data set's
+//                 description): a 15 m × 8 m room, 15 landmarks, 0.2 m/s at random, a
+//                 camera with a 62° field of view, 1–8.7 m, σ_r 0.1 m, σ_b 1°, detecting
+//                 a landmark with probability 0.56 up to 2 m and less beyond; odometry
+//                 reported as commanded while the robot drives at 0.93× and turns at
+//                 0.95×; four other robots moving with the same markers; odometry gaps
+//                 of up to 1 s.
 //
 // A scenario is fully determined by (name, options): the world (landmarks, waypoint
 // jitter) is drawn from `world_seed` and the noise from `seed`.
@@ -20,9 +27,12 @@
 #define SUBSLAM_SIM_SCENARIO_H_
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include <Eigen/Geometry>
 
 #include "absl/status/statusor.h"
 #include "subslam/io/dataset.h"
@@ -69,8 +79,26 @@ struct ScenarioConfig {
   ReferenceFunction reference;         // kReference only
   ReferenceTrackerGains tracker_gains;
   std::vector<io::TruthLandmark> landmarks;
-  double detection_probability = 1.0;  // α
+  double detection_probability = 1.0;  // α (ScenarioOptions overrides it)
   double false_alarm_probability = 0.0;  // β: per visible feature and scan
+  // The detection probability falls with range: α up to detection_full_range_m, then
+  // linearly to zero at the sensor's max_range_m (infinity: α at every range).
+  double detection_full_range_m = std::numeric_limits<double>::infinity();
+  // The vehicle moves by these factors of the commanded speed and turn rate, which the
+  // data set reports as its odometry: a systematic error that the white noise of
+  // `motion.noise` does not describe ({1, 1}: none).
+  Eigen::Vector2d odometry_scale = Eigen::Vector2d::Ones();
+  // Objects that move (other robots) and carry the landmarks' markers: each is detected as
+  // a landmark would be and reported without a true id (a false alarm that persists and
+  // moves). They drive at moving_object_speed_mps between random points of the region.
+  int moving_objects = 0;
+  double moving_object_speed_mps = 0.2;
+  Eigen::AlignedBox2d moving_object_region;
+  // Gaps in the odometry: at each control step a gap starts with this probability and
+  // lasts uniform in (0, max_control_gap_s]; the vehicle moves on, and the data set holds
+  // no control line inside the gap (the last one is held, as a reader of real logs does).
+  double control_gap_probability = 0.0;
+  double max_control_gap_s = 1.0;
   bool with_signature = false;
   double signature_sigma = 0.02;       // σ of the signature cue (e.g. trunk diameter [m])
   std::vector<double> landmark_signatures;  // true signature per landmark, when used
