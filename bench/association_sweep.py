@@ -98,7 +98,7 @@ def combined(args):
         for name, flags in variants.items():
             j = out + "_join_" + name.replace(" ", "_")
             jobs.append([args.bin, "join", "--submaps", os.path.join(out, "submaps.jsonl"), "--backend", "eif",
-                         "--scenario", "combined-2km", "--seed", str(s), "--progress=false", "--out", j] + flags +
+                         "--scenario", "combined-2km", "--seed", str(s), "--out", j] + flags +
                         args.extra)
             cells.append((name, s, j))
     pool(args, jobs)
@@ -137,7 +137,7 @@ def backends(args):
             b, *flags = name.split()
             j = os.path.join(args.out, f"combined_s{s}_backend_{name.replace(' --', '_')}")
             jobs.append([args.bin, "join", "--submaps", os.path.join(out, "submaps.jsonl"), "--backend", b,
-                         "--scenario", "combined-2km", "--seed", str(s), "--progress=false", "--out", j] + flags +
+                         "--scenario", "combined-2km", "--seed", str(s), "--out", j] + flags +
                         args.extra)
             cells[(name, s)] = j
     pool(args, jobs)
