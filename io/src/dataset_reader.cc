@@ -345,7 +345,7 @@ absl::StatusOr<Dataset> ReadDataset(const std::string& directory, const FileRead
                                           "\" (expected subslam-dataset/1)"));
   }
   Dataset d;
-  d.directory = directory;
+  d.directory = dir.string();
   SUBSLAM_ASSIGN_OR_RETURN(d.name, m.String(j, "", "name"));
   std::vector<double> initial = {0, 0, 0};
   if (j.contains("initial_pose")) {
@@ -369,7 +369,7 @@ absl::StatusOr<Dataset> ReadDataset(const std::string& directory, const FileRead
   if (j.contains("ground_truth") && !j.at("ground_truth").is_null()) {
     const json* truth = nullptr;
     SUBSLAM_ASSIGN_OR_RETURN(truth, m.Object(j, "", "ground_truth"));
-    if (absl::Status s = ReadGroundTruth(read, directory, m, *truth, &d); !s.ok()) return s;
+    if (absl::Status s = ReadGroundTruth(read, dir.string(), m, *truth, &d); !s.ok()) return s;
   }
   return d;
 }

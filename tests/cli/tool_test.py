@@ -83,6 +83,13 @@ class RefusedFlags(unittest.TestCase):
                 self.assertIn(text, err, args)
             self.assertFalse(os.path.exists(os.path.join(ARGS.work, "refused")), "a refused run wrote outputs")
 
+    def test_the_manifests_own_path_names_its_data_set(self):
+        status, out, err = tool("run", "--dataset", os.path.join(ARGS.data, "dataset.json"), "--frontend",
+                                "odometry")
+        self.assertEqual(status, 0, err)
+        self.assertIn("odometry", out)
+        self.assertNotIn("map: matched", out, "a map row for a run without a map")
+
     def test_a_stray_argument_is_named(self):
         status, _, err = tool("run", "--dataset", ARGS.data, "--frontend", "ekfslam", "stray")
         self.assertEqual(status, 1)
