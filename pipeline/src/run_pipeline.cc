@@ -2,6 +2,7 @@
 
 #include "joins_csv.h"
 #include "report_json.h"
+#include "run_report.h"
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -122,13 +123,6 @@ std::future<absl::Status> WriteInBackground(Write write) {
     return std::async(std::launch::deferred, std::move(write));
   }
 }
-
-// The SEIF options the run uses (ISEIF: the iterated update on), after every option
-// struct was validated; and whether any stage associates by the true ids.
-struct CheckedOptions {
-  frontend::SeifOptions seif;
-  bool known_association = false;
-};
 
 // The SEIF options of the front-end: ISEIF turns the iterated update on.
 frontend::SeifOptions SeifOptionsOf(const RunOptions& options) {
@@ -331,156 +325,6 @@ json Evaluate(const io::Dataset& dataset, const RunOptions& options, const Subma
   return metrics;
 }
 
-// report.json's "health": whether the run completed, the input rules' counts, and each
-// failure kind the estimator watches for (docs/formats.md, "health").
-json Health(const RunResult& r, const std::map<std::string, double>& counters) {
-  const auto count = [&counters](const char* name) {
-    const auto it = counters.find(name);
-    return it == counters.end() ? 0.0 : it->second;
-  };
-  const auto has = [&counters](const char* name) { return counters.count(name) > 0; };
-  json h = {{"completed", !r.stop.has_value()}};
-  if (r.stop) {
-    h["stopped"] = {{"cause", ToString(r.stop->cause)},
-                    {"step", r.stop->step}, {"t", r.stop->t}, {"reason", r.stop->reason},
-                    {"steps_in_outputs", r.online.size()}, {"final_trajectory_steps", r.final_trajectory.size()}};
-  }
-  h["inputs"] = {{"control_spikes_replaced", r.inputs.control_spikes},
-                 {"time_gaps", r.inputs.time_gaps},
-                 {"longest_step_interval_s", r.inputs.longest_gap_s},
-                 {"median_step_interval_s", r.inputs.median_interval_s},
-                 {"repeated_control_times", r.inputs.duplicate_control_times},
-                 {"detections_out_of_range", r.inputs.detections_out_of_range}};
-  if (has("min_ess_ratio")) {
-    h["particles"] = {{"min_ess_ratio", count("min_ess_ratio")},
-                      {"depleted_updates", count("depleted_updates")},
-                      {"lineage_collapses", count("lineage_collapses")},
-                      {"weight_collapses", count("weight_collapses")}};
-  }
-  if (has("innovation_windows_tested")) {
-    h["divergence"] = {{"windows_tested", count("innovation_windows_tested")},
-                       {"windows_failed", count("innovation_windows_failed")},
-                       {"episodes", count("divergence_episodes")},
-                       {"longest_episode_scans", count("longest_divergence_scans")}};
-  }
-  h["numerical_failures"] = {{"filter", count("numerical_failures")},
-                             {"factor_updates_refactorised", count("join_failed_updates")}};
-  if (has("join_maps")) {
-    h["joins"] = {{"joined", count("join_maps")},
-                  {"failed", r.join_failed ? 1 : 0},
-                  {"rejected_and_joined_without_associations", count("join_rejected")},
-                  {"loop_closures_undone", count("join_loop_closures_unconfirmed")},
-                  {"landmarks_merged", count("join_landmarks_merged")},
-                  {"features_split", count("join_features_split")}};
-  }
-  h["non_finite_landmarks_dropped"] = r.non_finite_landmarks;
-  return h;
-}
-
-// report.json: configuration, counts, the estimator's counters and stage times, memory and
-// the metrics.
-json Report(const io::Dataset& dataset, const RunOptions& options, const CheckedOptions& checked,
-            const frontend::OnlineEstimator& estimator, const RunResult& r, json metrics) {
-  const frontend::SeifOptions& seif = checked.seif;
-  json stage_times = json::object();
-  for (const auto& [stage, seconds] : estimator.stage_times()) stage_times[stage] = seconds;
-  json counters = json::object();
-  const std::map<std::string, double> estimator_counters = estimator.Counters();
-  for (const auto& [name, value] : estimator_counters) counters[name] = value;
-  const models::RangeBearingConfig& rb = dataset.sensor.range_bearing;
-  json report = {
-      {"format", "subslam-report/1"},
-      {"source", r.source},
-      {"dataset", dataset.name},
-      {"configuration",
-       {{"frontend", r.frontend},
-        {"motion_model", io::ToString(dataset.motion.model)},
-        {"sigma_v", dataset.motion.noise.sigma_u0},
-        {"sigma_u1", dataset.motion.noise.sigma_u1},
-        {"sigma_v_scale", dataset.motion.noise.scale_u0},
-        {"sigma_u1_scale", dataset.motion.noise.scale_u1},
-        {"sigma_range", rb.sigma_range_m},
-        {"sigma_bearing", rb.sigma_bearing_rad},
-        {"min_range", rb.min_range_m},
-        {"max_range", rb.max_range_m},
-        {"sensor_yaw", options.noise.sensor_yaw.value_or(0.0)},
-        {"association", checked.known_association ? "known" : association::ToString(options.ekf.association)},
-        {"gate_probability", options.ekf.landmarks.gate_probability},
-        {"new_landmark_probability", options.ekf.landmarks.new_landmark_probability},
-        {"existence_detection_probability", options.ekf.landmarks.existence.detection_probability},
-        {"existence_false_alarm_probability", options.ekf.landmarks.existence.false_alarm_probability}}},
-      {"counts",
-       {{"steps", r.steps},
-        {"scans", r.scans},
-        {"detections", r.detections},
-        {"submaps", r.local_maps.size()},
-        {"landmarks", r.landmarks.size()}}},
-      {"estimator_counters", counters},
-      {"time_seconds",
-       {{"total", r.wall_seconds},
-        {"stages", stage_times},
-        {"cumulative_by_tenth_of_steps", r.wall_seconds_by_tenth}}},
-      {"peak_rss_kb", r.peak_rss_kb},
-      {"rss_kb_by_tenth_of_steps", r.rss_kb_by_tenth},
-      {"health", Health(r, estimator_counters)},
-      {"metrics", std::move(metrics)}};
-
-  if (options.backend.kind != Backend::kNone &&
-      (options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal)) {
-    // What the online and final figures depend on.
-    report["configuration"]["backend"] = {
-        {"kind", ToString(options.backend.kind)},
-        {"background", options.backend.background},
-        {"relinearize_heading_change", options.backend.eif.relinearize_heading_change},
-        {"relinearize_linearization_chi2", options.backend.eif.relinearize_linearization_chi2},
-        {"relinearize_every", options.backend.eif.relinearize_every},
-        {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}};
-  }
-  if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
-    report["configuration"]["seif"] = {
-        {"known_association", seif.landmarks.known_association},
-        {"association", association::ToString(seif.association)},
-        {"max_active_landmarks", seif.max_active_landmarks},
-        {"mean_recovery", frontend::ToString(seif.recovery)},
-        {"relaxation_sweeps", seif.relaxation_sweeps},
-        {"relaxation_extra_landmarks", seif.relaxation_extra_landmarks},
-        {"covariance_recovery", frontend::ToString(seif.covariance)},
-        {"pose_covariance", frontend::ToString(seif.pose_covariance)},
-        {"candidate_radius_m", seif.candidate_radius_m},
-        {"blanket_max_landmarks", seif.blanket_max_landmarks},
-        {"iterated", seif.iterated.enabled},
-        {"iterated_period_scans", seif.iterated.period_scans},
-        {"iterated_max_iterations", seif.iterated.max_iterations},
-        {"iterated_stop_change", seif.iterated.stop_change},
-        {"iterated_exact_recoveries", seif.iterated.exact_recoveries}};
-  }
-  if (options.frontend == Frontend::kFastSlam || options.frontend == Frontend::kRbpf) {
-    const frontend::FastSlamOptions& f = options.fastslam;
-    report["configuration"]["particle_filter"] = {{"particles", f.num_particles},
-                                                  {"filter_seed", f.seed},
-                                                  {"sample_association", f.sample_association},
-                                                  {"landmark_update_iterations", f.landmark_update_iterations},
-                                                  {"resample_ess_ratio", f.resample_ess_ratio},
-                                                  {"sensor_yaw_sigma", f.sensor_yaw_sigma}};
-  }
-  if (options.frontend == Frontend::kRbpf || options.frontend == Frontend::kEkfLocal) {
-    const frontend::SubmapPolicyOptions& p = options.policy;
-    report["configuration"]["submap_policy"] = {{"min_duration_s", p.min_duration_s},
-                                                {"max_duration_s", p.max_duration_s},
-                                                {"max_features", p.max_features},
-                                                {"min_ess_ratio", p.min_ess_ratio},
-                                                {"min_lineage_diversity", p.min_lineage_diversity},
-                                                {"max_pose_sigma_ratio", p.max_pose_sigma_ratio},
-                                                {"max_feature_sigma_ratio", p.max_feature_sigma_ratio},
-                                                {"density_min_features", p.density_min_features},
-                                                {"density_min_visible", p.density_min_visible},
-                                                {"delay_while_ambiguous", p.delay_while_ambiguous}};
-  }
-  report["build"] = BuildJson();
-  if (!options.invocation.is_null()) report["invocation"] = options.invocation;
-  return report;
-}
-
 // The per-step pose errors against the truth (pose_errors.csv): t, then for the online and
 // the final trajectory the position error [m], heading error [rad] and NEES (nan where the
 // covariance is singular).
@@ -660,125 +504,13 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   }
   r.peak_rss_kb = PeakRssKb();
   json metrics = Evaluate(dataset, options, chain, &r);
-  r.report = Report(dataset, options, *checked, *estimator, r, std::move(metrics));
+  r.report = RunReport(dataset, options, *checked, *estimator, r, std::move(metrics));
   if (out_dir.has_value()) {
     if (absl::Status st = WriteOutputs(*out_dir, r, dataset, chain, std::move(online_written)); !st.ok()) {
       return st;
     }
   }
   return r;
-}
-
-std::string SummaryTable(const RunResult& r) {
-  std::string s;
-  auto row = [&s](const std::string& key, const std::string& value) {
-    absl::StrAppendFormat(&s, "  %-34s %s\n", key, value);
-  };
-  row("ran", absl::StrCat(r.frontend, " on ", r.source));
-  if (r.stop) {
-    row("STOPPED", absl::StrFormat("at step %d of %d (t = %.3f s): %s; outputs up to there", r.stop->step,
-                                   r.steps, r.stop->t, r.stop->reason));
-  }
-  row("steps / scans / detections", absl::StrCat(r.steps, " / ", r.scans, " / ", r.detections));
-  row("landmarks in map", absl::StrCat(r.landmarks.size()));
-  if (r.errors) {
-    const eval::TrajectoryErrors& e = *r.errors;
-    row("RMS position / heading", absl::StrFormat("%.3f m / %.3f deg", e.rms_position_m,
-                                                  RadToDeg(e.rms_heading_rad)));
-    row("max / final position error", absl::StrFormat("%.3f m / %.3f m", e.max_position_error_m,
-                                                      e.final_position_error_m));
-    row("mean pose NEES (3 dof)", absl::StrFormat("%.2f  (CI %.2f)", e.mean_nees,
-                                                  e.mean_consistency_index));
-    row("steps with NEES in 95% bounds", absl::StrFormat("%.1f %%", 100 * e.fraction_nees_in_bounds));
-    row("10-sigma failure test", e.failed ? "FAILED" : "passed");
-  }
-  if (r.errors_online) {
-    row("online: RMS position / NEES in bounds",
-        absl::StrFormat("%.3f m / %.1f %% (trajectory_online.csv)", r.errors_online->rms_position_m,
-                        100 * r.errors_online->fraction_nees_in_bounds));
-  }
-  if (r.map_errors && r.map_errors->estimated > 0) {
-    row("map: matched / spurious / duplicate",
-        absl::StrFormat("%d / %d / %d, RMS %.3f m", r.map_errors->matched, r.map_errors->spurious,
-                        r.map_errors->duplicates, r.map_errors->rms_m));
-  }
-  if (r.gps_final) {
-    row("aligned RMS vs GPS (final)",
-        absl::StrFormat("%.2f m (x %.2f, y %.2f; %d fixes, %d gross faults dropped)", r.gps_final->rms_m,
-                        r.gps_final->rms_x_m, r.gps_final->rms_y_m, r.gps_final->matched_fixes,
-                        r.gps_final->rejected_fixes));
-  }
-  if (r.gps_online) {
-    row("aligned RMS vs GPS (online)",
-        absl::StrFormat("%.2f m (trajectory_online.csv)", r.gps_online->rms_m));
-  }
-  if (!r.local_maps.empty()) {
-    std::map<std::string, int> reasons;
-    for (const std::string& reason : r.close_reasons) ++reasons[reason];
-    std::string text;
-    for (const auto& [reason, count] : reasons) absl::StrAppend(&text, text.empty() ? "" : ", ", reason, " ", count);
-    row("local maps (closed by)", absl::StrCat(r.local_maps.size(), " (", text, ")"));
-  }
-  if (r.local_map_summary) {
-    const LocalMapSummary& m = *r.local_map_summary;
-    row("local maps: NEES in 95% bounds",
-        absl::StrFormat("%d / %d joint, %d / %d end pose; mean NEES/dof %.2f", m.inside,
-                        m.evaluated, m.pose_inside, m.evaluated, m.nees_per_dof));
-    row("local maps: landmark NEES in bounds",
-        absl::StrFormat("%d / %d (2-dof marginals)", m.landmarks_inside, m.landmarks));
-    row("local maps: false alarms exported", absl::StrCat(m.false_alarms));
-    row("local maps: features mixing landmarks", absl::StrCat(r.impure_features));
-  }
-  if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("join_landmarks_merged")) {
-    const nlohmann::json& c = r.report["estimator_counters"];
-    row("back-end association revised", absl::StrFormat("%.0f landmarks merged, %.0f features split",
-                                                         c["join_landmarks_merged"].get<double>(),
-                                                         c["join_features_split"].get<double>()));
-  }
-  if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("sensor_yaw_correction")) {
-    const nlohmann::json& c = r.report["estimator_counters"];
-    row("sensor yaw, online calibration",
-        absl::StrFormat("%+.4f rad (sigma %.4f) from %.0f feature pairs; %.0f maps joined turned",
-                        c["sensor_yaw_correction"].get<double>(), c["sensor_yaw_correction_sigma"].get<double>(),
-                        c["sensor_yaw_pairs"].get<double>(), c["sensor_yaw_maps_turned"].get<double>()));
-  }
-  if (r.report.contains("health")) {
-    const nlohmann::json& h = r.report["health"];
-    const auto n = [](const nlohmann::json& v) { return static_cast<long>(v.get<double>()); };
-    const nlohmann::json& in = h["inputs"];
-    row("inputs: spikes / gaps / repeated t",
-        absl::StrFormat("%d / %d (longest step %.3g s) / %d; %d detections out of range",
-                        in["control_spikes_replaced"].get<int>(), in["time_gaps"].get<int>(),
-                        in["longest_step_interval_s"].get<double>(), in["repeated_control_times"].get<int>(),
-                        in["detections_out_of_range"].get<long>()));
-    if (h.contains("particles")) {
-      const nlohmann::json& p = h["particles"];
-      row("particles: min ESS / depleted",
-          absl::StrFormat("%.3f N / %d updates; %d lineage collapses, %d weight collapses",
-                          p["min_ess_ratio"].get<double>(), n(p["depleted_updates"]), n(p["lineage_collapses"]),
-                          n(p["weight_collapses"])));
-    }
-    if (h.contains("divergence")) {
-      const nlohmann::json& d = h["divergence"];
-      row("innovation test: windows failed",
-          absl::StrFormat("%d / %d (%d episodes, longest %d scans)", n(d["windows_failed"]), n(d["windows_tested"]),
-                          n(d["episodes"]), n(d["longest_episode_scans"])));
-    }
-    const nlohmann::json& nf = h["numerical_failures"];
-    if (n(nf["filter"]) > 0 || n(nf["factor_updates_refactorised"]) > 0) {
-      row("numerical failures", absl::StrFormat("%d in the filter (update skipped), %d factor updates refactorised",
-                                                n(nf["filter"]), n(nf["factor_updates_refactorised"])));
-    }
-    if (h.contains("joins")) {
-      const nlohmann::json& j = h["joins"];
-      row("joins: health",
-          absl::StrFormat("%d failed, %d rejected, %d loop closures undone", n(j["failed"]),
-                          n(j["rejected_and_joined_without_associations"]), n(j["loop_closures_undone"])));
-    }
-  }
-  row("estimator time", absl::StrFormat("%.3f s", r.wall_seconds));
-  row("peak memory", absl::StrFormat("%.1f MB", r.peak_rss_kb / 1024.0));
-  return s;
 }
 
 }  // namespace subslam::pipeline
