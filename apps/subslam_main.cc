@@ -102,13 +102,14 @@ int main(int argc, char** argv) {
   if (command == "plot") {
     return subslam::tool::Plot(std::vector<std::string>(args.begin() + 2, args.end()), !absl::GetFlag(FLAGS_quiet));
   }
-  if (command == "simulate" || command == "run" || command == "join" || command == "solve") {
+  if (command == "simulate" || command == "run" || command == "join" || command == "solve" || command == "calibrate") {
     if (const int status = CheckNoArguments(args); status != 0) return status;
     if (command == "simulate") return subslam::tool::Simulate();
     absl::StatusOr<nlohmann::json> invocation = Invocation(argc, argv, command);
     if (!invocation.ok()) return subslam::tool::Fail(std::string(invocation.status().message()));
     if (command == "run") return subslam::tool::Run(*invocation);
     if (command == "join") return subslam::tool::Join(*invocation);
+    if (command == "calibrate") return subslam::tool::Calibrate(*invocation);
     return subslam::tool::Solve(*invocation);
   }
   if (command == "cli-reference" || command == "scenarios") {

@@ -16,10 +16,12 @@
 #include "flag_errors.h"
 #include "frontend_flags.h"
 #include "subslam/eval/trajectory_errors.h"
+#include "subslam/io/calibration_fragment.h"
 #include "subslam/io/dataset_reader.h"
 #include "subslam/io/dataset_writer.h"
 #include "subslam/io/output_directory.h"
 #include "subslam/io/submaps_jsonl.h"
+#include "subslam/pipeline/calibrate_pipeline.h"
 #include "subslam/pipeline/join_pipeline.h"
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/pipeline/solve_pipeline.h"
@@ -59,12 +61,22 @@ absl::StatusOr<ScenarioOptions> CheckedScenarioOptions() {
   return ScenarioOptionsFromFlags();
 }
 
-// The input of run and join: the data set or the simulated scenario.
+// The input of run, join and calibrate: the data set or the simulated scenario, with the
+// calibration of --calibration laid over its own values.
 absl::StatusOr<io::Dataset> InputDataset(const std::string& dataset_dir, const std::string& scenario) {
-  if (!dataset_dir.empty()) return io::ReadDataset(dataset_dir);
-  absl::StatusOr<ScenarioOptions> options = CheckedScenarioOptions();
-  if (!options.ok()) return options.status();
-  return sim::SimulateScenario(scenario, *options);
+  absl::StatusOr<io::Dataset> dataset;
+  if (!dataset_dir.empty()) {
+    dataset = io::ReadDataset(dataset_dir);
+  } else {
+    absl::StatusOr<ScenarioOptions> options = CheckedScenarioOptions();
+    if (!options.ok()) return options.status();
+    dataset = sim::SimulateScenario(scenario, *options);
+  }
+  if (!dataset.ok()) return dataset.status();
+  if (const std::string file = absl::GetFlag(FLAGS_calibration); !file.empty()) {
+    if (absl::Status s = io::ApplyCalibrationFile(file, &*dataset); !s.ok()) return s;
+  }
+  return dataset;
 }
 
 // The output directory must not be the input data set's own.
@@ -174,6 +186,32 @@ int Run(const nlohmann::json& invocation) {
                  result->steps, result->stop->t, result->stop->reason.c_str(),
                  out.empty() ? "" : "; the outputs hold the run up to there");
     return 1;
+  }
+  return 0;
+}
+
+int Calibrate(const nlohmann::json& invocation) {
+  const std::string dataset_dir = absl::GetFlag(FLAGS_dataset);
+  const std::string scenario = absl::GetFlag(FLAGS_scenario);
+  if (dataset_dir.empty() == scenario.empty()) return Fail("calibrate needs exactly one of --dataset or --scenario");
+  if (absl::Status s = cli::CheckFlagsRead({.command = "calibrate", .scenario = !scenario.empty()}); !s.ok()) {
+    return Fail(s);
+  }
+  const std::string out = absl::GetFlag(FLAGS_out);
+  if (absl::Status s = CheckOutIsNotInput(out, dataset_dir); !s.ok()) return Fail(s);
+  pipeline::CalibrateOptions options;
+  options.calibration.known_association = absl::GetFlag(FLAGS_known_association);
+  options.out_dir = out;
+  options.invocation = invocation;
+  options.source = dataset_dir.empty() ? absl::StrCat("scenario ", scenario, " seed ", absl::GetFlag(FLAGS_seed))
+                                       : absl::StrCat("dataset ", dataset_dir);
+  absl::StatusOr<io::Dataset> dataset = InputDataset(dataset_dir, scenario);
+  if (!dataset.ok()) return Fail(dataset.status());
+  auto result = pipeline::RunCalibration(*std::move(dataset), options);
+  if (!result.ok()) return Fail(result.status());
+  if (!absl::GetFlag(FLAGS_quiet)) {
+    std::printf("subslam calibrate summary (data set's value -> estimate)\n%s", pipeline::CalibrationTable(*result).c_str());
+    PrintOutputs(out, "calibration.json");
   }
   return 0;
 }

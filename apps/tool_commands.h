@@ -16,6 +16,8 @@ namespace subslam::tool {
 int Simulate();
 int Run(const nlohmann::json& invocation);
 int Join(const nlohmann::json& invocation);
+// subslam calibrate: a robot's odometry and sensor from its own data (calibration.json).
+int Calibrate(const nlohmann::json& invocation);
 int Solve(const nlohmann::json& invocation);
 // `args`: the positional arguments after "study" (the study's name, or "merge" DIR...).
 int Study(const std::vector<std::string>& args);

@@ -30,6 +30,9 @@ ABSL_FLAG(double, lattice_spacing, kScenarioDefaults.random_lattice_spacing_m,
 ABSL_FLAG(double, noise_scale, kScenarioDefaults.random_noise_scale, "random scenario: multiplies every sigma");
 ABSL_FLAG(bool, signature, kScenarioDefaults.with_signature, "simulated detections carry a noisy signature");
 ABSL_FLAG(std::string, out, "", "output directory");
+ABSL_FLAG(std::string, calibration, "",
+          "run, calibrate: a calibration (`subslam calibrate`'s calibration.json, or a manifest fragment) laid "
+          "over the data set's motion and sensor values (io/calibration_fragment.h)");
 ABSL_FLAG(std::string, frontend, subslam::pipeline::ToString(subslam::pipeline::RunOptions{}.frontend),
           "odometry | ekfslam | fastslam | seif | iseif | rbpf | ekf");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");

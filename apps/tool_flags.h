@@ -26,6 +26,7 @@ ABSL_DECLARE_FLAG(double, lattice_spacing);
 ABSL_DECLARE_FLAG(double, noise_scale);
 ABSL_DECLARE_FLAG(bool, signature);
 ABSL_DECLARE_FLAG(std::string, out);
+ABSL_DECLARE_FLAG(std::string, calibration);
 ABSL_DECLARE_FLAG(std::string, frontend);
 ABSL_DECLARE_FLAG(std::string, submaps);
 ABSL_DECLARE_FLAG(std::optional<double>, sigma_v);

@@ -13,7 +13,7 @@
 namespace subslam::pipeline {
 namespace {
 
-constexpr std::array<CliCommand, 10> kCommands = {{
+constexpr std::array<CliCommand, 11> kCommands = {{
     {"simulate", "subslam simulate --scenario NAME [--seed S] --out DIR",
      "Simulates a named scenario (docs/scenarios.md) and writes it as a data-set directory "
      "(docs/formats.md, \"Data-set directory\"), with the true poses, the true landmarks and "
@@ -45,6 +45,15 @@ constexpr std::array<CliCommand, 10> kCommands = {{
      "incremental EIF, and the submap route with and without a final Levenberg-Marquardt — and prints each "
      "one's error (½Σ rᵀΩr and χ²), iterations, time and peak memory. Writes each solution as `METHOD.g2o`, "
      "`report.json` and the figures."},
+    {"calibrate", "subslam calibrate (--dataset DIR | --scenario NAME [--seed S]) [--known_association] [--calibration FILE] --out DIR",
+     "Estimates a robot's odometry and sensor from its own data, the way a new robot is brought in: "
+     "from an RBPF + EIF run over the data, a batch fit of the scan poses, the landmarks and the "
+     "odometry's scale and turn-rate offset, with the noise levels by variance-component estimation "
+     "(calibration/robot_calibration.h); then the field of view, the range limits and the detection "
+     "probability by range. Prints each value before and after with its standard error and writes "
+     "`calibration.json`, whose `manifest_fragment` is what dataset.json's `motion` and `sensor` "
+     "would hold; `subslam run --calibration DIR/calibration.json` uses it in place of the "
+     "manifest's values. Without `--known_association` the detections are paired by a gate."},
     {"study", "subslam study hybridslam|combined-slam|fmj|iseif --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N] [--dataset DIR]",
      "Runs a paper's experiment (docs/reproducing.md): every method, setting and trial, on every "
      "core, and writes the per-run table (`runs.csv`), the paper's table beside ours "
@@ -81,7 +90,7 @@ const std::vector<FlagGroup>& FlagGroups() {
       {"Input and output",
        "Where the data comes from and where the outputs go. The noise and sensor overrides "
        "replace the data set's own values.",
-       {"dataset", "scenario", "seed", "submaps", "out", "config", "known_association", "sensor_yaw",
+       {"dataset", "scenario", "seed", "submaps", "out", "config", "calibration", "known_association", "sensor_yaw",
         "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "control_spike_sigmas",
         "time_gap_factor", "progress", "quiet", "keep_freed_memory"}},
       {"Studies", "`subslam study` (docs/reproducing.md).", {"trials", "methods", "workers", "shard", "plots"}},

@@ -25,12 +25,14 @@ enum Command : unsigned {
   kStudyMerge = 1u << 5,
   kPlot = 1u << 6,
   kScenarios = 1u << 7,
+  kCalibrate = 1u << 8,
 };
-constexpr unsigned kEveryCommand = 0xFFu;
+constexpr unsigned kEveryCommand = 0x1FFu;
 
-constexpr std::array<std::pair<std::string_view, Command>, 8> kCommandNames = {{
+constexpr std::array<std::pair<std::string_view, Command>, 9> kCommandNames = {{
     {"simulate", kSimulate}, {"run", kRun}, {"join", kJoin}, {"solve", kSolve},
     {"study", kStudy}, {"study merge", kStudyMerge}, {"plot", kPlot}, {"scenarios", kScenarios},
+    {"calibrate", kCalibrate},
 }};
 
 unsigned CommandBit(std::string_view command) {
@@ -83,19 +85,20 @@ const std::vector<FlagScope>& Scopes() {
   const unsigned ceres = Backends({Backend::kCeres, Backend::kTreeCeres});
   static const auto* scopes = new std::vector<FlagScope>{
       // Input and output.
-      {{"dataset"}, kRun | kJoin | kStudy},
-      {{"scenario"}, kSimulate | kRun | kJoin},
+      {{"dataset"}, kRun | kJoin | kStudy | kCalibrate},
+      {{"scenario"}, kSimulate | kRun | kJoin | kCalibrate},
       {{"seed", "world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks", "path_length",
         "lattice_spacing", "noise_scale", "signature"},
-       kSimulate | kRun | kJoin, 0, 0, /*scenario=*/true},
+       kSimulate | kRun | kJoin | kCalibrate, 0, 0, /*scenario=*/true},
+      {{"calibration"}, kRun | kCalibrate},
       {{"submaps"}, kJoin},
-      {{"out"}, kSimulate | kRun | kJoin | kSolve | kStudy | kStudyMerge},
+      {{"out"}, kSimulate | kRun | kJoin | kSolve | kStudy | kStudyMerge | kCalibrate},
       {{"config"}, kRun | kJoin | kSolve},
-      {{"quiet"}, kSimulate | kRun | kJoin | kSolve | kStudy | kStudyMerge | kPlot},
+      {{"quiet"}, kSimulate | kRun | kJoin | kSolve | kStudy | kStudyMerge | kPlot | kCalibrate},
       {{"progress"}, kRun | kStudy},
       {{"keep_freed_memory"}, kEveryCommand},
       {{"known_association"}, kRun, not_odometry},
-      {{"known_association"}, kJoin},
+      {{"known_association"}, kJoin | kCalibrate},
       {{"sigma_v", "sigma_u1", "control_spike_sigmas", "time_gap_factor", "frontend"}, kRun},
       {{"sigma_range", "sigma_bearing", "max_range", "sensor_yaw"}, kRun, not_odometry},
       // Front-ends.

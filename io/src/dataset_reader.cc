@@ -86,6 +86,21 @@ class Manifest : public JsonFields {
 #define SUBSLAM_ASSIGN_OR_RETURN(lhs, expr) \
   SUBSLAM_ASSIGN_OR_RETURN_IMPL(SUBSLAM_CONCAT(status_or_, __LINE__), lhs, expr)
 
+// motion.control_scale (both > 0) and motion.control_offset, two numbers each, optional.
+absl::Status ParseControlCorrection(const Manifest& m, const json& j, MotionConfig* motion) {
+  std::vector<double> v;
+  if (j.contains("control_scale")) {
+    SUBSLAM_ASSIGN_OR_RETURN(v, m.Numbers(j, "motion", "control_scale", 2));
+    if (!(v[0] > 0.0 && v[1] > 0.0)) return m.Error("motion.control_scale", "both scales must be > 0");
+    motion->control_scale = Eigen::Vector2d(v[0], v[1]);
+  }
+  if (j.contains("control_offset")) {
+    SUBSLAM_ASSIGN_OR_RETURN(v, m.Numbers(j, "motion", "control_offset", 2));
+    motion->control_offset = Eigen::Vector2d(v[0], v[1]);
+  }
+  return absl::OkStatus();
+}
+
 absl::Status ParseMotion(const Manifest& m, const json& j, MotionConfig* motion,
                          std::string* controls_file) {
   std::string model_name;
@@ -97,7 +112,9 @@ absl::Status ParseMotion(const Manifest& m, const json& j, MotionConfig* motion,
   SUBSLAM_ASSIGN_OR_RETURN(motion->noise.sigma_u0, m.PositiveSigma(j, "motion", "sigma_v"));
   SUBSLAM_ASSIGN_OR_RETURN(motion->noise.scale_u0,
                            m.NonNegative(j, "motion", "sigma_v_scale", 0.0));
-  const std::set<std::string> common = {"model", "controls_file", "sigma_v", "sigma_v_scale"};
+  if (absl::Status s = ParseControlCorrection(m, j, motion); !s.ok()) return s;
+  const std::set<std::string> common = {"model", "controls_file", "sigma_v", "sigma_v_scale",
+                                        "control_scale", "control_offset"};
   if (motion->model == MotionModelType::kUnicycle) {
     SUBSLAM_ASSIGN_OR_RETURN(motion->noise.sigma_u1,
                              m.PositiveSigma(j, "motion", "sigma_omega"));
@@ -315,22 +332,9 @@ absl::StatusOr<Dataset> ReadDataset(const std::string& directory, const FileRead
   const std::string manifest_path = (dir / "dataset.json").string();
   auto text = read(manifest_path);
   if (!text.ok()) return text.status();
-  json j = json::parse(*text, nullptr, /*allow_exceptions=*/false, /*ignore_comments=*/false);
-  if (j.is_discarded()) {
-    // Re-parse with exceptions only to learn where the syntax error is.
-    try {
-      const json unused = json::parse(*text);
-      (void)unused;
-    } catch (const json::parse_error& e) {
-      const size_t byte = std::min<size_t>(e.byte, text->size());
-      const int line = 1 + static_cast<int>(std::count(text->begin(), text->begin() + byte, '\n'));
-      return absl::InvalidArgumentError(
-          absl::StrCat(manifest_path, ":", line, ": invalid JSON: ", e.what()));
-    } catch (const json::exception& e) {  // e.g. a number beyond a double's range
-      return absl::InvalidArgumentError(absl::StrCat(manifest_path, ": invalid JSON: ", e.what()));
-    }
-    return absl::InvalidArgumentError(absl::StrCat(manifest_path, ": invalid JSON"));
-  }
+  absl::StatusOr<json> parsed = ParseJsonDocument(manifest_path, *text);
+  if (!parsed.ok()) return parsed.status();
+  const json& j = *parsed;
   const Manifest m(manifest_path);
   if (!j.is_object()) return m.Error("(root)", "expected a JSON object");
   if (absl::Status s = m.CheckKeys(j, "", {"format", "name", "description", "initial_pose",

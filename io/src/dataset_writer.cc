@@ -78,6 +78,12 @@ absl::Status WriteDataset(const Dataset& d, const std::string& directory,
   motion["controls_file"] = "controls.dat";
   motion["sigma_v"] = d.motion.noise.sigma_u0;
   if (d.motion.noise.scale_u0 > 0) motion["sigma_v_scale"] = d.motion.noise.scale_u0;
+  if (d.motion.control_scale != Eigen::Vector2d::Ones()) {
+    motion["control_scale"] = {d.motion.control_scale[0], d.motion.control_scale[1]};
+  }
+  if (d.motion.control_offset != Eigen::Vector2d::Zero()) {
+    motion["control_offset"] = {d.motion.control_offset[0], d.motion.control_offset[1]};
+  }
   const std::string ch1 = unicycle ? "sigma_omega" : "sigma_steer";
   motion[ch1] = d.motion.noise.sigma_u1;
   if (d.motion.noise.scale_u1 > 0) motion[ch1 + "_scale"] = d.motion.noise.scale_u1;

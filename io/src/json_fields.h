@@ -4,6 +4,7 @@
 #ifndef SUBSLAM_IO_SRC_JSON_FIELDS_H_
 #define SUBSLAM_IO_SRC_JSON_FIELDS_H_
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <set>
@@ -96,6 +97,24 @@ class JsonFields {
  private:
   std::string location_;
 };
+
+// `text` (the contents of `path`) as a JSON document; a syntax error names path:line.
+inline absl::StatusOr<nlohmann::json> ParseJsonDocument(const std::string& path, const std::string& text) {
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false, /*ignore_comments=*/false);
+  if (!j.is_discarded()) return j;
+  // Re-parse with exceptions only to learn where the syntax error is.
+  try {
+    const nlohmann::json unused = nlohmann::json::parse(text);
+    (void)unused;
+  } catch (const nlohmann::json::parse_error& e) {
+    const size_t byte = std::min<size_t>(e.byte, text.size());
+    const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + byte, '\n'));
+    return absl::InvalidArgumentError(absl::StrCat(path, ":", line, ": invalid JSON: ", e.what()));
+  } catch (const nlohmann::json::exception& e) {  // e.g. a number beyond a double's range
+    return absl::InvalidArgumentError(absl::StrCat(path, ": invalid JSON: ", e.what()));
+  }
+  return absl::InvalidArgumentError(absl::StrCat(path, ": invalid JSON"));
+}
 
 }  // namespace subslam::io
 

@@ -17,7 +17,7 @@ std::vector<Step> BuildSteps(const Dataset& dataset) {
     step.dt = first ? 0.0 : step.t - t_prev;
     step.control = active;  // the control active over (t_prev, t]
     if (ts == step.t) step.scan_index = static_cast<int>(si++);
-    if (tc == step.t) active = dataset.controls[ci++].u;  // takes effect from t on
+    if (tc == step.t) active = dataset.motion.Corrected(dataset.controls[ci++].u);  // from t on
     steps.push_back(step);
     t_prev = step.t;
     first = false;

@@ -33,6 +33,15 @@ struct MotionConfig {
   models::AckermannGeometry geometry;  // used by kAckermann only
   // Channel 0 is the speed; channel 1 is ω (unicycle) or the steering angle (ackermann).
   models::ControlNoise noise;
+  // The odometry's systematic error, as calibrated (`subslam calibrate`): a reported
+  // control u stands for the control Corrected(u) = control_scale ⊙ u + control_offset,
+  // which every estimator is given (io::BuildSteps applies it; the noise M(u) is taken at
+  // the corrected control). Dataset::controls keep the values as recorded. Defaults: none.
+  Eigen::Vector2d control_scale = Eigen::Vector2d::Ones();
+  Eigen::Vector2d control_offset = Eigen::Vector2d::Zero();
+  Eigen::Vector2d Corrected(const Eigen::Vector2d& u) const {
+    return control_scale.cwiseProduct(u) + control_offset;
+  }
 
   // Builds the motion model this configuration describes.
   std::unique_ptr<models::MotionModel> MakeModel() const;
