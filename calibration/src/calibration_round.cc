@@ -1,6 +1,7 @@
 // One round of the calibration: the Gauss-Newton fit at the current noise, then the sums
 // of the variance-component step (robot_calibration.h, step 2).
 #include <ceres/covariance.h>
+#include <ceres/normal_prior.h>
 #include <ceres/problem.h>
 #include <ceres/solver.h>
 
@@ -73,6 +74,12 @@ void CalibrationState::BuildProblem(ceres::Problem* problem, std::vector<Odometr
     auto* cost = new OdometryCost(&iv.odometry, S);
     problem->AddResidualBlock(cost, nullptr, poses_[iv.a].data(), poses_[iv.b].data(), c_.data());
     odometry->push_back({cost, S, T});
+  }
+  if (options_.scale_prior_sigma > 0.0) {  // each scale ~ N(the data set's, scale_prior_sigma²)
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(2, 3);
+    A(0, 0) = A(1, 1) = 1.0 / options_.scale_prior_sigma;
+    const Eigen::Vector3d prior(dataset_.motion.control_scale[0], dataset_.motion.control_scale[1], 0.0);
+    problem->AddResidualBlock(new ceres::NormalPrior(A, prior), nullptr, c_.data());
   }
   const Eigen::Vector2d sigma = SensorSigma();
   detections->clear();

@@ -217,7 +217,11 @@ absl::StatusOr<RobotCalibration> CalibrationState::Run() {
     for (int k = 0; k < kComponents; ++k) {
       if (first[k] <= 0.0 || !(sums->expected[k] > 0.0)) continue;  // held at zero, or not observed
       const double updated = theta_[k] * sums->weighted[k] / sums->expected[k];
-      converged = converged && std::abs(std::sqrt(updated / theta_[k]) - 1.0) < options_.relative_tolerance;
+      // Converged: σ moved by less than the tolerance, or by less than a tenth of its own
+      // standard error σ / √(2 r_k) (components the data hardly tell apart creep).
+      const double sigma = std::sqrt(theta_[k]), step = std::abs(std::sqrt(updated) - sigma);
+      const double standard_error = sigma / std::sqrt(2.0 * theta_[k] * sums->expected[k]);
+      converged = converged && (step < options_.relative_tolerance * sigma || step < 0.1 * standard_error);
       theta_[k] = updated;
     }
     FlagOutliers();

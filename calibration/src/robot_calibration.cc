@@ -15,6 +15,7 @@ absl::Status CalibrationOptions::Validate() const {
   if (max_rounds < 1 || max_solver_iterations < 1) {
     return absl::InvalidArgumentError("calibration: max_rounds and max_solver_iterations must be >= 1");
   }
+  if (!(scale_prior_sigma >= 0.0)) return absl::InvalidArgumentError("calibration: scale_prior_sigma must be >= 0");
   if (!(relative_tolerance > 0.0) || !(detection_bin_m > 0.0)) {
     return absl::InvalidArgumentError("calibration: relative_tolerance and detection_bin_m must be > 0");
   }

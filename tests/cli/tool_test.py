@@ -32,7 +32,7 @@ def work(name):
     return path
 
 
-COMMANDS = ["simulate", "run", "join", "solve", "study", "study merge", "plot", "scenarios"]
+COMMANDS = ["simulate", "run", "calibrate", "join", "solve", "study", "study merge", "plot", "scenarios"]
 
 
 class Help(unittest.TestCase):
@@ -230,6 +230,43 @@ class Solve(unittest.TestCase):
                            "--plots=false", "--out", out)
         self.assertIn("converged", table)
         self.assertNotIn("NOT CONVERGED", table)
+
+
+class Calibrate(unittest.TestCase):
+    def test_a_calibration_is_a_manifest_fragment_that_a_run_reads(self):
+        out, run = work("calibrate"), work("calibrated_run")
+        world = ["--scenario", "camera-robot", "--duration", "200"]
+        status, table, err = tool("calibrate", *world, "--known_association", "--out", out)
+        self.assertEqual(status, 0, err)
+        self.assertIn("control_scale[0]", table)
+        with open(os.path.join(out, "calibration.json")) as f:
+            calibration = json.load(f)
+        fragment = calibration["manifest_fragment"]
+        self.assertGreater(fragment["sensor"]["sigma_range"], 0)
+        self.assertEqual(len(fragment["motion"]["control_scale"]), 2)
+        self.assertGreater(calibration["standard_errors"]["sensor"]["sigma_range"], 0)
+        self.assertTrue(calibration["fit"]["converged"])
+        self.assertTrue(calibration["detection_probability_by_range"])
+        # The simulated robot drives at 0.93× and turns at 0.95× what it reports.
+        scale = fragment["motion"]["control_scale"]
+        se = calibration["standard_errors"]["motion"]["control_scale"]
+        self.assertLess(abs(scale[0] - 0.93), 4 * se[0])
+        self.assertLess(abs(scale[1] - 0.95), 4 * se[1])
+        status, _, err = tool("run", *world, "--frontend", "ekfslam", "--quiet",
+                              "--calibration", os.path.join(out, "calibration.json"), "--out", run)
+        self.assertEqual(status, 0, err)
+        with open(os.path.join(run, "report.json")) as f:
+            self.assertIn("--calibration", json.dumps(json.load(f)["invocation"]))
+
+    def test_a_bad_calibration_file_names_the_file_and_the_field(self):
+        bad = os.path.join(work("bad_calibration"), "calibration.json")
+        os.makedirs(os.path.dirname(bad))
+        with open(bad, "w") as f:
+            f.write('{"manifest_fragment": {"sensor": {"sigma_range": -1}}}')
+        status, _, err = tool("run", "--dataset", ARGS.data, "--frontend", "ekfslam", "--calibration", bad)
+        self.assertEqual(status, 1)
+        self.assertIn(bad, err)
+        self.assertIn("manifest_fragment.sensor.sigma_range", err)
 
 
 if __name__ == "__main__":

@@ -11,9 +11,12 @@
 //    integrated by the motion model predict the relative pose, with the steps' control noise
 //    propagated as covariance: Σ_odo = Σ_k θ_k T_k, θ = (σ₀², k₀², σ₁², k₁²);
 //  - each paired detection z = h(x_scan, l) + n, n ~ N(0, diag(σ_r², σ_b²)).
-// Estimation, alternating until every σ moves by less than `relative_tolerance`:
+// Estimation, alternating until every σ moves by less than `relative_tolerance` (or a tenth
+// of its standard error):
 //  1. for fixed variances, Gauss-Newton (Ceres) over the scan poses (the first step's pose
-//     held at the data set's initial pose), the landmarks and (s₀, s₁, o₁);
+//     held at the data set's initial pose), the landmarks and (s₀, s₁, o₁), the scales
+//     with a weak prior (CalibrationOptions::scale_prior_sigma), refitted without the
+//     paired detections whose residual fails the outlier test (step 3);
 //  2. the six variance components by restricted maximum likelihood in Förstner's iterated
 //     form (W. Förstner, "Ein Verfahren zur Schätzung von Varianz- und Kovarianzkomponenten",
 //     Allgemeine Vermessungs-Nachrichten 86, 1979; K.-R. Koch, "Parameter Estimation and
@@ -65,9 +68,16 @@ struct CalibrationOptions {
   double gate_probability = 0.99;       // P(χ²₂ ≤ gate) for pairing
   double outlier_probability = 0.999;   // P(χ²₂ ≤ bound) for keeping a paired detection
   int max_rounds = 30;                  // estimate, then variances: at most this many times
-  double relative_tolerance = 0.01;     // stop once every σ moves by less than this
+  // Stop once every σ moves by less than this fraction of itself or a tenth of its
+  // standard error.
+  double relative_tolerance = 0.01;
   int max_solver_iterations = 50;       // Gauss-Newton iterations per round
   double detection_bin_m = 0.5;         // width of the detection curve's range bins [m]
+  // σ of a Gaussian prior on each odometry scale about the data set's own (0: none). Weak
+  // against data that turn and drive enough to show a scale (standard errors of 1–3 % on
+  // the camera robots), it keeps a scale the data cannot see — a robot that hardly turns —
+  // near its manifest value instead of wherever the noise terms pull it.
+  double scale_prior_sigma = 0.1;
 
   absl::Status Validate() const;
 };
