@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
+#include "control_correction.h"
 #include "json_fields.h"
 #include "subslam/io/internal/text_table.h"
 
@@ -45,11 +46,7 @@ absl::Status ApplyMotion(const JsonFields& f, const json& j, const std::string& 
   if (s.ok()) s = OptionalSigma(f, j, path, "sigma_v_scale", false, &m->noise.scale_u0);
   if (s.ok()) s = OptionalSigma(f, j, path, ch1, true, &m->noise.sigma_u1);
   if (s.ok()) s = OptionalSigma(f, j, path, ch1 + "_scale", false, &m->noise.scale_u1);
-  if (s.ok()) s = OptionalPair(f, j, path, "control_scale", &m->control_scale);
-  if (s.ok() && !(m->control_scale[0] > 0.0 && m->control_scale[1] > 0.0)) {
-    s = f.Error(JsonFields::Join(path, "control_scale"), "both scales must be > 0");
-  }
-  if (s.ok()) s = OptionalPair(f, j, path, "control_offset", &m->control_offset);
+  if (s.ok()) s = ParseControlCorrection(f, j, path, m);
   return s;
 }
 

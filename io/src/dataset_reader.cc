@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "control_correction.h"
 #include "json_fields.h"
 #include "subslam/io/internal/text_table.h"
 
@@ -86,21 +87,6 @@ class Manifest : public JsonFields {
 #define SUBSLAM_ASSIGN_OR_RETURN(lhs, expr) \
   SUBSLAM_ASSIGN_OR_RETURN_IMPL(SUBSLAM_CONCAT(status_or_, __LINE__), lhs, expr)
 
-// motion.control_scale (both > 0) and motion.control_offset, two numbers each, optional.
-absl::Status ParseControlCorrection(const Manifest& m, const json& j, MotionConfig* motion) {
-  std::vector<double> v;
-  if (j.contains("control_scale")) {
-    SUBSLAM_ASSIGN_OR_RETURN(v, m.Numbers(j, "motion", "control_scale", 2));
-    if (!(v[0] > 0.0 && v[1] > 0.0)) return m.Error("motion.control_scale", "both scales must be > 0");
-    motion->control_scale = Eigen::Vector2d(v[0], v[1]);
-  }
-  if (j.contains("control_offset")) {
-    SUBSLAM_ASSIGN_OR_RETURN(v, m.Numbers(j, "motion", "control_offset", 2));
-    motion->control_offset = Eigen::Vector2d(v[0], v[1]);
-  }
-  return absl::OkStatus();
-}
-
 absl::Status ParseMotion(const Manifest& m, const json& j, MotionConfig* motion,
                          std::string* controls_file) {
   std::string model_name;
@@ -112,7 +98,7 @@ absl::Status ParseMotion(const Manifest& m, const json& j, MotionConfig* motion,
   SUBSLAM_ASSIGN_OR_RETURN(motion->noise.sigma_u0, m.PositiveSigma(j, "motion", "sigma_v"));
   SUBSLAM_ASSIGN_OR_RETURN(motion->noise.scale_u0,
                            m.NonNegative(j, "motion", "sigma_v_scale", 0.0));
-  if (absl::Status s = ParseControlCorrection(m, j, motion); !s.ok()) return s;
+  if (absl::Status s = ParseControlCorrection(m, j, "motion", motion); !s.ok()) return s;
   const std::set<std::string> common = {"model", "controls_file", "sigma_v", "sigma_v_scale",
                                         "control_scale", "control_offset"};
   if (motion->model == MotionModelType::kUnicycle) {
