@@ -45,6 +45,7 @@ ScenarioOptions ScenarioOptionsFromFlags() {
   o.detection_probability = absl::GetFlag(FLAGS_alpha);
   o.false_alarm_probability = absl::GetFlag(FLAGS_beta);
   o.duration_s = absl::GetFlag(FLAGS_duration);
+  o.moving_objects = absl::GetFlag(FLAGS_moving_objects);
   o.fmj_case = absl::GetFlag(FLAGS_fmj_case);
   o.random_world_size_m = absl::GetFlag(FLAGS_world_size);
   o.random_landmarks = absl::GetFlag(FLAGS_landmarks);

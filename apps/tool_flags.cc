@@ -20,6 +20,8 @@ ABSL_FLAG(std::optional<double>, alpha, std::nullopt,
 ABSL_FLAG(std::optional<double>, beta, std::nullopt,
           "simulated false-alarm probability beta per visible feature (default 0.0)");
 ABSL_FLAG(std::optional<double>, duration, std::nullopt, "truncate the simulation [s]");
+ABSL_FLAG(std::optional<int>, moving_objects, std::nullopt,
+          "camera-robot: other robots driving with landmark markers, >= 0 (default 4)");
 ABSL_FLAG(int, fmj_case, kScenarioDefaults.fmj_case, "fmj-ellipse: case 1 (even landmarks) or 2 (uneven)");
 ABSL_FLAG(double, world_size, kScenarioDefaults.random_world_size_m, "random scenario: world side [m]");
 ABSL_FLAG(int, landmarks, kScenarioDefaults.random_landmarks, "random scenario: number of landmarks");

@@ -18,6 +18,7 @@ ABSL_DECLARE_FLAG(std::optional<uint64_t>, world_seed);
 ABSL_DECLARE_FLAG(std::optional<double>, alpha);
 ABSL_DECLARE_FLAG(std::optional<double>, beta);
 ABSL_DECLARE_FLAG(std::optional<double>, duration);
+ABSL_DECLARE_FLAG(std::optional<int>, moving_objects);
 ABSL_DECLARE_FLAG(int, fmj_case);
 ABSL_DECLARE_FLAG(double, world_size);
 ABSL_DECLARE_FLAG(int, landmarks);

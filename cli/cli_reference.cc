@@ -98,7 +98,7 @@ const std::vector<FlagGroup>& FlagGroups() {
        {"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps",
         "max_iterations"}},
       {"Simulation", "Shape the simulated worlds (docs/scenarios.md).",
-       {"world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks",
+       {"world_seed", "alpha", "beta", "duration", "moving_objects", "fmj_case", "world_size", "landmarks",
         "path_length", "lattice_spacing", "noise_scale", "signature"}},
       {"Front-end: association and existence",
        "Shared by EKF-SLAM, SEIF/ISEIF and the particle filters.",

@@ -87,7 +87,7 @@ const std::vector<FlagScope>& Scopes() {
       // Input and output.
       {{"dataset"}, kRun | kJoin | kStudy | kCalibrate},
       {{"scenario"}, kSimulate | kRun | kJoin | kCalibrate},
-      {{"seed", "world_seed", "alpha", "beta", "duration", "fmj_case", "world_size", "landmarks", "path_length",
+      {{"seed", "world_seed", "alpha", "beta", "duration", "moving_objects", "fmj_case", "world_size", "landmarks", "path_length",
         "lattice_spacing", "noise_scale", "signature"},
        kSimulate | kRun | kJoin | kCalibrate, 0, 0, /*scenario=*/true},
       {{"calibration"}, kRun | kCalibrate},

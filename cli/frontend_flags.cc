@@ -94,6 +94,10 @@ ABSL_FLAG(double, submap_max_feature_sigma, PolicyDefaults().max_feature_sigma_r
           "rbpf, ekf: do not export a feature more uncertain relative to the map's end pose "
           "(widest axis) than this many times one detection at the sensor's maximum range "
           "(0: export all)");
+ABSL_FLAG(double, submap_moving_feature_probability, PolicyDefaults().moving_features.probability,
+          "rbpf, ekf: do not export a feature whose detections a static point explains worse than "
+          "one moving at a constant velocity, by the likelihood-ratio test at this probability "
+          "that a static feature passes (frontend/moving_feature_test.h; 0: off)");
 ABSL_FLAG(int, submap_density_features, PolicyDefaults().density_min_features,
           "rbpf: landmark-density rule: close once the map holds this many features and "
           "--submap_density_visible of them are in range (0: off)");
@@ -141,6 +145,7 @@ absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options) {
   options->policy.min_lineage_diversity = absl::GetFlag(FLAGS_submap_min_diversity);
   options->policy.max_pose_sigma_ratio = absl::GetFlag(FLAGS_submap_max_pose_sigma);
   options->policy.max_feature_sigma_ratio = absl::GetFlag(FLAGS_submap_max_feature_sigma);
+  options->policy.moving_features.probability = absl::GetFlag(FLAGS_submap_moving_feature_probability);
   options->policy.density_min_features = absl::GetFlag(FLAGS_submap_density_features);
   options->policy.density_min_visible = absl::GetFlag(FLAGS_submap_density_visible);
   options->policy.delay_while_ambiguous = absl::GetFlag(FLAGS_submap_delay_ambiguous);

@@ -11,13 +11,38 @@
 
 namespace subslam::frontend {
 
+namespace {
+
+// Marginalises out every feature but those listed: the kept rows and columns of the Gaussian.
+void KeepFeaturesOf(const std::vector<int>& keep, MomentMatchedGaussian* g) {
+  std::vector<int> rows = {0, 1, 2};
+  for (int k : keep) rows.insert(rows.end(), {3 + 2 * k, 4 + 2 * k});
+  const Eigen::VectorXd mean = g->mean(rows);
+  const Eigen::MatrixXd covariance = g->covariance(rows, rows);
+  g->mean = mean;
+  g->covariance = covariance;
+  const auto select = [&keep](auto* values) {
+    if (values->empty()) return;
+    std::remove_reference_t<decltype(*values)> kept;
+    for (int k : keep) kept.push_back((*values)[k]);
+    *values = std::move(kept);
+  };
+  select(&g->features);
+  select(&g->existence);
+  select(&g->signature);
+  select(&g->truth_id);
+}
+
+}  // namespace
+
 LocalMapper::LocalMapper(const SubmapPolicyOptions& policy,
                          const models::RangeBearingConfig& sensor, double t_start)
     : policy_(policy, sensor.sigma_range_m, sensor.sigma_bearing_rad),
       t_(t_start),
       t_map_start_(t_start),
       max_feature_sigma_m_(policy.max_feature_sigma_ratio *
-                           std::max(sensor.sigma_range_m, sensor.sigma_bearing_rad * sensor.max_range_m)) {}
+                           std::max(sensor.sigma_range_m, sensor.sigma_bearing_rad * sensor.max_range_m)),
+      moving_test_(policy.moving_features, sensor) {}
 
 void LocalMapper::Predict(const Eigen::Vector2d& u, double dt) {
   if (dt <= 0.0) return;
@@ -29,6 +54,11 @@ void LocalMapper::Update(const Scan& scan) {
   t_ = scan.t;
   FilterUpdate(scan);
   ++scans_in_map_;
+  if (moving_test_.enabled()) {
+    std::vector<Eigen::Vector2d> z;
+    for (const Detection& d : scan.detections) z.push_back(d.z());
+    moving_test_.AddScan(scan.t, FilterPose(), FilterPoseCovariance(), z, last_scan_features());
+  }
   SubmapStatus status = FilterStatus();
   status.elapsed_s = t_ - t_map_start_;
   status.delayed_for_s = delayed_since_ < 0 ? 0.0 : t_ - delayed_since_;
@@ -45,6 +75,7 @@ void LocalMapper::Close(CloseReason reason) {
   if (!status_.ok()) return;  // a map failed before: nothing more is closed
   const absl::Time start = absl::Now();
   MomentMatchedGaussian g = Export();
+  DropMovingFeatures(&g);
   DropUncertainFeatures(&g);
   ClosedLocalMap closed;
   closed.reason = reason;
@@ -75,6 +106,7 @@ void LocalMapper::Close(CloseReason reason) {
   ++closes_by_reason_[ToString(reason)];
   closed_.push_back(std::move(closed));
   FilterReset();
+  moving_test_.Reset();
   ++map_id_;
   t_map_start_ = t_;
   scans_in_map_ = 0;
@@ -105,23 +137,18 @@ void LocalMapper::DropUncertainFeatures(MomentMatchedGaussian* g) {
   }
   if (static_cast<int>(keep.size()) == n) return;
   features_too_uncertain_ += n - static_cast<long>(keep.size());
-  // Marginalise the others out: the kept rows and columns of the Gaussian.
-  std::vector<int> rows = {0, 1, 2};
-  for (int k : keep) rows.insert(rows.end(), {3 + 2 * k, 4 + 2 * k});
-  const Eigen::VectorXd mean = g->mean(rows);
-  const Eigen::MatrixXd covariance = g->covariance(rows, rows);
-  g->mean = mean;
-  g->covariance = covariance;
-  const auto select = [&keep](auto* values) {
-    if (values->empty()) return;
-    std::remove_reference_t<decltype(*values)> kept;
-    for (int k : keep) kept.push_back((*values)[k]);
-    *values = std::move(kept);
-  };
-  select(&g->features);
-  select(&g->existence);
-  select(&g->signature);
-  select(&g->truth_id);
+  KeepFeaturesOf(keep, g);
+}
+
+void LocalMapper::DropMovingFeatures(MomentMatchedGaussian* g) {
+  if (!moving_test_.enabled()) return;
+  std::vector<int> keep;
+  for (int k = 0; k < static_cast<int>(g->features.size()); ++k) {
+    if (!moving_test_.Moving(g->features[k])) keep.push_back(k);
+  }
+  if (keep.size() == g->features.size()) return;
+  moving_features_ += static_cast<long>(g->features.size() - keep.size());
+  KeepFeaturesOf(keep, g);
 }
 
 std::vector<ClosedLocalMap> LocalMapper::TakeClosed() {
@@ -139,7 +166,8 @@ StageTimes LocalMapper::stage_times() const {
 std::map<std::string, double> LocalMapper::Counters() const {
   std::map<std::string, double> out = {{"local_maps_closed", map_id_},
                                        {"covariance_repairs", repairs_},
-                                       {"features_too_uncertain_to_export", features_too_uncertain_}};
+                                       {"features_too_uncertain_to_export", features_too_uncertain_},
+                                       {"moving_features_not_exported", moving_features_}};
   for (const auto& [reason, count] : closes_by_reason_) out["closed_by_" + reason] = count;
   for (const auto& [name, value] : FilterCounters()) out[name] = value;
   return out;

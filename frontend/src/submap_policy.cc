@@ -26,6 +26,7 @@ absl::Status SubmapPolicyOptions::Validate() const {
         "submap policy: min_ess_ratio, min_lineage_diversity and ambiguity_threshold must be "
         "in [0, 1]");
   }
+  if (absl::Status s = moving_features.Validate(); !s.ok()) return s;
   if (max_features < 0 || density_min_features < 0 || density_min_visible < 1) {
     return absl::InvalidArgumentError(
         "submap policy: feature counts must be >= 0 (density_min_visible >= 1)");

@@ -68,7 +68,12 @@ std::string SummaryTable(const RunResult& r) {
                         m.evaluated, m.pose_inside, m.evaluated, m.nees_per_dof));
     row("local maps: landmark NEES in bounds",
         absl::StrFormat("%d / %d (2-dof marginals)", m.landmarks_inside, m.landmarks));
-    row("local maps: false alarms exported", absl::StrCat(m.false_alarms));
+    std::string held_back;
+    if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("moving_features_not_exported")) {
+      held_back = absl::StrFormat(" (%.0f features held back as moving)",
+                                  r.report["estimator_counters"]["moving_features_not_exported"].get<double>());
+    }
+    row("local maps: false alarms exported", absl::StrCat(m.false_alarms, held_back));
     row("local maps: features mixing landmarks", absl::StrCat(r.impure_features));
   }
   if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("join_landmarks_merged")) {

@@ -282,6 +282,9 @@ absl::Status ScenarioOptions::Validate() const {
   if (!probability(detection_probability) || !probability(false_alarm_probability)) {
     return absl::InvalidArgumentError("detection and false-alarm probabilities must be in [0, 1]");
   }
+  if (moving_objects.has_value() && *moving_objects < 0) {
+    return absl::InvalidArgumentError(absl::StrCat("moving objects must be >= 0, got ", *moving_objects));
+  }
   if (duration_s.has_value() && !(std::isfinite(*duration_s) && *duration_s > 0.0)) {
     return absl::InvalidArgumentError("duration must be > 0");
   }
@@ -328,6 +331,13 @@ absl::StatusOr<ScenarioConfig> MakeScenario(const std::string& name,
   c.detection_probability = options.detection_probability.value_or(c.detection_probability);
   c.false_alarm_probability = options.false_alarm_probability.value_or(c.false_alarm_probability);
   if (options.duration_s.has_value()) c.max_duration_s = std::min(c.max_duration_s, *options.duration_s);
+  if (options.moving_objects.has_value()) {
+    if (*options.moving_objects > 0 && c.moving_object_region.isEmpty()) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("moving objects must be 0 in scenario \"", name, "\" (only camera-robot has a region for them)"));
+    }
+    c.moving_objects = *options.moving_objects;
+  }
   c.with_signature = options.with_signature;
   if (c.with_signature) {
     std::uniform_real_distribution<double> diameter(0.1, 0.6);

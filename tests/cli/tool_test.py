@@ -198,7 +198,7 @@ class OptionErrors(unittest.TestCase):
                 float(default.strip("`"))
             except ValueError:
                 if default != "(none)" or name not in ("sigma_v", "sigma_range", "max_range", "trials", "workers",
-                                                       "duration", "alpha", "beta"):
+                                                       "duration", "alpha", "beta", "moving_objects"):
                     continue
             refused = False
             for bad in ("-1", "nan", "1.5", "0"):

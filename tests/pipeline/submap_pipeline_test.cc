@@ -368,7 +368,7 @@ TEST(SubmapPipeline, JoinSummariesAddUpToTheCounters) {
 }
 
 // The online anchors of a join (each as the join that made it left it): the last equals
-// the final one when nothing is relinearised after it, the earlier ones were moved by
+// the final one (to rounding) when nothing is relinearised after it, the earlier ones were moved by
 // later joins, and the report scores them against the truth.
 TEST(SubmapPipeline, JoinRecordsEachAnchorAsItsJoinLeftIt) {
   const io::Dataset d = Simulate(3);
@@ -381,7 +381,9 @@ TEST(SubmapPipeline, JoinRecordsEachAnchorAsItsJoinLeftIt) {
   absl::StatusOr<JoinResult> j = RunJoin(maps, options);
   ASSERT_TRUE(j.ok()) << j.status();
   ASSERT_EQ(j->anchors_online.size(), j->anchors.size());
-  EXPECT_EQ(j->anchors_online.back().pose.vector(), j->anchors.back().pose.vector());
+  // (the end's exact solve in place of the last join's partial recovery: the same to rounding)
+  EXPECT_LE((j->anchors_online.back().pose.vector() - j->anchors.back().pose.vector()).norm(),
+            1e-9 * j->anchors.back().pose.vector().norm());
   // (its marginal recovered another way: the same to rounding)
   EXPECT_LE((j->anchors_online.back().covariance - j->anchors.back().covariance).norm(),
             1e-9 * j->anchors.back().covariance.norm());

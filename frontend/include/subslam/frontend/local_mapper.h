@@ -3,7 +3,9 @@
 //
 // A local map starts at the current pose with zero uncertainty and no landmarks; when the
 // policy closes it, its Gaussian over [end pose, features] (in the start frame) is queued
-// for TakeClosed() and the next map starts at its end pose. Landmarks near the boundary
+// for TakeClosed() and the next map starts at its end pose. It exports neither features
+// too uncertain to join on nor features whose detections show them moving
+// (SubmapPolicyOptions). Landmarks near the boundary
 // are observed again by the next map, so consecutive maps share features to join on.
 //
 // Implementations: RbpfLocalMapper (FastSLAM 2.0, moment matching, below) and
@@ -19,6 +21,7 @@
 
 #include "subslam/frontend/fastslam.h"
 #include "subslam/frontend/moment_matching.h"
+#include "subslam/frontend/moving_feature_test.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/frontend/submap_policy.h"
 #include "subslam/graph/local_submap.h"
@@ -76,8 +79,10 @@ class LocalMapper {
  private:
   void Close(CloseReason reason);
   // Removes (marginalises out) the features wider than max_feature_sigma_m_ given the
-  // end pose (see SubmapPolicyOptions::max_feature_sigma_ratio).
+  // end pose (see SubmapPolicyOptions::max_feature_sigma_ratio), and those the
+  // moving-feature test finds moving (SubmapPolicyOptions::moving_features).
   void DropUncertainFeatures(MomentMatchedGaussian* g);
+  void DropMovingFeatures(MomentMatchedGaussian* g);
 
   SubmapPolicy policy_;
   double t_ = 0.0, t_map_start_ = 0.0;
@@ -90,6 +95,8 @@ class LocalMapper {
   absl::Status status_;
   double max_feature_sigma_m_ = 0.0;  // 0: export every feature (see max_feature_sigma_ratio)
   long features_too_uncertain_ = 0;   // not exported by that rule
+  MovingFeatureTest moving_test_;     // the open map's features
+  long moving_features_ = 0;          // not exported as moving
   double export_seconds_ = 0.0;
 };
 

@@ -28,6 +28,7 @@
 #include <Eigen/Core>
 
 #include "absl/status/status.h"
+#include "subslam/frontend/moving_feature_test.h"
 
 namespace subslam::frontend {
 
@@ -54,6 +55,9 @@ struct SubmapPolicyOptions {
   // keeps the features that are uncertain only through the drift they share with it.
   // 0: export all.
   double max_feature_sigma_ratio = 1.0;
+  // Nor a feature whose detections a static point does not explain (moving_feature_test.h:
+  // another robot carrying a landmark's marker, a walking person).
+  MovingFeatureTestOptions moving_features;
 
   absl::Status Validate() const;
 };

@@ -47,6 +47,9 @@ struct ScenarioOptions {
   std::optional<double> detection_probability;    // α; default: the scenario's (1.0)
   std::optional<double> false_alarm_probability;  // β per visible feature; default 0.0
   std::optional<double> duration_s;        // truncate the run (default: whole path)
+  // Objects moving with landmark markers (default: the scenario's; camera-robot 4); more
+  // than none only where the scenario has a region for them (camera-robot).
+  std::optional<int> moving_objects;
   int fmj_case = 1;                        // fmj-ellipse: 1 or 2
   // random scenario knobs.
   double random_world_size_m = 200.0;      // square world side
