@@ -30,6 +30,13 @@ int BinomialBound(int n, double p, double alpha) {
   return k;
 }
 
+models::RangeBearingConfig Sensor(double sigma_range_m, double sigma_bearing_rad) {
+  models::RangeBearingConfig sensor;
+  sensor.sigma_range_m = sigma_range_m;
+  sensor.sigma_bearing_rad = sigma_bearing_rad;
+  return sensor;
+}
+
 Eigen::Matrix2d RandomCovariance(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(-0.2, 0.2);
   Eigen::Matrix2d A;
@@ -80,9 +87,7 @@ TEST(TrendFit, StatisticIsTheDifferenceOfTheTwoFits) {
 // test's false-alarm rate 1 − probability, at 0.999. A point moving at 0.5 m/s, seen ten
 // times over 4.5 s with the same noise, is taken to move every time.
 TEST(MovingFeatureTest, StaticPointsPassAtTheTestsRateAndMovingOnesFail) {
-  models::RangeBearingConfig sensor;
-  sensor.sigma_range_m = 0.1;
-  sensor.sigma_bearing_rad = 0.02;
+  const models::RangeBearingConfig sensor = Sensor(0.1, 0.02);
   MovingFeatureTestOptions options;
   MovingFeatureTest test(options, sensor);
   const models::RangeBearingModel model(sensor);
@@ -116,9 +121,7 @@ TEST(MovingFeatureTest, StaticPointsPassAtTheTestsRateAndMovingOnesFail) {
 // another started near it (a static landmark) hands over to nothing. Probability 0 turns
 // the test off; options out of range are refused.
 TEST(MovingFeatureTest, FeaturesHandOverAlongATrack) {
-  models::RangeBearingConfig sensor;
-  sensor.sigma_range_m = 0.05;
-  sensor.sigma_bearing_rad = 0.005;
+  const models::RangeBearingConfig sensor = Sensor(0.05, 0.005);
   MovingFeatureTestOptions options;
   MovingFeatureTest test(options, sensor);
   const models::RangeBearingModel model(sensor);
@@ -166,9 +169,7 @@ TEST(MovingFeatureTest, FeaturesHandOverAlongATrack) {
 // at 0.2 m/s (the filter follows it with a chain of features) exports the three landmarks and not the object; with the test off it exports
 // the object too.
 TEST(MovingFeatureTest, TheLocalMapperDoesNotExportAMovingObject) {
-  models::RangeBearingConfig sensor;
-  sensor.sigma_range_m = 0.05;
-  sensor.sigma_bearing_rad = 0.01;
+  models::RangeBearingConfig sensor = Sensor(0.05, 0.01);
   sensor.max_range_m = 10.0;
   const models::RangeBearingModel model(sensor);
   const std::vector<Eigen::Vector2d> landmarks = {{4.0, 1.5}, {5.0, -1.0}, {6.0, 2.5}};
