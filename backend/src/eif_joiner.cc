@@ -364,6 +364,7 @@ SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start,
       /*anchor_prefilter=*/whole_map_groups == nullptr, pair_covariance,
       options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr, whole_map_groups);
   times_["covariance_recovery"] += a.covariance_seconds;
+  RecordAssociationInnovation(a.pairings_d2, a.pairings_dof);
   CountDecisions(a);
   counters_.candidates += a.candidates;
   counters_.candidates_bounded_out += a.candidates_bounded_out;

@@ -58,8 +58,11 @@ JoinerCounters JoinerCounters::operator-(const JoinerCounters& o) const {
 absl::Status MapJoiner::Join(const LocalSubmap& submap) {
   const JoinerCounters before = counters();
   const absl::Time start = absl::Now();
+  association_d2_ = 0.0;
+  association_dof_ = 0;
   absl::Status status = JoinLocalMap(submap);
-  last_join_ = {submap.id, absl::ToDoubleSeconds(absl::Now() - start), status, counters() - before};
+  last_join_ = {submap.id, absl::ToDoubleSeconds(absl::Now() - start), status, counters() - before, association_d2_,
+                association_dof_};
   return status;
 }
 

@@ -772,6 +772,8 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
   }
   association::AssociationResult result = association::JointCompatibility(*problem, o.gate_probability, o.jcbb_max_nodes);
   out->jcbb_truncated = result.truncated;
+  out->pairings_d2 = result.pairings > 0 ? result.joint_d2 : 0.0;
+  out->pairings_dof = 2 * result.pairings;
   const auto closes_loop = [&](int c) { return c >= 0 && !loop.recent[candidates[c]]; };
   const auto loop_pairings_of = [&](const association::AssociationResult& r) {
     return static_cast<int>(std::count_if(r.landmark_of_detection.begin(), r.landmark_of_detection.end(), closes_loop));

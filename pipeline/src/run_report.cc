@@ -44,6 +44,14 @@ json Health(const RunResult& r, const std::map<std::string, double>& counters) {
                        {"episodes", count("divergence_episodes")},
                        {"longest_episode_scans", count("longest_divergence_scans")}};
   }
+  if (has("map_test_windows_tested")) {
+    h["local_maps_against_the_map"] = {{"d2_per_dof", count("map_test_d2_per_dof")},
+                                       {"windows_tested", count("map_test_windows_tested")},
+                                       {"windows_failed", count("map_test_windows_failed")},
+                                       {"dof", count("map_test_dof")},
+                                       {"longest_episode_joins", count("map_test_longest_episode_joins")},
+                                       {"diverged", count("map_test_diverged") > 0}};
+  }
   h["numerical_failures"] = {{"filter", count("numerical_failures")},
                              {"factor_updates_refactorised", count("join_failed_updates")}};
   if (has("join_maps")) {

@@ -7,6 +7,7 @@
 #include "absl/time/clock.h"
 #include "subslam/graph/check.h"
 #include "subslam/graph/enum_names.h"
+#include "subslam/models/gating.h"
 
 #include <algorithm>
 #include <exception>
@@ -32,6 +33,10 @@ absl::Status BackendOptions::Validate() const {
   if (absl::Status st = ceres.Validate(); !st.ok()) return st;
   if (ceres_every < 0) return absl::InvalidArgumentError("ceres_every must be >= 0");
   if (absl::Status st = sensor_yaw.Validate(); !st.ok()) return st;
+  if (absl::Status st = map_test.Validate(); !st.ok()) return st;
+  if (!(divergence_level > 0.0 && divergence_level < 1.0)) {
+    return absl::InvalidArgumentError(absl::StrCat("divergence_level must be in (0, 1), got ", divergence_level));
+  }
   return absl::OkStatus();
 }
 
@@ -75,6 +80,8 @@ SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose
     : SubmapSlam(std::move(mapper), initial_pose, MakeJoiner(backend, initial_pose), backend.background,
                  ToString(backend.kind), backend.sensor_yaw) {
   SUBSLAM_CHECK(backend.Validate().ok()) << backend.Validate().message();
+  map_test_ = backend.map_test;
+  divergence_level_ = backend.divergence_level;
 }
 
 SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
@@ -318,6 +325,25 @@ std::map<std::string, double> SubmapSlam::Counters() const {
       out[std::string("join_") + f.name] = counters.*f.member;
     }
     out["global_landmarks"] = joiner_->num_landmarks();
+    // The local maps against the map: each join's pairings, over windows of joins.
+    frontend::InnovationMonitor map_test(map_test_);
+    double d2 = 0.0;
+    long dof = 0;
+    for (const backend::JoinSummary& j : joins_) {
+      if (j.association_dof <= 0) continue;
+      map_test.Add(j.association_d2, static_cast<int>(j.association_dof));
+      d2 += j.association_d2;
+      dof += j.association_dof;
+    }
+    if (dof > 0) {
+      out["map_test_d2_per_dof"] = d2 / static_cast<double>(dof);
+      out["map_test_windows_tested"] = map_test.windows_tested();
+      out["map_test_windows_failed"] = map_test.windows_failed();
+      out["map_test_dof"] = static_cast<double>(dof);
+      out["map_test_longest_episode_joins"] = map_test.longest_episode_scans();
+      out["map_test_diverged"] =
+          d2 > models::ChiSquareQuantile(1.0 - divergence_level_, static_cast<double>(dof)) ? 1.0 : 0.0;
+    }
     out.merge(yaw_calibration_.Counters());
     for (const auto& [name, value] : joiner_->Extras().figures) out[name] = value;
   }

@@ -111,6 +111,13 @@ std::string SummaryTable(const RunResult& r) {
           absl::StrFormat("%d / %d (%d episodes, longest %d scans)", n(d["windows_failed"]), n(d["windows_tested"]),
                           n(d["episodes"]), n(d["longest_episode_scans"])));
     }
+    if (h.contains("local_maps_against_the_map")) {
+      const nlohmann::json& m = h["local_maps_against_the_map"];
+      row("local maps against the map",
+          absl::StrFormat("%s: d²/dof %.2f over %d dof; windows of joins failed %d / %d",
+                          m["diverged"].get<bool>() ? "DIVERGED" : "consistent", m["d2_per_dof"].get<double>(),
+                          n(m["dof"]), n(m["windows_failed"]), n(m["windows_tested"])));
+    }
     const nlohmann::json& nf = h["numerical_failures"];
     if (n(nf["filter"]) > 0 || n(nf["factor_updates_refactorised"]) > 0) {
       row("numerical failures", absl::StrFormat("%d in the filter (update skipped), %d factor updates refactorised",

@@ -86,6 +86,39 @@ TEST(RunHealth, InnovationTestPassesAConsistentFilterAndFlagsADivergingOne) {
   EXPECT_NE(SummaryTable(*bad).find("innovation test: windows failed"), std::string::npos);
 }
 
+// The local maps against the map: the camera robot (no moving objects, 300 s) driving and
+// turning at 0.8× what its odometry reports, not calibrated, makes local maps that
+// disagree with the map where they are paired, window after window, and the run is
+// flagged as diverged; the same robot with true odometry is not.
+TEST(RunHealth, LocalMapsAgainstTheMapFlagAnUncalibratedOdometryScale) {
+  const auto run = [](double odometry_scale) {
+    sim::ScenarioOptions o;
+    o.seed = 2;
+    o.moving_objects = 0;
+    o.duration_s = 300.0;
+    absl::StatusOr<sim::ScenarioConfig> config = sim::MakeScenario("camera-robot", o);
+    EXPECT_TRUE(config.ok()) << config.status();
+    config->odometry_scale = Eigen::Vector2d::Constant(odometry_scale);
+    absl::StatusOr<io::Dataset> d = sim::Simulate(*config, o.seed);
+    EXPECT_TRUE(d.ok()) << d.status();
+    RunOptions options;
+    options.frontend = Frontend::kRbpf;
+    options.backend.kind = Backend::kEif;
+    absl::StatusOr<RunResult> r = RunPipeline(*d, options);
+    EXPECT_TRUE(r.ok()) << r.status();
+    return *std::move(r);
+  };
+  const RunResult calibrated = run(1.0);
+  const nlohmann::json& g = calibrated.report["health"]["local_maps_against_the_map"];
+  EXPECT_FALSE(g["diverged"].get<bool>()) << g.dump();
+  EXPECT_GT(g["dof"].get<double>(), 50);
+  const RunResult biased = run(0.8);
+  const nlohmann::json& b = biased.report["health"]["local_maps_against_the_map"];
+  EXPECT_TRUE(b["diverged"].get<bool>()) << b.dump();
+  EXPECT_NE(SummaryTable(biased).find("local maps against the map         DIVERGED"), std::string::npos)
+      << SummaryTable(biased);
+}
+
 // Particle depletion: with an over-confident sensor model a few particles take the
 // weight at every scan (ESS collapses, lineages die out); the particle filter's counters
 // say so, and a well-matched model shows far less.

@@ -94,6 +94,11 @@ struct JoinSummary {
   double seconds = 0.0;
   absl::Status status;
   JoinerCounters counts;
+  // The joint innovation d² of the pairings the join's associations chose, and its
+  // degrees of freedom (SubmapAssociation::pairings_d2; 0 dof: none, or a joiner that
+  // does not report it): the local map against the map, a χ² variable for consistent maps.
+  double association_d2 = 0.0;
+  long association_dof = 0;
 };
 
 // What a joiner reports beyond JoinerCounters and its stage times, named as report.json
@@ -179,9 +184,16 @@ class MapJoiner {
  protected:
   // The join itself, which each joiner implements (Join wraps it with its summary).
   virtual absl::Status JoinLocalMap(const LocalSubmap& submap) = 0;
+  // An association the join made: its pairings' joint d² and dof, summed into the summary.
+  void RecordAssociationInnovation(double d2, long dof) {
+    association_d2_ += d2;
+    association_dof_ += dof;
+  }
 
  private:
   JoinSummary last_join_;
+  double association_d2_ = 0.0;  // of the join in progress
+  long association_dof_ = 0;
 };
 
 // Revision passes on `joiner` until one changes nothing (at most `max_passes`: merges and

@@ -190,6 +190,13 @@ struct SubmapAssociation {
   // StampRotationFit puts into the map joined.
   double map_rotation_fit_rad = NAN;
   double map_rotation_fit_variance_rad2 = NAN;
+  // The joint innovation d² of the pairings the joint-compatibility search chose (before
+  // the loop tests strike any), and its degrees of freedom (2 per pairing; 0: none, or
+  // nearest neighbour, or a whole map's grouped search): how well the local map agrees
+  // with the map where it is paired — χ² with that dof for consistent maps, truncated
+  // from above by the joint gate.
+  double pairings_d2 = 0.0;
+  int pairings_dof = 0;
   double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
   int candidates = 0;                    // candidate landmarks (step 1)
   int candidates_bounded_out = 0;        // of those, dropped under the joiner's bound (step 2)

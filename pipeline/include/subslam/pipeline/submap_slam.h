@@ -58,6 +58,7 @@
 #include "subslam/backend/map_joiner.h"
 #include "subslam/backend/sensor_yaw_calibration.h"
 #include "subslam/backend/tree_joiner.h"
+#include "subslam/frontend/innovation_monitor.h"
 #include "subslam/frontend/local_mapper.h"
 #include "subslam/frontend/online_estimator.h"
 
@@ -83,6 +84,14 @@ struct BackendOptions {
   // false: each closed map is joined inside the Update() that closed it, and the online
   // pose uses its joined anchor at once.
   bool background = true;
+  // The local maps against the map (the run's health): each join's pairings' joint d²
+  // (backend::JoinSummary::association_d2) is χ² with their dof for consistent maps. The
+  // run is taken to diverge when the sum over all joins exceeds the χ² quantile of the
+  // summed dof at 1 − divergence_level (the joins taken as independent; the joint gate
+  // truncates each d² from above, so a consistent run fails less often than the level);
+  // windows of `window_scans` joins with pairings, tested at `probability`, say when.
+  frontend::InnovationTestOptions map_test = {.window_scans = 10};
+  double divergence_level = 0.001;
 
   absl::Status Validate() const;
 };
@@ -196,6 +205,8 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   std::vector<StepRecord> steps_;
   int last_scan_map_id_ = 0;
   std::vector<backend::JoinSummary> joins_;  // written by the joining thread, as status_
+  frontend::InnovationTestOptions map_test_ = BackendOptions().map_test;
+  double divergence_level_ = BackendOptions().divergence_level;
   absl::Status status_;  // written by the joining thread while a join is pending
   // Background joins: the map being joined (set until its join is done), guarded by
   // join_mutex_; the joiner and status_ belong to the joining thread while it is set.
