@@ -83,6 +83,7 @@ MovingFeatureTest::MovingFeatureTest(const MovingFeatureTestOptions& options,
 
 void MovingFeatureTest::Reset() {
   has_origin_ = false;
+  links_valid_ = false;
   segments_.clear();
   segment_of_feature_.clear();
 }
@@ -90,6 +91,7 @@ void MovingFeatureTest::Reset() {
 void MovingFeatureTest::AddScan(double t, const Pose2& pose, const Eigen::Matrix3d& pose_covariance,
                                 const std::vector<Eigen::Vector2d>& z, const std::vector<int>& features) {
   if (!enabled()) return;
+  links_valid_ = false;
   if (!has_origin_) {
     has_origin_ = true;
     origin_ = t;
@@ -130,24 +132,31 @@ void MovingFeatureTest::AddScan(double t, const Pose2& pose, const Eigen::Matrix
   }
 }
 
-std::vector<int> MovingFeatureTest::Track(int key) const {
+void MovingFeatureTest::Link() const {
+  if (links_valid_) return;
   // The hand-overs, made in the order the segments began: each takes over from its most
   // compatible earlier segment that was not detected after it began and has not handed
   // over to another yet, so that a track is a chain (a segment has one successor).
   const int n = static_cast<int>(segments_.size());
-  std::vector<int> predecessor(n, kNone), successor(n, kNone);
+  predecessor_.assign(n, kNone);
+  successor_.assign(n, kNone);
   for (int s = 0; s < n; ++s) {
     for (const auto& [d2, q] : segments_[s].predecessors) {
-      if (successor[q] == kNone && segments_[q].t_last < segments_[s].t_first) {
-        predecessor[s] = q;
-        successor[q] = s;
+      if (successor_[q] == kNone && segments_[q].t_last < segments_[s].t_first) {
+        predecessor_[s] = q;
+        successor_[q] = s;
         break;
       }
     }
   }
+  links_valid_ = true;
+}
+
+std::vector<int> MovingFeatureTest::Track(int key) const {
+  Link();
   std::vector<int> track = {key};
-  for (int at = predecessor[key]; at != kNone; at = predecessor[at]) track.push_back(at);
-  for (int at = successor[key]; at != kNone; at = successor[at]) track.push_back(at);
+  for (int at = predecessor_[key]; at != kNone; at = predecessor_[at]) track.push_back(at);
+  for (int at = successor_[key]; at != kNone; at = successor_[at]) track.push_back(at);
   return track;
 }
 

@@ -316,6 +316,33 @@ StageTimes SubmapSlam::stage_times() const {
   return times;
 }
 
+namespace {
+
+// The local maps against the map (BackendOptions::map_test): each join's pairings summed
+// over the run against their χ² quantile, and over windows of joins.
+void AddMapTestCounters(const std::vector<backend::JoinSummary>& joins, const frontend::InnovationTestOptions& options,
+                        double divergence_level, std::map<std::string, double>* out) {
+  frontend::InnovationMonitor windows(options);
+  double d2 = 0.0;
+  long dof = 0;
+  for (const backend::JoinSummary& j : joins) {
+    if (j.association_dof <= 0) continue;
+    windows.Add(j.association_d2, static_cast<int>(j.association_dof));
+    d2 += j.association_d2;
+    dof += j.association_dof;
+  }
+  if (dof == 0) return;
+  (*out)["map_test_d2_per_dof"] = d2 / static_cast<double>(dof);
+  (*out)["map_test_dof"] = static_cast<double>(dof);
+  (*out)["map_test_windows_tested"] = windows.windows_tested();
+  (*out)["map_test_windows_failed"] = windows.windows_failed();
+  (*out)["map_test_longest_episode_joins"] = windows.longest_episode_scans();
+  (*out)["map_test_diverged"] =
+      d2 > models::ChiSquareQuantile(1.0 - divergence_level, static_cast<double>(dof)) ? 1.0 : 0.0;
+}
+
+}  // namespace
+
 std::map<std::string, double> SubmapSlam::Counters() const {
   WaitForJoins();
   std::map<std::string, double> out = mapper_->Counters();
@@ -325,25 +352,7 @@ std::map<std::string, double> SubmapSlam::Counters() const {
       out[std::string("join_") + f.name] = counters.*f.member;
     }
     out["global_landmarks"] = joiner_->num_landmarks();
-    // The local maps against the map: each join's pairings, over windows of joins.
-    frontend::InnovationMonitor map_test(map_test_);
-    double d2 = 0.0;
-    long dof = 0;
-    for (const backend::JoinSummary& j : joins_) {
-      if (j.association_dof <= 0) continue;
-      map_test.Add(j.association_d2, static_cast<int>(j.association_dof));
-      d2 += j.association_d2;
-      dof += j.association_dof;
-    }
-    if (dof > 0) {
-      out["map_test_d2_per_dof"] = d2 / static_cast<double>(dof);
-      out["map_test_windows_tested"] = map_test.windows_tested();
-      out["map_test_windows_failed"] = map_test.windows_failed();
-      out["map_test_dof"] = static_cast<double>(dof);
-      out["map_test_longest_episode_joins"] = map_test.longest_episode_scans();
-      out["map_test_diverged"] =
-          d2 > models::ChiSquareQuantile(1.0 - divergence_level_, static_cast<double>(dof)) ? 1.0 : 0.0;
-    }
+    AddMapTestCounters(joins_, map_test_, divergence_level_, &out);
     out.merge(yaw_calibration_.Counters());
     for (const auto& [name, value] : joiner_->Extras().figures) out[name] = value;
   }

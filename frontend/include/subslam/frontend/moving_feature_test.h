@@ -126,6 +126,8 @@ class MovingFeatureTest {
     std::vector<std::pair<double, int>> predecessors;
   };
   static constexpr int kNone = -1;
+  // The hand-overs between the segments (predecessor_, successor_), made once per change.
+  void Link() const;
   // The segments of the track holding segment `key`: the chain of hand-overs through it.
   std::vector<int> Track(int key) const;
   TrendFit TrackFit(int feature) const;
@@ -137,6 +139,8 @@ class MovingFeatureTest {
   double origin_ = 0.0;  // τ's origin: the map's first detection
   std::vector<Segment> segments_;
   std::map<int, int> segment_of_feature_;
+  mutable bool links_valid_ = false;
+  mutable std::vector<int> predecessor_, successor_;  // kNone: none
 };
 
 }  // namespace subslam::frontend
