@@ -14,6 +14,7 @@
 #include "subslam/study/study_runner.h"
 #include "tool_commands.h"
 #include "tool_flags.h"
+#include "tool_jobs.h"
 
 namespace subslam::tool {
 namespace {
@@ -54,14 +55,6 @@ int Merge(const std::vector<std::string>& dirs, const std::string& out) {
   return absl::GetFlag(FLAGS_plots) ? Plot({out}) : 0;
 }
 
-// --trials and --workers: unset, or at least 1.
-absl::Status CheckPositive(const std::optional<int>& value, const char* flag) {
-  if (value.has_value() && *value < 1) {
-    return absl::InvalidArgumentError(absl::StrCat("--", flag, " must be >= 1, got ", *value));
-  }
-  return absl::OkStatus();
-}
-
 }  // namespace
 
 int Study(const std::vector<std::string>& args) {
@@ -73,26 +66,11 @@ int Study(const std::vector<std::string>& args) {
   if (args.size() != 1) {
     return Fail(absl::StrCat("study takes one study name; unexpected argument \"", args[1], "\""));
   }
-  // A study runs each method with its paper's settings (`--methods` chooses among them):
-  // a front-end or back-end flag would change nothing, so it is refused.
-  if (absl::Status s = cli::CheckFlagsRead({.command = "study"}); !s.ok()) return Fail(s);
-  if (absl::Status s = CheckPositive(absl::GetFlag(FLAGS_trials), "trials"); !s.ok()) return Fail(s);
-  if (absl::Status s = CheckPositive(absl::GetFlag(FLAGS_workers), "workers"); !s.ok()) return Fail(s);
-  auto made = study::MakeStudy(args[0]);
-  if (!made.ok()) return Fail(made.status());
-  study::StudyOptions options;
-  options.trials = absl::GetFlag(FLAGS_trials).value_or(0);
-  options.workers = absl::GetFlag(FLAGS_workers).value_or(0);
-  options.methods = absl::GetFlag(FLAGS_methods);
-  options.dataset_dir = absl::GetFlag(FLAGS_dataset);
-  auto shard = study::ShardFromString(absl::GetFlag(FLAGS_shard));
-  if (!shard.ok()) return Fail(absl::StrCat("--shard: ", shard.status().message()));
-  options.shard = *shard;
-  options.out_dir = out;
-  options.progress = absl::GetFlag(FLAGS_progress);
-  if (out.empty()) return Fail("a study needs an output directory (--out)");
+  absl::StatusOr<StudyRequest> request = StudyRequestFromFlags(args[0]);
+  if (!request.ok()) return Fail(request.status());
+  const study::StudyOptions& options = request->options;
   if (auto dir = io::PrepareOutputDirectory(out, "study"); !dir.ok()) return Fail(dir.status());
-  if (absl::Status s = study::RunStudy(**made, options); !s.ok()) return Fail(s);
+  if (absl::Status s = study::RunStudy(*request->study, options); !s.ok()) return Fail(s);
   const bool whole = options.shard.count == 1;
   if (!absl::GetFlag(FLAGS_quiet)) {
     if (whole) {

@@ -220,6 +220,7 @@ std::set<std::string>& GivenFlags() {
 }
 
 void NoteFlagsGiven(int argc, char** argv) {
+  GivenFlags().clear();
   for (int i = 1; i < argc; ++i) {
     std::string_view arg = argv[i];
     if (arg == "--") break;

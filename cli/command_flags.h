@@ -40,7 +40,8 @@ std::string FlagReaders(std::string_view name);
 absl::Status CheckFlagsRead(const CommandContext& context);
 
 // Notes which flags the command line names (--name, --name=value, --noname), so that a
-// flag given at its default value still counts as given. Call once, before parsing.
+// flag given at its default value still counts as given. Call before parsing; each call
+// replaces what the last one noted.
 void NoteFlagsGiven(int argc, char** argv);
 
 // Whether the command line noted by NoteFlagsGiven names the flag.

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Shared set-up for scripts/demo.sh and scripts/test.sh: installs what a fresh Debian 12
 # machine lacks (apt-get when root; otherwise prints the exact command and stops),
-# then configures and builds subslam (Release) in build/. Fast when nothing changed.
+# then configures and builds subslam (Release) and its Python module in build/. Fast when
+# nothing changed.
 #
 # Environment: BUILD_DIR (default build), BUILD_TYPE (default Release),
 #              CMAKE_ARGS (extra configure arguments), JOBS (default nproc).
@@ -13,7 +14,8 @@ BUILD_TYPE="${BUILD_TYPE:-Release}"
 JOBS="${JOBS:-$(nproc)}"
 
 PACKAGES=(cmake g++ make ccache libceres-dev libeigen3-dev libsuitesparse-dev libabsl-dev
-          libgtest-dev libbenchmark-dev libboost-dev nlohmann-json3-dev libtbb-dev python3-matplotlib)
+          libgtest-dev libbenchmark-dev libboost-dev nlohmann-json3-dev libtbb-dev python3-matplotlib
+          python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -34,7 +36,9 @@ if ((${#missing[@]})); then
   fi
 fi
 
-if [[ ! -f "$BUILD_DIR/CMakeCache.txt" ]]; then
-  cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" ${CMAKE_ARGS:-}
+# The Python module is built too (python/, docs/python.md); a build directory configured
+# without it is reconfigured once.
+if [[ ! -f "$BUILD_DIR/CMakeCache.txt" ]] || ! grep -q '^SUBSLAM_BUILD_PYTHON:BOOL=ON' "$BUILD_DIR/CMakeCache.txt"; then
+  cmake -S "$ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE="$BUILD_TYPE" -DSUBSLAM_BUILD_PYTHON=ON ${CMAKE_ARGS:-}
 fi
 cmake --build "$BUILD_DIR" -j "$JOBS"

@@ -458,6 +458,21 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
   return d->sensor.range_bearing.Validate();
 }
 
+absl::StatusOr<std::unique_ptr<frontend::OnlineEstimator>> MakeOnlineEstimator(const io::Dataset& dataset,
+                                                                              const RunOptions& options) {
+  io::Dataset models;  // the models and the start: the recorded data are not needed
+  models.name = dataset.name;
+  models.initial_pose = dataset.initial_pose;
+  models.motion = dataset.motion;
+  models.sensor = dataset.sensor;
+  if (!dataset.controls.empty()) models.controls.push_back(dataset.controls.front());  // the mappers' start time
+  if (absl::Status s = options.noise.ApplyTo(&models); !s.ok()) return s;
+  absl::StatusOr<CheckedOptions> checked = CheckOptions(models, options);
+  if (!checked.ok()) return checked.status();
+  SubmapSlam* chain = nullptr;
+  return MakeEstimator(models, options, checked->seif, &chain);
+}
+
 absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& options) {
   if (absl::Status s = options.noise.ApplyTo(&dataset); !s.ok()) return s;
   absl::StatusOr<CheckedOptions> checked = CheckOptions(dataset, options);

@@ -64,3 +64,16 @@ if(cpuinfo MATCHES " avx2 " AND cpuinfo MATCHES " fma " AND cpuinfo MATCHES " bm
   run(consumer-avx2 "${WORK_DIR}/build-avx2/consumer" "${WORK_DIR}/data")
   message(STATUS "AVX2 build: ${last_output}")
 endif()
+# The Python package, when the build has it: importable from the installed prefix alone,
+# and running the simulated data set.
+if(PYTHON AND PYTHON_PACKAGE_DIR)
+  set(site "${WORK_DIR}/prefix/${PYTHON_PACKAGE_DIR}")
+  if(NOT EXISTS "${site}/subslam/__init__.py")
+    message(FATAL_ERROR "the Python package is not installed in ${site}")
+  endif()
+  file(WRITE "${WORK_DIR}/use_subslam.py" "import subslam\n"
+       "r = subslam.run(dataset='${WORK_DIR}/data', frontend='ekfslam')\n"
+       "print(subslam.__file__, len(r.landmarks.ids), 'landmarks')\n")
+  run(python ${CMAKE_COMMAND} -E env "PYTHONPATH=${site}" "${PYTHON}" "${WORK_DIR}/use_subslam.py")
+  message(STATUS "python: ${last_output}")
+endif()

@@ -13,6 +13,7 @@
 #ifndef SUBSLAM_PIPELINE_RUN_PIPELINE_H_
 #define SUBSLAM_PIPELINE_RUN_PIPELINE_H_
 
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -148,6 +149,14 @@ struct RunResult {
   int non_finite_landmarks = 0;  // dropped from the map (a stopped run's broken estimate)
   nlohmann::json report;
 };
+
+// The online estimator RunPipeline drives for `options`, on the data set's motion and
+// sensor models and initial pose with the noise overrides applied (the overrides'
+// sensor_yaw turns recorded bearings, which the caller applies to the scans it feeds); a
+// local-map front-end gives a SubmapSlam. Errors: invalid options or overrides, known
+// association on a data set without true ids.
+absl::StatusOr<std::unique_ptr<frontend::OnlineEstimator>> MakeOnlineEstimator(const io::Dataset& dataset,
+                                                                              const RunOptions& options);
 
 // Errors: invalid options or overrides, an output that cannot be written. A run that
 // cannot go on is not an error: its result and outputs stop at the last good step, and

@@ -1,0 +1,200 @@
+// subslam.Dataset, read_dataset, simulate, scenarios: data sets as numpy arrays.
+#include <memory>
+#include <string>
+#include <utility>
+
+#include <pybind11/eigen.h>
+#include <pybind11/stl.h>
+
+#include "bindings.h"
+#include "convert.h"
+#include "flag_kwargs.h"
+#include "subslam/io/calibration_fragment.h"
+#include "subslam/io/dataset_reader.h"
+#include "subslam/io/dataset_writer.h"
+#include "subslam/io/steps.h"
+#include "subslam/sim/scenario.h"
+#include "tool_jobs.h"
+
+namespace py = pybind11;
+
+namespace subslam::python {
+namespace {
+
+py::dict ControlArrays(const io::Dataset& d) {
+  const auto n = static_cast<py::ssize_t>(d.controls.size());
+  py::array_t<double> t(n), u({n, py::ssize_t{2}});
+  auto tt = t.mutable_unchecked<1>();
+  auto uu = u.mutable_unchecked<2>();
+  for (py::ssize_t k = 0; k < n; ++k) {
+    tt(k) = d.controls[k].t;
+    uu(k, 0) = d.controls[k].u[0];
+    uu(k, 1) = d.controls[k].u[1];
+  }
+  py::dict out;
+  out["t"] = t;
+  out["u"] = u;
+  return out;
+}
+
+py::dict ScanArrays(const Scan& scan) {
+  const auto n = static_cast<py::ssize_t>(scan.detections.size());
+  py::array_t<double> ranges(n), bearings(n), signatures(n);
+  py::array_t<long> truth_ids(n);
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const Detection& det = scan.detections[i];
+    ranges.mutable_at(i) = det.range_m;
+    bearings.mutable_at(i) = det.bearing_rad;
+    signatures.mutable_at(i) = det.signature;
+    truth_ids.mutable_at(i) = det.truth_id;
+  }
+  py::dict out;
+  out["t"] = scan.t;
+  out["ranges"] = ranges;
+  out["bearings"] = bearings;
+  out["signatures"] = signatures;
+  out["truth_ids"] = truth_ids;
+  return out;
+}
+
+py::dict StepArrays(const io::Dataset& d) {
+  const std::vector<io::Step> steps = io::BuildSteps(d);
+  const auto n = static_cast<py::ssize_t>(steps.size());
+  py::array_t<double> t(n), dt(n), u({n, py::ssize_t{2}});
+  py::array_t<long> scan(n);
+  auto uu = u.mutable_unchecked<2>();
+  for (py::ssize_t k = 0; k < n; ++k) {
+    t.mutable_at(k) = steps[k].t;
+    dt.mutable_at(k) = steps[k].dt;
+    uu(k, 0) = steps[k].control[0];
+    uu(k, 1) = steps[k].control[1];
+    scan.mutable_at(k) = steps[k].scan_index;
+  }
+  py::dict out;
+  out["t"] = t;
+  out["dt"] = dt;
+  out["u"] = u;
+  out["scan"] = scan;
+  return out;
+}
+
+py::dict TruthArrays(const io::Dataset& d) {
+  Trajectory poses;
+  for (const io::TimedPose& p : d.truth_poses) poses.push_back({p.t, p.pose, Eigen::Matrix3d::Zero()});
+  py::dict trajectory = TrajectoryArrays(poses);
+  trajectory.attr("pop")("covariances");
+  std::vector<LandmarkEstimate> landmarks;
+  for (const io::TruthLandmark& l : d.truth_landmarks) landmarks.push_back({l.id, l.p, Eigen::Matrix2d::Zero()});
+  py::dict map = LandmarkArrays(landmarks);
+  map.attr("pop")("covariances");
+  py::dict out;
+  out["poses"] = trajectory;
+  out["landmarks"] = map;
+  return out;
+}
+
+py::dict GpsArrays(const io::Dataset& d) {
+  const auto n = static_cast<py::ssize_t>(d.gps.size());
+  py::array_t<double> t(n), p({n, py::ssize_t{2}});
+  auto pp = p.mutable_unchecked<2>();
+  for (py::ssize_t k = 0; k < n; ++k) {
+    t.mutable_at(k) = d.gps[k].t;
+    pp(k, 0) = d.gps[k].p[0];
+    pp(k, 1) = d.gps[k].p[1];
+  }
+  py::dict out;
+  out["t"] = t;
+  out["positions"] = p;
+  return out;
+}
+
+py::dict ModelInfo(const io::Dataset& d) {
+  py::dict motion, sensor, out;
+  motion["model"] = io::ToString(d.motion.model);
+  motion["sigma_v"] = d.motion.noise.sigma_u0;
+  motion["sigma_u1"] = d.motion.noise.sigma_u1;
+  motion["control_scale"] = std::vector<double>{d.motion.control_scale[0], d.motion.control_scale[1]};
+  motion["control_offset"] = std::vector<double>{d.motion.control_offset[0], d.motion.control_offset[1]};
+  const models::RangeBearingConfig& rb = d.sensor.range_bearing;
+  sensor["sigma_range"] = rb.sigma_range_m;
+  sensor["sigma_bearing"] = rb.sigma_bearing_rad;
+  sensor["max_range"] = rb.max_range_m;
+  sensor["has_signature"] = d.sensor.has_signature;
+  sensor["has_truth_id"] = d.sensor.has_truth_id;
+  out["motion"] = motion;
+  out["sensor"] = sensor;
+  return out;
+}
+
+}  // namespace
+
+std::shared_ptr<const io::Dataset> Simulate(const std::string& scenario, const py::kwargs& kwargs) {
+  py::kwargs all;
+  for (const auto& [key, value] : kwargs) all[key] = value;
+  all["scenario"] = scenario;
+  tool::InputRequest input;
+  {
+    FlagScope flags("simulate", all);
+    input = ValueOrThrow(tool::InputRequestFromFlags("simulate", /*required=*/true));
+  }
+  py::gil_scoped_release unlocked;
+  return std::make_shared<const io::Dataset>(ValueOrThrow(tool::ReadInput(input)));
+}
+
+void BindData(py::module_& m) {
+  py::class_<io::Dataset, std::shared_ptr<io::Dataset>>(m, "Dataset", R"doc(
+A data set: the robot's models, its controls and scans, and whatever ground truth it has.
+Read one with read_dataset(), simulate one with simulate(). Arrays are copies; units are
+metres, radians and seconds; poses are (x, y, θ) in the data set's world frame.)doc")
+      .def_readonly("name", &io::Dataset::name)
+      .def_readonly("directory", &io::Dataset::directory, "where it was read from; empty when simulated")
+      .def_property_readonly("initial_pose", [](const io::Dataset& d) { return d.initial_pose.vector(); })
+      .def_property_readonly("models", &ModelInfo, "the motion and sensor models' settings (a dict)")
+      .def_property_readonly("controls", &ControlArrays, "{'t': (N,), 'u': (N, 2)} as recorded")
+      .def_property_readonly("num_scans", [](const io::Dataset& d) { return d.scans.size(); })
+      .def_property_readonly("num_detections", &io::Dataset::NumDetections)
+      .def(
+          "scan",
+          [](const io::Dataset& d, long i) {
+            if (i < 0 || i >= static_cast<long>(d.scans.size())) throw py::index_error("scan index out of range");
+            return ScanArrays(d.scans[i]);
+          },
+          py::arg("index"), "{'t', 'ranges', 'bearings', 'signatures' (NaN: none), 'truth_ids' (-1 false alarm, -2 unknown)}")
+      .def("steps", &StepArrays, R"doc(
+The processing timeline: {'t', 'dt', 'u' (N, 2), 'scan'}. Step k predicts over dt with the
+control u (the data set's control scale and offset applied), then updates with scan
+`scan` (-1: none). Feed Slam.predict(u[k], dt[k]) and Slam.update(**dataset.scan(scan[k])).)doc")
+      .def_property_readonly("truth", &TruthArrays, "{'poses': {'t', 'poses'}, 'landmarks': {'ids', 'positions'}}")
+      .def_property_readonly("gps", &GpsArrays, "{'t', 'positions'} in the GPS's own frame")
+      .def(
+          "write",
+          [](const io::Dataset& d, const std::string& directory) { ThrowIfError(io::WriteDataset(d, directory)); },
+          py::arg("directory"), "writes dataset.json and its files (docs/formats.md)")
+      .def("__repr__", [](const io::Dataset& d) {
+        return "<subslam.Dataset '" + d.name + "': " + std::to_string(d.controls.size()) + " controls, " +
+               std::to_string(d.scans.size()) + " scans, " + std::to_string(d.NumDetections()) + " detections>";
+      });
+
+  m.def(
+      "read_dataset",
+      [](const std::string& directory, const std::string& calibration) {
+        py::gil_scoped_release unlocked;
+        io::Dataset d = ValueOrThrow(io::ReadDataset(directory));
+        if (!calibration.empty()) ThrowIfError(io::ApplyCalibrationFile(calibration, &d));
+        return std::make_shared<io::Dataset>(std::move(d));
+      },
+      py::arg("directory"), py::arg("calibration") = "",
+      "Reads a data-set directory (dataset.json and its files); `calibration`: a calibration.json "
+      "whose values replace the manifest's (subslam calibrate).");
+  m.def(
+      "simulate",
+      [](const std::string& scenario, const py::kwargs& kwargs) {
+        return std::const_pointer_cast<io::Dataset>(Simulate(scenario, kwargs));
+      },
+      py::arg("scenario"),
+      "Simulates a scenario (scenarios() lists them) with the options of `subslam simulate` as "
+      "keywords: seed=1, alpha=…, beta=…, duration=…, landmarks=…, …");
+  m.def("scenarios", &sim::ScenarioNames, "The simulated scenarios' names.");
+}
+
+}  // namespace subslam::python

@@ -1,0 +1,50 @@
+// What the bindings share: absl::Status as a Python exception, and the library's estimates
+// as numpy arrays (poses N×3 as x [m], y [m], θ [rad]; covariances N×3×3 or N×2×2; times in
+// seconds). Arrays are copies: Python owns them.
+#ifndef SUBSLAM_PYTHON_CONVERT_H_
+#define SUBSLAM_PYTHON_CONVERT_H_
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "subslam/graph/estimates.h"
+
+namespace subslam::python {
+
+// Raises the status as ValueError (invalid argument, out of range), FileNotFoundError (not
+// found) or RuntimeError (anything else), its message unchanged (file:line: field). It
+// touches no Python object, so it may be called with the GIL released.
+void ThrowIfError(const absl::Status& status);
+// The C++ exception behind FileNotFoundError (RegisterExceptions translates it).
+class FileNotFound : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+void RegisterExceptions();
+template <typename T>
+T ValueOrThrow(absl::StatusOr<T> value) {
+  ThrowIfError(value.status());
+  return *std::move(value);
+}
+
+// {"t": (N,), "poses": (N, 3), "covariances": (N, 3, 3)}.
+pybind11::dict TrajectoryArrays(const Trajectory& trajectory);
+// {"ids": (N,), "positions": (N, 2), "covariances": (N, 2, 2)}.
+pybind11::dict LandmarkArrays(const std::vector<LandmarkEstimate>& landmarks);
+// A JSON value as Python objects (dict, list, float, …).
+pybind11::object JsonToPython(const nlohmann::json& value);
+
+// An array of shape `shape` (−1: any length), as doubles; ValueError naming `what` otherwise.
+pybind11::array_t<double> CheckedArray(const pybind11::handle& value, const std::vector<long>& shape,
+                                       const std::string& what);
+
+}  // namespace subslam::python
+
+#endif  // SUBSLAM_PYTHON_CONVERT_H_
