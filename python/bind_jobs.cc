@@ -9,7 +9,10 @@
 
 #include <pybind11/stl.h>
 
+#include "absl/flags/commandlineflag.h"
+#include "absl/flags/reflection.h"
 #include "bindings.h"
+#include "command_flags.h"
 #include "convert.h"
 #include "flag_kwargs.h"
 #include "subslam/io/output_directory.h"
@@ -142,9 +145,22 @@ py::dict Study(const std::string& name, py::kwargs kwargs) {
   return d;
 }
 
+// The keywords a command takes: each flag some invocation of it reads, with its default.
+py::dict Options(const std::string& command) {
+  py::dict options;
+  for (const std::string& name : cli::ProgramFlagNames()) {
+    if (cli::CommandMayReadFlag(name, command)) options[py::str(name)] = absl::FindCommandLineFlag(name)->DefaultValue();
+  }
+  if (options.empty()) throw py::value_error("options(): unknown command \"" + command + "\"");
+  return options;
+}
+
 }  // namespace
 
 void BindJobs(py::module_& m) {
+  m.def("options", &Options, py::arg("command"), R"doc(
+The keywords a job takes (run, join, solve, study, simulate, calibrate), each with its
+default as the tool prints it; `subslam help COMMAND` says what each does.)doc");
   m.def("run", &Run, R"doc(
 `subslam run` as a call: dataset= (a directory or a Dataset) or scenario= (with seed=, …),
 frontend=, backend= and every other option of `subslam help run` as a keyword. Returns a

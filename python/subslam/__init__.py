@@ -15,12 +15,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._subslam import (Dataset, LocalMap, Slam, __version__, read_dataset, read_local_maps, scenarios, simulate,
-                       write_local_maps)
+from ._subslam import (Dataset, LocalMap, Slam, __version__, options, read_dataset, read_local_maps, scenarios,
+                       simulate, write_local_maps)
 from . import _subslam
 
 __all__ = ["Dataset", "LocalMap", "Slam", "Trajectory", "Landmarks", "RunResult", "JoinResult", "SolveResult",
-           "StudyResult", "read_dataset", "read_local_maps", "write_local_maps", "simulate", "scenarios", "run",
+           "StudyResult", "options", "read_dataset", "read_local_maps", "write_local_maps", "simulate", "scenarios", "run",
            "join", "solve", "study", "__version__"]
 
 

@@ -134,3 +134,11 @@ def test_join_refuses_a_missing_file_and_a_map_that_is_not_one():
         subslam.join("/nowhere.jsonl")
     with pytest.raises(TypeError):
         subslam.join([1, 2, 3])
+
+
+def test_options_lists_each_jobs_keywords_with_their_defaults():
+    run = subslam.options("run")
+    assert run["frontend"] == "ekfslam" and "particles" in run and "graph" not in run
+    assert "graph" in subslam.options("solve")
+    with pytest.raises(ValueError, match="no-such"):
+        subslam.options("no-such")
