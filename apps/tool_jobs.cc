@@ -222,16 +222,24 @@ absl::StatusOr<pipeline::JoinResult> RunJoinRequest(const JoinRequest& request,
   return pipeline::RunJoin(submaps, options);
 }
 
-absl::StatusOr<SolveRequest> SolveRequestFromFlags() {
+absl::StatusOr<SolveRequest> SolveRequestFromFlags(bool graph_given) {
   SolveRequest request;
   request.graph_path = absl::GetFlag(FLAGS_graph);
-  if (request.graph_path.empty()) return absl::InvalidArgumentError("solve needs --graph FILE");
-  if (absl::Status s = cli::CheckFlagsRead({.command = "solve"}); !s.ok()) return s;
   const std::string format_name = absl::GetFlag(FLAGS_format);
-  auto format = format_name.empty() ? posegraph::GraphFormatFromPath(request.graph_path)
-                                    : posegraph::GraphFormatFromString(format_name);
-  if (!format.ok()) return absl::InvalidArgumentError(absl::StrCat("--format: ", format.status().message()));
-  request.read.format = *format;
+  if (graph_given) {
+    if (!request.graph_path.empty() || !format_name.empty() || !absl::GetFlag(FLAGS_noise).empty()) {
+      return absl::InvalidArgumentError("solve was given its graph: --graph, --format and --noise must be unset");
+    }
+  } else if (request.graph_path.empty()) {
+    return absl::InvalidArgumentError("solve needs --graph FILE");
+  }
+  if (absl::Status s = cli::CheckFlagsRead({.command = "solve"}); !s.ok()) return s;
+  if (!graph_given) {
+    auto format = format_name.empty() ? posegraph::GraphFormatFromPath(request.graph_path)
+                                      : posegraph::GraphFormatFromString(format_name);
+    if (!format.ok()) return absl::InvalidArgumentError(absl::StrCat("--format: ", format.status().message()));
+    request.read.format = *format;
+  }
   if (const std::string n = absl::GetFlag(FLAGS_noise); !n.empty()) {
     auto noise = posegraph::NoiseConventionFromString(n);
     if (!noise.ok()) return absl::InvalidArgumentError(absl::StrCat("--noise: ", noise.status().message()));

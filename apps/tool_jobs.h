@@ -94,7 +94,9 @@ struct SolveRequest {
   posegraph::GraphReadOptions read;
   pipeline::SolveOptions options;  // out_dir and write_local_maps set; invocation and source left
 };
-absl::StatusOr<SolveRequest> SolveRequestFromFlags();
+// `graph_given`: the caller holds the graph (the request's path is then empty and
+// --graph, --format and --noise must be unset).
+absl::StatusOr<SolveRequest> SolveRequestFromFlags(bool graph_given = false);
 
 // Reads the request's graph, recording in options.source what it is and how long reading took.
 absl::StatusOr<posegraph::PoseGraph> ReadSolveGraph(SolveRequest* request);

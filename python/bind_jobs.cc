@@ -15,6 +15,7 @@
 #include "command_flags.h"
 #include "convert.h"
 #include "flag_kwargs.h"
+#include "graph.h"
 #include "subslam/io/output_directory.h"
 #include "subslam/io/submaps_jsonl.h"
 #include "tool_jobs.h"
@@ -75,11 +76,17 @@ py::dict Join(py::kwargs kwargs) {
   const bool in_memory = !submaps.is_none() && !py::isinstance<py::str>(submaps) && !py::hasattr(submaps, "__fspath__");
   if (!submaps.is_none() && !in_memory) kwargs["submaps"] = submaps;
   if (submaps.is_none()) throw py::type_error("join() needs submaps= (a submaps.jsonl path or a list of LocalMap)");
+  py::object initial_pose = Take(&kwargs, "initial_pose");
   tool::JoinRequest request;
   {
     FlagScope flags("join", kwargs);
     request = ValueOrThrow(tool::JoinRequestFromFlags(/*submaps_required=*/!in_memory));
     request.options.invocation = flags.Invocation();
+  }
+  if (!initial_pose.is_none()) {
+    if (!request.input.empty()) throw py::value_error("join(): initial_pose and dataset= or scenario= both give the start");
+    const py::array_t<double> p = CheckedArray(initial_pose, {3}, "initial_pose");
+    request.options.initial_pose = Pose2(p.at(0), p.at(1), WrapAngle(p.at(2)));
   }
   std::vector<LocalSubmap> maps;
   if (in_memory) {
@@ -105,17 +112,31 @@ py::dict Join(py::kwargs kwargs) {
 }
 
 py::dict Solve(py::kwargs kwargs) {
+  py::object graph = Take(&kwargs, "graph");
+  std::shared_ptr<Graph> in_memory;
+  if (!graph.is_none()) {
+    try {
+      in_memory = graph.cast<std::shared_ptr<Graph>>();
+    } catch (const py::cast_error&) {
+      kwargs["graph"] = graph;  // a path
+    }
+  }
   tool::SolveRequest request;
   {
     FlagScope flags("solve", kwargs);
-    request = ValueOrThrow(tool::SolveRequestFromFlags());
+    request = ValueOrThrow(tool::SolveRequestFromFlags(/*graph_given=*/in_memory != nullptr));
     request.options.invocation = flags.Invocation();
   }
   pipeline::SolveResult r;
   {
     py::gil_scoped_release unlocked;
-    const posegraph::PoseGraph graph = ValueOrThrow(tool::ReadSolveGraph(&request));
-    r = ValueOrThrow(pipeline::RunSolve(graph, request.options));
+    if (in_memory != nullptr) {
+      request.options.source = GraphSource(*in_memory);
+      r = ValueOrThrow(pipeline::RunSolve(in_memory->graph, request.options));
+    } else {
+      const posegraph::PoseGraph read = ValueOrThrow(tool::ReadSolveGraph(&request));
+      r = ValueOrThrow(pipeline::RunSolve(read, request.options));
+    }
   }
   py::dict d;
   d["report"] = JsonToPython(r.report);
@@ -171,7 +192,8 @@ local_maps, stopped (None, or why the run stopped early). out= also writes the o
 (default eif) and the options of `subslam help join`. Returns report, anchor_times,
 anchors, anchors_online, landmarks.)doc");
   m.def("solve", &Solve, R"doc(
-`subslam solve` as a call: graph= (a g2o, TORO, iSAM or GTSAM file), format=, methods=, …
+`subslam solve` as a call: graph= (a g2o, TORO, iSAM or GTSAM file, or a Graph), format=,
+methods=, …
 Returns report (each method's error, iterations, time); out= writes METHOD.g2o.)doc");
   m.def("study", &Study, py::arg("name"), R"doc(
 `subslam study NAME` as a call: out= (required), trials=, workers=, methods=, shard=.

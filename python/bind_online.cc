@@ -65,24 +65,27 @@ class OnlineSlam {
     }
     sensor_yaw_ = options.noise.sensor_yaw;
     estimator_ = ValueOrThrow(pipeline::MakeOnlineEstimator(*dataset_, options));
+    if (!dataset_->controls.empty()) time_ = dataset_->controls.front().t;
     chain_ = dynamic_cast<pipeline::SubmapSlam*>(estimator_.get());
   }
 
   void Predict(const Eigen::Vector2d& u, double dt) {
     if (!(dt >= 0.0) || !u.allFinite()) throw py::value_error("predict: u must be finite and dt >= 0");
     CheckOpen();
+    time_ += dt;
     py::gil_scoped_release unlocked;
     estimator_->Predict(u, dt);
   }
 
-  void Update(double t, const py::handle& ranges, const py::handle& bearings, const py::handle& signatures,
-              const py::handle& truth_ids) {
+  void Update(const py::handle& ranges, const py::handle& bearings, const py::handle& signatures,
+              const py::handle& truth_ids, const std::optional<double>& t) {
     CheckOpen();
+    if (t.has_value() && !std::isfinite(*t)) throw py::value_error("update: t must be finite");
     const py::array_t<double> r = CheckedArray(ranges, {-1}, "ranges");
     const long n = static_cast<long>(r.shape(0));
     const py::array_t<double> b = CheckedArray(bearings, {n}, "bearings");
     Scan scan;
-    scan.t = t;
+    scan.t = t.value_or(time_);
     scan.detections.resize(n);
     for (long i = 0; i < n; ++i) {
       scan.detections[i].range_m = r.at(i);
@@ -140,6 +143,7 @@ class OnlineSlam {
   std::unique_ptr<frontend::OnlineEstimator> estimator_;
   pipeline::SubmapSlam* chain_ = nullptr;  // the local-map front-ends' pipeline
   std::optional<double> sensor_yaw_;
+  double time_ = 0.0;  // the data set's start plus every predict's dt: a scan's time unless given
   bool finished_ = false;
 };
 
@@ -157,10 +161,11 @@ iseif, odometry: single-map filters) with the options of `subslam run` as keywor
            "backend: for rbpf and ekf, eif unless given (none: local maps chained, not joined)")
       .def("predict", &OnlineSlam::Predict, py::arg("u"), py::arg("dt"),
            "Moves the estimate over dt [s] with the control u (v [m/s], ω [rad/s] or steer [rad]) held over it.")
-      .def("update", &OnlineSlam::Update, py::arg("t"), py::arg("ranges"), py::arg("bearings"),
-           py::arg("signatures") = py::none(), py::arg("truth_ids") = py::none(),
-           "Updates with a scan at t [s]: ranges [m] and bearings [rad] in the vehicle frame; the true ids only "
-           "for known association.")
+      .def("update", &OnlineSlam::Update, py::arg("ranges"), py::arg("bearings"),
+           py::arg("signatures") = py::none(), py::arg("truth_ids") = py::none(), py::arg("t") = py::none(),
+           "Updates with a scan: ranges [m] and bearings [rad] in the vehicle frame, the signatures when the "
+           "sensor has them, the true ids only for known association; t [s] (default: the data set's start plus "
+           "the predictions' dt).")
       .def("record_step", &OnlineSlam::RecordStep, py::arg("t"),
            "Remembers the step (local-map front-ends) for final_trajectory().")
       .def("finish", &OnlineSlam::Finish, "Closes and joins the open local map.")

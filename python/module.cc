@@ -9,6 +9,7 @@ PYBIND11_MODULE(_subslam, m) {
   subslam::python::RegisterExceptions();
   subslam::python::BindData(m);
   subslam::python::BindLocalMaps(m);
+  subslam::python::BindGraphs(m);
   subslam::python::BindOnline(m);
   subslam::python::BindJobs(m);
 }

@@ -15,12 +15,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ._subslam import (Dataset, LocalMap, Slam, __version__, options, read_dataset, read_local_maps, scenarios,
-                       simulate, write_local_maps)
+from ._subslam import (Dataset, Graph, LocalMap, Slam, __version__, options, read_dataset, read_graph,
+                       read_local_maps, scenarios, simulate, write_local_maps)
 from . import _subslam
 
-__all__ = ["Dataset", "LocalMap", "Slam", "Trajectory", "Landmarks", "RunResult", "JoinResult", "SolveResult",
-           "StudyResult", "options", "read_dataset", "read_local_maps", "write_local_maps", "simulate", "scenarios", "run",
+__all__ = ["Dataset", "Graph", "LocalMap", "Slam", "Trajectory", "Landmarks", "RunResult", "JoinResult", "SolveResult",
+           "StudyResult", "options", "read_dataset", "read_graph", "read_local_maps", "write_local_maps", "simulate", "scenarios", "run",
            "join", "solve", "study", "__version__"]
 
 
@@ -79,16 +79,20 @@ def run(**options) -> RunResult:
 
 def join(submaps, backend="eif", **options) -> JoinResult:
     """`subslam join`: submaps is a submaps.jsonl path or a list of LocalMap; backend (eif,
-    ceres, ekf, tree-ekf, tree-eif, tree-ceres), dataset= or scenario= for the initial pose and
-    the truth, and the options of `subslam help join`."""
+    ceres, ekf, tree-ekf, tree-eif, tree-ceres); the first map's anchor from dataset= or
+    scenario= (with the truth) or initial_pose=(x, y, θ) (default: the origin); and the
+    options of `subslam help join`."""
     r = _subslam.join(submaps=submaps, backend=backend, **options)
     return JoinResult(r["report"], Trajectory(**r["anchors"]), Trajectory(**r["anchors_online"]),
                       Landmarks(**r["landmarks"]))
 
 
 def solve(graph, **options) -> SolveResult:
-    """`subslam solve`: graph is a g2o, TORO, iSAM or GTSAM file; format=, noise=, methods=, …"""
-    return SolveResult(_subslam.solve(graph=str(graph), **options)["report"])
+    """`subslam solve`: graph is a g2o, TORO, iSAM or GTSAM file (format=, noise= say how to read
+    it) or a Graph (read_graph); methods=, initial=, max_iterations=, …"""
+    if hasattr(graph, "__fspath__"):
+        graph = str(graph)
+    return SolveResult(_subslam.solve(graph=graph, **options)["report"])
 
 
 def study(name, **options) -> StudyResult:

@@ -83,6 +83,13 @@ def test_solve_is_the_tools_solve_on_the_shipped_graph(tool, graphs, tmp_path):
     assert same_files(tmp_path / "py", tmp_path / "tool", ["submaps.g2o", "eif.g2o"]) is None
     errors = {m["name"]: m["error"] for m in result.report["methods"]}
     assert errors == {m["name"]: m["error"] for m in read_report(tmp_path / "tool")["methods"]}
+    # The graph cut into local maps, joined by the tree EIF with the graph's association.
+    subslam.solve(graph, format="gtsam", methods=["submaps"], write_local_maps=True, out=str(tmp_path / "maps"),
+                  plots=False)
+    submaps = str(tmp_path / "maps" / "submaps_submaps.jsonl")
+    subslam.join(submaps, backend="tree-eif", known_association=True, out=str(tmp_path / "join_py"))
+    tool("join", f"--submaps={submaps}", "--backend=tree-eif", "--known_association", f"--out={tmp_path / 'join'}")
+    assert same_files(tmp_path / "join_py", tmp_path / "join", ["anchors.csv", "landmarks.csv", "graph.g2o"]) is None
 
 
 def test_victoria_park_from_python_is_the_tools_run(tool, victoria_park, tmp_path):
@@ -142,3 +149,32 @@ def test_options_lists_each_jobs_keywords_with_their_defaults():
     assert "graph" in subslam.options("solve")
     with pytest.raises(ValueError, match="no-such"):
         subslam.options("no-such")
+
+
+def test_solve_takes_a_graph_in_memory_and_its_own_start(graphs, tmp_path):
+    path = os.path.join(graphs, "victoria_park.txt")
+    graph = subslam.read_graph(path, format="gtsam")
+    assert graph.poses["estimates"].shape == (len(graph.poses["ids"]), 3)
+    from_file = subslam.solve(path, format="gtsam", methods=["submaps"])
+    in_memory = subslam.solve(graph, methods=["submaps"])
+    assert from_file.report["methods"][0]["error"] == in_memory.report["methods"][0]["error"]
+    # A start of one's own: the submap route's solution, solved again by Gauss-Newton from it.
+    subslam.solve(graph, methods=["submaps"], out=str(tmp_path / "s"), plots=False)
+    solved = subslam.read_graph(str(tmp_path / "s" / "submaps.g2o"))
+    start = graph.with_estimates(poses=solved.poses["estimates"], points=solved.points["estimates"])
+    polished = subslam.solve(start, methods=["gn"], initial="file")
+    assert polished.report["methods"][0]["error"] <= from_file.report["methods"][0]["error"] * (1 + 1e-6)
+    with pytest.raises(ValueError, match="shape"):
+        graph.with_estimates(poses=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="--graph, --format and --noise"):
+        subslam.solve(graph, format="g2o")
+
+
+def test_join_starts_at_the_initial_pose_given():
+    covariance = np.diag([0.01, 0.01, 0.001, 0.04, 0.04])
+    maps = [subslam.LocalMap(0, 0.0, 1.0, [1.0, 0.0, 0.0, 3.0, 2.0], covariance)]
+    joined = subslam.join(maps, initial_pose=[10.0, 5.0, np.pi / 2])
+    assert np.allclose(joined.anchors.poses[0], [10.0, 5.0, np.pi / 2])
+    assert np.allclose(joined.landmarks.positions[0], [8.0, 8.0])
+    with pytest.raises(ValueError, match="initial_pose"):
+        subslam.join(maps, initial_pose=[0.0, 0.0, 0.0], scenario="hybrid-120m")

@@ -44,9 +44,11 @@ def test_bad_calls_raise():
         subslam.Slam(dataset, particles=0)
     slam = subslam.Slam(dataset, frontend="ekfslam")
     with pytest.raises(ValueError, match="shape"):
-        slam.update(1.0, [1.0, 2.0], [0.1])
+        slam.update([1.0, 2.0], [0.1])
     with pytest.raises(ValueError, match="shape"):
-        slam.update(1.0, np.ones((2, 2)), np.ones((2, 2)))
+        slam.update(np.ones((2, 2)), np.ones((2, 2)))
+    with pytest.raises(ValueError, match="range"):
+        slam.update([-1.0], [0.1])
     with pytest.raises(TypeError):
         slam.predict([1.0, 2.0, 3.0], 0.1)
     with pytest.raises(ValueError, match="dt"):
@@ -54,3 +56,21 @@ def test_bad_calls_raise():
     slam.finish()
     with pytest.raises(ValueError, match="finished"):
         slam.predict([1.0, 0.0], 0.1)
+
+
+def test_a_robots_own_loop_without_scan_times():
+    """A robot fills predict and update from its own controls and sensor; a scan's time defaults
+    to the data set's start plus the predictions' dt, which on the simulated timeline is the
+    scan's own time to rounding."""
+    dataset = subslam.simulate("hybrid-120m", seed=1, duration=60)
+    steps = dataset.steps()
+    timed = subslam.Slam(dataset, frontend="ekfslam")
+    untimed = subslam.Slam(dataset, frontend="ekfslam")
+    for k in range(len(steps["t"])):
+        for slam in (timed, untimed):
+            slam.predict(steps["u"][k], steps["dt"][k])
+        if steps["scan"][k] >= 0:
+            scan = dataset.scan(int(steps["scan"][k]))
+            timed.update(**scan)
+            untimed.update(list(scan["ranges"]), list(scan["bearings"]))
+    assert np.allclose(timed.pose, untimed.pose, atol=1e-9)
