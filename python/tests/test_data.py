@@ -69,3 +69,14 @@ def test_local_maps_read_and_write(tmp_path):
     subslam.write_local_maps(str(tmp_path / "m.jsonl"), maps)
     again = subslam.read_local_maps(str(tmp_path / "m.jsonl"))
     assert len(again) == 1 and np.array_equal(again[0].mean, maps[0].mean)
+
+
+def test_a_malformed_data_set_names_the_file_line_and_field(tmp_path):
+    subslam.simulate("hybrid-120m", seed=1, duration=10).write(str(tmp_path))
+    controls = tmp_path / "controls.dat"
+    lines = controls.read_text().splitlines()
+    data_line = next(i for i, line in enumerate(lines) if line.strip() and not line.startswith("#"))
+    lines[data_line] = "0.5 not-a-number 0.1"
+    controls.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=f"controls.dat:{data_line + 1}"):
+        subslam.read_dataset(str(tmp_path))
