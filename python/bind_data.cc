@@ -22,89 +22,52 @@ namespace subslam::python {
 namespace {
 
 py::dict ControlArrays(const io::Dataset& d) {
-  const auto n = static_cast<py::ssize_t>(d.controls.size());
-  py::array_t<double> t(n), u({n, py::ssize_t{2}});
-  auto tt = t.mutable_unchecked<1>();
-  auto uu = u.mutable_unchecked<2>();
-  for (py::ssize_t k = 0; k < n; ++k) {
-    tt(k) = d.controls[k].t;
-    uu(k, 0) = d.controls[k].u[0];
-    uu(k, 1) = d.controls[k].u[1];
-  }
+  const size_t n = d.controls.size();
   py::dict out;
-  out["t"] = t;
-  out["u"] = u;
+  out["t"] = ValueArray<double>(n, [&](size_t k) { return d.controls[k].t; });
+  out["u"] = RowArray<2>(n, [&](size_t k) { return d.controls[k].u; });
   return out;
 }
 
 py::dict ScanArrays(const Scan& scan) {
-  const auto n = static_cast<py::ssize_t>(scan.detections.size());
-  py::array_t<double> ranges(n), bearings(n), signatures(n);
-  py::array_t<long> truth_ids(n);
-  for (py::ssize_t i = 0; i < n; ++i) {
-    const Detection& det = scan.detections[i];
-    ranges.mutable_at(i) = det.range_m;
-    bearings.mutable_at(i) = det.bearing_rad;
-    signatures.mutable_at(i) = det.signature;
-    truth_ids.mutable_at(i) = det.truth_id;
-  }
+  const std::vector<Detection>& z = scan.detections;
   py::dict out;
   out["t"] = scan.t;
-  out["ranges"] = ranges;
-  out["bearings"] = bearings;
-  out["signatures"] = signatures;
-  out["truth_ids"] = truth_ids;
+  out["ranges"] = ValueArray<double>(z.size(), [&](size_t i) { return z[i].range_m; });
+  out["bearings"] = ValueArray<double>(z.size(), [&](size_t i) { return z[i].bearing_rad; });
+  out["signatures"] = ValueArray<double>(z.size(), [&](size_t i) { return z[i].signature; });
+  out["truth_ids"] = ValueArray<long>(z.size(), [&](size_t i) { return z[i].truth_id; });
   return out;
 }
 
 py::dict StepArrays(const io::Dataset& d) {
   const std::vector<io::Step> steps = io::BuildSteps(d);
-  const auto n = static_cast<py::ssize_t>(steps.size());
-  py::array_t<double> t(n), dt(n), u({n, py::ssize_t{2}});
-  py::array_t<long> scan(n);
-  auto uu = u.mutable_unchecked<2>();
-  for (py::ssize_t k = 0; k < n; ++k) {
-    t.mutable_at(k) = steps[k].t;
-    dt.mutable_at(k) = steps[k].dt;
-    uu(k, 0) = steps[k].control[0];
-    uu(k, 1) = steps[k].control[1];
-    scan.mutable_at(k) = steps[k].scan_index;
-  }
+  const size_t n = steps.size();
   py::dict out;
-  out["t"] = t;
-  out["dt"] = dt;
-  out["u"] = u;
-  out["scan"] = scan;
+  out["t"] = ValueArray<double>(n, [&](size_t k) { return steps[k].t; });
+  out["dt"] = ValueArray<double>(n, [&](size_t k) { return steps[k].dt; });
+  out["u"] = RowArray<2>(n, [&](size_t k) { return steps[k].control; });
+  out["scan"] = ValueArray<long>(n, [&](size_t k) { return steps[k].scan_index; });
   return out;
 }
 
 py::dict TruthArrays(const io::Dataset& d) {
-  Trajectory poses;
-  for (const io::TimedPose& p : d.truth_poses) poses.push_back({p.t, p.pose, Eigen::Matrix3d::Zero()});
-  py::dict trajectory = TrajectoryArrays(poses);
-  trajectory.attr("pop")("covariances");
-  std::vector<LandmarkEstimate> landmarks;
-  for (const io::TruthLandmark& l : d.truth_landmarks) landmarks.push_back({l.id, l.p, Eigen::Matrix2d::Zero()});
-  py::dict map = LandmarkArrays(landmarks);
-  map.attr("pop")("covariances");
-  py::dict out;
+  const std::vector<io::TimedPose>& poses = d.truth_poses;
+  const std::vector<io::TruthLandmark>& landmarks = d.truth_landmarks;
+  py::dict trajectory, map, out;
+  trajectory["t"] = ValueArray<double>(poses.size(), [&](size_t k) { return poses[k].t; });
+  trajectory["poses"] = RowArray<3>(poses.size(), [&](size_t k) { return poses[k].pose.vector(); });
+  map["ids"] = ValueArray<long>(landmarks.size(), [&](size_t k) { return landmarks[k].id; });
+  map["positions"] = RowArray<2>(landmarks.size(), [&](size_t k) { return landmarks[k].p; });
   out["poses"] = trajectory;
   out["landmarks"] = map;
   return out;
 }
 
 py::dict GpsArrays(const io::Dataset& d) {
-  const auto n = static_cast<py::ssize_t>(d.gps.size());
-  py::array_t<double> t(n), p({n, py::ssize_t{2}});
-  auto pp = p.mutable_unchecked<2>();
-  for (py::ssize_t k = 0; k < n; ++k) {
-    t.mutable_at(k) = d.gps[k].t;
-    pp(k, 0) = d.gps[k].p[0];
-    pp(k, 1) = d.gps[k].p[1];
-  }
   py::dict out;
-  out["t"] = t;
-  out["positions"] = p;
+  out["t"] = ValueArray<double>(d.gps.size(), [&](size_t k) { return d.gps[k].t; });
+  out["positions"] = RowArray<2>(d.gps.size(), [&](size_t k) { return d.gps[k].p; });
   return out;
 }
 

@@ -19,44 +19,21 @@ namespace subslam::python {
 namespace {
 
 py::dict PoseArrays(const posegraph::PoseGraph& g) {
-  const auto n = static_cast<py::ssize_t>(g.poses.size());
-  py::array_t<long> ids(n);
-  py::array_t<double> estimates({n, py::ssize_t{3}});
-  py::array_t<bool> has_estimate(n), fixed(n);
-  auto ee = estimates.mutable_unchecked<2>();
-  for (py::ssize_t k = 0; k < n; ++k) {
-    const posegraph::PoseVertex& v = g.poses[k];
-    ids.mutable_at(k) = v.id;
-    ee(k, 0) = v.estimate.x;
-    ee(k, 1) = v.estimate.y;
-    ee(k, 2) = v.estimate.theta;
-    has_estimate.mutable_at(k) = v.has_estimate;
-    fixed.mutable_at(k) = v.fixed;
-  }
+  const std::vector<posegraph::PoseVertex>& v = g.poses;
   py::dict d;
-  d["ids"] = ids;
-  d["estimates"] = estimates;
-  d["has_estimate"] = has_estimate;
-  d["fixed"] = fixed;
+  d["ids"] = ValueArray<long>(v.size(), [&](size_t k) { return v[k].id; });
+  d["estimates"] = RowArray<3>(v.size(), [&](size_t k) { return v[k].estimate.vector(); });
+  d["has_estimate"] = ValueArray<bool>(v.size(), [&](size_t k) { return v[k].has_estimate; });
+  d["fixed"] = ValueArray<bool>(v.size(), [&](size_t k) { return v[k].fixed; });
   return d;
 }
 
 py::dict PointArrays(const posegraph::PoseGraph& g) {
-  const auto n = static_cast<py::ssize_t>(g.points.size());
-  py::array_t<long> ids(n);
-  py::array_t<double> estimates({n, py::ssize_t{2}});
-  py::array_t<bool> has_estimate(n);
-  auto ee = estimates.mutable_unchecked<2>();
-  for (py::ssize_t k = 0; k < n; ++k) {
-    ids.mutable_at(k) = g.points[k].id;
-    ee(k, 0) = g.points[k].estimate[0];
-    ee(k, 1) = g.points[k].estimate[1];
-    has_estimate.mutable_at(k) = g.points[k].has_estimate;
-  }
+  const std::vector<posegraph::PointVertex>& v = g.points;
   py::dict d;
-  d["ids"] = ids;
-  d["estimates"] = estimates;
-  d["has_estimate"] = has_estimate;
+  d["ids"] = ValueArray<long>(v.size(), [&](size_t k) { return v[k].id; });
+  d["estimates"] = RowArray<2>(v.size(), [&](size_t k) { return v[k].estimate; });
+  d["has_estimate"] = ValueArray<bool>(v.size(), [&](size_t k) { return v[k].has_estimate; });
   return d;
 }
 

@@ -35,47 +35,20 @@ void RegisterExceptions() {
 }
 
 py::dict TrajectoryArrays(const Trajectory& trajectory) {
-  const auto n = static_cast<py::ssize_t>(trajectory.size());
-  py::array_t<double> t(n), poses({n, py::ssize_t{3}}), covariances({n, py::ssize_t{3}, py::ssize_t{3}});
-  auto tt = t.mutable_unchecked<1>();
-  auto pp = poses.mutable_unchecked<2>();
-  auto cc = covariances.mutable_unchecked<3>();
-  for (py::ssize_t k = 0; k < n; ++k) {
-    const PoseEstimate& e = trajectory[k];
-    tt(k) = e.t;
-    pp(k, 0) = e.pose.x;
-    pp(k, 1) = e.pose.y;
-    pp(k, 2) = e.pose.theta;
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) cc(k, i, j) = e.covariance(i, j);
-    }
-  }
+  const size_t n = trajectory.size();
   py::dict d;
-  d["t"] = t;
-  d["poses"] = poses;
-  d["covariances"] = covariances;
+  d["t"] = ValueArray<double>(n, [&](size_t k) { return trajectory[k].t; });
+  d["poses"] = RowArray<3>(n, [&](size_t k) { return trajectory[k].pose.vector(); });
+  d["covariances"] = MatrixArray<3>(n, [&](size_t k) { return trajectory[k].covariance; });
   return d;
 }
 
 py::dict LandmarkArrays(const std::vector<LandmarkEstimate>& landmarks) {
-  const auto n = static_cast<py::ssize_t>(landmarks.size());
-  py::array_t<long> ids(n);
-  py::array_t<double> positions({n, py::ssize_t{2}}), covariances({n, py::ssize_t{2}, py::ssize_t{2}});
-  auto ii = ids.mutable_unchecked<1>();
-  auto pp = positions.mutable_unchecked<2>();
-  auto cc = covariances.mutable_unchecked<3>();
-  for (py::ssize_t k = 0; k < n; ++k) {
-    const LandmarkEstimate& l = landmarks[k];
-    ii(k) = l.id;
-    for (int i = 0; i < 2; ++i) {
-      pp(k, i) = l.position[i];
-      for (int j = 0; j < 2; ++j) cc(k, i, j) = l.covariance(i, j);
-    }
-  }
+  const size_t n = landmarks.size();
   py::dict d;
-  d["ids"] = ids;
-  d["positions"] = positions;
-  d["covariances"] = covariances;
+  d["ids"] = ValueArray<long>(n, [&](size_t k) { return landmarks[k].id; });
+  d["positions"] = RowArray<2>(n, [&](size_t k) { return landmarks[k].position; });
+  d["covariances"] = MatrixArray<2>(n, [&](size_t k) { return landmarks[k].covariance; });
   return d;
 }
 

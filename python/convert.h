@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -32,6 +33,42 @@ template <typename T>
 T ValueOrThrow(absl::StatusOr<T> value) {
   ThrowIfError(value.status());
   return *std::move(value);
+}
+
+// An (n,) array whose element k is value(k).
+template <typename T, typename Value>
+pybind11::array_t<T> ValueArray(size_t n, Value value) {
+  pybind11::array_t<T> array(static_cast<pybind11::ssize_t>(n));
+  auto a = array.template mutable_unchecked<1>();
+  for (size_t k = 0; k < n; ++k) a(k) = static_cast<T>(value(k));
+  return array;
+}
+
+// An (n, Cols) array whose row k is row(k), an Eigen vector of Cols values.
+template <int Cols, typename Row>
+pybind11::array_t<double> RowArray(size_t n, Row row) {
+  pybind11::array_t<double> array({static_cast<pybind11::ssize_t>(n), pybind11::ssize_t{Cols}});
+  auto a = array.mutable_unchecked<2>();
+  for (size_t k = 0; k < n; ++k) {
+    const Eigen::Matrix<double, Cols, 1> r = row(k);
+    for (int i = 0; i < Cols; ++i) a(k, i) = r[i];
+  }
+  return array;
+}
+
+// An (n, Dim, Dim) array whose matrix k is matrix(k), an Eigen Dim × Dim matrix.
+template <int Dim, typename Matrix>
+pybind11::array_t<double> MatrixArray(size_t n, Matrix matrix) {
+  pybind11::array_t<double> array(
+      {static_cast<pybind11::ssize_t>(n), pybind11::ssize_t{Dim}, pybind11::ssize_t{Dim}});
+  auto a = array.mutable_unchecked<3>();
+  for (size_t k = 0; k < n; ++k) {
+    const Eigen::Matrix<double, Dim, Dim> m = matrix(k);
+    for (int i = 0; i < Dim; ++i) {
+      for (int j = 0; j < Dim; ++j) a(k, i, j) = m(i, j);
+    }
+  }
+  return array;
 }
 
 // {"t": (N,), "poses": (N, 3), "covariances": (N, 3, 3)}.
