@@ -13,8 +13,6 @@ raises TypeError or ValueError naming it. Long calls release the GIL.
 """
 from typing import NamedTuple
 
-import numpy as np
-
 from ._subslam import (Dataset, Graph, LocalMap, Slam, __version__, options, read_dataset, read_graph,
                        read_local_maps, scenarios, simulate, write_local_maps)
 from . import _subslam
@@ -26,16 +24,16 @@ __all__ = ["Dataset", "Graph", "LocalMap", "Slam", "Trajectory", "Landmarks", "R
 
 class Trajectory(NamedTuple):
     """Poses over time: t (N,) [s], poses (N, 3) (x, y, θ), covariances (N, 3, 3)."""
-    t: np.ndarray
-    poses: np.ndarray
-    covariances: np.ndarray
+    t: "numpy.ndarray"
+    poses: "numpy.ndarray"
+    covariances: "numpy.ndarray"
 
 
 class Landmarks(NamedTuple):
     """A map: ids (N,), positions (N, 2) [m], covariances (N, 2, 2)."""
-    ids: np.ndarray
-    positions: np.ndarray
-    covariances: np.ndarray
+    ids: "numpy.ndarray"
+    positions: "numpy.ndarray"
+    covariances: "numpy.ndarray"
 
 
 class RunResult(NamedTuple):
