@@ -109,7 +109,8 @@ int Calibrate(const nlohmann::json& invocation) {
   auto result = pipeline::RunCalibration(*std::move(dataset), options);
   if (!result.ok()) return Fail(result.status());
   if (!absl::GetFlag(FLAGS_quiet)) {
-    std::printf("subslam calibrate summary (data set's value -> estimate)\n%s", pipeline::CalibrationTable(*result).c_str());
+    std::printf("subslam calibrate summary (data set's value -> estimate)\n%s",
+                pipeline::CalibrationTable(*result).c_str());
     PrintOutputs(out, "calibration.json");
   }
   return 0;
@@ -147,9 +148,10 @@ int Solve(const nlohmann::json& invocation) {
   if (!absl::GetFlag(FLAGS_quiet)) {
     std::printf("subslam solve summary\n  %-34s %s (%s, noise as %s)\n  %-34s %zu / %zu / %d; read in %.3f s\n%s",
                 "graph", path.c_str(), posegraph::ToString(*read.format), posegraph::ToString(noise),
-                "poses / points / measurements", graph->poses.size(), graph->points.size(),
-                graph->num_measurements(), read_seconds, pipeline::SolveTable(*result).c_str());
-    PrintOutputs(options.out_dir, absl::StrCat("{report.json,METHOD.g2o", absl::GetFlag(FLAGS_plots) ? ",plots/}" : "}"));
+                "poses / points / measurements", graph->poses.size(), graph->points.size(), graph->num_measurements(),
+                read_seconds, pipeline::SolveTable(*result).c_str());
+    PrintOutputs(options.out_dir,
+                 absl::StrCat("{report.json,METHOD.g2o", absl::GetFlag(FLAGS_plots) ? ",plots/}" : "}"));
   }
   if (!options.out_dir.empty() && absl::GetFlag(FLAGS_plots)) return Plot({options.out_dir});
   return 0;

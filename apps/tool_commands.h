@@ -4,10 +4,9 @@
 #ifndef SUBSLAM_APPS_TOOL_COMMANDS_H_
 #define SUBSLAM_APPS_TOOL_COMMANDS_H_
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/status.h"
 

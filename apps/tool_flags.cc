@@ -15,8 +15,7 @@ ABSL_FLAG(std::string, scenario, "", "simulated scenario name (see `subslam scen
 ABSL_FLAG(uint64_t, seed, kScenarioDefaults.seed, "scenario seed (noise, detections, clutter)");
 ABSL_FLAG(std::optional<uint64_t>, world_seed, std::nullopt,
           "scenario world seed (landmarks, path jitter); default: --seed");
-ABSL_FLAG(std::optional<double>, alpha, std::nullopt,
-          "simulated detection probability alpha (default 1.0)");
+ABSL_FLAG(std::optional<double>, alpha, std::nullopt, "simulated detection probability alpha (default 1.0)");
 ABSL_FLAG(std::optional<double>, beta, std::nullopt,
           "simulated false-alarm probability beta per visible feature (default 0.0)");
 ABSL_FLAG(std::optional<double>, duration, std::nullopt, "truncate the simulation [s]");
@@ -39,8 +38,7 @@ ABSL_FLAG(std::string, frontend, subslam::pipeline::ToString(subslam::pipeline::
           "odometry | ekfslam | fastslam | seif | iseif | rbpf | ekf");
 ABSL_FLAG(std::string, submaps, "", "join: the local maps (submaps.jsonl)");
 ABSL_FLAG(std::optional<double>, sigma_v, std::nullopt, "override speed noise sigma [m/s]");
-ABSL_FLAG(std::optional<double>, sigma_u1, std::nullopt,
-          "override turn-rate [rad/s] or steering [rad] noise sigma");
+ABSL_FLAG(std::optional<double>, sigma_u1, std::nullopt, "override turn-rate [rad/s] or steering [rad] noise sigma");
 ABSL_FLAG(std::optional<double>, sigma_range, std::nullopt, "override range sigma [m]");
 ABSL_FLAG(std::optional<double>, sigma_bearing, std::nullopt, "override bearing sigma [rad]");
 ABSL_FLAG(std::optional<double>, max_range, std::nullopt, "ignore detections beyond [m]");
@@ -48,8 +46,10 @@ ABSL_FLAG(std::optional<double>, sensor_yaw, std::nullopt,
           "add this to every bearing [rad]: the sensor's yaw on the vehicle, a calibration "
           "(Victoria Park: -0.0182, bench/sensor_yaw_calibration); given, it is taken as calibrated "
           "and the back-end's online yaw calibration is off unless --sensor_yaw_calibration=true");
-ABSL_FLAG(std::optional<int>, trials, std::nullopt, "study: trials per method and setting, >= 1 (default: the paper's)");
-ABSL_FLAG(std::optional<int>, workers, std::nullopt, "study: runs at a time, one thread each, >= 1 (default: every core)");
+ABSL_FLAG(std::optional<int>, trials, std::nullopt,
+          "study: trials per method and setting, >= 1 (default: the paper's)");
+ABSL_FLAG(std::optional<int>, workers, std::nullopt,
+          "study: runs at a time, one thread each, >= 1 (default: every core)");
 ABSL_FLAG(std::vector<std::string>, methods, {}, "study: only these methods, comma-separated (default: all)");
 ABSL_FLAG(std::string, shard, "1/1", "study: run slice K of N (K/N); `subslam study merge` combines the slices");
 ABSL_FLAG(bool, plots, true, "study: draw the study's figures when it is complete (`subslam plot`)");
@@ -77,4 +77,3 @@ ABSL_FLAG(bool, write_local_maps, false,
           "solve: also write the submap routes' local maps (METHOD_submaps.jsonl) for `subslam join`");
 ABSL_FLAG(bool, progress, true, "show a progress line on a terminal");
 ABSL_FLAG(bool, quiet, false, "do not print the summary table");
-

@@ -96,8 +96,8 @@ absl::StatusOr<InputRequest> InputRequestFromFlags(const std::string& command, b
   input.scenario = absl::GetFlag(FLAGS_scenario);
   input.calibration_file = absl::GetFlag(FLAGS_calibration);
   if (!input.dataset_dir.empty() && !input.scenario.empty()) {
-    return absl::InvalidArgumentError(absl::StrCat(command, required ? " needs exactly" : " takes at most",
-                                                   " one of --dataset or --scenario"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(command, required ? " needs exactly" : " takes at most", " one of --dataset or --scenario"));
   }
   if (required && input.empty()) {
     return absl::InvalidArgumentError(absl::StrCat(command, " needs exactly one of --dataset or --scenario"));
@@ -145,7 +145,8 @@ absl::StatusOr<RunRequest> RunRequestFromFlags(bool input_given) {
   if (!input.ok()) return input.status();
   request.input = *std::move(input);
   if (input_given && (!request.input.empty() || !request.input.calibration_file.empty())) {
-    return absl::InvalidArgumentError("run was given its data set: --dataset, --scenario and --calibration must be unset");
+    return absl::InvalidArgumentError(
+        "run was given its data set: --dataset, --scenario and --calibration must be unset");
   }
   auto frontend = pipeline::FrontendFromString(absl::GetFlag(FLAGS_frontend));
   if (!frontend.ok()) return absl::InvalidArgumentError(absl::StrCat("--frontend: ", frontend.status().message()));

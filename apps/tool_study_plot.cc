@@ -19,7 +19,6 @@
 namespace subslam::tool {
 namespace {
 
-
 // scripts/plot.py: SUBSLAM_PLOT_SCRIPT if set; else beside an installed tool
 // (<prefix>/share/subslam/plot.py); else the source tree's.
 std::string PlotScript() {

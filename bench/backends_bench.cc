@@ -19,23 +19,22 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
-#include "subslam/pipeline/join_pipeline.h"
 #include "backend_flags.h"
 #include "keep_freed_memory_flag.h"
-#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/io/dataset_reader.h"
+#include "subslam/pipeline/join_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/sim/simulator.h"
 
 ABSL_FLAG(std::string, scenario, "combined-2km", "simulated scenario (ignored with --dataset)");
@@ -118,8 +117,8 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
   const bool truth = !in.dataset.truth_poses.empty();
   std::printf("\n%zu local maps; side by side (%s association)\n", in.maps.size(),
               absl::GetFlag(FLAGS_known_association) ? "known" : "JCBB");
-  std::printf("%-9s %10s %10s %9s %10s %8s %8s %9s %12s\n", "backend", truth ? "anchor_rms" : "gps_rms_m",
-              "mean_nees", "in_95%", "landmarks", "wrong", "loop", "join_ms", "per_join_ms");
+  std::printf("%-9s %10s %10s %9s %10s %8s %8s %9s %12s\n", "backend", truth ? "anchor_rms" : "gps_rms_m", "mean_nees",
+              "in_95%", "landmarks", "wrong", "loop", "join_ms", "per_join_ms");
   for (Backend kind : kinds) {
     subslam::pipeline::JoinOptions options;
     options.backend = Options(kind);
@@ -134,7 +133,8 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
     }
     double error = NAN, nees = NAN, inside = NAN;
     if (truth) {
-      const subslam::eval::TrajectoryErrors e = subslam::eval::ComputeTrajectoryErrors(r->anchors, in.dataset.truth_poses);
+      const subslam::eval::TrajectoryErrors e =
+          subslam::eval::ComputeTrajectoryErrors(r->anchors, in.dataset.truth_poses);
       error = e.rms_position_m;
       nees = e.mean_nees;
       inside = e.fraction_nees_in_bounds;
@@ -142,9 +142,10 @@ nlohmann::json SideBySide(const Input& in, const std::vector<Backend>& kinds) {
       auto g = subslam::eval::CompareWithGps(r->anchors, in.dataset.gps);
       if (g.ok()) error = g->rms_m;
     }
-    std::printf("%-9s %10.3f %10.2f %8.1f%% %10zu %8ld %4ld/%-3ld %9.1f %12.3f\n", subslam::pipeline::ToString(kind), error,
-                nees, 100.0 * inside, r->landmarks.size(), r->association.wrong, r->association.loop_merged, r->association.loop_merged + r->association.loop_missed,
-                1e3 * r->wall_seconds, 1e3 * r->wall_seconds / std::max<size_t>(1, in.maps.size()));
+    std::printf("%-9s %10.3f %10.2f %8.1f%% %10zu %8ld %4ld/%-3ld %9.1f %12.3f\n", subslam::pipeline::ToString(kind),
+                error, nees, 100.0 * inside, r->landmarks.size(), r->association.wrong, r->association.loop_merged,
+                r->association.loop_merged + r->association.loop_missed, 1e3 * r->wall_seconds,
+                1e3 * r->wall_seconds / std::max<size_t>(1, in.maps.size()));
     rows.push_back({{"backend", subslam::pipeline::ToString(kind)},
                     {truth ? "anchor_rms_m" : "gps_rms_m", error},
                     {"mean_anchor_nees", nees},
@@ -218,7 +219,8 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
     if (!in.ok()) break;
     const double n = static_cast<double>(in->maps.size());
     std::printf("%8.0f %6zu %9zu", km, in->maps.size(), in->dataset.truth_landmarks.size());
-    nlohmann::json row = {{"path_km", km}, {"local_maps", in->maps.size()}, {"true_landmarks", in->dataset.truth_landmarks.size()}};
+    nlohmann::json row = {
+        {"path_km", km}, {"local_maps", in->maps.size()}, {"true_landmarks", in->dataset.truth_landmarks.size()}};
     for (Backend kind : kinds) {
       const bool dense = kind == Backend::kEkf || kind == Backend::kTreeEkf;
       if (dense && km > absl::GetFlag(FLAGS_growth_dense_max_km)) {
@@ -239,8 +241,9 @@ nlohmann::json Growth(const std::vector<double>& lengths_km, const std::vector<B
       std::printf(" %11.4f %9.2e %13.2f", total, total / (n * std::log2(std::max(2.0, n))), last_tenth_ms);
       row[std::string(subslam::pipeline::ToString(kind)) + "_s"] = total;
       if (kind == Backend::kEif) {
-        std::printf("   (%.3f / %.3f; %.0f / %.0f)", stages["factorization"], stages["recovery"] + stages["recovery_check"],
-                    static_cast<double>(size.lambda_entries) / n, static_cast<double>(size.factor_entries) / n);
+        std::printf("   (%.3f / %.3f; %.0f / %.0f)", stages["factorization"],
+                    stages["recovery"] + stages["recovery_check"], static_cast<double>(size.lambda_entries) / n,
+                    static_cast<double>(size.factor_entries) / n);
         row["eif_state_dimension"] = size.state;
         row["eif_lambda_entries"] = size.lambda_entries;
         row["eif_factor_entries"] = size.factor_entries;
@@ -275,11 +278,13 @@ int main(int argc, char** argv) {
       !ParseBackends(absl::GetFlag(FLAGS_growth_backends), &growth_kinds)) {
     return 2;
   }
-  if (absl::StatusOr<subslam::pipeline::BackendOptions> backend = subslam::cli::BackendOptionsFromFlags(); !backend.ok()) {
+  if (absl::StatusOr<subslam::pipeline::BackendOptions> backend = subslam::cli::BackendOptionsFromFlags();
+      !backend.ok()) {
     std::fprintf(stderr, "%s\n", std::string(backend.status().message()).c_str());
     return 2;
   }
-  absl::StatusOr<subslam::pipeline::Frontend> frontend = subslam::pipeline::FrontendFromString(absl::GetFlag(FLAGS_frontend));
+  absl::StatusOr<subslam::pipeline::Frontend> frontend =
+      subslam::pipeline::FrontendFromString(absl::GetFlag(FLAGS_frontend));
   if (!frontend.ok()) {
     std::fprintf(stderr, "%s\n", std::string(frontend.status().message()).c_str());
     return 2;
@@ -306,8 +311,8 @@ int main(int argc, char** argv) {
   }
   std::printf("%s, %s local maps (front-end %.2f s)\n", source.c_str(), absl::GetFlag(FLAGS_frontend).c_str(),
               in->run_seconds);
-  nlohmann::json results = {{"source", source}, {"frontend", absl::GetFlag(FLAGS_frontend)},
-                            {"local_maps", in->maps.size()}};
+  nlohmann::json results = {
+      {"source", source}, {"frontend", absl::GetFlag(FLAGS_frontend)}, {"local_maps", in->maps.size()}};
   results["side_by_side"] = SideBySide(*in, kinds);
   results["figure9"] = Figure9(*in, kinds);
   std::vector<double> lengths;

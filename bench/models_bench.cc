@@ -39,9 +39,7 @@ void BM_AckermannPredict(benchmark::State& state) {
 }
 BENCHMARK(BM_AckermannPredict);
 
-void BM_UnicyclePredict(benchmark::State& state) {
-  PredictLoop(state, models::UnicycleModel({0.1, 0.01, 0, 0}));
-}
+void BM_UnicyclePredict(benchmark::State& state) { PredictLoop(state, models::UnicycleModel({0.1, 0.01, 0, 0})); }
 BENCHMARK(BM_UnicyclePredict);
 
 void BM_RangeBearingObserve(benchmark::State& state) {

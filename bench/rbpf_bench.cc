@@ -66,8 +66,8 @@ void BM_RbpfStep(benchmark::State& state) {
   RingWorld world(landmarks);
   frontend::FastSlamOptions options;
   options.num_particles = particles;
-  frontend::FastSlam filter(std::make_unique<models::UnicycleModel>(world.noise()), world.sensor(),
-                            world.start(), options);
+  frontend::FastSlam filter(std::make_unique<models::UnicycleModel>(world.noise()), world.sensor(), world.start(),
+                            options);
   for (int k = 0; k < 100; ++k) {
     filter.Predict(world.control(), RingWorld::kDt);
     filter.Update(world.Step());
@@ -82,10 +82,8 @@ void BM_RbpfStep(benchmark::State& state) {
     filter.Update(scan);
     benchmark::DoNotOptimize(filter.pose());
   }
-  state.counters["detections_per_scan"] =
-      benchmark::Counter(static_cast<double>(detections) / state.iterations());
-  state.counters["landmarks_per_particle"] =
-      filter.Counters().at("mean_landmarks_per_particle");
+  state.counters["detections_per_scan"] = benchmark::Counter(static_cast<double>(detections) / state.iterations());
+  state.counters["landmarks_per_particle"] = filter.Counters().at("mean_landmarks_per_particle");
 }
 BENCHMARK(BM_RbpfStep)
     ->ArgNames({"particles", "landmarks"})

@@ -16,10 +16,9 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
@@ -30,8 +29,8 @@
 #include "backend_flags.h"  // --known_association
 #include "frontend_flags.h"
 #include "keep_freed_memory_flag.h"
-#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/eval/nees.h"
+#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/sim/simulator.h"
 
 ABSL_FLAG(std::string, scenario, "iseif-circle", "the Monte Carlo scenario");
@@ -46,8 +45,8 @@ ABSL_FLAG(std::string, out, "", "write the results as JSON here");
 
 namespace {
 
-using subslam::pipeline::Frontend;
 using nlohmann::json;
+using subslam::pipeline::Frontend;
 
 std::vector<std::string> SplitList(const std::string& s) {
   std::vector<std::string> out;
@@ -82,11 +81,18 @@ struct MonteCarloRow {
 };
 
 json RowJson(const MonteCarloRow& r) {
-  return {{"filter", r.filter}, {"runs", r.runs}, {"rms_x_m", r.rms_x}, {"rms_y_m", r.rms_y},
-          {"rms_heading_deg", r.rms_heading_deg}, {"landmark_rms_x_m", r.landmark_rms_x},
-          {"landmark_rms_y_m", r.landmark_rms_y}, {"mean_average_nees", r.mean_average_nees},
-          {"steps_inside_95", r.steps_inside}, {"total_seconds", r.seconds},
-          {"failed_runs", r.failed_runs}, {"iterations_per_iterated_update", r.iterations_per_update}};
+  return {{"filter", r.filter},
+          {"runs", r.runs},
+          {"rms_x_m", r.rms_x},
+          {"rms_y_m", r.rms_y},
+          {"rms_heading_deg", r.rms_heading_deg},
+          {"landmark_rms_x_m", r.landmark_rms_x},
+          {"landmark_rms_y_m", r.landmark_rms_y},
+          {"mean_average_nees", r.mean_average_nees},
+          {"steps_inside_95", r.steps_inside},
+          {"total_seconds", r.seconds},
+          {"failed_runs", r.failed_runs},
+          {"iterations_per_iterated_update", r.iterations_per_update}};
 }
 
 }  // namespace
@@ -157,8 +163,9 @@ static absl::StatusOr<MonteCarloRow> RunMonteCarlo(const std::string& name, cons
 // 200 m × 200 m) and growing size: printed, and the rows in `out`.
 static absl::Status RunGrowth(const std::vector<std::string>& sizes, json* out) {
   std::printf("\nrandom worlds, 300 landmarks per 200 m x 200 m, path 5 x the world side, seed 1\n");
-  std::printf("| filter | landmarks | world [m] | steps | map size | time [s] | us/step | "
-              "us/step first tenth | us/step last tenth |\n");
+  std::printf(
+      "| filter | landmarks | world [m] | steps | map size | time [s] | us/step | "
+      "us/step first tenth | us/step last tenth |\n");
   std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
   json growth = json::array();
   std::vector<std::string> filters = SplitList(absl::GetFlag(FLAGS_growth_filters));
@@ -187,9 +194,13 @@ static absl::Status RunGrowth(const std::vector<std::string>& sizes, json* out) 
       std::printf("| %s | %d | %.0f | %d | %zu | %.3f | %.1f | %.1f | %.1f |\n", name.c_str(), landmarks,
                   so.random_world_size_m, r->steps, r->landmarks.size(), r->wall_seconds,
                   r->wall_seconds / r->steps * 1e6, first, last);
-      growth.push_back({{"filter", name}, {"landmarks", landmarks}, {"world_m", so.random_world_size_m},
-                        {"steps", r->steps}, {"map_size", r->landmarks.size()},
-                        {"seconds", r->wall_seconds}, {"us_per_step_first_tenth", first},
+      growth.push_back({{"filter", name},
+                        {"landmarks", landmarks},
+                        {"world_m", so.random_world_size_m},
+                        {"steps", r->steps},
+                        {"map_size", r->landmarks.size()},
+                        {"seconds", r->wall_seconds},
+                        {"us_per_step_first_tenth", first},
                         {"us_per_step_last_tenth", last}});
     }
   }
@@ -217,24 +228,24 @@ int main(int argc, char** argv) {
   }
   if (!rows.empty()) {
     const subslam::eval::NeesBounds bounds = subslam::eval::AverageNeesBounds(3, runs);
-    std::printf("%s, %d runs (seeds %llu-%llu), %s association; average-NEES bounds [%.2f, %.2f]\n",
-                scenario.c_str(), runs, static_cast<unsigned long long>(absl::GetFlag(FLAGS_first_seed)),
+    std::printf("%s, %d runs (seeds %llu-%llu), %s association; average-NEES bounds [%.2f, %.2f]\n", scenario.c_str(),
+                runs, static_cast<unsigned long long>(absl::GetFlag(FLAGS_first_seed)),
                 static_cast<unsigned long long>(absl::GetFlag(FLAGS_first_seed) + runs - 1),
-                absl::GetFlag(FLAGS_known_association) ? "known (seif/iseif)" : "unknown (NN)",
-                bounds.lower, bounds.upper);
-    std::printf("| filter | pose x [m] | pose y [m] | heading [deg] | landmark x [m] | landmark y [m] | "
-                "mean avg NEES | steps in bounds | failed runs | iterations/update | total time [s] |\n");
+                absl::GetFlag(FLAGS_known_association) ? "known (seif/iseif)" : "unknown (NN)", bounds.lower,
+                bounds.upper);
+    std::printf(
+        "| filter | pose x [m] | pose y [m] | heading [deg] | landmark x [m] | landmark y [m] | "
+        "mean avg NEES | steps in bounds | failed runs | iterations/update | total time [s] |\n");
     std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
     json mc = json::array();
     for (const MonteCarloRow& r : rows) {
-      std::printf("| %s | %.3f | %.3f | %.3f | %.3f | %.3f | %.2f | %.1f%% | %d | %.2f | %.2f |\n",
-                  r.filter.c_str(), r.rms_x, r.rms_y, r.rms_heading_deg, r.landmark_rms_x,
-                  r.landmark_rms_y, r.mean_average_nees, 100 * r.steps_inside, r.failed_runs,
-                  r.iterations_per_update, r.seconds);
+      std::printf("| %s | %.3f | %.3f | %.3f | %.3f | %.3f | %.2f | %.1f%% | %d | %.2f | %.2f |\n", r.filter.c_str(),
+                  r.rms_x, r.rms_y, r.rms_heading_deg, r.landmark_rms_x, r.landmark_rms_y, r.mean_average_nees,
+                  100 * r.steps_inside, r.failed_runs, r.iterations_per_update, r.seconds);
       mc.push_back(RowJson(r));
     }
-    out["monte_carlo"] = {{"scenario", scenario}, {"runs", runs}, {"rows", mc},
-                          {"nees_bounds", {bounds.lower, bounds.upper}}};
+    out["monte_carlo"] = {
+        {"scenario", scenario}, {"runs", runs}, {"rows", mc}, {"nees_bounds", {bounds.lower, bounds.upper}}};
   }
 
   // 2. Growth on random worlds of constant density.

@@ -10,15 +10,14 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
-#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/io/dataset_reader.h"
+#include "subslam/pipeline/run_pipeline.h"
 
 ABSL_FLAG(std::string, dataset, SUBSLAM_DEFAULT_VICTORIA_PARK, "data-set directory");
 ABSL_FLAG(double, from, -0.04, "first candidate yaw [rad]");
@@ -82,8 +81,8 @@ int main(int argc, char** argv) {
     j["dataset"] = absl::GetFlag(FLAGS_dataset);
     j["estimate_rad"] = estimate;
     for (const Row& row : rows) {
-      j["rows"].push_back({{"yaw_rad", row.yaw}, {"nll_per_dof", row.nll_per_dof}, {"dof", row.dof},
-                           {"gps_rms_m", row.rms_m}});
+      j["rows"].push_back(
+          {{"yaw_rad", row.yaw}, {"nll_per_dof", row.nll_per_dof}, {"dof", row.dof}, {"gps_rms_m", row.rms_m}});
     }
     std::ofstream(out) << j.dump(2) << "\n";
   }

@@ -13,18 +13,17 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "keep_freed_memory_flag.h"
-#include "subslam/pipeline/run_pipeline.h"
 #include "subslam/io/dataset_reader.h"
+#include "subslam/pipeline/run_pipeline.h"
 
 ABSL_FLAG(std::string, dataset, SUBSLAM_DEFAULT_VICTORIA_PARK, "Victoria Park data-set directory");
 ABSL_FLAG(int, repeats, 3, "runs per front-end (the median is reported)");
@@ -104,9 +103,8 @@ int main(int argc, char** argv) {
   subslam::pipeline::ApplyKeepFreedMemoryFlag();
   const int repeats = std::max(1, absl::GetFlag(FLAGS_repeats));
   nlohmann::json results = nlohmann::json::array();
-  std::printf("%-9s %7s %11s %10s %8s %11s %8s %10s %9s %10s\n", "frontend", "read_s",
-              "estimator_s", "frontend_s", "total_s", "us_per_scan", "peak_MB", "local_maps",
-              "landmarks", "gps_rms_m");
+  std::printf("%-9s %7s %11s %10s %8s %11s %8s %10s %9s %10s\n", "frontend", "read_s", "estimator_s", "frontend_s",
+              "total_s", "us_per_scan", "peak_MB", "local_maps", "landmarks", "gps_rms_m");
   const std::vector<std::string> names = absl::StrSplit(absl::GetFlag(FLAGS_frontends), ',');
   for (const std::string& name : names) {
     const absl::StatusOr<subslam::pipeline::Frontend> parsed = subslam::pipeline::FrontendFromString(name);
@@ -130,9 +128,8 @@ int main(int argc, char** argv) {
     long peak = 0;
     for (const Measurement& m : runs) peak = std::max(peak, m.peak_kb);
     std::printf("%-9s %7.3f %11.3f %10.3f %8.3f %11.1f %8.1f %10zu %9zu %10.2f\n",
-                subslam::pipeline::ToString(frontend), med.read_s, med.estimator_s, med.frontend_s,
-                med.total_s, 1e6 * med.frontend_s / std::max(1, med.scans), peak / 1024.0,
-                med.local_maps, med.landmarks, med.rms_m);
+                subslam::pipeline::ToString(frontend), med.read_s, med.estimator_s, med.frontend_s, med.total_s,
+                1e6 * med.frontend_s / std::max(1, med.scans), peak / 1024.0, med.local_maps, med.landmarks, med.rms_m);
     results.push_back({{"frontend", subslam::pipeline::ToString(frontend)},
                        {"repeats", repeats},
                        {"median_read_s", med.read_s},
@@ -152,8 +149,7 @@ int main(int argc, char** argv) {
   for (const auto& entry : results) {
     std::printf("%-9s", entry["frontend"].get<std::string>().c_str());
     for (double t : entry["seconds_per_tenth_of_steps"]) std::printf(" %6.3f", t);
-    std::printf("   local maps: mean %.1f, max %d landmarks\n",
-                entry["mean_landmarks_per_local_map"].get<double>(),
+    std::printf("   local maps: mean %.1f, max %d landmarks\n", entry["mean_landmarks_per_local_map"].get<double>(),
                 entry["max_landmarks_per_local_map"].get<int>());
   }
   if (!absl::GetFlag(FLAGS_out).empty()) {

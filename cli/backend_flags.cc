@@ -171,7 +171,6 @@ ABSL_FLAG(double, sigma_signature, subslam::frontend::FastSlamOptions{}.sigma_si
 namespace subslam::cli {
 namespace {
 
-
 backend::LandmarkRevisionOptions RevisionOptionsFromFlags() {
   backend::LandmarkRevisionOptions o;
   o.merge = absl::GetFlag(FLAGS_join_merge);
@@ -237,12 +236,10 @@ absl::StatusOr<backend::EkfJoinerOptions> EkfJoinOptionsFromFlags() {
 
 absl::StatusOr<backend::CeresSolveOptions> CeresOptionsFromFlags() {
   backend::CeresSolveOptions o;
-  absl::StatusOr<backend::CeresMethod> method =
-      backend::CeresMethodFromString(absl::GetFlag(FLAGS_ceres_method));
+  absl::StatusOr<backend::CeresMethod> method = backend::CeresMethodFromString(absl::GetFlag(FLAGS_ceres_method));
   if (!method.ok()) return method.status();
   o.method = *method;
-  absl::StatusOr<backend::RobustLoss> loss =
-      backend::RobustLossFromString(absl::GetFlag(FLAGS_ceres_loss));
+  absl::StatusOr<backend::RobustLoss> loss = backend::RobustLossFromString(absl::GetFlag(FLAGS_ceres_loss));
   if (!loss.ok()) return loss.status();
   o.loss = *loss;
   o.loss_scale = absl::GetFlag(FLAGS_ceres_loss_scale);

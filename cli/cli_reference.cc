@@ -45,7 +45,9 @@ constexpr std::array<CliCommand, 11> kCommands = {{
      "incremental EIF, and the submap route with and without a final Levenberg-Marquardt — and prints each "
      "one's error (½Σ rᵀΩr and χ²), iterations, time and peak memory. Writes each solution as `METHOD.g2o`, "
      "`report.json` and the figures."},
-    {"calibrate", "subslam calibrate (--dataset DIR | --scenario NAME [--seed S]) [--known_association] [--calibration FILE] --out DIR",
+    {"calibrate",
+     "subslam calibrate (--dataset DIR | --scenario NAME [--seed S]) [--known_association] [--calibration FILE] --out "
+     "DIR",
      "Estimates a robot's odometry and sensor from its own data, the way a new robot is brought in: "
      "from an RBPF + EIF run over the data, a batch fit of the scan poses, the landmarks and the "
      "odometry's scale and turn-rate offset, with the noise levels by variance-component estimation "
@@ -54,7 +56,9 @@ constexpr std::array<CliCommand, 11> kCommands = {{
      "`calibration.json`, whose `manifest_fragment` is what dataset.json's `motion` and `sensor` "
      "would hold; `subslam run --calibration DIR/calibration.json` uses it in place of the "
      "manifest's values. Without `--known_association` the detections are paired by a gate."},
-    {"study", "subslam study hybridslam|combined-slam|fmj|iseif --out DIR [--trials N] [--methods A,B] [--workers W] [--shard K/N] [--dataset DIR]",
+    {"study",
+     "subslam study hybridslam|combined-slam|fmj|iseif --out DIR [--trials N] [--methods A,B] [--workers W] [--shard "
+     "K/N] [--dataset DIR]",
      "Runs a paper's experiment (docs/reproducing.md): every method, setting and trial, on every "
      "core, and writes the per-run table (`runs.csv`), the paper's table beside ours "
      "(`summary.md`, the same figures in `summary.json`), the run times (`timings.csv`) and the "
@@ -69,8 +73,7 @@ constexpr std::array<CliCommand, 11> kCommands = {{
      "track, the trajectories, the pose NEES with its χ² band, the time per join, each study's "
      "figures (scripts/plot.py lists them). A complete study draws its own unless `--plots=false`."},
     {"scenarios", "subslam scenarios", "Lists the simulated scenarios, one name per line."},
-    {"cli-reference", "subslam cli-reference",
-     "Prints this reference in Markdown; docs/cli.md is its output."},
+    {"cli-reference", "subslam cli-reference", "Prints this reference in Markdown; docs/cli.md is its output."},
     {"help", "subslam help [COMMAND]",
      "Prints the commands, or one command's usage and the flags it reads with their defaults "
      "(also `subslam COMMAND --help` and `-h`). `subslam --version` prints the version, the "
@@ -91,21 +94,23 @@ const std::vector<FlagGroup>& FlagGroups() {
        "Where the data comes from and where the outputs go. The noise and sensor overrides "
        "replace the data set's own values.",
        {"dataset", "scenario", "seed", "submaps", "out", "config", "calibration", "known_association", "sensor_yaw",
-        "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "control_spike_sigmas",
-        "time_gap_factor", "progress", "quiet", "keep_freed_memory"}},
+        "sigma_v", "sigma_u1", "sigma_range", "sigma_bearing", "max_range", "control_spike_sigmas", "time_gap_factor",
+        "progress", "quiet", "keep_freed_memory"}},
       {"Studies", "`subslam study` (docs/reproducing.md).", {"trials", "methods", "workers", "shard", "plots"}},
-      {"Graphs", "`subslam solve` (docs/formats.md, \"Graph files\").",
-       {"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps",
-        "max_iterations"}},
-      {"Simulation", "Shape the simulated worlds (docs/scenarios.md).",
+      {"Graphs",
+       "`subslam solve` (docs/formats.md, \"Graph files\").",
+       {"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps", "max_iterations"}},
+      {"Simulation",
+       "Shape the simulated worlds (docs/scenarios.md).",
        {"world_seed", "alpha", "beta", "duration", "moving_objects", "fmj_case", "world_size", "landmarks",
         "path_length", "lattice_spacing", "noise_scale", "signature"}},
       {"Front-end: association and existence",
        "Shared by EKF-SLAM, SEIF/ISEIF and the particle filters.",
        {"frontend", "association", "gate", "new_landmark_gate", "existence_*", "innovation_test_window"}},
-      {"Particle filter (`fastslam`, `rbpf`)", "",
-       {"particles", "filter_seed", "threads", "sample_association", "landmark_iterations",
-        "resample_ess", "correct_shared_ancestry", "sigma_signature", "sensor_yaw_sigma", "depletion_ess"}},
+      {"Particle filter (`fastslam`, `rbpf`)",
+       "",
+       {"particles", "filter_seed", "threads", "sample_association", "landmark_iterations", "resample_ess",
+        "correct_shared_ancestry", "sigma_signature", "sensor_yaw_sigma", "depletion_ess"}},
       {"SEIF and ISEIF (`seif`, `iseif`)", "", {"seif_*", "iseif_*"}},
       {"Local maps (`rbpf`, `ekf`)",
        "When a local map is closed and what it exports (frontend/submap_policy.h).",
@@ -114,7 +119,8 @@ const std::vector<FlagGroup>& FlagGroups() {
        "How local maps are joined into the global map and how their features are associated "
        "with its landmarks (backend/submap_association.h, backend/landmark_revision.h).",
        {"backend", "join_*", "validate_joins", "sensor_yaw_calibration", "sensor_yaw_prior_sigma"}},
-      {"Back-end: EIF relinearisation and factorisation", "",
+      {"Back-end: EIF relinearisation and factorisation",
+       "",
        {"relinearize_*", "max_relinearizations", "single_linearization", "eif_*"}},
       {"Back-end: Ceres", "", {"ceres_*"}},
       {"Back-end: dense EKF and binary tree", "", {"ekf_*", "tree_*"}},
@@ -139,12 +145,13 @@ bool Matches(std::string_view name, std::string_view pattern) {
 std::string Cell(std::string_view text) {
   std::string cell;
   for (char c : text) {
-    if (c == '|') cell += "\\|";
-    else cell += c == '\n' ? ' ' : c;
+    if (c == '|')
+      cell += "\\|";
+    else
+      cell += c == '\n' ? ' ' : c;
   }
   return cell;
 }
-
 
 // The program's own flags (Abseil's --help, --flagfile, ... are left out) that `command`
 // may read (every flag when it is empty), by group of FlagGroups() and then "Other", each
@@ -154,9 +161,8 @@ std::vector<std::vector<const absl::CommandLineFlag*>> GroupedFlags(std::string_
   for (const std::string& name : cli::ProgramFlagNames()) {
     if (!command.empty() && !cli::CommandMayReadFlag(name, command)) continue;
     size_t g = 0;
-    while (g < FlagGroups().size() &&
-           std::none_of(FlagGroups()[g].patterns.begin(), FlagGroups()[g].patterns.end(),
-                        [&](std::string_view p) { return Matches(name, p); })) {
+    while (g < FlagGroups().size() && std::none_of(FlagGroups()[g].patterns.begin(), FlagGroups()[g].patterns.end(),
+                                                   [&](std::string_view p) { return Matches(name, p); })) {
       ++g;
     }
     grouped[g].push_back(absl::FindCommandLineFlag(name));
@@ -188,8 +194,8 @@ std::string Wrapped(std::string_view text, size_t indent, size_t width) {
 }  // namespace
 
 std::string CommandHelp(std::string_view name) {
-  const auto command = std::find_if(kCommands.begin(), kCommands.end(),
-                                    [&](const CliCommand& c) { return c.name == name; });
+  const auto command =
+      std::find_if(kCommands.begin(), kCommands.end(), [&](const CliCommand& c) { return c.name == name; });
   if (command == kCommands.end()) return "";
   std::string help;
   Append(help, {"Usage: ", command->synopsis, "\n\n", Wrapped(command->description, 0, 92)});
@@ -203,16 +209,18 @@ std::string CommandHelp(std::string_view name) {
                     Wrapped(flag->Help(), 6, 92)});
     }
   }
-  help += "\nFlags are --name=value or --name value (booleans also --name / --noname); a flag the\n"
-          "command would not read with the other flags given is refused. Every flag: docs/cli.md.\n";
+  help +=
+      "\nFlags are --name=value or --name value (booleans also --name / --noname); a flag the\n"
+      "command would not read with the other flags given is refused. Every flag: docs/cli.md.\n";
   return help;
 }
 
 std::string GeneralHelp() {
   std::string help = "subslam: submap-based landmark SLAM\n\nCommands:\n";
   for (const CliCommand& command : kCommands) Append(help, {"  ", command.synopsis, "\n"});
-  help += "\n`subslam help COMMAND` (or `subslam COMMAND --help`) prints a command's flags with their defaults;\n"
-          "`subslam --version` the version. Every command and flag: docs/cli.md.\n";
+  help +=
+      "\n`subslam help COMMAND` (or `subslam COMMAND --help`) prints a command's flags with their defaults;\n"
+      "`subslam --version` the version. Every command and flag: docs/cli.md.\n";
   return help;
 }
 
@@ -239,8 +247,7 @@ std::string CliReferenceMarkdown() {
       "Units are SI, angles in radians (docs/conventions.md).\n\n"
       "## Commands\n";
   for (const CliCommand& command : kCommands) {
-    Append(md, {"\n### `", command.name, "`\n\n```\n", command.synopsis, "\n```\n\n",
-                command.description, "\n"});
+    Append(md, {"\n### `", command.name, "`\n\n```\n", command.synopsis, "\n```\n\n", command.description, "\n"});
   }
   md += "\n## Flags\n";
   for (size_t g = 0; g < grouped.size(); ++g) {
@@ -257,8 +264,8 @@ std::string CliReferenceMarkdown() {
         Append(shown, {Cell(default_value), "`"});
       }
       const std::string name(flag->Name());
-      Append(md, {"| `--", name, "` | ", shown, " | ", Cell(flag->Help()), " | ",
-                  Cell(cli::FlagReaders(name)), " |\n"});
+      Append(md,
+             {"| `--", name, "` | ", shown, " | ", Cell(flag->Help()), " | ", Cell(cli::FlagReaders(name)), " |\n"});
     }
   }
   return md;

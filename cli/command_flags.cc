@@ -30,8 +30,14 @@ enum Command : unsigned {
 constexpr unsigned kEveryCommand = 0x1FFu;
 
 constexpr std::array<std::pair<std::string_view, Command>, 9> kCommandNames = {{
-    {"simulate", kSimulate}, {"run", kRun}, {"join", kJoin}, {"solve", kSolve},
-    {"study", kStudy}, {"study merge", kStudyMerge}, {"plot", kPlot}, {"scenarios", kScenarios},
+    {"simulate", kSimulate},
+    {"run", kRun},
+    {"join", kJoin},
+    {"solve", kSolve},
+    {"study", kStudy},
+    {"study merge", kStudyMerge},
+    {"plot", kPlot},
+    {"scenarios", kScenarios},
     {"calibrate", kCalibrate},
 }};
 
@@ -58,8 +64,8 @@ unsigned Backends(std::initializer_list<Backend> list) {
 constexpr std::array<Frontend, 7> kAllFrontends = {Frontend::kOdometry, Frontend::kEkfSlam, Frontend::kFastSlam,
                                                    Frontend::kSeif,     Frontend::kIseif,   Frontend::kRbpf,
                                                    Frontend::kEkfLocal};
-constexpr std::array<Backend, 7> kAllBackends = {Backend::kNone,    Backend::kEif,     Backend::kCeres,
-                                                 Backend::kEkf,     Backend::kTreeEkf, Backend::kTreeEif,
+constexpr std::array<Backend, 7> kAllBackends = {Backend::kNone,     Backend::kEif,     Backend::kCeres,
+                                                 Backend::kEkf,      Backend::kTreeEkf, Backend::kTreeEif,
                                                  Backend::kTreeCeres};
 
 // One way a flag is read: by `commands`; for run, only with one of `frontends` (0: any);
@@ -79,17 +85,20 @@ const std::vector<FlagScope>& Scopes() {
                                            Frontend::kRbpf, Frontend::kEkfLocal});
   const unsigned particle_filters = Frontends({Frontend::kFastSlam, Frontend::kRbpf});
   const unsigned local_mappers = Frontends({Frontend::kRbpf, Frontend::kEkfLocal});
-  const unsigned joining = Backends({Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf,
-                                     Backend::kTreeEif, Backend::kTreeCeres});
+  const unsigned joining = Backends(
+      {Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf, Backend::kTreeEif, Backend::kTreeCeres});
   const unsigned eif = Backends({Backend::kEif, Backend::kCeres, Backend::kTreeEif, Backend::kTreeCeres});
   const unsigned ceres = Backends({Backend::kCeres, Backend::kTreeCeres});
   static const auto* scopes = new std::vector<FlagScope>{
       // Input and output.
       {{"dataset"}, kRun | kJoin | kStudy | kCalibrate},
       {{"scenario"}, kSimulate | kRun | kJoin | kCalibrate},
-      {{"seed", "world_seed", "alpha", "beta", "duration", "moving_objects", "fmj_case", "world_size", "landmarks", "path_length",
-        "lattice_spacing", "noise_scale", "signature"},
-       kSimulate | kRun | kJoin | kCalibrate, 0, 0, /*scenario=*/true},
+      {{"seed", "world_seed", "alpha", "beta", "duration", "moving_objects", "fmj_case", "world_size", "landmarks",
+        "path_length", "lattice_spacing", "noise_scale", "signature"},
+       kSimulate | kRun | kJoin | kCalibrate,
+       0,
+       0,
+       /*scenario=*/true},
       {{"calibration"}, kRun | kCalibrate},
       {{"submaps"}, kJoin},
       {{"out"}, kSimulate | kRun | kJoin | kSolve | kStudy | kStudyMerge | kCalibrate},
@@ -107,7 +116,8 @@ const std::vector<FlagScope>& Scopes() {
       {{"innovation_test_window"}, kRun, Frontends({Frontend::kEkfSlam, Frontend::kEkfLocal})},
       {{"particles", "filter_seed", "threads", "sample_association", "landmark_iterations", "resample_ess",
         "depletion_ess", "correct_shared_ancestry", "sensor_yaw_sigma", "sigma_signature"},
-       kRun, particle_filters},
+       kRun,
+       particle_filters},
       {{"seif_*"}, kRun, Frontends({Frontend::kSeif, Frontend::kIseif})},
       {{"iseif_*"}, kRun, Frontends({Frontend::kIseif})},
       {{"submap_*"}, kRun, local_mappers},
@@ -117,9 +127,15 @@ const std::vector<FlagScope>& Scopes() {
       {{"join_*", "sensor_yaw_calibration", "sensor_yaw_prior_sigma", "sigma_signature"}, kRun, local_mappers, joining},
       // A recorded join has no online pose to keep up: it joins in the foreground.
       {{"join_*", "sensor_yaw_calibration", "sensor_yaw_prior_sigma", "sigma_signature"},
-       kJoin, 0, joining, false, {"join_in_background"}},
-      {{"relinearize_*", "max_relinearizations", "single_linearization", "eif_*", "validate_joins"}, kRun,
-       local_mappers, eif},
+       kJoin,
+       0,
+       joining,
+       false,
+       {"join_in_background"}},
+      {{"relinearize_*", "max_relinearizations", "single_linearization", "eif_*", "validate_joins"},
+       kRun,
+       local_mappers,
+       eif},
       {{"relinearize_*", "max_relinearizations", "single_linearization", "eif_*", "validate_joins"}, kJoin, 0, eif},
       {{"relinearize_*", "max_relinearizations", "single_linearization", "eif_*"}, kSolve},
       {{"ceres_*"}, kRun, local_mappers, ceres},
@@ -130,8 +146,7 @@ const std::vector<FlagScope>& Scopes() {
       {{"tree_batch"}, kRun, local_mappers, Backends({Backend::kTreeEkf, Backend::kTreeEif, Backend::kTreeCeres})},
       {{"tree_batch"}, kJoin, 0, Backends({Backend::kTreeEkf, Backend::kTreeEif, Backend::kTreeCeres})},
       // Graphs and studies.
-      {{"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps",
-        "max_iterations"},
+      {{"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps", "max_iterations"},
        kSolve},
       {{"methods"}, kSolve | kStudy},
       {{"plots"}, kSolve | kStudy | kStudyMerge},
@@ -256,10 +271,9 @@ absl::Status CheckFlagsRead(const CommandContext& context) {
   std::string what = context.command;
   if (context.frontend.has_value()) absl::StrAppend(&what, " --frontend ", pipeline::ToString(*context.frontend));
   if (context.backend.has_value()) absl::StrAppend(&what, " --backend ", pipeline::ToString(*context.backend));
-  return absl::InvalidArgumentError(
-      absl::StrCat(what, " does not read ", absl::StrJoin(problems, ", "),
-                   "; a flag that would change nothing is refused (`subslam help ", context.command,
-                   "` lists what it reads)"));
+  return absl::InvalidArgumentError(absl::StrCat(what, " does not read ", absl::StrJoin(problems, ", "),
+                                                 "; a flag that would change nothing is refused (`subslam help ",
+                                                 context.command, "` lists what it reads)"));
 }
 
 }  // namespace subslam::cli

@@ -32,13 +32,17 @@ const subslam::frontend::SubmapPolicyOptions& PolicyDefaults() {
 
 ABSL_FLAG(std::string, association, subslam::association::ToString(EkfDefaults().association),
           "ekfslam / seif / iseif data association: nn | jcbb");
-ABSL_FLAG(double, gate, EkfDefaults().landmarks.gate_probability, "individual compatibility gate probability (chi2, 2 dof)");
+ABSL_FLAG(double, gate, EkfDefaults().landmarks.gate_probability,
+          "individual compatibility gate probability (chi2, 2 dof)");
 ABSL_FLAG(double, new_landmark_gate, EkfDefaults().landmarks.new_landmark_probability,
           "a detection outside this gate for every landmark starts a new one");
-ABSL_FLAG(double, existence_alpha, EkfDefaults().landmarks.existence.detection_probability, "existence model: detection probability");
-ABSL_FLAG(double, existence_beta, EkfDefaults().landmarks.existence.false_alarm_probability, "existence model: false-alarm probability");
+ABSL_FLAG(double, existence_alpha, EkfDefaults().landmarks.existence.detection_probability,
+          "existence model: detection probability");
+ABSL_FLAG(double, existence_beta, EkfDefaults().landmarks.existence.false_alarm_probability,
+          "existence model: false-alarm probability");
 ABSL_FLAG(int, particles, FastSlamDefaults().num_particles, "fastslam / rbpf: number of particles");
-ABSL_FLAG(uint64_t, filter_seed, FastSlamDefaults().seed, "fastslam / rbpf: seed of the particle filter's random draws");
+ABSL_FLAG(uint64_t, filter_seed, FastSlamDefaults().seed,
+          "fastslam / rbpf: seed of the particle filter's random draws");
 ABSL_FLAG(int, threads, 0,
           "fastslam / rbpf: threads for the per-particle scan update (0: every core); the "
           "results are the same for any number");
@@ -71,7 +75,8 @@ ABSL_FLAG(double, seif_candidate_radius, SeifDefaults().candidate_radius_m,
           "seif / iseif: landmarks farther than this from a detection's point are not gated with it [m]");
 ABSL_FLAG(int, iseif_period, SeifDefaults().iterated.period_scans,
           "iseif: iterate the measurement update on every N-th scan (the paper: 100 or 500)");
-ABSL_FLAG(int, iseif_max_iterations, SeifDefaults().iterated.max_iterations, "iseif: linearisations per iterated update");
+ABSL_FLAG(int, iseif_max_iterations, SeifDefaults().iterated.max_iterations,
+          "iseif: linearisations per iterated update");
 ABSL_FLAG(double, iseif_stop, SeifDefaults().iterated.stop_change,
           "iseif: adaptive stop, largest change of the pose or an observed landmark [m, rad]");
 ABSL_FLAG(int, iseif_exact_recoveries, SeifDefaults().iterated.exact_recoveries,
@@ -101,8 +106,7 @@ ABSL_FLAG(double, submap_moving_feature_probability, PolicyDefaults().moving_fea
 ABSL_FLAG(int, submap_density_features, PolicyDefaults().density_min_features,
           "rbpf: landmark-density rule: close once the map holds this many features and "
           "--submap_density_visible of them are in range (0: off)");
-ABSL_FLAG(int, submap_density_visible, PolicyDefaults().density_min_visible,
-          "rbpf: see --submap_density_features");
+ABSL_FLAG(int, submap_density_visible, PolicyDefaults().density_min_visible, "rbpf: see --submap_density_features");
 ABSL_FLAG(bool, submap_delay_ambiguous, PolicyDefaults().delay_while_ambiguous,
           "rbpf: postpone closing while the particles disagree about identities");
 
@@ -116,7 +120,8 @@ ABSL_FLAG(int, innovation_test_window, EkfDefaults().innovation_test.window_scan
 ABSL_FLAG(double, depletion_ess, FastSlamDefaults().depletion_ess_ratio,
           "fastslam / rbpf: an update leaving fewer than this fraction of effective particles counts as depleted");
 ABSL_FLAG(double, control_spike_sigmas, subslam::io::InputScreeningOptions{}.control_spike_sigmas,
-          "a control departing from its neighbours' median by more than this many sigmas (the noise's or the neighbours' spread, the larger) is a spike, replaced");
+          "a control departing from its neighbours' median by more than this many sigmas (the noise's or the "
+          "neighbours' spread, the larger) is a spike, replaced");
 ABSL_FLAG(double, time_gap_factor, subslam::io::InputScreeningOptions{}.time_gap_factor,
           "an interval between steps longer than this many median intervals is counted as a time gap");
 

@@ -34,11 +34,12 @@ absl::Status ApplyRecordedFlags(const std::string& report_path, std::string_view
   if (!in) return absl::NotFoundError(absl::StrCat(report_path, ": cannot open (--config)"));
   nlohmann::json report = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
   if (report.is_discarded()) return absl::InvalidArgumentError(absl::StrCat(report_path, ": not JSON (--config)"));
-  if (!report.contains("invocation") || !report["invocation"].is_object() ||
-      !report["invocation"].contains("flags") || !report["invocation"]["flags"].is_object()) {
+  if (!report.contains("invocation") || !report["invocation"].is_object() || !report["invocation"].contains("flags") ||
+      !report["invocation"]["flags"].is_object()) {
     return absl::InvalidArgumentError(
-        absl::StrCat(report_path, ": field invocation.flags: missing (a report.json written by subslam run, join "
-                                  "or solve records how it was invoked)"));
+        absl::StrCat(report_path,
+                     ": field invocation.flags: missing (a report.json written by subslam run, join "
+                     "or solve records how it was invoked)"));
   }
   const nlohmann::json& invocation = report["invocation"];
   const std::string recorded = invocation.value("command", "");
@@ -60,8 +61,7 @@ absl::Status ApplyRecordedFlags(const std::string& report_path, std::string_view
     }
     std::string error;
     if (!flag->ParseFrom(value.get<std::string>(), &error)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(report_path, ": field invocation.flags.", name, ": ", error));
+      return absl::InvalidArgumentError(absl::StrCat(report_path, ": field invocation.flags.", name, ": ", error));
     }
   }
   return absl::OkStatus();

@@ -6,10 +6,9 @@
 #ifndef SUBSLAM_CLI_INVOCATION_H_
 #define SUBSLAM_CLI_INVOCATION_H_
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <string_view>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/status.h"
 

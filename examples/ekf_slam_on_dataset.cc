@@ -23,8 +23,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   subslam::frontend::EkfSlamOptions options;  // nearest-neighbour association, χ² gates
-  subslam::frontend::EkfSlam ekf(dataset->motion.MakeModel(), dataset->sensor.range_bearing,
-                                 dataset->initial_pose, options);
+  subslam::frontend::EkfSlam ekf(dataset->motion.MakeModel(), dataset->sensor.range_bearing, dataset->initial_pose,
+                                 options);
   subslam::Trajectory trajectory;
   for (const subslam::io::Step& step : subslam::io::BuildSteps(*dataset)) {
     ekf.Predict(step.control, step.dt);  // the control held over dt [s]
@@ -33,13 +33,11 @@ int main(int argc, char** argv) {
   }
   const subslam::Pose2 pose = ekf.pose();  // world frame: x, y [m], θ [rad]
   const Eigen::Matrix3d covariance = ekf.pose_covariance();
-  std::printf("final pose (%.3f m, %.3f m, %.4f rad), position sd %.3f m, %zu landmarks\n", pose.x, pose.y,
-              pose.theta, std::sqrt(covariance(0, 0) + covariance(1, 1)), ekf.Map().size());
+  std::printf("final pose (%.3f m, %.3f m, %.4f rad), position sd %.3f m, %zu landmarks\n", pose.x, pose.y, pose.theta,
+              std::sqrt(covariance(0, 0) + covariance(1, 1)), ekf.Map().size());
   if (!dataset->truth_poses.empty()) {
-    const subslam::eval::TrajectoryErrors e =
-        subslam::eval::ComputeTrajectoryErrors(trajectory, dataset->truth_poses);
-    std::printf("against ground truth: RMS position %.3f m, mean pose NEES %.2f\n", e.rms_position_m,
-                e.mean_nees);
+    const subslam::eval::TrajectoryErrors e = subslam::eval::ComputeTrajectoryErrors(trajectory, dataset->truth_poses);
+    std::printf("against ground truth: RMS position %.3f m, mean pose NEES %.2f\n", e.rms_position_m, e.mean_nees);
   }
   return ekf.Map().empty() ? 1 : 0;
 }

@@ -41,12 +41,12 @@ int main(int argc, char** argv) {
   for (const subslam::io::Step& step : steps) {
     slam.Predict(step.control, step.dt);
     if (step.scan_index >= 0) slam.Update(dataset->scans[step.scan_index]);
-    slam.RecordStep(step.t);  // kept for the final, smoothed trajectory
+    slam.RecordStep(step.t);                                    // kept for the final, smoothed trajectory
     const subslam::Pose2 pose = slam.pose();                    // world frame, (x, y, θ)
     const Eigen::Matrix3d covariance = slam.pose_covariance();  // of (x, y, θ)
     if (step.t >= next_print) {
-      std::printf("t %6.1f s  pose (%7.2f, %7.2f, %6.3f)  position sd %.2f m\n", step.t, pose.x, pose.y,
-                  pose.theta, std::sqrt(covariance(0, 0) + covariance(1, 1)));
+      std::printf("t %6.1f s  pose (%7.2f, %7.2f, %6.3f)  position sd %.2f m\n", step.t, pose.x, pose.y, pose.theta,
+                  std::sqrt(covariance(0, 0) + covariance(1, 1)));
       next_print += 10.0;
     }
   }
@@ -55,8 +55,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   const subslam::Trajectory final_trajectory = slam.FinalTrajectory();
-  std::printf("%zu local maps joined into %zu landmarks; final pose (%.2f, %.2f, %.3f)\n",
-              slam.local_maps().size(), slam.Map().size(), final_trajectory.back().pose.x,
-              final_trajectory.back().pose.y, final_trajectory.back().pose.theta);
+  std::printf("%zu local maps joined into %zu landmarks; final pose (%.2f, %.2f, %.3f)\n", slam.local_maps().size(),
+              slam.Map().size(), final_trajectory.back().pose.x, final_trajectory.back().pose.y,
+              final_trajectory.back().pose.theta);
   return slam.local_maps().empty() ? 1 : 0;
 }

@@ -17,9 +17,8 @@
 namespace {
 
 std::string Manifest(bool ackermann) {
-  const std::string motion =
-      ackermann ? R"("model": "ackermann", "wheelbase": 2.83, "sigma_steer": 0.01,)"
-                : R"("model": "unicycle", "sigma_omega": 0.01,)";
+  const std::string motion = ackermann ? R"("model": "ackermann", "wheelbase": 2.83, "sigma_steer": 0.01,)"
+                                       : R"("model": "unicycle", "sigma_omega": 0.01,)";
   return absl::StrCat(R"({"format": "subslam-dataset/1", "name": "fuzz", "motion": {)", motion,
                       R"( "controls_file": "controls.dat", "sigma_v": 0.1},
  "sensor": {"type": "range_bearing", "observations_file": "observations.dat",
@@ -33,8 +32,8 @@ std::string Manifest(bool ackermann) {
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
-  static const char* kNames[] = {"fuzz/controls.dat", "fuzz/observations.dat", "fuzz/gps.dat",
-                                 "fuzz/truth_poses.dat", "fuzz/truth_landmarks.dat"};
+  static const char* kNames[] = {"fuzz/controls.dat", "fuzz/observations.dat", "fuzz/gps.dat", "fuzz/truth_poses.dat",
+                                 "fuzz/truth_landmarks.dat"};
   std::map<std::string, std::string> files = subslam::fuzz::ValidTextFiles();
   files["fuzz/dataset.json"] = Manifest((data[0] & 8) != 0);
   files[kNames[data[0] % 5]] = std::string(reinterpret_cast<const char*>(data) + 1, size - 1);

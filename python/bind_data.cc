@@ -1,10 +1,10 @@
 // subslam.Dataset, read_dataset, simulate, scenarios: data sets as numpy arrays.
+#include <pybind11/eigen.h>
+#include <pybind11/stl.h>
+
 #include <memory>
 #include <string>
 #include <utility>
-
-#include <pybind11/eigen.h>
-#include <pybind11/stl.h>
 
 #include "bindings.h"
 #include "convert.h"
@@ -122,7 +122,8 @@ metres, radians and seconds; poses are (x, y, θ) in the data set's world frame.
             if (i < 0 || i >= static_cast<long>(d.scans.size())) throw py::index_error("scan index out of range");
             return ScanArrays(d.scans[i]);
           },
-          py::arg("index"), "{'t', 'ranges', 'bearings', 'signatures' (NaN: none), 'truth_ids' (-1 false alarm, -2 unknown)}")
+          py::arg("index"),
+          "{'t', 'ranges', 'bearings', 'signatures' (NaN: none), 'truth_ids' (-1 false alarm, -2 unknown)}")
       .def("steps", &StepArrays, R"doc(
 The processing timeline: {'t', 'dt', 'u' (N, 2), 'scan'}. Step k predicts over dt with the
 control u (the data set's control scale and offset applied), then updates with scan

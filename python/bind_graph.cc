@@ -1,10 +1,10 @@
 // subslam.Graph, read_graph: the field's standard pose-landmark graphs, to solve in memory.
+#include <pybind11/stl.h>
+
 #include <memory>
 #include <optional>
 #include <string>
 #include <utility>
-
-#include <pybind11/stl.h>
 
 #include "bindings.h"
 #include "convert.h"
@@ -39,8 +39,8 @@ py::dict PointArrays(const posegraph::PoseGraph& g) {
 
 std::shared_ptr<Graph> ReadGraph(const std::string& path, const std::string& format, const std::string& noise) {
   posegraph::GraphReadOptions read;
-  read.format = ValueOrThrow(format.empty() ? posegraph::GraphFormatFromPath(path)
-                                            : posegraph::GraphFormatFromString(format));
+  read.format =
+      ValueOrThrow(format.empty() ? posegraph::GraphFormatFromPath(path) : posegraph::GraphFormatFromString(format));
   if (!noise.empty()) read.noise = ValueOrThrow(posegraph::NoiseConventionFromString(noise));
   auto g = std::make_shared<Graph>();
   g->path = path;
@@ -87,22 +87,29 @@ void BindGraphs(py::module_& m) {
 A 2-D pose-landmark graph as the field's files hold it (g2o, TORO, iSAM, GTSAM): poses
 (x, y, θ) and points (x, y) in one world frame, with measurements of known association.
 solve() takes one in place of a file; with_estimates() gives one your own start.)doc")
-      .def_property_readonly("poses", [](const Graph& g) { return PoseArrays(g.graph); },
-                             "{'ids', 'estimates' (N, 3), 'has_estimate', 'fixed'}")
-      .def_property_readonly("points", [](const Graph& g) { return PointArrays(g.graph); },
-                             "{'ids', 'estimates' (M, 2), 'has_estimate'}")
+      .def_property_readonly(
+          "poses", [](const Graph& g) { return PoseArrays(g.graph); },
+          "{'ids', 'estimates' (N, 3), 'has_estimate', 'fixed'}")
+      .def_property_readonly(
+          "points", [](const Graph& g) { return PointArrays(g.graph); }, "{'ids', 'estimates' (M, 2), 'has_estimate'}")
       .def_property_readonly("num_measurements", [](const Graph& g) { return g.graph.num_measurements(); })
-      .def("error", [](const Graph& g) {
-        const posegraph::GraphError e = posegraph::EvaluateError(g.graph);
-        return py::make_tuple(e.error, e.chi2);
-      }, "(½ Σ rᵀΩr, Σ rᵀΩr) at the graph's estimates")
+      .def(
+          "error",
+          [](const Graph& g) {
+            const posegraph::GraphError e = posegraph::EvaluateError(g.graph);
+            return py::make_tuple(e.error, e.chi2);
+          },
+          "(½ Σ rᵀΩr, Σ rᵀΩr) at the graph's estimates")
       .def("with_estimates", &WithEstimates, py::arg("poses") = py::none(), py::arg("points") = py::none(),
            "A copy whose poses (N, 3) and/or points (M, 2) start from these estimates (solve with initial='file').")
-      .def("write", [](const Graph& g, const std::string& path, const std::string& format) {
-        posegraph::GraphWriteOptions options;
-        options.format = ValueOrThrow(posegraph::GraphFormatFromString(format));
-        ThrowIfError(posegraph::WriteGraph(g.graph, path, options));
-      }, py::arg("path"), py::arg("format") = "g2o")
+      .def(
+          "write",
+          [](const Graph& g, const std::string& path, const std::string& format) {
+            posegraph::GraphWriteOptions options;
+            options.format = ValueOrThrow(posegraph::GraphFormatFromString(format));
+            ThrowIfError(posegraph::WriteGraph(g.graph, path, options));
+          },
+          py::arg("path"), py::arg("format") = "g2o")
       .def("__repr__", [](const Graph& g) {
         return "<subslam.Graph " + g.path + ": " + std::to_string(g.graph.poses.size()) + " poses, " +
                std::to_string(g.graph.points.size()) + " points, " + std::to_string(g.graph.num_measurements()) +

@@ -1,13 +1,13 @@
 // subslam.run, join, solve, study: the tool's jobs, with the tool's options as keywords
 // (docs/cli.md without the dashes), run with the GIL released.
+#include <pybind11/stl.h>
+
 #include <fstream>
 #include <memory>
 #include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <pybind11/stl.h>
 
 #include "absl/flags/commandlineflag.h"
 #include "absl/flags/reflection.h"
@@ -84,7 +84,8 @@ py::dict Join(py::kwargs kwargs) {
     request.options.invocation = flags.Invocation();
   }
   if (!initial_pose.is_none()) {
-    if (!request.input.empty()) throw py::value_error("join(): initial_pose and dataset= or scenario= both give the start");
+    if (!request.input.empty())
+      throw py::value_error("join(): initial_pose and dataset= or scenario= both give the start");
     const py::array_t<double> p = CheckedArray(initial_pose, {3}, "initial_pose");
     request.options.initial_pose = Pose2(p.at(0), p.at(1), WrapAngle(p.at(2)));
   }
@@ -170,7 +171,8 @@ py::dict Study(const std::string& name, py::kwargs kwargs) {
 py::dict Options(const std::string& command) {
   py::dict options;
   for (const std::string& name : cli::ProgramFlagNames()) {
-    if (cli::CommandMayReadFlag(name, command)) options[py::str(name)] = absl::FindCommandLineFlag(name)->DefaultValue();
+    if (cli::CommandMayReadFlag(name, command))
+      options[py::str(name)] = absl::FindCommandLineFlag(name)->DefaultValue();
   }
   if (options.empty()) throw py::value_error("options(): unknown command \"" + command + "\"");
   return options;

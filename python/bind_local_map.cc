@@ -1,10 +1,10 @@
 // subslam.LocalMap, read_local_maps, write_local_maps: local maps as objects, so that a map
 // made in Python (or by other software) can be joined.
-#include <string>
-#include <vector>
-
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
+
+#include <string>
+#include <vector>
 
 #include "bindings.h"
 #include "convert.h"
@@ -36,7 +36,8 @@ LocalSubmap MakeLocalMap(int id, double t_start, double t_end, const py::handle&
     throw py::value_error("existence: expected one value per landmark in the mean");
   }
   s.mean = Eigen::Map<const Eigen::VectorXd>(m.data(), n);
-  s.covariance = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(c.data(), n, n);
+  s.covariance =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(c.data(), n, n);
   s.landmarks.resize(landmarks);
   for (long i = 0; i < landmarks; ++i) {
     s.landmarks[i].local_id = feature_ids.empty() ? static_cast<int>(i) : feature_ids[i];

@@ -1,11 +1,11 @@
 // subslam.Slam: the online loop a navigation stack or a simulator drives step by step.
+#include <pybind11/eigen.h>
+#include <pybind11/stl.h>
+
 #include <memory>
 #include <optional>
 #include <string>
 #include <utility>
-
-#include <pybind11/eigen.h>
-#include <pybind11/stl.h>
 
 #include "absl/flags/flag.h"
 #include "absl/strings/str_cat.h"
@@ -28,8 +28,7 @@ namespace {
 
 // Keywords that say where a job's data come from or where its outputs go: the online loop
 // has its data set and writes nothing.
-constexpr const char* kJobOnlyKeywords[] = {"dataset", "scenario", "calibration", "out", "progress", "quiet",
-                                            "config"};
+constexpr const char* kJobOnlyKeywords[] = {"dataset", "scenario", "calibration", "out", "progress", "quiet", "config"};
 
 class OnlineSlam {
  public:
@@ -161,8 +160,8 @@ iseif, odometry: single-map filters) with the options of `subslam run` as keywor
            "backend: for rbpf and ekf, eif unless given (none: local maps chained, not joined)")
       .def("predict", &OnlineSlam::Predict, py::arg("u"), py::arg("dt"),
            "Moves the estimate over dt [s] with the control u (v [m/s], ω [rad/s] or steer [rad]) held over it.")
-      .def("update", &OnlineSlam::Update, py::arg("ranges"), py::arg("bearings"),
-           py::arg("signatures") = py::none(), py::arg("truth_ids") = py::none(), py::arg("t") = py::none(),
+      .def("update", &OnlineSlam::Update, py::arg("ranges"), py::arg("bearings"), py::arg("signatures") = py::none(),
+           py::arg("truth_ids") = py::none(), py::arg("t") = py::none(),
            "Updates with a scan: ranges [m] and bearings [rad] in the vehicle frame, the signatures when the "
            "sensor has them, the true ids only for known association; t [s] (default: the data set's start plus "
            "the predictions' dt).")
@@ -170,11 +169,12 @@ iseif, odometry: single-map filters) with the options of `subslam run` as keywor
            "Remembers the step (local-map front-ends) for final_trajectory().")
       .def("finish", &OnlineSlam::Finish, "Closes and joins the open local map.")
       .def_property_readonly("name", [](const OnlineSlam& s) { return s.estimator().Name(); })
-      .def_property_readonly("pose", [](const OnlineSlam& s) { return s.estimator().pose().vector(); },
-                             "(x, y, θ) in the world frame")
+      .def_property_readonly(
+          "pose", [](const OnlineSlam& s) { return s.estimator().pose().vector(); }, "(x, y, θ) in the world frame")
       .def_property_readonly("pose_covariance", [](const OnlineSlam& s) { return s.estimator().pose_covariance(); })
-      .def("landmarks", [](const OnlineSlam& s) { return LandmarkArrays(s.estimator().Map()); },
-           "The map: {'ids', 'positions' (N, 2), 'covariances' (N, 2, 2)}.")
+      .def(
+          "landmarks", [](const OnlineSlam& s) { return LandmarkArrays(s.estimator().Map()); },
+          "The map: {'ids', 'positions' (N, 2), 'covariances' (N, 2, 2)}.")
       .def("final_trajectory", &OnlineSlam::FinalTrajectory,
            "Every recorded step re-expressed with the final anchors (after finish()).")
       .def("local_maps", &OnlineSlam::LocalMaps, "The closed local maps (LocalMap objects).")

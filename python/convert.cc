@@ -52,9 +52,7 @@ py::dict LandmarkArrays(const std::vector<LandmarkEstimate>& landmarks) {
   return d;
 }
 
-py::object JsonToPython(const nlohmann::json& value) {
-  return py::module_::import("json").attr("loads")(value.dump());
-}
+py::object JsonToPython(const nlohmann::json& value) { return py::module_::import("json").attr("loads")(value.dump()); }
 
 py::array_t<double> CheckedArray(const py::handle& value, const std::vector<long>& shape, const std::string& what) {
   py::array_t<double> array;
@@ -69,8 +67,8 @@ py::array_t<double> CheckedArray(const py::handle& value, const std::vector<long
     std::vector<std::string> want, got;
     for (long s : shape) want.push_back(s < 0 ? "N" : absl::StrCat(s));
     for (py::ssize_t i = 0; i < array.ndim(); ++i) got.push_back(absl::StrCat(array.shape(i)));
-    throw py::value_error(absl::StrCat(what, ": expected shape (", absl::StrJoin(want, ", "), "), got (",
-                                       absl::StrJoin(got, ", "), ")"));
+    throw py::value_error(
+        absl::StrCat(what, ": expected shape (", absl::StrJoin(want, ", "), "), got (", absl::StrJoin(got, ", "), ")"));
   }
   return array;
 }

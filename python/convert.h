@@ -4,14 +4,14 @@
 #ifndef SUBSLAM_PYTHON_CONVERT_H_
 #define SUBSLAM_PYTHON_CONVERT_H_
 
-#include <stdexcept>
-#include <string>
-#include <vector>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
-#include <pybind11/numpy.h>
-#include <pybind11/pybind11.h>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -59,8 +59,7 @@ pybind11::array_t<double> RowArray(size_t n, Row row) {
 // An (n, Dim, Dim) array whose matrix k is matrix(k), an Eigen Dim × Dim matrix.
 template <int Dim, typename Matrix>
 pybind11::array_t<double> MatrixArray(size_t n, Matrix matrix) {
-  pybind11::array_t<double> array(
-      {static_cast<pybind11::ssize_t>(n), pybind11::ssize_t{Dim}, pybind11::ssize_t{Dim}});
+  pybind11::array_t<double> array({static_cast<pybind11::ssize_t>(n), pybind11::ssize_t{Dim}, pybind11::ssize_t{Dim}});
   auto a = array.mutable_unchecked<3>();
   for (size_t k = 0; k < n; ++k) {
     const Eigen::Matrix<double, Dim, Dim> m = matrix(k);

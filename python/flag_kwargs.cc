@@ -57,14 +57,14 @@ FlagScope::FlagScope(const std::string& command, const py::kwargs& kwargs, const
     absl::CommandLineFlag* flag = absl::FindCommandLineFlag(name);
     if (flag == nullptr || !std::binary_search(program.begin(), program.end(), name) ||
         !cli::CommandMayReadFlag(name, command)) {
-      throw py::type_error(absl::StrCat(command, "() got an unexpected keyword argument '", name,
-                                        "' (`subslam help ", command, "` lists the options, without their dashes)"));
+      throw py::type_error(absl::StrCat(command, "() got an unexpected keyword argument '", name, "' (`subslam help ",
+                                        command, "` lists the options, without their dashes)"));
     }
     const std::string text = FlagText(value);
     std::string error;
     if (!flag->ParseFrom(text, &error)) {
-      throw py::value_error(absl::StrCat(command, "(): keyword ", name, "=", py::repr(value).cast<std::string>(), ": ",
-                                         error));
+      throw py::value_error(
+          absl::StrCat(command, "(): keyword ", name, "=", py::repr(value).cast<std::string>(), ": ", error));
     }
     command_line_.push_back(absl::StrCat("--", name, "=", text));
   }

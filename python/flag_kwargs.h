@@ -14,15 +14,14 @@
 #ifndef SUBSLAM_PYTHON_FLAG_KWARGS_H_
 #define SUBSLAM_PYTHON_FLAG_KWARGS_H_
 
+#include <pybind11/pybind11.h>
+
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <nlohmann/json.hpp>
-#include <pybind11/pybind11.h>
-
 
 namespace subslam::python {
 
@@ -33,8 +32,7 @@ class FlagScope {
   // them as arguments of its own). Raises TypeError for a keyword that no invocation of the
   // command reads, ValueError for a value the flag does not parse; `config="report.json"`
   // sets every flag the report recorded that no keyword sets (`subslam run --config`).
-  FlagScope(const std::string& command, const pybind11::kwargs& kwargs,
-            const std::vector<std::string>& excluded = {});
+  FlagScope(const std::string& command, const pybind11::kwargs& kwargs, const std::vector<std::string>& excluded = {});
   ~FlagScope();
   FlagScope(const FlagScope&) = delete;
   FlagScope& operator=(const FlagScope&) = delete;

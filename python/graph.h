@@ -2,9 +2,8 @@
 #ifndef SUBSLAM_PYTHON_GRAPH_H_
 #define SUBSLAM_PYTHON_GRAPH_H_
 
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "subslam/posegraph/graph_format.h"
 #include "subslam/posegraph/pose_graph.h"

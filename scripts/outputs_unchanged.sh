@@ -2,9 +2,10 @@
 # Checks that a change leaves every output the same to the bit: runs the same commands
 # with two builds of the tool (e.g. the one before a restructuring and the one after) and
 # compares every file they write. report.json is compared without its wall-clock figures
-# (time sections, *_seconds, peak memory, and scans_with_fewer_threads, which depends on
-# thread timing), joins.csv without its `seconds` column; a key only one side has is
-# listed. Exits 1 when anything differs.
+# (time sections, *_seconds, memory, and scans_with_fewer_threads, which depends on
+# thread timing), the build and the command line, with each suite's directory read as
+# one; joins.csv without its `seconds` column; a key only one side has is listed. Exits
+# 1 when anything differs.
 #
 #   scripts/outputs_unchanged.sh OLD_SUBSLAM NEW_SUBSLAM [VICTORIA_PARK_DIR]
 set -euo pipefail
@@ -30,9 +31,9 @@ run_suite() {  # BIN OUT
   "$bin" run --scenario hybrid-120m --seed 3 --frontend ekf --backend tree-eif --single_linearization \
       --eif_ordering nested_dissection --out "$out/tree" $q
   for b in eif ekf tree-ekf tree-eif; do
-    "$bin" join --submaps "$out/demo/submaps.jsonl" --backend $b --scenario hybrid-120m --seed 1 --out "$out/join_$b" $q
+    "$bin" join --submaps "$out/demo/submaps.jsonl" --backend $b --scenario hybrid-120m --seed 1 --out "$out/join_$b" --quiet
   done
-  "$bin" join --submaps "$out/c2km/submaps.jsonl" --backend eif --scenario combined-2km --seed 1 --out "$out/c2km_join" $q
+  "$bin" join --submaps "$out/c2km/submaps.jsonl" --backend eif --scenario combined-2km --seed 1 --out "$out/c2km_join" --quiet
   if [ -f "$VP/dataset.json" ]; then
     "$bin" run --dataset "$VP" --frontend rbpf --backend eif --sensor_yaw -0.0182 --out "$out/vp_rbpf" $q
     "$bin" run --dataset "$VP" --frontend ekfslam --out "$out/vp_ekfslam" $q
@@ -44,16 +45,18 @@ run_suite "$NEW" "$WORK/new"
 python3 - "$WORK/old" "$WORK/new" <<'PY'
 import filecmp, json, os, sys
 old, new = sys.argv[1], sys.argv[2]
-# Wall-clock figures: the time sections, memory, and counts that depend on thread timing.
-VOLATILE = {'time_seconds', 'peak_rss_kb', 'scans_with_fewer_threads'}
+# Wall-clock figures: the time sections, memory, and counts that depend on thread timing;
+# and what names the build and the two suites' own directories.
+VOLATILE = {'time_seconds', 'peak_rss_kb', 'rss_kb_by_tenth_of_steps', 'scans_with_fewer_threads', 'build',
+            'command_line'}
 def volatile(key):
     return key in VOLATILE or key.endswith('_seconds')
-def strip(x):
+def strip(x, here=old):
     if isinstance(x, dict):
-        return {k: strip(v) for k, v in x.items() if not volatile(k)}
+        return {k: strip(v, here) for k, v in x.items() if not volatile(k)}
     if isinstance(x, list):
-        return [strip(v) for v in x]
-    return x
+        return [strip(v, here) for v in x]
+    return x.replace(here, "DIR") if isinstance(x, str) else x
 def diff(a, b, path, out):
     if isinstance(a, dict) and isinstance(b, dict):
         for k in sorted(set(a) | set(b)):
@@ -73,7 +76,7 @@ for root, _, files in os.walk(old):
             print("missing:", os.path.relpath(b, new)); differing += 1
         elif name == "report.json":
             out = []
-            diff(strip(json.load(open(a))), strip(json.load(open(b))), "", out)
+            diff(strip(json.load(open(a)), old), strip(json.load(open(b)), new), "", out)
             if out:
                 differing += 1
                 print(os.path.relpath(a, old) + ":"); [print("  " + line) for line in out[:20]]

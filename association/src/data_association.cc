@@ -11,8 +11,8 @@
 namespace subslam::association {
 
 namespace {
-constexpr EnumName<AssociationMethod> kAssociationMethodNames[] = {
-    {AssociationMethod::kNearestNeighbour, "nn"}, {AssociationMethod::kJointCompatibility, "jcbb"}};
+constexpr EnumName<AssociationMethod> kAssociationMethodNames[] = {{AssociationMethod::kNearestNeighbour, "nn"},
+                                                                   {AssociationMethod::kJointCompatibility, "jcbb"}};
 }  // namespace
 
 const char* ToString(AssociationMethod method) { return NameOf(kAssociationMethodNames, method); }
@@ -31,9 +31,8 @@ AssociationResult NearestNeighbour(const AssociationProblem& problem) {
   for (int j = 0; j < m; ++j) {
     for (const AssociationCandidate& c : problem.candidates[j]) pairs.push_back({c.d2, j, c.landmark});
   }
-  std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
-    return a.d2 < b.d2 || (a.d2 == b.d2 && a.detection < b.detection);
-  });
+  std::sort(pairs.begin(), pairs.end(),
+            [](const Pair& a, const Pair& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.detection < b.detection); });
   AssociationResult r;
   r.landmark_of_detection.assign(m, -1);
   std::vector<int> taken;
@@ -158,11 +157,11 @@ class Jcbb {
 
   // The forward substitution of one candidate pairing, row by row (see the class comment).
   struct Solved {
-    int rows = 0;                          // rows solved
-    std::vector<long> stamp;               // row_stamp_ of each row when it was solved
-    std::vector<Eigen::Matrix2d> X;        // block row a of L₁₁⁻¹ B
-    std::vector<Eigen::Matrix2d> C;        // the pairing's covariance less rows 0 … a
-    std::vector<Eigen::Vector2d> rhs;      // its innovation less rows 0 … a
+    int rows = 0;                      // rows solved
+    std::vector<long> stamp;           // row_stamp_ of each row when it was solved
+    std::vector<Eigen::Matrix2d> X;    // block row a of L₁₁⁻¹ B
+    std::vector<Eigen::Matrix2d> C;    // the pairing's covariance less rows 0 … a
+    std::vector<Eigen::Vector2d> rhs;  // its innovation less rows 0 … a
   };
 
   // Appends pairing (j, c) as block row k of L and y (its rows solved so far in *s,
@@ -232,9 +231,9 @@ class Jcbb {
   Eigen::VectorXd y_;
   std::vector<long> row_stamp_;  // a stamp per block row of L, new whenever it is rewritten
   long stamps_ = 0;
-  std::vector<int> first_pair_;  // candidate pairings of detection j: first_pair_[j] …
-  std::vector<Solved> solved_;   // by candidate pairing
-  std::vector<int> rows_before_;  // at most this many pairings precede detection j's
+  std::vector<int> first_pair_;        // candidate pairings of detection j: first_pair_[j] …
+  std::vector<Solved> solved_;         // by candidate pairing
+  std::vector<int> rows_before_;       // at most this many pairings precede detection j's
   std::vector<int> current_;           // landmark per detection in the hypothesis
   std::vector<int> paired_detection_;  // detection of block row a
   std::vector<int> branching_;         // detections with a candidate, fewest candidates first
@@ -246,8 +245,7 @@ class Jcbb {
 
 }  // namespace
 
-AssociationResult JointCompatibility(const AssociationProblem& problem, double gate_probability,
-                                     long max_nodes) {
+AssociationResult JointCompatibility(const AssociationProblem& problem, double gate_probability, long max_nodes) {
   if (problem.candidates.empty()) return {};
   return Jcbb(problem, gate_probability, max_nodes).Solve();
 }

@@ -1,4 +1,3 @@
-#include "subslam/graph/enum_names.h"
 #include "subslam/backend/ceres_solver.h"
 
 #include <ceres/ceres.h>
@@ -10,15 +9,15 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
+#include "subslam/backend/ceres_options.h"
 #include "subslam/backend/ceres_submap_cost.h"
-#include "subslam/backend/internal/ceres_options.h"
+#include "subslam/graph/enum_names.h"
 
 namespace subslam::backend {
 
 namespace {
-constexpr EnumName<CeresMethod> kCeresMethodNames[] = {{CeresMethod::kLevenbergMarquardt, "lm"},
-                                                       {CeresMethod::kDogleg, "dogleg"},
-                                                       {CeresMethod::kGaussNewton, "gn"}};
+constexpr EnumName<CeresMethod> kCeresMethodNames[] = {
+    {CeresMethod::kLevenbergMarquardt, "lm"}, {CeresMethod::kDogleg, "dogleg"}, {CeresMethod::kGaussNewton, "gn"}};
 constexpr EnumName<RobustLoss> kRobustLossNames[] = {
     {RobustLoss::kNone, "none"}, {RobustLoss::kHuber, "huber"}, {RobustLoss::kCauchy, "cauchy"}};
 }  // namespace

@@ -25,8 +25,7 @@ SubmapCostFunction::SubmapCostFunction(const LocalSubmap& submap, std::vector<in
   for (int b = 0; b < num_landmark_blocks_; ++b) mutable_parameter_block_sizes()->push_back(2);
 }
 
-bool SubmapCostFunction::Evaluate(double const* const* parameters, double* residuals,
-                                  double** jacobians) const {
+bool SubmapCostFunction::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const {
   const int n = submap_.num_landmarks();
   const int m = 3 + 2 * n;
   const Pose2 start(parameters[0][0], parameters[0][1], parameters[0][2]);

@@ -2,8 +2,6 @@
 // information blocks, and how far its linear model is from the estimate (the
 // relinearisation triggers).
 
-#include "subslam/backend/eif_joiner.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -11,12 +9,13 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/backend/internal/sparse_cholesky.h"
 #include "eif_solver.h"
 #include "state_blocks.h"
+#include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
@@ -317,8 +316,8 @@ void EifJoiner::UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e
   const auto error = [&](const Eigen::Vector2d& v, const Eigen::Vector2d& v0) {
     return Eigen::Vector2d((Rt - Rt0) * v - dRt0 * v0 * dtheta);
   };
-  e->head<2>() = error(Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y) - p_s,
-                       f.levers[0]);
+  e->head<2>() = error(
+      Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y) - p_s, f.levers[0]);
   for (int i = 0; i < n; ++i) {
     e->segment<2>(3 + 2 * i) = error(graph_.landmarks()[record.landmark_of_feature[i]] - p_s, f.levers[i + 1]);
   }

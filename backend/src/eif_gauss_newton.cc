@@ -1,8 +1,6 @@
 // EifJoiner: relinearisation — Gauss-Newton over the submap graph with its stopping rules,
 // and adopting an estimate solved elsewhere (the Ceres back-end).
 
-#include "subslam/backend/eif_joiner.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -10,12 +8,13 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/backend/internal/sparse_cholesky.h"
 #include "eif_solver.h"
 #include "state_blocks.h"
+#include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {

@@ -1,8 +1,6 @@
 // EifJoiner: the information matrix Λ — its pattern, values and lower triangle — and its
 // factorisation, full or by the incremental update of the newest factor.
 
-#include "subslam/backend/eif_joiner.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -10,12 +8,13 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/backend/internal/sparse_cholesky.h"
 #include "eif_solver.h"
 #include "state_blocks.h"
+#include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
@@ -40,7 +39,7 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   if (lambda_full_valid_ && Lambda_.rows() == dim_) return Lambda_;
   // Both triangles from the lower one.
   const Eigen::Map<const Eigen::SparseMatrix<double>> lower_view(lower.n, lower.n, lower.p[lower.n], lower.p.data(),
-                                                                  lower.i.data(), lower.x.data());
+                                                                 lower.i.data(), lower.x.data());
   Lambda_ = lower_view.selfadjointView<Eigen::Lower>();
   lambda_full_valid_ = true;
   return Lambda_;
@@ -259,7 +258,8 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
         factors_of_row_.resize(dim_);
         const Factor& f = factors_.back();
         for (size_t v = 0; v < f.offsets.size(); ++v) {
-          for (int i = 0; i < f.sizes[v]; ++i) factors_of_row_[f.offsets[v] + i].push_back(static_cast<int>(factors_.size()) - 1);
+          for (int i = 0; i < f.sizes[v]; ++i)
+            factors_of_row_[f.offsets[v] + i].push_back(static_cast<int>(factors_.size()) - 1);
         }
       }
     } else {

@@ -10,12 +10,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/backend/internal/sparse_cholesky.h"
 #include "eif_solver.h"
 #include "state_blocks.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
@@ -47,8 +47,8 @@ absl::Status EifJoinerOptions::Validate() const {
         absl::StrCat("divergence_rises (--relinearize_max_rises) must be >= 0, got ", divergence_rises));
   }
   if (!(relinearize_linearization_chi2 >= 0)) {
-    return absl::InvalidArgumentError(absl::StrCat("relinearize_linearization_chi2 must be >= 0, got ",
-                                                   relinearize_linearization_chi2));
+    return absl::InvalidArgumentError(
+        absl::StrCat("relinearize_linearization_chi2 must be >= 0, got ", relinearize_linearization_chi2));
   }
   if (!(relinearize_heading_change >= 0)) {
     return absl::InvalidArgumentError(
@@ -78,10 +78,7 @@ EifJoinerOptions EifJoinerOptions::ForTreeNode() const {
 }
 
 EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
-    : options_(options),
-      graph_(initial_pose),
-      solver_(std::make_unique<Solver>()),
-      associator_(options.association) {
+    : options_(options), graph_(initial_pose), solver_(std::make_unique<Solver>()), associator_(options.association) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   anchor_offset_.push_back(-1);  // P0 is fixed
   anchor_theta_.push_back(initial_pose.theta);
@@ -172,8 +169,8 @@ absl::Status EifJoiner::JoinLocalMap(const LocalSubmap& s) {
 }
 
 EifJoiner::Snapshot EifJoiner::TakeSnapshot() const {
-  return Snapshot{graph_, anchor_offset_, landmark_offset_, anchor_theta_, dim_, factors_,
-                  eta_, associator_, marginal_bound_, counters_};
+  return Snapshot{graph_,   anchor_offset_, landmark_offset_, anchor_theta_,   dim_,
+                  factors_, eta_,           associator_,      marginal_bound_, counters_};
 }
 
 void EifJoiner::Restore(Snapshot before) {
@@ -187,7 +184,7 @@ void EifJoiner::Restore(Snapshot before) {
   eta_ = std::move(before.eta);
   associator_ = std::move(before.associator);
   marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
-  solver_->stale = true;  // it absorbed the undone factors
+  solver_->stale = true;                               // it absorbed the undone factors
   factors_of_row_valid_ = false;
   owner_of_row_valid_ = false;
   changed_all_ = true;
@@ -415,14 +412,15 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
         // It needs a full closure's worth of other old landmarks: the later maps are gated
         // given the held pairings, so those lend them no evidence.
         pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
-                                           std::move(a), options_.association.min_loop_pairings, 0, /*thin=*/true};
+                                           std::move(a),   options_.association.min_loop_pairings,    0,
+                                           /*thin=*/true};
         pending_loop_->before.counters = counters_before;
       }
     } else if (!a.uncertain_loop_features.empty() && options_.association.loop_confirmation_maps > 0 &&
                options_.RelinearizesAfterJoins() && !pending_loop_ &&
                3.0 * a.start_position_sigma_m >= options_.association.loop_confirmation_min_sigma_radius_m) {
-      pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
-                                         std::move(a)};
+      pending_loop_ =
+          PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(), std::move(a)};
       // Its decisions are counted again on an undo (its work is not): not twice.
       pending_loop_->before.counters = counters_before;
     }

@@ -1,8 +1,6 @@
 // EifJoiner: marginal covariances — by sparse solves with the factor, in bulk from the
 // sparse inverse, and the 5 × 5 [anchor, landmark] blocks association needs.
 
-#include "subslam/backend/eif_joiner.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -10,18 +8,18 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/backend/internal/sparse_cholesky.h"
 #include "eif_solver.h"
 #include "state_blocks.h"
+#include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
 
-Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors,
-                                           const std::vector<int>& landmarks) const {
+Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const {
   const StateBlocks blocks = SelectBlocks(anchors, landmarks, anchor_offset_, landmark_offset_);
   const std::vector<int>& offsets = blocks.offsets;
   const std::vector<int>& sizes = blocks.sizes;
@@ -86,7 +84,7 @@ std::vector<Matrix5d> EifJoiner::AnchorLandmarkCovariances(int anchor, const std
 }
 
 std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
-                                                                    const std::vector<int>& landmarks) const {
+                                                                     const std::vector<int>& landmarks) const {
   std::vector<std::optional<Matrix5d>> out(landmarks.size());
   if (dim_ == 0) return out;
   SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";

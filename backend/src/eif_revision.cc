@@ -1,8 +1,6 @@
 // EifJoiner: revisable association — merge and split passes (landmark_revision.h) and
 // how their decisions re-key the factors.
 
-#include "subslam/backend/eif_joiner.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -10,12 +8,13 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/backend/internal/sparse_cholesky.h"
 #include "eif_solver.h"
 #include "state_blocks.h"
+#include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
@@ -55,7 +54,10 @@ absl::Status EifJoiner::ReviseAssociation(bool full) {
   }
   touched_.resize(graph_.num_landmarks(), 1);
   std::vector<LandmarkMerge> merges = FindLandmarkMerges(
-      graph_, marginals, [this](int a, int b) -> Eigen::Matrix4d { return JointCovariance({}, {a, b}); },
+      graph_, marginals,
+      [this](int a, int b) -> Eigen::Matrix4d {
+        return JointCovariance({}, {a, b});
+      },
       options_.revision, options_.association.loop_test_min_sigma_radius_m, all_pairs ? std::vector<char>() : touched_,
       LoopMergeTests{options_.association.min_loop_pairings, options_.association.loop_confirmation_min_sigma_radius_m,
                      [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }});

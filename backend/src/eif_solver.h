@@ -12,9 +12,9 @@ namespace subslam::backend {
 
 struct EifJoiner::Solver {
   SparseCholesky factor;
-  SparseLowerTriangle lambda_lower;  // Λ's lower triangle (see lambda_factors_)
+  SparseLowerTriangle lambda_lower;        // Λ's lower triangle (see lambda_factors_)
   Eigen::MatrixXd last_whitened_jacobian;  // of the newest factor, for the incremental update
-  bool stale = false;  // the factor no longer matches Λ (a rejected join was undone)
+  bool stale = false;                      // the factor no longer matches Λ (a rejected join was undone)
 };
 
 }  // namespace subslam::backend

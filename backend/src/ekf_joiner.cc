@@ -1,4 +1,3 @@
-#include "subslam/graph/enum_names.h"
 #include "subslam/backend/ekf_joiner.h"
 
 #include <Eigen/Cholesky>
@@ -9,8 +8,9 @@
 #include "absl/strings/str_cat.h"
 #include "state_blocks.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/enum_names.h"
+#include "subslam/graph/stage_timer.h"
 
 namespace subslam::backend {
 
@@ -52,8 +52,7 @@ void EkfJoiner::WriteBack() {
   for (int j = 0; j < graph_.num_landmarks(); ++j) graph_.landmark(j) = x_.segment<2>(landmark_offset_[j]);
 }
 
-Eigen::MatrixXd EkfJoiner::JointCovariance(const std::vector<int>& anchors,
-                                           const std::vector<int>& landmarks) const {
+Eigen::MatrixXd EkfJoiner::JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const {
   const StateBlocks blocks = SelectBlocks(anchors, landmarks, anchor_offset_, landmark_offset_);
   const std::vector<int>& offsets = blocks.offsets;
   const std::vector<int>& sizes = blocks.sizes;
@@ -161,8 +160,7 @@ absl::Status EkfJoiner::FuseZeroNoise(const std::vector<std::pair<int, int>>& pa
 }
 
 absl::Status EkfJoiner::FuseConditional(const LocalSubmap& s, int start, int end,
-                                        const std::vector<int>& landmark_of_feature,
-                                        const std::vector<char>& matched) {
+                                        const std::vector<int>& landmark_of_feature, const std::vector<char>& matched) {
   const int n = s.num_landmarks();
   std::vector<Eigen::Vector2d> landmarks;
   for (int j : landmark_of_feature) landmarks.push_back(x_.segment<2>(landmark_offset_[j]));
@@ -320,8 +318,8 @@ absl::Status EkfJoiner::JoinAssociated(const LocalSubmap& s, std::vector<int> as
   if (!options_.keep_anchors && start > 0) {
     StageTimer timer(&times_, "marginalization");
     frozen_covariance_[start] = P_.block<3, 3>(anchor_offset_[start], anchor_offset_[start]);
-    graph_.anchor(start) = Pose2(x_[anchor_offset_[start]], x_[anchor_offset_[start] + 1],
-                                 WrapAngle(x_[anchor_offset_[start] + 2]));
+    graph_.anchor(start) =
+        Pose2(x_[anchor_offset_[start]], x_[anchor_offset_[start] + 1], WrapAngle(x_[anchor_offset_[start] + 2]));
     DropVariable(anchor_offset_[start], 3);
     anchor_offset_[start] = -1;
   }
@@ -358,9 +356,13 @@ absl::Status EkfJoiner::ReviseAssociation() {
   // A split joins everything again: the merges are tested on the next pass.
   if (!splits.empty()) return SplitFeature(splits[0].factor, splits[0].feature);
   std::vector<Eigen::Matrix2d> marginals(graph_.num_landmarks());
-  for (int j = 0; j < graph_.num_landmarks(); ++j) marginals[j] = P_.block<2, 2>(landmark_offset_[j], landmark_offset_[j]);
+  for (int j = 0; j < graph_.num_landmarks(); ++j)
+    marginals[j] = P_.block<2, 2>(landmark_offset_[j], landmark_offset_[j]);
   const std::vector<LandmarkMerge> merges = FindLandmarkMerges(
-      graph_, marginals, [this](int a, int b) -> Eigen::Matrix4d { return JointCovariance({}, {a, b}); },
+      graph_, marginals,
+      [this](int a, int b) -> Eigen::Matrix4d {
+        return JointCovariance({}, {a, b});
+      },
       options_.revision, options_.association.loop_test_min_sigma_radius_m, {},
       LoopMergeTests{options_.association.min_loop_pairings, options_.association.loop_confirmation_min_sigma_radius_m,
                      [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }});

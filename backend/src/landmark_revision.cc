@@ -45,7 +45,10 @@ bool Intersect(const std::vector<int>& a, const std::vector<int>& b) {
   size_t i = 0, k = 0;
   while (i < a.size() && k < b.size()) {
     if (a[i] == b[k]) return true;
-    if (a[i] < b[k]) ++i; else ++k;
+    if (a[i] < b[k])
+      ++i;
+    else
+      ++k;
   }
   return false;
 }
@@ -65,10 +68,10 @@ std::vector<LandmarkMerge> LoopMerges(const SubmapGraph& graph, const std::vecto
                                       int min_pairings) {
   std::vector<LandmarkMerge> out;
   const int n = graph.num_landmarks();
-  std::vector<int> newer;                 // the detections
-  std::vector<int> detection_of(n, -1);   // by landmark
-  std::vector<int> involved;              // every landmark of a pair: the joint marginal's order
-  std::vector<int> row_of(n, -1);         // its first row there
+  std::vector<int> newer;                // the detections
+  std::vector<int> detection_of(n, -1);  // by landmark
+  std::vector<int> involved;             // every landmark of a pair: the joint marginal's order
+  std::vector<int> row_of(n, -1);        // its first row there
   for (const LandmarkMerge& m : pairs) {
     if (detection_of[m.drop] < 0) {
       detection_of[m.drop] = static_cast<int>(newer.size());
@@ -89,10 +92,10 @@ std::vector<LandmarkMerge> LoopMerges(const SubmapGraph& graph, const std::vecto
     problem.candidates[detection_of[m.drop]].push_back({m.keep, m.d2, L[m.drop] - L[m.keep]});
   }
   for (auto& list : problem.candidates) {
-    std::sort(list.begin(), list.end(), [](const association::AssociationCandidate& x,
-                                           const association::AssociationCandidate& y) {
-      return x.d2 < y.d2 || (x.d2 == y.d2 && x.landmark < y.landmark);
-    });
+    std::sort(list.begin(), list.end(),
+              [](const association::AssociationCandidate& x, const association::AssociationCandidate& y) {
+                return x.d2 < y.d2 || (x.d2 == y.d2 && x.landmark < y.landmark);
+              });
   }
   // Cov(L_d − L_a, L_e − L_b).
   problem.covariance_block = [&](int i, int a, int k, int b) -> Eigen::Matrix2d {
@@ -105,7 +108,8 @@ std::vector<LandmarkMerge> LoopMerges(const SubmapGraph& graph, const std::vecto
   association::AssociationProblem alternative = problem;
   for (size_t d = 0; d < newer.size(); ++d) {
     const int a = best.landmark_of_detection[d];
-    std::erase_if(alternative.candidates[d], [a](const association::AssociationCandidate& c) { return c.landmark == a; });
+    std::erase_if(alternative.candidates[d],
+                  [a](const association::AssociationCandidate& c) { return c.landmark == a; });
   }
   if (association::JointCompatibility(alternative, probability, kMaxNodes).pairings >= min_pairings) return out;
   std::vector<char> used(graph.num_landmarks(), 0);
@@ -123,13 +127,10 @@ std::vector<LandmarkMerge> LoopMerges(const SubmapGraph& graph, const std::vecto
 
 }  // namespace
 
-std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
-                                              const std::vector<Eigen::Matrix2d>& marginals,
+std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const std::vector<Eigen::Matrix2d>& marginals,
                                               const LandmarkPairCovarianceFn& pair_covariance,
-                                              const LandmarkRevisionOptions& options,
-                                              double loop_sigma_radius_m,
-                                              const std::vector<char>& touched,
-                                              const LoopMergeTests& loop_merges) {
+                                              const LandmarkRevisionOptions& options, double loop_sigma_radius_m,
+                                              const std::vector<char>& touched, const LoopMergeTests& loop_merges) {
   const int n = graph.num_landmarks();
   std::vector<LandmarkMerge> out;
   if (!options.merge || n < 2) return out;
@@ -169,7 +170,8 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
   std::vector<int> by_x(n);
   std::iota(by_x.begin(), by_x.end(), 0);
   const auto& L = graph.landmarks();
-  std::sort(by_x.begin(), by_x.end(), [&](int a, int b) { return L[a].x() < L[b].x() || (L[a].x() == L[b].x() && a < b); });
+  std::sort(by_x.begin(), by_x.end(),
+            [&](int a, int b) { return L[a].x() < L[b].x() || (L[a].x() == L[b].x() && a < b); });
   // The density of landmarks around `p` [1/m²]: those within density_radius_m, less one
   // (the pair's reference point), at least one (the pair's other point).
   const double r = options.density_radius_m;
@@ -193,8 +195,8 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
       if (!touched.empty() && !touched[a] && !touched[b]) continue;
       if (Intersect(factors_of[a], factors_of[b])) continue;
       const Eigen::Matrix4d S = pair_covariance(a, b);
-      const Eigen::Matrix2d C = S.topLeftCorner<2, 2>() + S.bottomRightCorner<2, 2>() - S.topRightCorner<2, 2>() -
-                                S.bottomLeftCorner<2, 2>();
+      const Eigen::Matrix2d C =
+          S.topLeftCorner<2, 2>() + S.bottomRightCorner<2, 2>() - S.topRightCorner<2, 2>() - S.bottomLeftCorner<2, 2>();
       const Eigen::LLT<Eigen::Matrix2d> llt(C);
       if (llt.info() != Eigen::Success) continue;
       const double d2 = delta.dot(llt.solve(delta));
@@ -250,8 +252,8 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
     std::vector<char> merged(n, 0);
     for (const LandmarkMerge& m : out) merged[m.keep] = merged[m.drop] = 1;
     std::erase_if(uncertain, [&](const LandmarkMerge& m) { return merged[m.keep] || merged[m.drop]; });
-    for (const LandmarkMerge& m : LoopMerges(graph, uncertain, loop_merges.joint_covariance,
-                                             options.merge_probability, loop_merges.min_pairings)) {
+    for (const LandmarkMerge& m : LoopMerges(graph, uncertain, loop_merges.joint_covariance, options.merge_probability,
+                                             loop_merges.min_pairings)) {
       out.push_back(m);
     }
   }
@@ -282,8 +284,8 @@ std::vector<FeatureSplit> FindFeatureSplits(const SubmapGraph& graph,
       const int i = features[c];
       Matrix23d J_frame;
       Eigen::Matrix2d J_point;
-      const Eigen::Vector2d r = TransformTo(P_s, graph.landmarks()[landmarks[c]], &J_frame, &J_point) -
-                                factor.submap.landmark(i);
+      const Eigen::Vector2d r =
+          TransformTo(P_s, graph.landmarks()[landmarks[c]], &J_frame, &J_point) - factor.submap.landmark(i);
       Eigen::Matrix<double, 2, 5> J;
       J << J_frame, J_point;
       const Eigen::Matrix2d C =

@@ -61,8 +61,9 @@ absl::Status MapJoiner::Join(const LocalSubmap& submap) {
   association_d2_ = 0.0;
   association_dof_ = 0;
   absl::Status status = JoinLocalMap(submap);
-  last_join_ = {submap.id, absl::ToDoubleSeconds(absl::Now() - start), status, counters() - before, association_d2_,
-                association_dof_};
+  last_join_ = {submap.id,       absl::ToDoubleSeconds(absl::Now() - start),
+                status,          counters() - before,
+                association_d2_, association_dof_};
   return status;
 }
 
@@ -111,8 +112,8 @@ LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j, bool with_covariance) {
 absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end, bool with_covariance) {
   LocalSubmap summary = SummarizeAsLocalSubmap(right, with_covariance);
   if (summary.t_start < left_t_end - 1e-9) {
-    return absl::InvalidArgumentError(absl::StrCat("map from ", summary.t_start, " s starts before this one ends (",
-                                                   left_t_end, " s)"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("map from ", summary.t_start, " s starts before this one ends (", left_t_end, " s)"));
   }
   return summary;
 }

@@ -29,24 +29,24 @@ Eigen::Vector2d PathCentre(const LocalSubmap& map) { return 0.5 * map.mean.head<
 
 absl::Status SensorYawCalibrationOptions::Validate() const {
   if (!(std::isfinite(prior_sigma_rad) && prior_sigma_rad > 0.0)) {
-    return absl::InvalidArgumentError(absl::StrCat("sensor yaw calibration: prior_sigma_rad must be finite and > 0, got ",
-                                                   prior_sigma_rad));
+    return absl::InvalidArgumentError(
+        absl::StrCat("sensor yaw calibration: prior_sigma_rad must be finite and > 0, got ", prior_sigma_rad));
   }
   if (!(significance > 0.0 && significance < 1.0)) {
-    return absl::InvalidArgumentError(absl::StrCat("sensor yaw calibration: significance must be in (0, 1), got ",
-                                                   significance));
+    return absl::InvalidArgumentError(
+        absl::StrCat("sensor yaw calibration: significance must be in (0, 1), got ", significance));
   }
   if (!(std::isfinite(settled_sigma_rad) && settled_sigma_rad >= 0.0)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "sensor yaw calibration: settled_sigma_rad must be finite and >= 0, got ", settled_sigma_rad));
+    return absl::InvalidArgumentError(
+        absl::StrCat("sensor yaw calibration: settled_sigma_rad must be finite and >= 0, got ", settled_sigma_rad));
   }
   if (warm_up_maps < 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("sensor yaw calibration: warm_up_maps must be >= 0, got ", warm_up_maps));
   }
   if (!(gate_probability > 0.0 && gate_probability < 1.0)) {
-    return absl::InvalidArgumentError(absl::StrCat("sensor yaw calibration: gate_probability must be in (0, 1), got ",
-                                                   gate_probability));
+    return absl::InvalidArgumentError(
+        absl::StrCat("sensor yaw calibration: gate_probability must be in (0, 1), got ", gate_probability));
   }
   return absl::OkStatus();
 }
@@ -171,8 +171,8 @@ void SensorYawCalibration::AddPairs(const LocalSubmap& earlier, const LocalSubma
     A2.block<2, 2>(2 * k, 0) = p.d_later.rightCols<2>();
     A2.block<2, 2>(2 * k, 2 + 2 * k) = p.d_later.leftCols<2>();
   }
-  const Eigen::MatrixXd S = A1 * earlier.covariance(rows1, rows1) * A1.transpose() +
-                            A2 * later.covariance(rows2, rows2) * A2.transpose();
+  const Eigen::MatrixXd S =
+      A1 * earlier.covariance(rows1, rows1) * A1.transpose() + A2 * later.covariance(rows2, rows2) * A2.transpose();
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
   if (ldlt.info() != Eigen::Success) return;
   const Eigen::VectorXd Sa = ldlt.solve(a);

@@ -3,7 +3,6 @@
 #include <cholmod.h>
 
 #include <Eigen/QR>
-
 #include <algorithm>
 #include <cmath>
 #include <mutex>
@@ -71,8 +70,8 @@ SparseCholesky::~SparseCholesky() {
   delete common_;
 }
 
-absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int spare,
-                                       FillReducingOrdering ordering, const std::vector<int>& last) {
+absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int spare, FillReducingOrdering ordering,
+                                       const std::vector<int>& last) {
   // The lower triangle of A, column by column (Eigen keeps each column's rows sorted).
   SparseLowerTriangle lower;
   lower.n = static_cast<int>(A.rows());
@@ -90,7 +89,7 @@ absl::Status SparseCholesky::Factorize(const Eigen::SparseMatrix<double>& A, int
 }
 
 absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::Analyse(FillReducingOrdering ordering, cholmod_sparse* a,
-                                                                  cholmod_sparse* all, const std::vector<int>& last) {
+                                                                 cholmod_sparse* all, const std::vector<int>& last) {
   const int n = static_cast<int>(a->ncol);
   std::vector<int> perm(all->ncol);
   Analysis analysis;
@@ -134,8 +133,8 @@ absl::StatusOr<SparseCholesky::Analysis> SparseCholesky::AnalyseAutomatically(ch
   return nested;
 }
 
-absl::StatusOr<FillReducingOrdering> SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse* a,
-                                                           int* perm, const std::vector<int>& last) {
+absl::StatusOr<FillReducingOrdering> SparseCholesky::Order(FillReducingOrdering ordering, cholmod_sparse* a, int* perm,
+                                                           const std::vector<int>& last) {
   const int n = static_cast<int>(a->ncol);
   if (ordering == FillReducingOrdering::kNestedDissection) {
     int ok = 0;
@@ -194,7 +193,8 @@ absl::Status SparseCholesky::Factorize(const SparseLowerTriangle& A, int spare, 
   for (int c = 0; c < n; ++c) {
     for (int k = A.p[c]; k < A.p[c + 1]; ++k) {
       if (A.i[k] < c || A.i[k] >= n || (k > A.p[c] && A.i[k] <= A.i[k - 1])) {
-        return absl::InvalidArgumentError(absl::StrCat("Factorize: column ", c, " is not a sorted lower-triangle column"));
+        return absl::InvalidArgumentError(
+            absl::StrCat("Factorize: column ", c, " is not a sorted lower-triangle column"));
       }
     }
   }
@@ -291,7 +291,8 @@ absl::Status SparseCholesky::Update(int new_dim, const std::vector<int>& rows, c
   // (old) variables; the rest start at the newest variables, near the root.
   const int kc = std::min(k, m);
   Eigen::MatrixXd R = Eigen::HouseholderQR<Eigen::MatrixXd>(merged.transpose()).matrixQR();
-  cholmod_sparse* C = cholmod_allocate_sparse(capacity_, kc, static_cast<size_t>(m) * kc, 1, 1, 0, CHOLMOD_REAL, common_);
+  cholmod_sparse* C =
+      cholmod_allocate_sparse(capacity_, kc, static_cast<size_t>(m) * kc, 1, 1, 0, CHOLMOD_REAL, common_);
   if (C == nullptr) return absl::ResourceExhaustedError("CHOLMOD: out of memory");
   int* Cp = static_cast<int*>(C->p);
   int* Ci = static_cast<int*>(C->i);
@@ -446,7 +447,7 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
   }
   const int s = static_cast<int>(path.size());
   if (s < kSharedPathMinLength) return false;  // short paths: the walks are cheap
-  std::vector<int>& index = path_index_;  // position → index in S (−1: not in S)
+  std::vector<int>& index = path_index_;       // position → index in S (−1: not in S)
   if (static_cast<int>(index.size()) != capacity_) index.assign(capacity_, -1);
   for (int q = 0; q < s; ++q) index[path[q]] = q;
   // Each variable's walk up to S (sparse), its values at S gathered into B.
@@ -455,7 +456,7 @@ bool SparseCholesky::SolveThroughSharedPath(const std::vector<int>& pending) con
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> B =
       Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(s, R);
   std::vector<SparseColumn> columns(R);
-  std::vector<int> entry(R);  // index in S where the walk met S
+  std::vector<int> entry(R);                    // index in S where the walk met S
   std::vector<double>& y = ForwardWorkspace();  // its first capacity entries, one right-hand side
   std::vector<int>& stamp = forward_stamp_;
   if (static_cast<int>(stamp.size()) != capacity_) stamp.assign(capacity_, 0);

@@ -2,12 +2,9 @@
 // factor's pattern (the sparse-inverse recursion, every block the pattern holds at once),
 // and the diagonal blocks of groups of variables.
 
-#include "subslam/backend/internal/sparse_cholesky.h"
-
 #include <cholmod.h>
 
 #include <Eigen/QR>
-
 #include <algorithm>
 #include <cmath>
 #include <mutex>
@@ -15,6 +12,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/graph/check.h"
 
 namespace subslam::backend {
@@ -256,7 +254,8 @@ Eigen::MatrixXd SparseCholesky::InverseColumnsAt(const std::vector<int>& columns
       }
     }
     for (size_t r = 0; r < rows.size(); ++r) {
-      for (int c = 0; c < width; ++c) out(static_cast<Eigen::Index>(r), c0 + c) = x[static_cast<size_t>(position_[rows[r]]) * kMaxCarried + c];
+      for (int c = 0; c < width; ++c)
+        out(static_cast<Eigen::Index>(r), c0 + c) = x[static_cast<size_t>(position_[rows[r]]) * kMaxCarried + c];
     }
     for (int j : U) std::fill_n(&x[static_cast<size_t>(j) * kMaxCarried], kMaxCarried, 0.0);
   }

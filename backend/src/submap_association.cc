@@ -29,19 +29,21 @@ absl::Status SubmapAssociationOptions::Validate() const {
     return absl::InvalidArgumentError("recent_maps and loop_test_min_sigma_radius_m must be >= 0");
   }
   if (loop_confirmation_maps < 0) {
-    return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_maps must be >= 0, got ", loop_confirmation_maps));
+    return absl::InvalidArgumentError(
+        absl::StrCat("loop_confirmation_maps must be >= 0, got ", loop_confirmation_maps));
   }
   if (!(loop_confirmation_min_sigma_radius_m >= 0 && std::isfinite(loop_confirmation_min_sigma_radius_m))) {
-    return absl::InvalidArgumentError(absl::StrCat("loop_confirmation_min_sigma_radius_m must be finite and >= 0 [m], got ",
-                                                   loop_confirmation_min_sigma_radius_m));
+    return absl::InvalidArgumentError(
+        absl::StrCat("loop_confirmation_min_sigma_radius_m must be finite and >= 0 [m], got ",
+                     loop_confirmation_min_sigma_radius_m));
   }
   if (!(map_rotation_probability > 0 && map_rotation_probability < 1)) {
     return absl::InvalidArgumentError(
         absl::StrCat("map_rotation_probability must be in (0, 1), got ", map_rotation_probability));
   }
   if (!(map_rotation_spread_probability >= 0 && map_rotation_spread_probability < 1)) {
-    return absl::InvalidArgumentError(absl::StrCat("map_rotation_spread_probability must be in [0, 1), got ",
-                                                   map_rotation_spread_probability));
+    return absl::InvalidArgumentError(
+        absl::StrCat("map_rotation_spread_probability must be in [0, 1), got ", map_rotation_spread_probability));
   }
   if (!(map_rotation_sigma_rad >= 0 && std::isfinite(map_rotation_sigma_rad))) {
     return absl::InvalidArgumentError(
@@ -97,8 +99,8 @@ std::vector<int> SubmapAssociator::TruthIds(int num_landmarks) const {
   return out;
 }
 
-void SubmapAssociator::Record(const LocalSubmap& s, const std::vector<int>& landmark_of_feature,
-                              int first_new_landmark, bool define_truth) {
+void SubmapAssociator::Record(const LocalSubmap& s, const std::vector<int>& landmark_of_feature, int first_new_landmark,
+                              bool define_truth) {
   int needed = 0;
   for (int j : landmark_of_feature) needed = std::max(needed, j + 1);
   if (needed > static_cast<int>(signature_sum_.size())) {
@@ -382,9 +384,8 @@ association::AssociationProblem IndividualCompatibility(const LocalSubmap& s, co
     }
   }
   for (auto& list : problem.candidates) {
-    std::sort(list.begin(), list.end(), [](const auto& a, const auto& b) {
-      return a.d2 < b.d2 || (a.d2 == b.d2 && a.landmark < b.landmark);
-    });
+    std::sort(list.begin(), list.end(),
+              [](const auto& a, const auto& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.landmark < b.landmark); });
   }
   return problem;
 }
@@ -464,10 +465,9 @@ class InnovationCovariance {
 // relinearising.
 class Relinearization {
  public:
-  Relinearization(const LocalSubmap& s, int start_anchor, const std::vector<int>& candidates,
-                  const SubmapGraph& graph, const CandidateGeometry& prior, const Pose2& P_prior,
-                  const Eigen::Matrix3d& Sigma_s, double landmark_radius, const GateTest& gate,
-                  const TimedCovariance& timed_covariance)
+  Relinearization(const LocalSubmap& s, int start_anchor, const std::vector<int>& candidates, const SubmapGraph& graph,
+                  const CandidateGeometry& prior, const Pose2& P_prior, const Eigen::Matrix3d& Sigma_s,
+                  double landmark_radius, const GateTest& gate, const TimedCovariance& timed_covariance)
       : s_(s),
         start_anchor_(start_anchor),
         candidates_(candidates),
@@ -494,8 +494,8 @@ class Relinearization {
       for (int k = 0; k < m; ++k) {
         const auto [i, c] = pairs[k];
         const CandidateGeometry& g = l->geometry;
-        C.middleCols<2>(2 * k) = Sigma_s_ * g.J_frame[c].transpose() +
-                                 g.pair[c].topRightCorner<3, 2>() * g.J_point[c].transpose();
+        C.middleCols<2>(2 * k) =
+            Sigma_s_ * g.J_frame[c].transpose() + g.pair[c].topRightCorner<3, 2>() * g.J_point[c].transpose();
         y.segment<2>(2 * k) = s_.landmark(i) - g.predicted[c];
         for (int q = 0; q < m; ++q) {
           S.block<2, 2>(2 * k, 2 * q) = l->problem.covariance_block(i, c, pairs[q].first, pairs[q].second);
@@ -536,21 +536,23 @@ class Relinearization {
     g.predicted.resize(count);
     const Eigen::Vector3d offset = PoseDifference(P_prior_, P_lin);
     for (int c = 0; c < count; ++c) {
-      g.predicted[c] = TransformTo(P_lin, graph_.landmarks()[candidates_[c]], &g.J_frame[c], &g.J_point[c]) +
-                       g.J_frame[c] * offset;
+      g.predicted[c] =
+          TransformTo(P_lin, graph_.landmarks()[candidates_[c]], &g.J_frame[c], &g.J_point[c]) + g.J_frame[c] * offset;
     }
     const PlacedMap placed = Place(s_, P_lin, Sigma_s_, landmark_radius_);
     l->problem = IndividualCompatibility(s_, candidates_, placed, graph_, g, gate_);
     for (const auto& [i, c] : keep) {
       auto& list = l->problem.candidates[i];
-      if (std::any_of(list.begin(), list.end(), [c](const association::AssociationCandidate& x) { return x.landmark == c; })) {
+      if (std::any_of(list.begin(), list.end(),
+                      [c](const association::AssociationCandidate& x) { return x.landmark == c; })) {
         continue;
       }
       const Eigen::Vector2d nu = g.predicted[c] - s_.landmark(i);
       const Eigen::Matrix2d S = g.Relative(c) + s_.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
       list.insert(list.begin(), {c, models::MahalanobisSquared2(nu, S).value_or(INFINITY), nu});
     }
-    l->covariance = std::make_unique<InnovationCovariance>(l->problem, start_anchor_, candidates_, g, timed_covariance_);
+    l->covariance =
+        std::make_unique<InnovationCovariance>(l->problem, start_anchor_, candidates_, g, timed_covariance_);
     const InnovationCovariance* covariance = l->covariance.get();
     const LocalSubmap* s = &s_;
     l->problem.covariance_block = [covariance, s](int i, int a, int k, int b) {
@@ -588,7 +590,12 @@ class GroupedAssociation {
   GroupedAssociation(const SubmapAssociationOptions& o, const LocalSubmap& s, const std::vector<int>& candidates,
                      const LoopFlags& loop, const association::AssociationProblem& problem,
                      Relinearization* relinearization, SubmapAssociation* out)
-      : o_(o), s_(s), candidates_(candidates), loop_(loop), problem_(&problem), relinearization_(relinearization),
+      : o_(o),
+        s_(s),
+        candidates_(candidates),
+        loop_(loop),
+        problem_(&problem),
+        relinearization_(relinearization),
         out_(out) {}
 
   association::AssociationResult Solve(const std::vector<std::vector<int>>& groups) {
@@ -770,7 +777,8 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
   if (groups != nullptr) {
     return GroupedAssociation(o, s, candidates, loop, *problem, relinearization, out).Solve(*groups);
   }
-  association::AssociationResult result = association::JointCompatibility(*problem, o.gate_probability, o.jcbb_max_nodes);
+  association::AssociationResult result =
+      association::JointCompatibility(*problem, o.gate_probability, o.jcbb_max_nodes);
   out->jcbb_truncated = result.truncated;
   out->pairings_d2 = result.pairings > 0 ? result.joint_d2 : 0.0;
   out->pairings_dof = 2 * result.pairings;
@@ -785,7 +793,8 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
     for (int i = 0; i < s.num_landmarks(); ++i) {
       const int c = result.landmark_of_detection[i];
       if (!closes_loop(c)) continue;
-      std::erase_if(alternative.candidates[i], [c](const association::AssociationCandidate& x) { return x.landmark == c; });
+      std::erase_if(alternative.candidates[i],
+                    [c](const association::AssociationCandidate& x) { return x.landmark == c; });
     }
     return loop_pairings_of(association::JointCompatibility(alternative, o.gate_probability, o.jcbb_max_nodes));
   };
@@ -879,13 +888,14 @@ void AddRecentCandidates(const SubmapGraph& graph, const PlacedMap& m, const std
 // otherwise (with another, or none) explains again what the map explains as it is: no fit.
 struct RotationFit {
   double delta_rad = 0.0;
-  double statistic = NAN;  // NaN: fewer than two pairings, or a re-pairing (see above)
+  double statistic = NAN;      // NaN: fewer than two pairings, or a re-pairing (see above)
   double variance_rad2 = NAN;  // of δ̂, given the pairings
 };
 
 RotationFit FitRecentRotation(const SubmapAssociationOptions& o, const LocalSubmap& s, const PlacedMap& placed,
-                              const Eigen::Matrix3d& Sigma_widened, int start_anchor, const std::vector<int>& candidates,
-                              const SubmapGraph& graph, const CandidateGeometry& geometry, const GateTest& gate,
+                              const Eigen::Matrix3d& Sigma_widened, int start_anchor,
+                              const std::vector<int>& candidates, const SubmapGraph& graph,
+                              const CandidateGeometry& geometry, const GateTest& gate,
                               const TimedCovariance& timed_covariance, const std::vector<char>& recent,
                               const std::vector<int>& own_pairing) {
   constexpr int kRounds = 3, kGaussNewtonIterations = 8;
@@ -924,9 +934,8 @@ RotationFit FitRecentRotation(const SubmapAssociationOptions& o, const LocalSubm
       double best = INFINITY;
       for (size_t r = 0; r < recent_candidates.size(); ++r) {
         const int c = recent_candidates[r];
-        const std::optional<double> score =
-            gate(i, candidates[c], geometry.predicted[c] - w.landmark(i),
-                 relative[r] + w.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i), 1.0);
+        const std::optional<double> score = gate(i, candidates[c], geometry.predicted[c] - w.landmark(i),
+                                                 relative[r] + w.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i), 1.0);
         if (score.has_value()) best = std::min(best, *score);
       }
       if (std::isfinite(best)) {
@@ -1027,12 +1036,9 @@ SubmapAssociation SubmapAssociator::AssociateByTruth(const LocalSubmap& s) const
   return out;
 }
 
-SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_anchor,
-                                              const SubmapGraph& graph,
-                                              const JointCovarianceFn& joint_covariance,
-                                              bool anchor_prefilter,
-                                              const PairCovarianceFn& pair_covariance,
-                                              const PairBoundFn& pair_bound,
+SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_anchor, const SubmapGraph& graph,
+                                              const JointCovarianceFn& joint_covariance, bool anchor_prefilter,
+                                              const PairCovarianceFn& pair_covariance, const PairBoundFn& pair_bound,
                                               const std::vector<std::vector<int>>* groups) const {
   if (options_.known_association) return AssociateByTruth(s);
   const int n = s.num_landmarks();
@@ -1048,8 +1054,8 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   // widened map's features reach. (A map joined widened once, and associated again after an
   // undone loop closure, is not tested again.)
   const double sigma_rotation = options_.map_rotation_sigma_rad;
-  const bool test_rotation = sigma_rotation > 0 && options_.joint_compatibility && groups == nullptr &&
-                             !(s.rotation_widening_rad > 0);
+  const bool test_rotation =
+      sigma_rotation > 0 && options_.joint_compatibility && groups == nullptr && !(s.rotation_widening_rad > 0);
   std::optional<PlacedMap> placed_widened;
   Eigen::Matrix3d Sigma_widened = Sigma_s;
   Sigma_widened(2, 2) += sigma_rotation * sigma_rotation;  // the search radii grow as for the start heading
@@ -1072,8 +1078,8 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
     candidates.swap(kept);
   }
   if (candidates.empty()) return out;
-  const CandidateGeometry geometry = Geometry(start_anchor, candidates, placed.P_s, graph, pair_covariance,
-                                              timed_covariance, &out.covariance_seconds);
+  const CandidateGeometry geometry =
+      Geometry(start_anchor, candidates, placed.P_s, graph, pair_covariance, timed_covariance, &out.covariance_seconds);
   const LoopFlags loop = FlagLoopLandmarks(options_, graph, placed.sigma_xy, candidates, geometry);
   const bool by_group = groups != nullptr && options_.joint_compatibility;
   // Steps 3-5 for the map `m` (the local map, or it widened by a rotation) placed as `placed_m`.
@@ -1096,8 +1102,8 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   };
   associate_features(s, placed, &out);
   if (!test_rotation) return out;
-  const RotationFit fit = FitRecentRotation(options_, s, placed, Sigma_widened, start_anchor, candidates, graph, geometry, gate,
-                                            timed_covariance, recent, out.landmark_of_feature);
+  const RotationFit fit = FitRecentRotation(options_, s, placed, Sigma_widened, start_anchor, candidates, graph,
+                                            geometry, gate, timed_covariance, recent, out.landmark_of_feature);
   out.map_rotation_statistic = fit.statistic;
   if (std::isfinite(fit.statistic)) {
     out.map_rotation_fit_rad = fit.delta_rad;

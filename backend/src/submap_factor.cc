@@ -4,8 +4,7 @@
 
 namespace subslam::backend {
 
-Eigen::VectorXd PredictSubmap(const Pose2& start, const Pose2& end,
-                              const std::vector<Eigen::Vector2d>& landmarks) {
+Eigen::VectorXd PredictSubmap(const Pose2& start, const Pose2& end, const std::vector<Eigen::Vector2d>& landmarks) {
   Eigen::VectorXd h(3 + 2 * landmarks.size());
   h.head<3>() = Between(start, end).vector();
   for (size_t i = 0; i < landmarks.size(); ++i) h.segment<2>(3 + 2 * i) = TransformTo(start, landmarks[i]);
@@ -21,12 +20,11 @@ Eigen::VectorXd SubmapResidual(const LocalSubmap& submap, const Pose2& start, co
   return r;
 }
 
-SubmapFactorLinearization LinearizeSubmapFactor(const LocalSubmap& submap, const Pose2& start,
-                                                const Pose2& end,
+SubmapFactorLinearization LinearizeSubmapFactor(const LocalSubmap& submap, const Pose2& start, const Pose2& end,
                                                 const std::vector<Eigen::Vector2d>& landmarks) {
   const int n = static_cast<int>(landmarks.size());
-  SUBSLAM_CHECK(n == submap.num_landmarks()) << "factor has " << n << " landmarks, local map "
-                                             << submap.num_landmarks();
+  SUBSLAM_CHECK(n == submap.num_landmarks())
+      << "factor has " << n << " landmarks, local map " << submap.num_landmarks();
   const int m = 3 + 2 * n;
   SubmapFactorLinearization out;
   out.residual.resize(m);
@@ -42,8 +40,7 @@ SubmapFactorLinearization LinearizeSubmapFactor(const LocalSubmap& submap, const
   for (int i = 0; i < n; ++i) {
     Matrix23d J_frame;
     Eigen::Matrix2d J_point;
-    out.residual.segment<2>(3 + 2 * i) =
-        TransformTo(start, landmarks[i], &J_frame, &J_point) - submap.landmark(i);
+    out.residual.segment<2>(3 + 2 * i) = TransformTo(start, landmarks[i], &J_frame, &J_point) - submap.landmark(i);
     out.J_start.block<2, 3>(3 + 2 * i, 0) = J_frame;
     out.J_landmarks.block<2, 2>(3 + 2 * i, 2 * i) = J_point;
   }

@@ -1,9 +1,8 @@
 // The calibration's result: the estimates with their standard errors, the sensor's limits
 // and its detection probability by range (robot_calibration.h).
-#include <boost/math/distributions/beta.hpp>
-
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <boost/math/distributions/beta.hpp>
 #include <cmath>
 #include <set>
 
@@ -77,7 +76,8 @@ void TruncatedDetectionProbabilities(const std::vector<std::vector<int>>& trials
   for (size_t i = 0; i < inner.size(); ++i) {
     for (size_t j = 0; j < inner.size(); ++j) inner_information(i, j) = information(inner[i], inner[j]);
   }
-  const Eigen::MatrixXd covariance = inner_information.ldlt().solve(Eigen::MatrixXd::Identity(inner.size(), inner.size()));
+  const Eigen::MatrixXd covariance =
+      inner_information.ldlt().solve(Eigen::MatrixXd::Identity(inner.size(), inner.size()));
   std::vector<double> effective_trials(bins, 0.0);
   for (size_t b = 0; b < bins; ++b) effective_trials[b] = (*curve)[b].predicted;
   for (size_t i = 0; i < inner.size(); ++i) {

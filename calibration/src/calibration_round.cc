@@ -145,8 +145,8 @@ absl::StatusOr<CalibrationState::RoundSums> CalibrationState::SolveRound() {
     const Eigen::MatrixXd C = JointCovariance(covariance, {pose_block(iv.a), pose_block(iv.b), c_.data()}, {3, 3, 3});
     const Eigen::MatrixXd G = J_all * C * J_all.transpose();
     if (iv.gap) {  // λ's only: Σ = λ Σ_k θ_k T_k
-      AddComponent(term.S * OdometryCovariance(term.T, false) * term.S.transpose(), e, G,
-                   &sums.weighted[kGapComponent], &sums.expected[kGapComponent]);
+      AddComponent(term.S * OdometryCovariance(term.T, false) * term.S.transpose(), e, G, &sums.weighted[kGapComponent],
+                   &sums.expected[kGapComponent]);
     } else {
       for (int k = 0; k < 4; ++k) {
         AddComponent(term.S * term.T[k] * term.S.transpose(), e, G, &sums.weighted[k], &sums.expected[k]);

@@ -19,8 +19,13 @@ CalibrationState::CalibrationState(const io::Dataset& dataset, const Calibration
                        dataset.motion.control_offset[1]);
   const models::ControlNoise& n = dataset.motion.noise;
   const models::RangeBearingConfig& rb = dataset.sensor.range_bearing;
-  theta_ = {n.sigma_u0 * n.sigma_u0, n.scale_u0 * n.scale_u0, n.sigma_u1 * n.sigma_u1, n.scale_u1 * n.scale_u1,
-            rb.sigma_range_m * rb.sigma_range_m, rb.sigma_bearing_rad * rb.sigma_bearing_rad, 1.0};
+  theta_ = {n.sigma_u0 * n.sigma_u0,
+            n.scale_u0 * n.scale_u0,
+            n.sigma_u1 * n.sigma_u1,
+            n.scale_u1 * n.scale_u1,
+            rb.sigma_range_m * rb.sigma_range_m,
+            rb.sigma_bearing_rad * rb.sigma_bearing_rad,
+            1.0};
   BuildIntervals(io::BuildSteps(recorded));
 }
 
@@ -82,8 +87,9 @@ void CalibrationState::SetLandmarks(const std::vector<Eigen::Vector2d>& map,
     landmark_covariance_.assign(landmarks_.size(), Eigen::Matrix2d::Zero());
   } else {
     landmarks_ = map;
-    landmark_covariance_ = covariances.size() == map.size() ? covariances
-                                                             : std::vector<Eigen::Matrix2d>(map.size(), Eigen::Matrix2d::Zero());
+    landmark_covariance_ = covariances.size() == map.size()
+                               ? covariances
+                               : std::vector<Eigen::Matrix2d>(map.size(), Eigen::Matrix2d::Zero());
   }
 }
 
@@ -137,8 +143,8 @@ void CalibrationState::PairByGate() {
       Matrix23d J_x;
       Eigen::Matrix2d J_l;
       const Eigen::Vector2d h = sensor_.Observe(x, landmarks_[l], &J_x, &J_l);
-      const Eigen::Matrix2d S = R + J_x * pose_covariance_[pose] * J_x.transpose() +
-                                J_l * landmark_covariance_[l] * J_l.transpose();
+      const Eigen::Matrix2d S =
+          R + J_x * pose_covariance_[pose] * J_x.transpose() + J_l * landmark_covariance_[l] * J_l.transpose();
       const Eigen::Matrix2d S_inv = S.inverse();
       for (size_t i = 0; i < detections.size(); ++i) {
         if (outliers_.count({static_cast<int>(j), static_cast<int>(i)})) continue;

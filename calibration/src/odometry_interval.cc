@@ -12,8 +12,7 @@ Eigen::Vector2d Corrected(const Eigen::Vector2d& u, const ControlCorrection& c, 
 
 }  // namespace
 
-OdometryInterval::OdometryInterval(const models::MotionModel* model, std::vector<RecordedStep> steps,
-                                   double offset0)
+OdometryInterval::OdometryInterval(const models::MotionModel* model, std::vector<RecordedStep> steps, double offset0)
     : model_(model), steps_(std::move(steps)), offset0_(offset0) {}
 
 Eigen::Vector3d OdometryInterval::Predict(const ControlCorrection& c, Eigen::Matrix3d* J_c) const {
@@ -23,8 +22,8 @@ Eigen::Vector3d OdometryInterval::Predict(const ControlCorrection& c, Eigen::Mat
   for (const RecordedStep& s : steps_) {
     Eigen::Matrix3d J_x;
     Matrix32d J_u;
-    const Pose2 next = model_->Predict(p, Corrected(s.control, c, offset0_), s.dt, J_c ? &J_x : nullptr,
-                                       J_c ? &J_u : nullptr);
+    const Pose2 next =
+        model_->Predict(p, Corrected(s.control, c, offset0_), s.dt, J_c ? &J_x : nullptr, J_c ? &J_u : nullptr);
     if (J_c) {
       Eigen::Matrix<double, 2, 3> D;  // ∂u'/∂c
       D << s.control[0], 0.0, 0.0, 0.0, s.control[1], 1.0;
@@ -57,8 +56,7 @@ std::array<Eigen::Matrix3d, 4> OdometryInterval::NoiseComponents(const ControlCo
 }
 
 Eigen::Vector3d IntervalResidual(const Eigen::Vector3d& x_a, const Eigen::Vector3d& x_b,
-                                 const Eigen::Vector3d& predicted, Eigen::Matrix3d* J_a,
-                                 Eigen::Matrix3d* J_b) {
+                                 const Eigen::Vector3d& predicted, Eigen::Matrix3d* J_a, Eigen::Matrix3d* J_b) {
   const double c = std::cos(x_a[2]), s = std::sin(x_a[2]);
   Eigen::Matrix2d Rt;
   Rt << c, s, -s, c;

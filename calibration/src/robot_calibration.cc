@@ -26,9 +26,11 @@ namespace {
 
 std::vector<Eigen::Vector3d> StartPoses(const io::Dataset& d, const CalibrationStart& start,
                                         const std::vector<int>& pose_of_scan, int num_poses) {
-  std::vector<Eigen::Vector3d> poses(num_poses, Eigen::Vector3d(d.initial_pose.x, d.initial_pose.y, d.initial_pose.theta));
+  std::vector<Eigen::Vector3d> poses(num_poses,
+                                     Eigen::Vector3d(d.initial_pose.x, d.initial_pose.y, d.initial_pose.theta));
   for (size_t j = 0; j < pose_of_scan.size(); ++j) {
-    if (pose_of_scan[j] > 0) poses[pose_of_scan[j]] = Eigen::Vector3d(start.scan_poses[j].x, start.scan_poses[j].y, start.scan_poses[j].theta);
+    if (pose_of_scan[j] > 0)
+      poses[pose_of_scan[j]] = Eigen::Vector3d(start.scan_poses[j].x, start.scan_poses[j].y, start.scan_poses[j].theta);
   }
   return poses;
 }
@@ -40,8 +42,8 @@ absl::StatusOr<RobotCalibration> CalibrateRobot(const io::Dataset& dataset, cons
   if (absl::Status s = options.Validate(); !s.ok()) return s;
   if (dataset.scans.empty()) return absl::InvalidArgumentError("calibration: the data set has no scans");
   if (start.scan_poses.size() != dataset.scans.size()) {
-    return absl::InvalidArgumentError(absl::StrCat("calibration: ", start.scan_poses.size(),
-                                                   " start poses for ", dataset.scans.size(), " scans"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("calibration: ", start.scan_poses.size(), " start poses for ", dataset.scans.size(), " scans"));
   }
   if (!start.scan_covariances.empty() && start.scan_covariances.size() != dataset.scans.size()) {
     return absl::InvalidArgumentError("calibration: one start covariance per scan, or none");

@@ -10,8 +10,8 @@ namespace subslam::eval {
 absl::StatusOr<Pose2> RigidAlignment2D(const std::vector<Eigen::Vector2d>& source,
                                        const std::vector<Eigen::Vector2d>& target) {
   if (source.size() != target.size() || source.size() < 2) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "rigid alignment needs >= 2 point pairs, got ", source.size(), " and ", target.size()));
+    return absl::InvalidArgumentError(
+        absl::StrCat("rigid alignment needs >= 2 point pairs, got ", source.size(), " and ", target.size()));
   }
   Eigen::Vector2d ms = Eigen::Vector2d::Zero(), mt = Eigen::Vector2d::Zero();
   for (size_t i = 0; i < source.size(); ++i) {
@@ -60,8 +60,7 @@ std::vector<int> GrossGpsFaults(const std::vector<io::TimedPoint>& gps, const Gp
   return faults;
 }
 
-absl::StatusOr<GpsComparison> CompareWithGps(const Trajectory& trajectory,
-                                             const std::vector<io::TimedPoint>& gps,
+absl::StatusOr<GpsComparison> CompareWithGps(const Trajectory& trajectory, const std::vector<io::TimedPoint>& gps,
                                              const GpsFaultRule& rule) {
   if (trajectory.size() < 2) return absl::InvalidArgumentError("trajectory too short");
   std::vector<char> fault(gps.size(), 0);

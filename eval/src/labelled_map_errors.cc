@@ -38,7 +38,6 @@ std::vector<int> GlobalLandmarkTruthLabels(const SubmapGraph& graph, const std::
   return out;
 }
 
-
 LabelledMapErrors ComputeLabelledMapErrors(const std::vector<LandmarkEstimate>& estimate,
                                            const std::vector<int>& truth_label,
                                            const std::vector<io::TruthLandmark>& truth) {

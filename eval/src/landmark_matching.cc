@@ -1,10 +1,9 @@
 #include "landmark_matching.h"
 
 #include <algorithm>
-#include <cmath>
-
 #include <boost/graph/adjacency_list.hpp>
 #include <boost/graph/successive_shortest_path_nonnegative_weights.hpp>
+#include <cmath>
 
 namespace subslam::eval {
 namespace {

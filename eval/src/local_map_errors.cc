@@ -10,11 +10,9 @@
 
 namespace subslam::eval {
 
-std::optional<LocalMapNees> EvaluateLocalMap(const LocalSubmap& s,
-                                             const std::vector<io::TimedPose>& truth_poses,
+std::optional<LocalMapNees> EvaluateLocalMap(const LocalSubmap& s, const std::vector<io::TimedPose>& truth_poses,
                                              const std::vector<io::TruthLandmark>& truth_landmarks) {
-  if (truth_poses.empty() || s.t_start < truth_poses.front().t - 1e-9 ||
-      s.t_end > truth_poses.back().t + 1e-9) {
+  if (truth_poses.empty() || s.t_start < truth_poses.front().t - 1e-9 || s.t_end > truth_poses.back().t + 1e-9) {
     return std::nullopt;
   }
   std::map<int, Eigen::Vector2d> truth;

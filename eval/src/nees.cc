@@ -7,8 +7,7 @@
 
 namespace subslam::eval {
 
-std::optional<double> PoseNees(const Pose2& truth, const Pose2& estimate,
-                               const Eigen::Matrix3d& covariance) {
+std::optional<double> PoseNees(const Pose2& truth, const Pose2& estimate, const Eigen::Matrix3d& covariance) {
   // A rank-deficient covariance (e.g. the first steps after a zero initial
   // covariance, when only the control noise's two directions have grown) makes the
   // NEES meaningless: such steps are reported as not evaluable.

@@ -15,8 +15,8 @@ Pose2 InterpolatePose(const std::vector<io::TimedPose>& truth, double t) {
   if (truth.empty()) return Pose2();
   if (t <= truth.front().t) return truth.front().pose;
   if (t >= truth.back().t) return truth.back().pose;
-  const auto it = std::lower_bound(truth.begin(), truth.end(), t,
-                                   [](const io::TimedPose& p, double time) { return p.t < time; });
+  const auto it =
+      std::lower_bound(truth.begin(), truth.end(), t, [](const io::TimedPose& p, double time) { return p.t < time; });
   const io::TimedPose& b = *it;
   if (b.t == t) return b.pose;
   const io::TimedPose& a = *(it - 1);
@@ -25,8 +25,7 @@ Pose2 InterpolatePose(const std::vector<io::TimedPose>& truth, double t) {
                WrapAngle(a.pose.theta + w * WrapAngle(b.pose.theta - a.pose.theta)));
 }
 
-TrajectoryErrors ComputeTrajectoryErrors(const Trajectory& estimate,
-                                         const std::vector<io::TimedPose>& truth,
+TrajectoryErrors ComputeTrajectoryErrors(const Trajectory& estimate, const std::vector<io::TimedPose>& truth,
                                          const TrajectoryErrorOptions& options) {
   TrajectoryErrors r;
   if (estimate.empty() || truth.empty()) return r;
@@ -70,8 +69,8 @@ TrajectoryErrors ComputeTrajectoryErrors(const Trajectory& estimate,
   return r;
 }
 
-MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
-                           const std::vector<io::TruthLandmark>& truth, double match_radius_m) {
+MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate, const std::vector<io::TruthLandmark>& truth,
+                           double match_radius_m) {
   MapErrors m;
   m.estimated = static_cast<int>(estimate.size());
   std::vector<Eigen::Vector2d> estimated(estimate.size()), true_positions(truth.size());

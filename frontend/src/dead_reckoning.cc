@@ -4,8 +4,7 @@
 
 namespace subslam::frontend {
 
-DeadReckoning::DeadReckoning(std::unique_ptr<models::MotionModel> motion,
-                             const Pose2& initial_pose)
+DeadReckoning::DeadReckoning(std::unique_ptr<models::MotionModel> motion, const Pose2& initial_pose)
     : motion_(std::move(motion)), pose_(initial_pose) {}
 
 void DeadReckoning::Predict(const Eigen::Vector2d& u, double dt) {

@@ -2,10 +2,9 @@
 
 namespace subslam::frontend {
 
-EkfLocalMapper::EkfLocalMapper(std::unique_ptr<models::MotionModel> motion,
-                               const models::RangeBearingConfig& sensor,
-                               const EkfSlamOptions& ekf, const SubmapPolicyOptions& policy,
-                               double t_start, double min_existence)
+EkfLocalMapper::EkfLocalMapper(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+                               const EkfSlamOptions& ekf, const SubmapPolicyOptions& policy, double t_start,
+                               double min_existence)
     : LocalMapper(policy, sensor, t_start),
       filter_(std::move(motion), sensor, Pose2(), ekf),
       min_existence_(min_existence) {}

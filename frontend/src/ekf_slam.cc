@@ -1,15 +1,15 @@
 #include "subslam/frontend/ekf_slam.h"
 
 #include <Eigen/Cholesky>
-#include <limits>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/single_map_common.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -19,9 +19,9 @@ absl::Status EkfSlamOptions::Validate() const {
   return landmarks.Validate();
 }
 
-EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion,
-                 const models::RangeBearingConfig& sensor, const Pose2& initial_pose,
-                 const EkfSlamOptions& options, const Eigen::Matrix3d& initial_pose_covariance)
+EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+                 const Pose2& initial_pose, const EkfSlamOptions& options,
+                 const Eigen::Matrix3d& initial_pose_covariance)
     : motion_(std::move(motion)), sensor_(sensor), options_(options), innovation_monitor_(options.innovation_test) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   gate_d2_ = models::ChiSquareQuantile(options_.landmarks.gate_probability, 2);
@@ -56,8 +56,8 @@ void EkfSlam::Predict(const Eigen::Vector2d& u, double dt) {
   const Pose2 next = motion_->Predict(pose(), u, dt, &F, &G);
   x_.head<3>() = next.vector();
   const int n = dim_ - 3;
-  P_.topLeftCorner<3, 3>() = F * P_.topLeftCorner<3, 3>() * F.transpose() +
-                             G * motion_->noise().Covariance(u) * G.transpose();
+  P_.topLeftCorner<3, 3>() =
+      F * P_.topLeftCorner<3, 3>() * F.transpose() + G * motion_->noise().Covariance(u) * G.transpose();
   if (n > 0) {
     const Eigen::Matrix<double, 3, Eigen::Dynamic> cross = F * P_.block(0, 3, 3, n);
     P_.block(0, 3, 3, n) = cross;
@@ -118,9 +118,9 @@ void EkfSlam::Update(const Scan& scan) {
   // Known association: the landmark each detection's true id names (−1: none yet, a new
   // one), or kDropped for a false alarm or an id already detected in this scan.
   std::vector<int> truth_of_detection(m, -1);
-  const std::vector<int> known_landmark =
-      options_.landmarks.known_association ? KnownLandmarks(scan, detection_index, &truth_of_detection)
-                                           : std::vector<int>(m, -1);
+  const std::vector<int> known_landmark = options_.landmarks.known_association
+                                              ? KnownLandmarks(scan, detection_index, &truth_of_detection)
+                                              : std::vector<int>(m, -1);
 
   // 1. Predicted measurements and individual compatibility.
   std::vector<Prediction> predictions;
@@ -194,7 +194,8 @@ void EkfSlam::Update(const Scan& scan) {
         const Prediction& pb = predictions[prediction_of_landmark[b]];
         return a == b ? pa.S : CrossCovariance(pa, pb);
       };
-      association = association::JointCompatibility(problem, options_.landmarks.gate_probability, options_.jcbb_max_nodes);
+      association =
+          association::JointCompatibility(problem, options_.landmarks.gate_probability, options_.jcbb_max_nodes);
       if (association.truncated) ++counters_.jcbb_truncated;
     } else {
       association = association::NearestNeighbour(problem);
@@ -212,12 +213,12 @@ void EkfSlam::Update(const Scan& scan) {
   }
   if (!pairs.empty()) UpdateWithPairings(pairs, predictions, prediction_of_landmark, R);
   // 3. Existence, new landmarks, deletion of false alarms.
-  ManageLandmarks(z, detection_index, pairs, predictions, gated, association.landmark_of_detection,
-                  known_landmark, truth_of_detection, min_d2);
+  ManageLandmarks(z, detection_index, pairs, predictions, gated, association.landmark_of_detection, known_landmark,
+                  truth_of_detection, min_d2);
 }
 
 std::vector<int> EkfSlam::KnownLandmarks(const Scan& scan, const std::vector<int>& detection_index,
-                                        std::vector<int>* truth_of_detection) const {
+                                         std::vector<int>* truth_of_detection) const {
   const int m = static_cast<int>(detection_index.size());
   std::vector<int> known_landmark(m, -1);
   for (int j = 0; j < m; ++j) {
@@ -235,10 +236,9 @@ std::vector<int> EkfSlam::KnownLandmarks(const Scan& scan, const std::vector<int
   return known_landmark;
 }
 
-void EkfSlam::UpdateWithPairings(
-    const std::vector<std::pair<int, const association::AssociationCandidate*>>& pairs,
-    const std::vector<Prediction>& predictions, const std::vector<int>& prediction_of_landmark,
-    const Eigen::Matrix2d& R) {
+void EkfSlam::UpdateWithPairings(const std::vector<std::pair<int, const association::AssociationCandidate*>>& pairs,
+                                 const std::vector<Prediction>& predictions,
+                                 const std::vector<int>& prediction_of_landmark, const Eigen::Matrix2d& R) {
   StageTimer timer(&times_, "update");
   const int k = static_cast<int>(pairs.size());
   std::vector<const Prediction*> pred(k);
@@ -257,9 +257,8 @@ void EkfSlam::UpdateWithPairings(
   Eigen::MatrixXd S(2 * k, 2 * k);
   for (int a = 0; a < k; ++a) {
     for (int b = 0; b < k; ++b) {
-      S.block<2, 2>(2 * a, 2 * b) =
-          pred[a]->H_pose * PHt.block<3, 2>(0, 2 * b) +
-          pred[a]->H_landmark * PHt.block<2, 2>(Offset(pred[a]->landmark), 2 * b);
+      S.block<2, 2>(2 * a, 2 * b) = pred[a]->H_pose * PHt.block<3, 2>(0, 2 * b) +
+                                    pred[a]->H_landmark * PHt.block<2, 2>(Offset(pred[a]->landmark), 2 * b);
     }
     S.block<2, 2>(2 * a, 2 * a) += R;
   }
@@ -275,9 +274,9 @@ void EkfSlam::UpdateWithPairings(
   Eigen::VectorXd whitened = nu;
   llt.matrixL().solveInPlace(whitened);
   // −log N(ν; 0, S) = ½ (‖L⁻¹ν‖² + log det S + 2k log 2π), log det S = 2 Σ log L_ii.
-  counters_.innovation_neg_log_likelihood +=
-      0.5 * whitened.squaredNorm() + llt.matrixLLT().diagonal().array().log().sum() +
-      k * std::log(2.0 * std::numbers::pi);
+  counters_.innovation_neg_log_likelihood += 0.5 * whitened.squaredNorm() +
+                                             llt.matrixLLT().diagonal().array().log().sum() +
+                                             k * std::log(2.0 * std::numbers::pi);
   counters_.innovation_dof += 2 * k;
   innovation_monitor_.Add(whitened.squaredNorm(), 2 * k);
   x_.head(dim_).noalias() += Wt.transpose() * whitened;
@@ -301,7 +300,8 @@ void EkfSlam::ManageLandmarks(const std::vector<Eigen::Vector2d>& z, const std::
   }
   for (const Prediction& pr : predictions) {
     if (gated[pr.landmark]) continue;
-    if (sensor_.IsVisible(pr.z, options_.landmarks.expect_range_margin_m, options_.landmarks.expect_bearing_margin_rad)) {
+    if (sensor_.IsVisible(pr.z, options_.landmarks.expect_range_margin_m,
+                          options_.landmarks.expect_bearing_margin_rad)) {
       UpdateExistence(&landmarks_[pr.landmark], false);
     }
   }
@@ -338,8 +338,8 @@ void EkfSlam::AddLandmark(const Eigen::Vector2d& z, int truth_id) {
   const Eigen::MatrixXd cross = G_pose * P_.topLeftCorner(3, dim_);  // 2 × dim
   P_.block(o, 0, 2, dim_) = cross;
   P_.block(0, o, dim_, 2) = cross.transpose();
-  P_.block<2, 2>(o, o) = G_pose * P_.topLeftCorner<3, 3>() * G_pose.transpose() +
-                         G_z * sensor_.NoiseCovariance() * G_z.transpose();
+  P_.block<2, 2>(o, o) =
+      G_pose * P_.topLeftCorner<3, 3>() * G_pose.transpose() + G_z * sensor_.NoiseCovariance() * G_z.transpose();
   dim_ += 2;
   LandmarkInfo info;
   info.id = next_id_++;
@@ -419,8 +419,7 @@ std::vector<LandmarkEstimate> EkfSlam::Map() const {
   std::vector<LandmarkEstimate> out;
   for (int i = 0; i < num_landmarks(); ++i) {
     if (!landmarks_[i].confirmed) continue;
-    out.push_back({landmarks_[i].id, x_.segment<2>(Offset(i)),
-                   LandmarkCovarianceBlock(Offset(i), Offset(i))});
+    out.push_back({landmarks_[i].id, x_.segment<2>(Offset(i)), LandmarkCovarianceBlock(Offset(i), Offset(i))});
   }
   return out;
 }
@@ -429,18 +428,18 @@ std::map<std::string, double> EkfSlam::Counters() const {
   int confirmed = 0;
   for (const LandmarkInfo& l : landmarks_) confirmed += l.confirmed ? 1 : 0;
   std::map<std::string, double> out = {{"scans", counters_.scans},
-          {"detections", counters_.detections},
-          {"associated", counters_.associated},
-          {"new_landmarks", counters_.new_landmarks},
-          {"ambiguous_detections", counters_.ambiguous},
-          {"known_association_ignored", counters_.known_ignored},
-          {"deleted_landmarks", counters_.deleted_landmarks},
-          {"jcbb_truncated_scans", counters_.jcbb_truncated},
-          {"innovation_neg_log_likelihood", counters_.innovation_neg_log_likelihood},
-          {"innovation_dof", counters_.innovation_dof},
-          {"numerical_failures", counters_.numerical_failures},
-          {"landmarks_in_state", num_landmarks()},
-          {"confirmed_landmarks", confirmed}};
+                                       {"detections", counters_.detections},
+                                       {"associated", counters_.associated},
+                                       {"new_landmarks", counters_.new_landmarks},
+                                       {"ambiguous_detections", counters_.ambiguous},
+                                       {"known_association_ignored", counters_.known_ignored},
+                                       {"deleted_landmarks", counters_.deleted_landmarks},
+                                       {"jcbb_truncated_scans", counters_.jcbb_truncated},
+                                       {"innovation_neg_log_likelihood", counters_.innovation_neg_log_likelihood},
+                                       {"innovation_dof", counters_.innovation_dof},
+                                       {"numerical_failures", counters_.numerical_failures},
+                                       {"landmarks_in_state", num_landmarks()},
+                                       {"confirmed_landmarks", confirmed}};
   innovation_monitor_.AddCounters(&out);
   return out;
 }

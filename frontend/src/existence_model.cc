@@ -1,8 +1,9 @@
 #include "subslam/frontend/existence_model.h"
-#include "subslam/frontend/landmark_options.h"
 
 #include <algorithm>
 #include <cmath>
+
+#include "subslam/frontend/landmark_options.h"
 
 namespace subslam::frontend {
 namespace {
@@ -13,22 +14,18 @@ bool InOpenUnit(double p) { return std::isfinite(p) && p > 0.0 && p < 1.0; }
 
 absl::Status ExistenceModel::Validate() const {
   if (!InOpenUnit(detection_probability) || !InOpenUnit(false_alarm_probability)) {
-    return absl::InvalidArgumentError(
-        "existence model: detection and false-alarm probabilities must be in (0, 1)");
+    return absl::InvalidArgumentError("existence model: detection and false-alarm probabilities must be in (0, 1)");
   }
-  if (!(InOpenUnit(prior_existence) && InOpenUnit(confirm_existence) &&
-        InOpenUnit(delete_existence) && InOpenUnit(max_existence) &&
-        delete_existence < confirm_existence && confirm_existence < max_existence)) {
-    return absl::InvalidArgumentError(
-        "existence thresholds must satisfy 0 < delete < confirm < max < 1");
+  if (!(InOpenUnit(prior_existence) && InOpenUnit(confirm_existence) && InOpenUnit(delete_existence) &&
+        InOpenUnit(max_existence) && delete_existence < confirm_existence && confirm_existence < max_existence)) {
+    return absl::InvalidArgumentError("existence thresholds must satisfy 0 < delete < confirm < max < 1");
   }
   return absl::OkStatus();
 }
 
 double ExistenceModel::Update(double p, bool detected) const {
   const double a = detection_probability, b = false_alarm_probability;
-  const double q = detected ? p * a / (p * a + (1 - p) * b)
-                            : p * (1 - a) / (p * (1 - a) + (1 - p) * (1 - b));
+  const double q = detected ? p * a / (p * a + (1 - p) * b) : p * (1 - a) / (p * (1 - a) + (1 - p) * (1 - b));
   return std::clamp(q, 1e-9, max_existence);
 }
 

@@ -9,10 +9,10 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
-#include "subslam/frontend/internal/genealogy.h"
-#include "subslam/graph/stage_timer.h"
+#include "subslam/frontend/genealogy.h"
 #include "subslam/frontend/internal/worker_pool.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -59,9 +59,8 @@ absl::Status FastSlamOptions::Validate() const {
   return absl::OkStatus();
 }
 
-FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
-                   const models::RangeBearingConfig& sensor, const Pose2& start,
-                   const FastSlamOptions& options)
+FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+                   const Pose2& start, const FastSlamOptions& options)
     : motion_(std::move(motion)), sensor_(sensor), options_(options), rng_(options.seed) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   gate_d2_ = models::ChiSquareQuantile(options_.landmarks.gate_probability, 2);
@@ -74,9 +73,8 @@ FastSlam::FastSlam(std::unique_ptr<models::MotionModel> motion,
   const double half_expected = 0.5 * (rb.fov_max_rad - rb.fov_min_rad) - options_.landmarks.expect_bearing_margin_rad;
   fov_cos_expected_ = half_expected >= kPi ? -2.0 : std::cos(std::max(0.0, half_expected));
   for (const char* stage : {"predict", "associate", "update", "resample"}) times_[stage] = 0;
-  const int threads = options_.num_threads > 0
-                          ? options_.num_threads
-                          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int threads = options_.num_threads > 0 ? options_.num_threads
+                                               : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   pool_ = std::make_unique<WorkerPool>(std::min(threads, options_.num_particles));
   scratch_.resize(pool_->threads());
   blocks_ = std::make_unique<ParticleBlock[]>(pool_->threads());
@@ -142,8 +140,7 @@ void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
   Eigen::Matrix3d F;
   Matrix32d G;
   motion_since_scan_ = motion_->Predict(motion_since_scan_, u, dt, &F, &G);
-  motion_covariance_ = F * motion_covariance_ * F.transpose() +
-                       G * motion_->noise().Covariance(u) * G.transpose();
+  motion_covariance_ = F * motion_covariance_ * F.transpose() + G * motion_->noise().Covariance(u) * G.transpose();
 }
 
 Pose2 FastSlam::CurrentPose(const Particle& p, Eigen::Matrix3d* covariance) const {
@@ -155,8 +152,7 @@ Pose2 FastSlam::CurrentPose(const Particle& p, Eigen::Matrix3d* covariance) cons
     J << c, -s, 0, s, c, 0, 0, 0, 1;
     *covariance = J * motion_covariance_ * J.transpose();
   }
-  return Pose2(p.pose.x + c * r.x - s * r.y, p.pose.y + s * r.x + c * r.y,
-               WrapAngle(p.pose.theta + r.theta));
+  return Pose2(p.pose.x + c * r.x - s * r.y, p.pose.y + s * r.x + c * r.y, WrapAngle(p.pose.theta + r.theta));
 }
 
 void FastSlam::SetPose(Particle* p, const Pose2& pose) {
@@ -218,26 +214,28 @@ void FastSlam::Update(const Scan& scan) {
       blocks_[b].end = (b + 1) * P / T;
     }
     owner_.resize(P);
-    pool_->Run([&](int t) {
-      Scratch& scratch = scratch_[t];
-      for (int k = 0; k < T; ++k) {
-        ParticleBlock& block = blocks_[(t + k) % T];
-        for (int begin = block.next.fetch_add(kChunk, std::memory_order_relaxed); begin < block.end;
-             begin = block.next.fetch_add(kChunk, std::memory_order_relaxed)) {
-          for (int p = begin; p < std::min(block.end, begin + kChunk); ++p) {
-            owner_[p] = t;
-            Particle& particle = particles_[p];
-            int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
-            UpdateParticle(&particle, DetectionsSeenBy(particle, &scratch), signature_, decisions, &scratch,
-                           &particle_rngs_[p]);
-            for (int j = 0; j < m; ++j) {
-              decision_label_[p * m + j] =
-                  decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
+    pool_->Run(
+        [&](int t) {
+          Scratch& scratch = scratch_[t];
+          for (int k = 0; k < T; ++k) {
+            ParticleBlock& block = blocks_[(t + k) % T];
+            for (int begin = block.next.fetch_add(kChunk, std::memory_order_relaxed); begin < block.end;
+                 begin = block.next.fetch_add(kChunk, std::memory_order_relaxed)) {
+              for (int p = begin; p < std::min(block.end, begin + kChunk); ++p) {
+                owner_[p] = t;
+                Particle& particle = particles_[p];
+                int* decisions = decisions_.data() + static_cast<size_t>(p) * m;
+                UpdateParticle(&particle, DetectionsSeenBy(particle, &scratch), signature_, decisions, &scratch,
+                               &particle_rngs_[p]);
+                for (int j = 0; j < m; ++j) {
+                  decision_label_[p * m + j] =
+                      decisions[j] >= 0 ? particle.landmarks[decisions[j]].feature : decisions[j];
+                }
+              }
             }
           }
-        }
-      }
-    }, threads);
+        },
+        threads);
     for (Scratch& scratch : scratch_) {
       counters_.associated += scratch.associated;
       counters_.ignored += scratch.ignored;
@@ -261,13 +259,15 @@ void FastSlam::Update(const Scan& scan) {
   {
     StageTimer timer(&times_, "update");
     // Each index updates the particles it has just associated (likely in its cache).
-    pool_->Run([&](int t) {
-      for (int p = 0; p < P; ++p) {
-        if (owner_[p] != t) continue;
-        ApplyDecisions(&particles_[p], DetectionsSeenBy(particles_[p], &scratch_[t]), signature_,
-                       decisions_.data() + static_cast<size_t>(p) * m, &scratch_[t]);
-      }
-    }, threads);
+    pool_->Run(
+        [&](int t) {
+          for (int p = 0; p < P; ++p) {
+            if (owner_[p] != t) continue;
+            ApplyDecisions(&particles_[p], DetectionsSeenBy(particles_[p], &scratch_[t]), signature_,
+                           decisions_.data() + static_cast<size_t>(p) * m, &scratch_[t]);
+          }
+        },
+        threads);
     for (Scratch& scratch : scratch_) {
       counters_.landmark_copies += scratch.landmark_copies;
       counters_.landmarks_created += scratch.landmarks_created;
@@ -331,7 +331,8 @@ FastSlam::YawMoments FastSlam::SensorYawMoments() const {
   YawMoments m;
   double second = 0.0;
   for (const Particle& p : particles_) m.mean += std::exp(p.log_weight) * p.sensor_yaw;
-  for (const Particle& p : particles_) second += std::exp(p.log_weight) * (p.sensor_yaw - m.mean) * (p.sensor_yaw - m.mean);
+  for (const Particle& p : particles_)
+    second += std::exp(p.log_weight) * (p.sensor_yaw - m.mean) * (p.sensor_yaw - m.mean);
   m.spread = std::sqrt(second);
   return m;
 }
@@ -353,9 +354,11 @@ void FastSlam::Resample() {
   // each copy falls in (Update()), so that a particle's records are written where they
   // will be updated.
   const int threads = pool_->Active(thread_limit_);
-  pool_->Run([&](int t) {
-    for (int i = t * P / threads; i < (t + 1) * P / threads; ++i) resampled_[i] = particles_[parent_[i]];
-  }, threads);
+  pool_->Run(
+      [&](int t) {
+        for (int i = t * P / threads; i < (t + 1) * P / threads; ++i) resampled_[i] = particles_[parent_[i]];
+      },
+      threads);
   particles_.swap(resampled_);
   genealogy_.AddResampling(parent_);
   resample_pending_ = false;
@@ -452,8 +455,7 @@ std::vector<ParticleHypothesis> FastSlam::Hypotheses() const {
       const LandmarkGaussian& l = *r.gaussian;
       out[p].features.push_back(
           {r.feature, l.mean, l.covariance, r.existence,
-           l.signatures > 0 ? l.signature_sum / l.signatures
-                            : std::numeric_limits<double>::quiet_NaN()});
+           l.signatures > 0 ? l.signature_sum / l.signatures : std::numeric_limits<double>::quiet_NaN()});
     }
   }
   return out;
@@ -501,8 +503,8 @@ FastSlam::FeatureCounts FastSlam::ConfirmedFeatureCounts() const {
     }
   }
   std::sort(features_scratch_.begin(), features_scratch_.end());
-  counts.total = static_cast<int>(std::unique(features_scratch_.begin(), features_scratch_.end()) -
-                                  features_scratch_.begin());
+  counts.total =
+      static_cast<int>(std::unique(features_scratch_.begin(), features_scratch_.end()) - features_scratch_.begin());
   return counts;
 }
 
@@ -510,21 +512,21 @@ std::map<std::string, double> FastSlam::Counters() const {
   double landmarks = 0;
   for (const Particle& p : particles_) landmarks += static_cast<double>(p.landmarks.size());
   std::map<std::string, double> out = {{"scans", counters_.scans},
-          {"detections", counters_.detections},
-          {"particles", num_particles()},
-          {"resamples", counters_.resamples},
-          {"associated_all_particles", counters_.associated},
-          {"ignored_all_particles", counters_.ignored},
-          {"landmarks_created_all_particles", counters_.landmarks_created},
-          {"landmarks_culled_all_particles", counters_.landmarks_culled},
-          {"landmark_copies", counters_.landmark_copies},
-          {"common_features_issued", counters_.features},
-          {"scans_with_fewer_threads", counters_.scans_with_fewer_threads},
-          {"min_ess_ratio", counters_.min_ess_ratio},
-          {"depleted_updates", counters_.depleted_updates},
-          {"lineage_collapses", counters_.lineage_collapses},
-          {"weight_collapses", counters_.weight_collapses},
-          {"mean_landmarks_per_particle", landmarks / num_particles()}};
+                                       {"detections", counters_.detections},
+                                       {"particles", num_particles()},
+                                       {"resamples", counters_.resamples},
+                                       {"associated_all_particles", counters_.associated},
+                                       {"ignored_all_particles", counters_.ignored},
+                                       {"landmarks_created_all_particles", counters_.landmarks_created},
+                                       {"landmarks_culled_all_particles", counters_.landmarks_culled},
+                                       {"landmark_copies", counters_.landmark_copies},
+                                       {"common_features_issued", counters_.features},
+                                       {"scans_with_fewer_threads", counters_.scans_with_fewer_threads},
+                                       {"min_ess_ratio", counters_.min_ess_ratio},
+                                       {"depleted_updates", counters_.depleted_updates},
+                                       {"lineage_collapses", counters_.lineage_collapses},
+                                       {"weight_collapses", counters_.weight_collapses},
+                                       {"mean_landmarks_per_particle", landmarks / num_particles()}};
   if (options_.sensor_yaw_sigma > 0.0) {
     // Averaged over the particle sets closed by Reset() (local maps); without any, the
     // current particles (a single-map run).

@@ -2,8 +2,6 @@
 // FastSLAM 2.0 proposal and importance weight, existence, the correspondence votes, and
 // the landmark updates that apply the decisions.
 
-#include "subslam/frontend/fastslam.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -13,10 +11,11 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
-#include "subslam/frontend/internal/genealogy.h"
-#include "subslam/graph/stage_timer.h"
+#include "subslam/frontend/fastslam.h"
+#include "subslam/frontend/genealogy.h"
 #include "subslam/frontend/internal/worker_pool.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -40,9 +39,9 @@ FastSlam::LandmarkGaussian* FastSlam::Mutable(LandmarkRecord* record, Scratch* s
   return const_cast<LandmarkGaussian*>(record->gaussian.get());
 }
 
-FastSlam::PairScore FastSlam::Score(const Prediction& pr, const LandmarkGaussian& landmark,
-                                    const Eigen::Vector2d& z, double signature,
-                                    const Eigen::Vector3d& delta, const Eigen::Matrix3d& Sigma) const {
+FastSlam::PairScore FastSlam::Score(const Prediction& pr, const LandmarkGaussian& landmark, const Eigen::Vector2d& z,
+                                    double signature, const Eigen::Vector3d& delta,
+                                    const Eigen::Matrix3d& Sigma) const {
   PairScore out;
   out.nu = models::RangeBearingModel::Difference(z, pr.z) - pr.H_pose * delta;
   out.nu[1] = WrapAngle(out.nu[1]);
@@ -54,8 +53,8 @@ FastSlam::PairScore FastSlam::Score(const Prediction& pr, const LandmarkGaussian
   out.d2 = out.nu.dot(out.S_inv * out.nu);
   // log N(ν; 0, S) without its −½ log det S, which callers add (or accumulate as a
   // product of determinants, one log per particle and scan).
-  out.log_likelihood_but_det = -0.5 * out.d2 - std::log(2.0 * std::numbers::pi) +
-                               SignatureLogLikelihood(landmark, signature);
+  out.log_likelihood_but_det =
+      -0.5 * out.d2 - std::log(2.0 * std::numbers::pi) + SignatureLogLikelihood(landmark, signature);
   return out;
 }
 
@@ -187,8 +186,8 @@ class FastSlam::ScanUpdate {
         if (std::isnan(pr.log_norm)) {
           pr.log_norm = -std::log(2.0 * std::numbers::pi) - 0.5 * std::log(pr.det);
         }
-        const double ll = pr.log_norm - 0.5 * d2 +
-                          f_.SignatureLogLikelihood(*particle_->landmarks[i].gaussian, signature_[j]);
+        const double ll =
+            pr.log_norm - 0.5 * d2 + f_.SignatureLogLikelihood(*particle_->landmarks[i].gaussian, signature_[j]);
         scratch_->near_pairs.push_back({ll, j, i});
         if (d2 >= f_.gate_d2_) continue;
         const double rank = o_.association_score == AssociationScore::kLikelihood ? ll : -d2;
@@ -336,7 +335,7 @@ class FastSlam::ScanUpdate {
   const Eigen::Matrix2d R_;
   const int n_, m_;
   Pose2 x0_;
-  Eigen::Matrix3d Sigma_;                          // of the proposal
+  Eigen::Matrix3d Sigma_;                            // of the proposal
   Eigen::Vector3d delta_ = Eigen::Vector3d::Zero();  // its shift from x0
   double log_w_ = 0.0;
   double det_product_ = 1.0;  // of the associated pairs' S, folded into log_w at the end
@@ -375,8 +374,7 @@ void FastSlam::Vote(int m) {
     for (int p = 0; p < P; ++p) {
       const int label = decision_label_[p * m + j];
       const double w = weights_[p];
-      auto it = std::find_if(tally_.begin(), tally_.end(),
-                             [label](const auto& t) { return t.first == label; });
+      auto it = std::find_if(tally_.begin(), tally_.end(), [label](const auto& t) { return t.first == label; });
       if (it == tally_.end()) {
         tally_.push_back({label, w});
       } else {
@@ -400,8 +398,7 @@ void FastSlam::Vote(int m) {
       if (options_.landmarks.known_association) feature_truth_[label] = truth_[j];
     } else {
       // Winner "ignore": landmarks that particles created anyway get a fresh minority id.
-      const bool created = std::any_of(tally_.begin(), tally_.end(),
-                                       [](const auto& t) { return t.first == kNew; });
+      const bool created = std::any_of(tally_.begin(), tally_.end(), [](const auto& t) { return t.first == kNew; });
       if (created) {
         voted_label_[2 * j + 1] = next_feature_++;
         ++counters_.features;
@@ -411,8 +408,7 @@ void FastSlam::Vote(int m) {
 }
 
 void FastSlam::ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
-                              const std::vector<double>& signature, const int* decisions,
-                              Scratch* scratch) const {
+                              const std::vector<double>& signature, const int* decisions, Scratch* scratch) const {
   const Eigen::Matrix2d R = sensor_.NoiseCovariance();
   const Pose2& x = particle->pose;
   const int m = static_cast<int>(z.size());

@@ -1,4 +1,4 @@
-#include "subslam/frontend/internal/genealogy.h"
+#include "subslam/frontend/genealogy.h"
 
 #include <algorithm>
 

@@ -9,7 +9,8 @@
 namespace subslam::frontend {
 
 absl::Status InnovationTestOptions::Validate() const {
-  if (window_scans < 0) return absl::InvalidArgumentError(absl::StrCat("innovation test window must be >= 0, got ", window_scans));
+  if (window_scans < 0)
+    return absl::InvalidArgumentError(absl::StrCat("innovation test window must be >= 0, got ", window_scans));
   if (!(probability > 0.0 && probability < 1.0)) {
     return absl::InvalidArgumentError(absl::StrCat("innovation test probability must be in (0, 1), got ", probability));
   }

@@ -1,7 +1,6 @@
 #include "subslam/frontend/local_mapper.h"
 
 #include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <cmath>
 
@@ -35,8 +34,7 @@ void KeepFeaturesOf(const std::vector<int>& keep, MomentMatchedGaussian* g) {
 
 }  // namespace
 
-LocalMapper::LocalMapper(const SubmapPolicyOptions& policy,
-                         const models::RangeBearingConfig& sensor, double t_start)
+LocalMapper::LocalMapper(const SubmapPolicyOptions& policy, const models::RangeBearingConfig& sensor, double t_start)
     : policy_(policy, sensor.sigma_range_m, sensor.sigma_bearing_rad),
       t_(t_start),
       t_map_start_(t_start),
@@ -98,8 +96,8 @@ void LocalMapper::Close(CloseReason reason) {
   // the documented rule and counted, as the reader does with one from elsewhere.
   s.RegularizeDegenerateCovariance();
   if (const absl::Status valid = s.Validate(); !valid.ok()) {
-    status_ = absl::InternalError(absl::StrCat("the filter's estimate could not be exported as local map ", map_id_,
-                                               ": ", valid.message()));
+    status_ = absl::InternalError(
+        absl::StrCat("the filter's estimate could not be exported as local map ", map_id_, ": ", valid.message()));
     return;
   }
   repairs_ += s.covariance_repairs;
@@ -132,7 +130,9 @@ void LocalMapper::DropUncertainFeatures(MomentMatchedGaussian* g) {
   for (int k = 0; k < n; ++k) {
     const Eigen::Matrix<double, 2, 3> P_fp = g->covariance.block<2, 3>(3 + 2 * k, 0);
     const Eigen::Matrix2d P = g->covariance.block<2, 2>(3 + 2 * k, 3 + 2 * k) - P_fp * pose_pinv * P_fp.transpose();
-    const double widest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly).eigenvalues()(1);
+    const double widest =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(0.5 * (P + P.transpose()), Eigen::EigenvaluesOnly)
+            .eigenvalues()(1);
     if (std::sqrt(std::max(0.0, widest)) <= max_feature_sigma_m_) keep.push_back(k);
   }
   if (static_cast<int>(keep.size()) == n) return;
@@ -173,10 +173,8 @@ std::map<std::string, double> LocalMapper::Counters() const {
   return out;
 }
 
-RbpfLocalMapper::RbpfLocalMapper(std::unique_ptr<models::MotionModel> motion,
-                                 const models::RangeBearingConfig& sensor,
-                                 const FastSlamOptions& fastslam,
-                                 const SubmapPolicyOptions& policy, double t_start)
+RbpfLocalMapper::RbpfLocalMapper(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+                                 const FastSlamOptions& fastslam, const SubmapPolicyOptions& policy, double t_start)
     : LocalMapper(policy, sensor, t_start), filter_(std::move(motion), sensor, Pose2(), fastslam) {}
 
 SubmapStatus RbpfLocalMapper::FilterStatus() const {

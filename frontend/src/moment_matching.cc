@@ -29,15 +29,13 @@ Resolved Fuse(const Resolved& a, const FeatureHypothesis& b) {
 }
 
 // The particle's features sorted by common id, duplicates resolved.
-std::vector<std::pair<int, Resolved>> ResolveDuplicates(const ParticleHypothesis& p,
-                                                        DuplicateFeaturePolicy policy) {
+std::vector<std::pair<int, Resolved>> ResolveDuplicates(const ParticleHypothesis& p, DuplicateFeaturePolicy policy) {
   // Sort indices, not the Eigen-holding records (std::stable_sort's scratch buffer is
   // not over-aligned for fixed-size Eigen members).
   std::vector<int> order(p.features.size());
   for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
   std::sort(order.begin(), order.end(), [&p](int a, int b) {
-    return p.features[a].feature < p.features[b].feature ||
-           (p.features[a].feature == p.features[b].feature && a < b);
+    return p.features[a].feature < p.features[b].feature || (p.features[a].feature == p.features[b].feature && a < b);
   });
   std::vector<std::pair<int, Resolved>> out;
   out.reserve(order.size());
@@ -68,8 +66,7 @@ bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor) {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(*covariance);
   const double floor = std::max(relative_floor * eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-15);
   if (llt.info() == Eigen::Success && eig.eigenvalues().minCoeff() >= floor) return false;
-  *covariance = eig.eigenvectors() * eig.eigenvalues().cwiseMax(floor).asDiagonal() *
-                eig.eigenvectors().transpose();
+  *covariance = eig.eigenvectors() * eig.eigenvalues().cwiseMax(floor).asDiagonal() * eig.eigenvectors().transpose();
   *covariance = 0.5 * (*covariance + covariance->transpose()).eval();
   return true;
 }
@@ -139,14 +136,12 @@ void WeighParticles(std::span<const ParticleHypothesis> particles, double total,
   if (options.missing == MissingFeaturePolicy::kDiscardParticle) {
     double kept = 0.0;
     for (size_t p = 0; p < particles.size(); ++p) {
-      const bool all = std::all_of(held[p].begin(), held[p].end(),
-                                   [](const Resolved* r) { return r != nullptr; });
+      const bool all = std::all_of(held[p].begin(), held[p].end(), [](const Resolved* r) { return r != nullptr; });
       if (all) kept += w[p];
     }
     if (kept > 0.0) {
       for (size_t p = 0; p < particles.size(); ++p) {
-        const bool all = std::all_of(held[p].begin(), held[p].end(),
-                                     [](const Resolved* r) { return r != nullptr; });
+        const bool all = std::all_of(held[p].begin(), held[p].end(), [](const Resolved* r) { return r != nullptr; });
         w[p] = all ? w[p] / kept : 0.0;
       }
     } else {
@@ -190,16 +185,16 @@ void Means(std::span<const ParticleHypothesis> particles, size_t heaviest, const
   out.mean.head<3>() /= weight_of[0];
   for (int k = 0; k < n; ++k) {
     out.mean.segment<2>(3 + 2 * k) /= weight_of[k + 1];  // > 0 since existence > 0
-    out.signature[k] = signature_weight[k] > 0.0 ? out.signature[k] / signature_weight[k]
-                                                 : std::numeric_limits<double>::quiet_NaN();
+    out.signature[k] =
+        signature_weight[k] > 0.0 ? out.signature[k] / signature_weight[k] : std::numeric_limits<double>::quiet_NaN();
   }
   out.mean[2] = WrapAngle(out.mean[2] + reference);
 }
 
 // The covariance when every particle taking part holds every exported feature (the usual
 // case): P = Σ_p w_p P_p + s · D W Dᵀ with D the deviations, one product.
-void CompleteCovariance(std::span<const ParticleHypothesis> particles, const ParticleFeatures& f,
-                        double spread_scale, MomentMatchedGaussian* out_ptr) {
+void CompleteCovariance(std::span<const ParticleHypothesis> particles, const ParticleFeatures& f, double spread_scale,
+                        MomentMatchedGaussian* out_ptr) {
   MomentMatchedGaussian& out = *out_ptr;
   const int n = static_cast<int>(out.features.size());
   const int dim = 3 + 2 * n;
@@ -230,8 +225,8 @@ void CompleteCovariance(std::span<const ParticleHypothesis> particles, const Par
 }
 
 // The covariance block by block, each over the particles holding both of its variables.
-void BlockwiseCovariance(std::span<const ParticleHypothesis> particles, const ParticleFeatures& f,
-                         double spread_scale, MomentMatchedGaussian* out_ptr) {
+void BlockwiseCovariance(std::span<const ParticleHypothesis> particles, const ParticleFeatures& f, double spread_scale,
+                         MomentMatchedGaussian* out_ptr) {
   MomentMatchedGaussian& out = *out_ptr;
   const int n = static_cast<int>(out.features.size());
   const int dim = 3 + 2 * n;
@@ -250,8 +245,7 @@ void BlockwiseCovariance(std::span<const ParticleHypothesis> particles, const Pa
     for (int k = 0; k < n; ++k) {
       has[k + 1] = held[p][k] != nullptr;
       d.segment<2>(3 + 2 * k) =
-          has[k + 1] ? Eigen::Vector2d(held[p][k]->mean - out.mean.segment<2>(3 + 2 * k))
-                     : Eigen::Vector2d::Zero();
+          has[k + 1] ? Eigen::Vector2d(held[p][k]->mean - out.mean.segment<2>(3 + 2 * k)) : Eigen::Vector2d::Zero();
     }
     auto offset = [](int b) { return b == 0 ? 0 : 3 + 2 * (b - 1); };
     auto size = [](int b) { return b == 0 ? 3 : 2; };
@@ -264,8 +258,7 @@ void BlockwiseCovariance(std::span<const ParticleHypothesis> particles, const Pa
             w[p] * spread_scale * d.segment(offset(a), size(a)) * d.segment(offset(b), size(b)).transpose();
       }
       out.covariance.block(offset(a), offset(a), size(a), size(a)) +=
-          w[p] * (a == 0 ? Eigen::MatrixXd(particles[p].pose_covariance)
-                         : Eigen::MatrixXd(held[p][a - 1]->covariance));
+          w[p] * (a == 0 ? Eigen::MatrixXd(particles[p].pose_covariance) : Eigen::MatrixXd(held[p][a - 1]->covariance));
     }
   }
   for (int a = 0; a <= n; ++a) {
@@ -280,8 +273,8 @@ void BlockwiseCovariance(std::span<const ParticleHypothesis> particles, const Pa
 
 }  // namespace
 
-MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
-                                  const MomentMatchingOptions& options, double shared_ancestry) {
+MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles, const MomentMatchingOptions& options,
+                                  double shared_ancestry) {
   SUBSLAM_CHECK(shared_ancestry >= 0.0 && shared_ancestry < 1.0) << "shared ancestry " << shared_ancestry;
   const double spread_scale = SharedAncestrySpreadScale(shared_ancestry);
   double total = 0.0;

@@ -74,8 +74,7 @@ absl::Status MovingFeatureTestOptions::Validate() const {
   return absl::OkStatus();
 }
 
-MovingFeatureTest::MovingFeatureTest(const MovingFeatureTestOptions& options,
-                                     const models::RangeBearingConfig& sensor)
+MovingFeatureTest::MovingFeatureTest(const MovingFeatureTestOptions& options, const models::RangeBearingConfig& sensor)
     : options_(options),
       sensor_(sensor),
       threshold_(options.probability > 0.0 ? models::ChiSquareQuantile(options.probability, 2.0) : 0.0),

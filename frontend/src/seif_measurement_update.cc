@@ -2,8 +2,6 @@
 // covariances, association (NN or JCBB, or by the true ids), new landmarks, existence, and
 // ISEIF's iterated relinearisation with its adaptive stop.
 
-#include "subslam/frontend/seif_slam.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/CholmodSupport>
 #include <Eigen/LU>
@@ -15,8 +13,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/single_map_common.h"
-#include "subslam/graph/stage_timer.h"
+#include "subslam/frontend/seif_slam.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -59,10 +58,9 @@ void SeifSlam::AssociateByTruth(const Scan& scan, const std::vector<int>& detect
   }
 }
 
-void SeifSlam::AssociateByGates(const Pose2& p, const std::vector<Eigen::Vector2d>& z,
-                                const std::vector<int>& in_reach, const Eigen::Matrix2d& R,
-                                std::vector<int>* landmark_of_detection, std::vector<bool>* creates,
-                                absl::flat_hash_map<int, bool>* gated) {
+void SeifSlam::AssociateByGates(const Pose2& p, const std::vector<Eigen::Vector2d>& z, const std::vector<int>& in_reach,
+                                const Eigen::Matrix2d& R, std::vector<int>* landmark_of_detection,
+                                std::vector<bool>* creates, absl::flat_hash_map<int, bool>* gated) {
   const int m = static_cast<int>(z.size());
   std::vector<Eigen::Vector2d> points(m);
   for (int j = 0; j < m; ++j) points[j] = sensor_.InverseObserve(p, z[j]);
@@ -76,8 +74,7 @@ void SeifSlam::AssociateByGates(const Pose2& p, const std::vector<Eigen::Vector2
       }
     }
   }
-  const LocalCovariance cov =
-      Covariance(candidates, options_.covariance == CovarianceRecovery::kExact);
+  const LocalCovariance cov = Covariance(candidates, options_.covariance == CovarianceRecovery::kExact);
   struct Prediction {
     Eigen::Vector2d z;
     Eigen::Matrix<double, 2, 5> H;
@@ -121,7 +118,9 @@ void SeifSlam::AssociateByGates(const Pose2& p, const std::vector<Eigen::Vector2
       if (*d2 < gate_d2_) problem.candidates[j].push_back({l, *d2, nu});
     }
     std::sort(problem.candidates[j].begin(), problem.candidates[j].end(),
-              [](const association::AssociationCandidate& a, const association::AssociationCandidate& b) { return a.d2 < b.d2; });
+              [](const association::AssociationCandidate& a, const association::AssociationCandidate& b) {
+                return a.d2 < b.d2;
+              });
   }
   association::AssociationResult association;
   if (options_.association == association::AssociationMethod::kJointCompatibility) {
@@ -129,7 +128,8 @@ void SeifSlam::AssociateByGates(const Pose2& p, const std::vector<Eigen::Vector2
       if (a == b) return prediction[a].S;
       return prediction[a].H * joint(a, b) * prediction[b].H.transpose();
     };
-    association = association::JointCompatibility(problem, options_.landmarks.gate_probability, options_.jcbb_max_nodes);
+    association =
+        association::JointCompatibility(problem, options_.landmarks.gate_probability, options_.jcbb_max_nodes);
     if (association.truncated) ++counters_.jcbb_truncated;
   } else {
     association = association::NearestNeighbour(problem);
@@ -176,8 +176,7 @@ void SeifSlam::MeasurementUpdate(const std::vector<std::pair<int, Eigen::Vector2
     Eigen::VectorXd change = current - previous;
     change[2] = WrapAngle(change[2]);
     previous = current;
-    if (change.cwiseAbs().maxCoeff() < options_.iterated.stop_change ||
-        i == options_.iterated.max_iterations) {
+    if (change.cwiseAbs().maxCoeff() < options_.iterated.stop_change || i == options_.iterated.max_iterations) {
       ++counters_.iterated_updates;
       break;
     }
@@ -203,7 +202,8 @@ std::vector<int> SeifSlam::ManageLandmarks(const Scan& scan, const std::vector<i
   for (int l : in_reach) {
     if (gated.at(l)) continue;
     const Eigen::Vector2d z_hat = sensor_.Observe(p, mu_.segment<2>(Offset(l)));
-    if (sensor_.IsVisible(z_hat, options_.landmarks.expect_range_margin_m, options_.landmarks.expect_bearing_margin_rad)) {
+    if (sensor_.IsVisible(z_hat, options_.landmarks.expect_range_margin_m,
+                          options_.landmarks.expect_bearing_margin_rad)) {
       UpdateExistence(&landmarks_[l], false);
     }
   }

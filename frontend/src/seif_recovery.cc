@@ -2,8 +2,6 @@
 // and round-robin landmarks) or exactly, and marginal covariances over a Markov blanket
 // or exactly, and the map with its exact marginals.
 
-#include "subslam/frontend/seif_slam.h"
-
 #include <Eigen/Cholesky>
 #include <Eigen/CholmodSupport>
 #include <Eigen/LU>
@@ -15,8 +13,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/single_map_common.h"
-#include "subslam/graph/stage_timer.h"
+#include "subslam/frontend/seif_slam.h"
 #include "subslam/graph/check.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -96,7 +95,8 @@ void SeifSlam::RecoverMeanExactly() {
   Eigen::VectorXd b(solver.dim());
   b.head<3>() = xi_.head<3>();
   for (size_t i = 0; i < landmarks_.size(); ++i) {
-    if (landmarks_[i].alive) b.segment<2>(solver.Column(static_cast<int>(i))) = xi_.segment<2>(Offset(static_cast<int>(i)));
+    if (landmarks_[i].alive)
+      b.segment<2>(solver.Column(static_cast<int>(i))) = xi_.segment<2>(Offset(static_cast<int>(i)));
   }
   const Eigen::VectorXd x = solver.Solve(b);
   mu_.head<3>() = x.head<3>();
@@ -126,8 +126,8 @@ void SeifSlam::RecoverAmortised(const std::vector<int>& touched) {
   set.insert(set.end(), touched.begin(), touched.end());
   // A round-robin slice of the whole map, so that every landmark is revisited.
   const size_t slots = landmarks_.size();
-  for (int added = 0, visited = 0; added < options_.relaxation_extra_landmarks &&
-                                   visited < static_cast<int>(slots); ++visited) {
+  for (int added = 0, visited = 0; added < options_.relaxation_extra_landmarks && visited < static_cast<int>(slots);
+       ++visited) {
     round_robin_ = (round_robin_ + 1) % slots;
     if (!landmarks_[round_robin_].alive) continue;
     set.push_back(static_cast<int>(round_robin_));
@@ -194,7 +194,6 @@ Eigen::Matrix3d SeifSlam::pose_covariance() const {
   }
   return pending_A_ * *at_flush * pending_A_.transpose() + pending_Q_;
 }
-
 
 std::vector<LandmarkEstimate> SeifSlam::Map() const {
   std::vector<int> confirmed;

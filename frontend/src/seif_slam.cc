@@ -11,9 +11,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "subslam/frontend/internal/single_map_common.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/graph/check.h"
 #include "subslam/graph/enum_names.h"
+#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {
@@ -69,9 +69,8 @@ absl::Status SeifOptions::Validate() const {
   return absl::OkStatus();
 }
 
-SeifSlam::SeifSlam(std::unique_ptr<models::MotionModel> motion,
-                   const models::RangeBearingConfig& sensor, const Pose2& initial_pose,
-                   const SeifOptions& options)
+SeifSlam::SeifSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+                   const Pose2& initial_pose, const SeifOptions& options)
     : motion_(std::move(motion)), sensor_(sensor), options_(options) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   gate_d2_ = models::ChiSquareQuantile(options_.landmarks.gate_probability, 2);
@@ -82,17 +81,15 @@ SeifSlam::SeifSlam(std::unique_ptr<models::MotionModel> motion,
   mu_.head<3>() = initial_pose.vector();
   xi_.head<3>() = omega_xx_ * mu_.head<3>();
   exact_pose_cov_ = omega_xx_.inverse();
-  for (const char* stage : {"motion", "associate", "measurement", "iteration", "sparsification",
-                            "recovery", "map_management"}) {
+  for (const char* stage :
+       {"motion", "associate", "measurement", "iteration", "sparsification", "recovery", "map_management"}) {
     times_[stage] = 0;
   }
 }
 
 SeifSlam::~SeifSlam() = default;
 
-int64_t SeifSlam::CellCoordinate(double v) const {
-  return static_cast<int64_t>(std::floor(v / cell_size_m_));
-}
+int64_t SeifSlam::CellCoordinate(double v) const { return static_cast<int64_t>(std::floor(v / cell_size_m_)); }
 
 uint64_t SeifSlam::CellKey(int64_t cx, int64_t cy) {
   // Offset binary in 31 bits per axis: never equal to kNoCell (all ones).
@@ -163,9 +160,7 @@ std::vector<int> SeifSlam::ActiveLandmarks() const {
   return active;
 }
 
-Pose2 SeifSlam::pose() const {
-  return Pose2(mu_[0], mu_[1], WrapAngle(mu_[2]));
-}
+Pose2 SeifSlam::pose() const { return Pose2(mu_[0], mu_[1], WrapAngle(mu_[2])); }
 
 Eigen::MatrixXd SeifSlam::Gather(const std::vector<int>& landmarks) const {
   const int k = static_cast<int>(landmarks.size());
@@ -295,8 +290,7 @@ void SeifSlam::FlushMotion() {
   WrapHeading();
 }
 
-SeifSlam::Linearization SeifSlam::ApplyMeasurements(
-    const std::vector<std::pair<int, Eigen::Vector2d>>& pairs) {
+SeifSlam::Linearization SeifSlam::ApplyMeasurements(const std::vector<std::pair<int, Eigen::Vector2d>>& pairs) {
   Linearization lin;
   absl::flat_hash_map<int, int> position;
   for (const auto& [l, z] : pairs) {
@@ -417,26 +411,26 @@ Eigen::VectorXd SeifSlam::DenseMean() const { return GatherMean(LiveLandmarkIds(
 std::map<std::string, double> SeifSlam::Counters() const {
   int confirmed = 0;
   for (const LandmarkInfo& l : landmarks_) confirmed += l.alive && l.confirmed ? 1 : 0;
-  return {{"scans", counters_.scans},
-          {"numerical_failures", numerical_failures_},
-          {"detections", counters_.detections},
-          {"associated", counters_.associated},
-          {"new_landmarks", counters_.new_landmarks},
-          {"ambiguous_detections", counters_.ambiguous},
-          {"deleted_landmarks", counters_.deleted_landmarks},
-          {"jcbb_truncated_scans", counters_.jcbb_truncated},
-          {"sparsifications", counters_.sparsifications},
-          {"deactivated_landmarks", counters_.deactivated_landmarks},
-          {"max_active_landmarks", counters_.max_active},
-          {"iterated_updates", counters_.iterated_updates},
-          {"iterations", counters_.iterations},
-          {"mean_iterations_per_iterated_update",
-           counters_.iterated_updates > 0
-               ? static_cast<double>(counters_.iterations) / counters_.iterated_updates : 0.0},
-          {"exact_recoveries", counters_.exact_recoveries},
-          {"landmark_links", num_landmark_links()},
-          {"landmarks_in_state", num_landmarks()},
-          {"confirmed_landmarks", confirmed}};
+  return {
+      {"scans", counters_.scans},
+      {"numerical_failures", numerical_failures_},
+      {"detections", counters_.detections},
+      {"associated", counters_.associated},
+      {"new_landmarks", counters_.new_landmarks},
+      {"ambiguous_detections", counters_.ambiguous},
+      {"deleted_landmarks", counters_.deleted_landmarks},
+      {"jcbb_truncated_scans", counters_.jcbb_truncated},
+      {"sparsifications", counters_.sparsifications},
+      {"deactivated_landmarks", counters_.deactivated_landmarks},
+      {"max_active_landmarks", counters_.max_active},
+      {"iterated_updates", counters_.iterated_updates},
+      {"iterations", counters_.iterations},
+      {"mean_iterations_per_iterated_update",
+       counters_.iterated_updates > 0 ? static_cast<double>(counters_.iterations) / counters_.iterated_updates : 0.0},
+      {"exact_recoveries", counters_.exact_recoveries},
+      {"landmark_links", num_landmark_links()},
+      {"landmarks_in_state", num_landmarks()},
+      {"confirmed_landmarks", confirmed}};
 }
 
 }  // namespace subslam::frontend

@@ -10,8 +10,8 @@ namespace subslam::frontend {
 
 absl::Status SubmapPolicyOptions::Validate() const {
   const auto nonnegative = [](double v) { return std::isfinite(v) && v >= 0.0; };
-  if (!nonnegative(min_duration_s) || !nonnegative(max_duration_s) ||
-      !nonnegative(max_pose_sigma_ratio) || !nonnegative(max_delay_s)) {
+  if (!nonnegative(min_duration_s) || !nonnegative(max_duration_s) || !nonnegative(max_pose_sigma_ratio) ||
+      !nonnegative(max_delay_s)) {
     return absl::InvalidArgumentError("submap policy: durations and ratios must be >= 0");
   }
   if (!nonnegative(max_feature_sigma_ratio)) {
@@ -28,24 +28,24 @@ absl::Status SubmapPolicyOptions::Validate() const {
   }
   if (absl::Status s = moving_features.Validate(); !s.ok()) return s;
   if (max_features < 0 || density_min_features < 0 || density_min_visible < 1) {
-    return absl::InvalidArgumentError(
-        "submap policy: feature counts must be >= 0 (density_min_visible >= 1)");
+    return absl::InvalidArgumentError("submap policy: feature counts must be >= 0 (density_min_visible >= 1)");
   }
   return absl::OkStatus();
 }
 
 namespace {
-constexpr EnumName<CloseReason> kCloseReasonNames[] = {
-    {CloseReason::kKeepOpen, "keep_open"},         {CloseReason::kElapsedTime, "elapsed_time"},
-    {CloseReason::kPoseUncertainty, "pose_uncertainty"}, {CloseReason::kDiversity, "particle_diversity"},
-    {CloseReason::kFeatureCount, "feature_count"}, {CloseReason::kLandmarkDensity, "landmark_density"},
-    {CloseReason::kEndOfRun, "end_of_run"}};
+constexpr EnumName<CloseReason> kCloseReasonNames[] = {{CloseReason::kKeepOpen, "keep_open"},
+                                                       {CloseReason::kElapsedTime, "elapsed_time"},
+                                                       {CloseReason::kPoseUncertainty, "pose_uncertainty"},
+                                                       {CloseReason::kDiversity, "particle_diversity"},
+                                                       {CloseReason::kFeatureCount, "feature_count"},
+                                                       {CloseReason::kLandmarkDensity, "landmark_density"},
+                                                       {CloseReason::kEndOfRun, "end_of_run"}};
 }  // namespace
 
 const char* ToString(CloseReason reason) { return NameOf(kCloseReasonNames, reason); }
 
-SubmapPolicy::SubmapPolicy(const SubmapPolicyOptions& options, double sigma_range_m,
-                           double sigma_bearing_rad)
+SubmapPolicy::SubmapPolicy(const SubmapPolicyOptions& options, double sigma_range_m, double sigma_bearing_rad)
     : options_(options), sigma_range_m_(sigma_range_m), sigma_bearing_rad_(sigma_bearing_rad) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   SUBSLAM_CHECK(sigma_range_m > 0 && sigma_bearing_rad > 0) << "sensor sigmas must be > 0";
@@ -56,8 +56,8 @@ SubmapDecision SubmapPolicy::Decide(const SubmapStatus& s) const {
   if (!o.enabled || s.elapsed_s < o.min_duration_s) return {};
   CloseReason reason = CloseReason::kKeepOpen;
   const Eigen::Vector3d sigma = s.pose_covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
-  const double pose_ratio = std::max({sigma.x() / sigma_range_m_, sigma.y() / sigma_range_m_,
-                                      sigma.z() / sigma_bearing_rad_});
+  const double pose_ratio =
+      std::max({sigma.x() / sigma_range_m_, sigma.y() / sigma_range_m_, sigma.z() / sigma_bearing_rad_});
   if (o.max_duration_s > 0 && s.elapsed_s >= o.max_duration_s) {
     reason = CloseReason::kElapsedTime;
   } else if (o.max_pose_sigma_ratio > 0 && pose_ratio > o.max_pose_sigma_ratio) {
@@ -72,8 +72,7 @@ SubmapDecision SubmapPolicy::Decide(const SubmapStatus& s) const {
     reason = CloseReason::kLandmarkDensity;
   }
   if (reason == CloseReason::kKeepOpen) return {};
-  if (o.delay_while_ambiguous && s.disagreement > o.ambiguity_threshold &&
-      s.delayed_for_s < o.max_delay_s) {
+  if (o.delay_while_ambiguous && s.disagreement > o.ambiguity_threshold && s.delayed_for_s < o.max_delay_s) {
     return {CloseReason::kKeepOpen, true};
   }
   return {reason, false};

@@ -1,11 +1,11 @@
 #include "subslam/frontend/internal/worker_pool.h"
 
+#include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/partitioner.h>
+
 #include <algorithm>
 #include <thread>
 #include <vector>
-
-#include <oneapi/tbb/parallel_for.h>
-#include <oneapi/tbb/partitioner.h>
 
 #include "subslam/graph/check.h"
 
@@ -42,7 +42,8 @@ void WorkerPool::Run(const std::function<void(int)>& body, int active) {
   // affinity_partitioner, best effort; no thread is pinned), so that a body that gives
   // index t the same data every run tends to find it in that thread's cache.
   arena_.execute([&] {
-    oneapi::tbb::parallel_for(0, active, 1, [&](int t) { body(t); }, affinity_);
+    oneapi::tbb::parallel_for(
+        0, active, 1, [&](int t) { body(t); }, affinity_);
   });
 #endif
 }

@@ -16,8 +16,7 @@ absl::Status LocalSubmap::Validate() const {
   const Eigen::Index n = 3 + 2 * static_cast<Eigen::Index>(landmarks.size());
   if (mean.size() != n) return error("state has ", mean.size(), " entries, expected ", n);
   if (covariance.rows() != n || covariance.cols() != n) {
-    return error("covariance is ", covariance.rows(), "x", covariance.cols(), ", expected ", n,
-                 "x", n);
+    return error("covariance is ", covariance.rows(), "x", covariance.cols(), ", expected ", n, "x", n);
   }
   if (!std::isfinite(t_start) || !std::isfinite(t_end) || t_end < t_start) {
     return error("time span [", t_start, ", ", t_end, "] is not a finite interval");
@@ -53,8 +52,8 @@ absl::Status LocalSubmap::Validate() const {
                  " of the largest)");
   }
   if (!(eigenvalues.minCoeff() >= kMinVariance)) {
-    return error("covariance is nearly rigid (smallest eigenvalue ", eigenvalues.minCoeff(),
-                 "; at least ", kMinVariance, " m² or rad²)");
+    return error("covariance is nearly rigid (smallest eigenvalue ", eigenvalues.minCoeff(), "; at least ",
+                 kMinVariance, " m² or rad²)");
   }
   return absl::OkStatus();
 }

@@ -31,8 +31,8 @@ Pose2 Compose(const Pose2& a, const Pose2& b, Eigen::Matrix3d* J_ab_a, Eigen::Ma
   return ab;
 }
 
-Pose2 ComposeWithCovariance(const Pose2& a, const Eigen::Matrix3d& cov_a, const Pose2& b,
-                            const Eigen::Matrix3d& cov_b, Eigen::Matrix3d* cov_ab) {
+Pose2 ComposeWithCovariance(const Pose2& a, const Eigen::Matrix3d& cov_a, const Pose2& b, const Eigen::Matrix3d& cov_b,
+                            Eigen::Matrix3d* cov_ab) {
   Eigen::Matrix3d J_a, J_b;
   const Pose2 ab = Compose(a, b, &J_a, &J_b);
   *cov_ab = J_a * cov_a * J_a.transpose() + J_b * cov_b * J_b.transpose();

@@ -5,7 +5,7 @@
 #include "absl/strings/str_cat.h"
 #include "control_correction.h"
 #include "json_fields.h"
-#include "subslam/io/internal/text_table.h"
+#include "subslam/io/text_table.h"
 
 namespace subslam::io {
 namespace {
@@ -37,8 +37,8 @@ absl::Status OptionalPair(const JsonFields& f, const json& parent, const std::st
 absl::Status ApplyMotion(const JsonFields& f, const json& j, const std::string& path, MotionConfig* m) {
   const bool unicycle = m->model == MotionModelType::kUnicycle;
   const std::string ch1 = unicycle ? "sigma_omega" : "sigma_steer";
-  if (absl::Status s = f.CheckKeys(j, path, {"sigma_v", "sigma_v_scale", ch1, ch1 + "_scale", "control_scale",
-                                                 "control_offset"});
+  if (absl::Status s =
+          f.CheckKeys(j, path, {"sigma_v", "sigma_v_scale", ch1, ch1 + "_scale", "control_scale", "control_offset"});
       !s.ok()) {
     return s;
   }
@@ -50,8 +50,7 @@ absl::Status ApplyMotion(const JsonFields& f, const json& j, const std::string& 
   return s;
 }
 
-absl::Status ApplySensor(const JsonFields& f, const json& j, const std::string& path,
-                         models::RangeBearingConfig* rb) {
+absl::Status ApplySensor(const JsonFields& f, const json& j, const std::string& path, models::RangeBearingConfig* rb) {
   if (absl::Status s = f.CheckKeys(j, path, {"sigma_range", "sigma_bearing", "min_range", "max_range", "fov"});
       !s.ok()) {
     return s;
@@ -65,7 +64,8 @@ absl::Status ApplySensor(const JsonFields& f, const json& j, const std::string& 
   if (!s.ok()) return s;
   rb->fov_min_rad = fov[0];
   rb->fov_max_rad = fov[1];
-  if (!(rb->max_range_m > rb->min_range_m)) return f.Error(JsonFields::Join(path, "max_range"), "must be greater than min_range");
+  if (!(rb->max_range_m > rb->min_range_m))
+    return f.Error(JsonFields::Join(path, "max_range"), "must be greater than min_range");
   if (absl::Status v = rb->Validate(); !v.ok()) return f.Error(JsonFields::Join(path, "fov"), std::string(v.message()));
   return absl::OkStatus();
 }
@@ -73,7 +73,7 @@ absl::Status ApplySensor(const JsonFields& f, const json& j, const std::string& 
 }  // namespace
 
 absl::Status ApplyCalibrationFile(const std::string& path, Dataset* dataset) {
-  absl::StatusOr<std::string> text = internal::ReadFileToString(path);
+  absl::StatusOr<std::string> text = ReadFileToString(path);
   if (!text.ok()) return text.status();
   absl::StatusOr<json> parsed = ParseJsonDocument(path, *text);
   if (!parsed.ok()) return parsed.status();
@@ -87,12 +87,16 @@ absl::Status ApplyCalibrationFile(const std::string& path, Dataset* dataset) {
   Dataset updated = *dataset;
   if (fragment.contains("motion")) {
     if (!fragment.at("motion").is_object()) return f.Error(JsonFields::Join(prefix, "motion"), "expected an object");
-    if (absl::Status s = ApplyMotion(f, fragment.at("motion"), JsonFields::Join(prefix, "motion"), &updated.motion); !s.ok()) return s;
+    if (absl::Status s = ApplyMotion(f, fragment.at("motion"), JsonFields::Join(prefix, "motion"), &updated.motion);
+        !s.ok())
+      return s;
   }
   if (fragment.contains("sensor")) {
     if (!fragment.at("sensor").is_object()) return f.Error(JsonFields::Join(prefix, "sensor"), "expected an object");
-    if (absl::Status s = ApplySensor(f, fragment.at("sensor"), JsonFields::Join(prefix, "sensor"),
-                                   &updated.sensor.range_bearing); !s.ok()) return s;
+    if (absl::Status s =
+            ApplySensor(f, fragment.at("sensor"), JsonFields::Join(prefix, "sensor"), &updated.sensor.range_bearing);
+        !s.ok())
+      return s;
   }
   dataset->motion = updated.motion;
   dataset->sensor = updated.sensor;

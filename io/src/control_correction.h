@@ -19,7 +19,8 @@ inline absl::Status ParseControlCorrection(const JsonFields& f, const nlohmann::
   if (motion.contains("control_scale")) {
     absl::StatusOr<std::vector<double>> v = f.Numbers(motion, path, "control_scale", 2);
     if (!v.ok()) return v.status();
-    if (!((*v)[0] > 0.0 && (*v)[1] > 0.0)) return f.Error(JsonFields::Join(path, "control_scale"), "both scales must be > 0");
+    if (!((*v)[0] > 0.0 && (*v)[1] > 0.0))
+      return f.Error(JsonFields::Join(path, "control_scale"), "both scales must be > 0");
     scale = Eigen::Vector2d((*v)[0], (*v)[1]);
   }
   if (motion.contains("control_offset")) {

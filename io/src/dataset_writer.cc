@@ -2,7 +2,6 @@
 
 #include <filesystem>
 #include <fstream>
-
 #include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
@@ -16,8 +15,7 @@ std::string G(double v) { return absl::StrFormat("%.17g", v); }
 
 }  // namespace
 
-absl::Status WriteDataset(const Dataset& d, const std::string& directory,
-                          const SimulationInfo* simulation) {
+absl::Status WriteDataset(const Dataset& d, const std::string& directory, const SimulationInfo* simulation) {
   std::error_code ec;
   std::filesystem::create_directories(directory, ec);
   if (ec) return absl::InternalError(absl::StrCat(directory, ": cannot create: ", ec.message()));
@@ -31,8 +29,7 @@ absl::Status WriteDataset(const Dataset& d, const std::string& directory,
   if (auto s = WriteTextFile((dir / "controls.dat").string(), controls); !s.ok()) return s;
 
   const bool has_sig = d.sensor.has_signature, has_id = d.sensor.has_truth_id;
-  std::string obs = absl::StrCat("# t range bearing", has_sig ? " signature" : "",
-                                 has_id ? " truth_id" : "", "\n");
+  std::string obs = absl::StrCat("# t range bearing", has_sig ? " signature" : "", has_id ? " truth_id" : "", "\n");
   for (const Scan& scan : d.scans) {
     for (const Detection& det : scan.detections) {
       absl::StrAppend(&obs, G(scan.t), " ", G(det.range_m), " ", G(det.bearing_rad));
@@ -50,8 +47,7 @@ absl::Status WriteDataset(const Dataset& d, const std::string& directory,
   if (!d.truth_poses.empty()) {
     std::string text = "# t x y theta\n";
     for (const TimedPose& p : d.truth_poses) {
-      absl::StrAppend(&text, G(p.t), " ", G(p.pose.x), " ", G(p.pose.y), " ", G(p.pose.theta),
-                      "\n");
+      absl::StrAppend(&text, G(p.t), " ", G(p.pose.x), " ", G(p.pose.y), " ", G(p.pose.theta), "\n");
     }
     if (auto s = WriteTextFile((dir / "truth_poses.dat").string(), text); !s.ok()) return s;
     truth["poses_file"] = "truth_poses.dat";
@@ -90,8 +86,7 @@ absl::Status WriteDataset(const Dataset& d, const std::string& directory,
   if (!unicycle) {
     motion["wheelbase"] = d.motion.geometry.wheelbase_m;
     motion["encoder_offset"] = d.motion.geometry.encoder_offset_m;
-    motion["sensor_offset"] = {d.motion.geometry.sensor_forward_m,
-                               d.motion.geometry.sensor_left_m};
+    motion["sensor_offset"] = {d.motion.geometry.sensor_forward_m, d.motion.geometry.sensor_left_m};
   }
   const models::RangeBearingConfig& rb = d.sensor.range_bearing;
   nlohmann::json sensor;

@@ -6,12 +6,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -35,20 +34,17 @@ class JsonFields {
   }
 
   // Rejects keys of `object` that are not in `allowed`.
-  absl::Status CheckKeys(const json& object, const std::string& path,
-                         const std::set<std::string>& allowed) const {
+  absl::Status CheckKeys(const json& object, const std::string& path, const std::set<std::string>& allowed) const {
     for (const auto& [key, value] : object.items()) {
       if (!allowed.contains(key)) {
-        return Error(Join(path, key),
-                     absl::StrCat("unknown key (allowed: ", absl::StrJoin(allowed, ", "), ")"));
+        return Error(Join(path, key), absl::StrCat("unknown key (allowed: ", absl::StrJoin(allowed, ", "), ")"));
       }
     }
     return absl::OkStatus();
   }
 
   // A finite number; `fallback` is used when the key is absent (nullopt: required).
-  absl::StatusOr<double> Number(const json& parent, const std::string& path,
-                                const std::string& key,
+  absl::StatusOr<double> Number(const json& parent, const std::string& path, const std::string& key,
                                 std::optional<double> fallback = std::nullopt) const {
     const std::string field = Join(path, key);
     if (!parent.contains(key)) {
@@ -62,8 +58,7 @@ class JsonFields {
     return d;
   }
 
-  absl::StatusOr<int> Integer(const json& parent, const std::string& path,
-                              const std::string& key) const {
+  absl::StatusOr<int> Integer(const json& parent, const std::string& path, const std::string& key) const {
     const std::string field = Join(path, key);
     if (!parent.contains(key)) return Error(field, "missing");
     const json& v = parent.at(key);
@@ -72,8 +67,7 @@ class JsonFields {
   }
 
   // An array of finite numbers, of length n when given.
-  absl::StatusOr<std::vector<double>> Numbers(const json& parent, const std::string& path,
-                                              const std::string& key,
+  absl::StatusOr<std::vector<double>> Numbers(const json& parent, const std::string& path, const std::string& key,
                                               std::optional<size_t> n = std::nullopt) const {
     const std::string field = Join(path, key);
     if (!parent.contains(key)) return Error(field, "missing");
@@ -86,8 +80,7 @@ class JsonFields {
     out.reserve(v.size());
     for (size_t i = 0; i < v.size(); ++i) {
       if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
-        return Error(absl::StrCat(field, "[", i, "]"),
-                     absl::StrCat("expected a finite number, got ", v[i].dump()));
+        return Error(absl::StrCat(field, "[", i, "]"), absl::StrCat("expected a finite number, got ", v[i].dump()));
       }
       out.push_back(v[i].get<double>());
     }

@@ -3,19 +3,18 @@
 #include <algorithm>
 #include <array>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <system_error>
 #include <vector>
 
 #include "absl/status/status.h"
-#include <nlohmann/json.hpp>
-
 #include "absl/strings/str_cat.h"
 
 namespace subslam::io {
 namespace {
 
 constexpr std::array<std::string_view, 10> kExtensions = {".csv", ".dat", ".json", ".jsonl", ".md",
-                                                          ".tum", ".g2o", ".isam", ".toro", ".graph"};
+                                                          ".tum", ".g2o", ".isam", ".toro",  ".graph"};
 
 std::string Str(std::string_view text) { return std::string(text); }
 
@@ -58,9 +57,9 @@ absl::StatusOr<std::filesystem::path> PrepareOutputDirectory(const std::string& 
   if (ec) return absl::PermissionDeniedError(absl::StrCat(dir, ": cannot list the output directory: ", ec.message()));
   const bool ours = std::filesystem::exists(marker, ec) || HoldsEarlierReport(path);
   if (!entries.empty() && !ours) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        dir, ": the output directory is not empty and is not an output directory of subslam (it has no ",
-        Str(kOutputMarker), " file); choose another --out or empty it"));
+    return absl::FailedPreconditionError(
+        absl::StrCat(dir, ": the output directory is not empty and is not an output directory of subslam (it has no ",
+                     Str(kOutputMarker), " file); choose another --out or empty it"));
   }
   for (const auto& entry : entries) {
     if (!IsOutput(entry)) continue;

@@ -9,7 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
-#include "subslam/io/internal/text_table.h"
+#include "subslam/io/text_table.h"
 
 namespace subslam::io {
 
@@ -60,13 +60,11 @@ absl::Status WriteTrajectoryCsv(const std::string& path, const Trajectory& traje
   return WriteTextFile(path, text);
 }
 
-absl::Status WriteLandmarksCsv(const std::string& path,
-                               const std::vector<LandmarkEstimate>& landmarks) {
+absl::Status WriteLandmarksCsv(const std::string& path, const std::vector<LandmarkEstimate>& landmarks) {
   std::string text = "id,x,y,cov_xx,cov_xy,cov_yy\n";
   for (const LandmarkEstimate& l : landmarks) {
-    absl::StrAppendFormat(&text, "%d,%.10g,%.10g,%.10g,%.10g,%.10g\n", l.id, l.position.x(),
-                          l.position.y(), l.covariance(0, 0), l.covariance(0, 1),
-                          l.covariance(1, 1));
+    absl::StrAppendFormat(&text, "%d,%.10g,%.10g,%.10g,%.10g,%.10g\n", l.id, l.position.x(), l.position.y(),
+                          l.covariance(0, 0), l.covariance(0, 1), l.covariance(1, 1));
   }
   return WriteTextFile(path, text);
 }
@@ -117,7 +115,7 @@ absl::Status WriteGpsCsv(const std::string& path, const std::vector<TimedPoint>&
 }
 
 absl::StatusOr<Trajectory> ReadTrajectoryCsv(const std::string& path) {
-  auto text = internal::ReadFileToString(path);
+  auto text = ReadFileToString(path);
   if (!text.ok()) return text.status();
   Trajectory out;
   int line_number = 0;
@@ -132,8 +130,7 @@ absl::StatusOr<Trajectory> ReadTrajectoryCsv(const std::string& path) {
     double v[10];
     for (int i = 0; i < 10; ++i) {
       if (!absl::SimpleAtod(f[i], &v[i])) {
-        return absl::InvalidArgumentError(
-            absl::StrCat(path, ":", line_number, ": column ", i + 1, " is not a number"));
+        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": column ", i + 1, " is not a number"));
       }
     }
     PoseEstimate p;

@@ -4,9 +4,9 @@
 #include <climits>
 #include <cmath>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
-#include <nlohmann/json.hpp>
 
 #include "absl/strings/str_cat.h"
 #include "json_fields.h"
@@ -33,8 +33,8 @@ json ToJson(const LocalSubmap& s) {
     if (!l.truth_ids.empty()) entry["truth_ids"] = l.truth_ids;
     landmarks.push_back(std::move(entry));
   }
-  json out = {{"id", s.id},       {"t_start", s.t_start}, {"t_end", s.t_end},
-              {"state", state},   {"cov", cov},           {"landmarks", landmarks}};
+  json out = {{"id", s.id},     {"t_start", s.t_start}, {"t_end", s.t_end},
+              {"state", state}, {"cov", cov},           {"landmarks", landmarks}};
   if (s.covariance_repairs > 0) out["covariance_repairs"] = s.covariance_repairs;
   return out;
 }
@@ -42,8 +42,7 @@ json ToJson(const LocalSubmap& s) {
 // `previous_t_end`: where a map without times is put (see ReadSubmapsJsonl).
 absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double previous_t_end) {
   if (!j.is_object()) return r.Error("(line)", "expected a JSON object");
-  if (auto s = r.CheckKeys(j, "", {"id", "t_start", "t_end", "state", "cov", "landmarks",
-                                   "covariance_repairs"});
+  if (auto s = r.CheckKeys(j, "", {"id", "t_start", "t_end", "state", "cov", "landmarks", "covariance_repairs"});
       !s.ok()) {
     return s;
   }
@@ -81,7 +80,8 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double 
     const json& l = landmarks[i];
     const std::string path = absl::StrCat("landmarks[", i, "]");
     if (!l.is_object()) return r.Error(path, "expected an object");
-    if (auto st = r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id", "truth_landmarks", "truth_ids"});
+    if (auto st =
+            r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id", "truth_landmarks", "truth_ids"});
         !st.ok()) {
       return st;
     }
@@ -118,7 +118,7 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double 
       if (!ids.is_array()) return r.Error(field, absl::StrCat("expected an array of true ids, got ", ids.dump()));
       for (size_t k = 0; k < ids.size(); ++k) {
         const bool in_range = ids[k].is_number_unsigned() ? ids[k].get<unsigned long long>() <= INT_MAX
-                                                           : ids[k].is_number_integer() && ids[k].get<long long>() >= 0;
+                                                          : ids[k].is_number_integer() && ids[k].get<long long>() >= 0;
         if (!in_range) {
           return r.Error(absl::StrCat(field, "[", k, "]"),
                          absl::StrCat("expected an integer id in [0, ", INT_MAX, "], got ", ids[k].dump()));
@@ -135,8 +135,8 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double 
         return r.Error(field, absl::StrCat("does not contain truth_id ", *out.truth_id));
       }
       if (out.truth_landmarks.has_value() && *out.truth_landmarks != static_cast<int>(out.truth_ids.size())) {
-        return r.Error(field, absl::StrCat("lists ", out.truth_ids.size(), " ids but truth_landmarks is ",
-                                           *out.truth_landmarks));
+        return r.Error(
+            field, absl::StrCat("lists ", out.truth_ids.size(), " ids but truth_landmarks is ", *out.truth_landmarks));
       }
     }
     s.landmarks.push_back(out);
@@ -145,8 +145,8 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double 
   auto state = r.Numbers(j, "", "state");
   if (!state.ok()) return state.status();
   if (state->size() != n) {
-    return r.Error("state", absl::StrCat("has ", state->size(), " numbers, expected 3 + 2 × ",
-                                         s.landmarks.size(), " landmarks = ", n));
+    return r.Error("state", absl::StrCat("has ", state->size(), " numbers, expected 3 + 2 × ", s.landmarks.size(),
+                                         " landmarks = ", n));
   }
   auto cov = r.Numbers(j, "", "cov");
   if (!cov.ok()) return cov.status();
@@ -154,8 +154,7 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double 
     return r.Error("cov", absl::StrCat("has ", cov->size(), " numbers, expected ", n * n));
   }
   s.mean = Eigen::Map<const Eigen::VectorXd>(state->data(), static_cast<Eigen::Index>(n));
-  s.covariance = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic,
-                                               Eigen::RowMajor>>(
+  s.covariance = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
       cov->data(), static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(n));
   s.RegularizeDegenerateCovariance();  // a documented rule, counted in covariance_repairs
   if (absl::Status valid = s.Validate(); !valid.ok()) return r.Error("(local map)", std::string(valid.message()));

@@ -1,4 +1,4 @@
-#include "subslam/io/internal/text_table.h"
+#include "subslam/io/text_table.h"
 
 #include <cmath>
 #include <filesystem>
@@ -10,7 +10,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
 
-namespace subslam::internal {
+namespace subslam::io {
 
 absl::StatusOr<std::string> ReadFileToString(const std::string& path) {
   // A directory, device or pipe named where a file is expected is refused before it is
@@ -29,16 +29,16 @@ absl::StatusOr<std::string> ReadFileToString(const std::string& path) {
 }
 
 absl::StatusOr<std::vector<TextRow>> ReadTextTable(const std::string& path,
-                                                   const std::vector<std::string>& column_names,
-                                                   int max_columns, bool allow_empty) {
+                                                   const std::vector<std::string>& column_names, int max_columns,
+                                                   bool allow_empty) {
   absl::StatusOr<std::string> text = ReadFileToString(path);
   if (!text.ok()) return text.status();
   return ParseTextTable(*text, path, column_names, max_columns, allow_empty);
 }
 
 absl::StatusOr<std::vector<TextRow>> ParseTextTable(absl::string_view text, const std::string& path,
-                                                    const std::vector<std::string>& column_names,
-                                                    int max_columns, bool allow_empty) {
+                                                    const std::vector<std::string>& column_names, int max_columns,
+                                                    bool allow_empty) {
   std::vector<TextRow> rows;
   std::vector<absl::string_view> fields;
   const auto separator = [](char c) { return c == ' ' || c == '\t' || c == '\r'; };
@@ -62,13 +62,13 @@ absl::StatusOr<std::vector<TextRow>> ParseTextTable(absl::string_view text, cons
     }
     const int n = static_cast<int>(fields.size());
     if (n < static_cast<int>(column_names.size())) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          path, ":", line_number, ": expected at least ", column_names.size(),
-          " columns, found ", n, " (missing field '", column_names[n], "')"));
+      return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": expected at least ",
+                                                     column_names.size(), " columns, found ", n, " (missing field '",
+                                                     column_names[n], "')"));
     }
     if (max_columns > 0 && n > max_columns) {
-      return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": expected at most ",
-                                                     max_columns, " columns, found ", n));
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ":", line_number, ": expected at most ", max_columns, " columns, found ", n));
     }
     TextRow row;
     row.line = line_number;
@@ -76,14 +76,12 @@ absl::StatusOr<std::vector<TextRow>> ParseTextTable(absl::string_view text, cons
     for (int i = 0; i < n; ++i) {
       double value = 0.0;
       if (!absl::SimpleAtod(fields[i], &value)) {
-        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name(i),
-                                                       "' (column ", i + 1, ") is not a number: '",
-                                                       fields[i], "'"));
+        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name(i), "' (column ",
+                                                       i + 1, ") is not a number: '", fields[i], "'"));
       }
       if (!std::isfinite(value)) {
-        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name(i),
-                                                       "' (column ", i + 1,
-                                                       ") is not finite: '", fields[i], "'"));
+        return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": field '", name(i), "' (column ",
+                                                       i + 1, ") is not finite: '", fields[i], "'"));
       }
       row.values[i] = value;
     }
@@ -95,4 +93,4 @@ absl::StatusOr<std::vector<TextRow>> ParseTextTable(absl::string_view text, cons
   return rows;
 }
 
-}  // namespace subslam::internal
+}  // namespace subslam::io

@@ -9,18 +9,16 @@ namespace subslam::models {
 
 absl::Status AckermannGeometry::Validate() const {
   if (!(std::isfinite(wheelbase_m) && wheelbase_m > 0.0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("AckermannGeometry.wheelbase_m must be > 0, got ", wheelbase_m));
+    return absl::InvalidArgumentError(absl::StrCat("AckermannGeometry.wheelbase_m must be > 0, got ", wheelbase_m));
   }
-  if (!std::isfinite(encoder_offset_m) || !std::isfinite(sensor_forward_m) ||
-      !std::isfinite(sensor_left_m)) {
+  if (!std::isfinite(encoder_offset_m) || !std::isfinite(sensor_forward_m) || !std::isfinite(sensor_left_m)) {
     return absl::InvalidArgumentError("AckermannGeometry offsets must be finite");
   }
   return absl::OkStatus();
 }
 
-Pose2 AckermannModel::Predict(const Pose2& x, const Eigen::Vector2d& u, double dt,
-                              Eigen::Matrix3d* J_next_x, Matrix32d* J_next_u) const {
+Pose2 AckermannModel::Predict(const Pose2& x, const Eigen::Vector2d& u, double dt, Eigen::Matrix3d* J_next_x,
+                              Matrix32d* J_next_u) const {
   const double L = geometry_.wheelbase_m, H = geometry_.encoder_offset_m;
   const double a = geometry_.sensor_forward_m, b = geometry_.sensor_left_m;
   const double v = u[0];
@@ -39,8 +37,7 @@ Pose2 AckermannModel::Predict(const Pose2& x, const Eigen::Vector2d& u, double d
   const double ax = a * s + b * c;  // lever-arm terms
   const double ay = a * c - b * s;
 
-  const Pose2 next(x.x + dt * (vc * c - w * ax), x.y + dt * (vc * s + w * ay),
-                   WrapAngle(x.theta + dt * w));
+  const Pose2 next(x.x + dt * (vc * c - w * ax), x.y + dt * (vc * s + w * ay), WrapAngle(x.theta + dt * w));
   if (J_next_x != nullptr) {
     // d ax / dφ = ay, d ay / dφ = −ax.
     *J_next_x << 1, 0, dt * (-vc * s - w * ay),  //

@@ -19,8 +19,7 @@ double ChiSquareCdf(double x, double dof) {
   return boost::math::cdf(boost::math::chi_squared_distribution<double>(dof), x);
 }
 
-std::optional<double> MahalanobisSquared(const Eigen::VectorXd& innovation,
-                                         const Eigen::MatrixXd& covariance) {
+std::optional<double> MahalanobisSquared(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& covariance) {
   Eigen::LLT<Eigen::MatrixXd> llt(covariance);
   if (llt.info() != Eigen::Success) return std::nullopt;
   return innovation.dot(llt.solve(innovation));

@@ -27,8 +27,7 @@ Eigen::Matrix2d ControlNoise::Covariance(const Eigen::Vector2d& u) const {
   return m;
 }
 
-Eigen::Matrix3d MotionModel::ProcessCovariance(const Pose2& x, const Eigen::Vector2d& u,
-                                               double dt) const {
+Eigen::Matrix3d MotionModel::ProcessCovariance(const Pose2& x, const Eigen::Vector2d& u, double dt) const {
   Matrix32d J_next_u;
   Predict(x, u, dt, nullptr, &J_next_u);
   return J_next_u * noise_.Covariance(u) * J_next_u.transpose();

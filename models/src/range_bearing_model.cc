@@ -2,42 +2,37 @@
 
 #include <cmath>
 
-#include "subslam/graph/check.h"
 #include "absl/strings/str_cat.h"
+#include "subslam/graph/check.h"
 
 namespace subslam::models {
 
 absl::Status RangeBearingConfig::Validate() const {
   if (!(std::isfinite(sigma_range_m) && sigma_range_m > 0.0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("sigma_range must be finite and > 0, got ", sigma_range_m));
+    return absl::InvalidArgumentError(absl::StrCat("sigma_range must be finite and > 0, got ", sigma_range_m));
   }
   if (!(std::isfinite(sigma_bearing_rad) && sigma_bearing_rad > 0.0)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("sigma_bearing must be finite and > 0, got ", sigma_bearing_rad));
+    return absl::InvalidArgumentError(absl::StrCat("sigma_bearing must be finite and > 0, got ", sigma_bearing_rad));
   }
-  if (!(std::isfinite(min_range_m) && min_range_m >= 0.0 && std::isfinite(max_range_m) &&
-        max_range_m > min_range_m)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "need 0 <= min_range < max_range, got ", min_range_m, " and ", max_range_m));
+  if (!(std::isfinite(min_range_m) && min_range_m >= 0.0 && std::isfinite(max_range_m) && max_range_m > min_range_m)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("need 0 <= min_range < max_range, got ", min_range_m, " and ", max_range_m));
   }
   if (!(std::isfinite(fov_min_rad) && std::isfinite(fov_max_rad) && fov_min_rad < fov_max_rad &&
         fov_min_rad >= -kPi - 1e-9 && fov_max_rad <= kPi + 1e-9)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "field of view must satisfy -pi <= fov_min < fov_max <= pi, got [", fov_min_rad, ", ",
-        fov_max_rad, "]"));
+    return absl::InvalidArgumentError(absl::StrCat("field of view must satisfy -pi <= fov_min < fov_max <= pi, got [",
+                                                   fov_min_rad, ", ", fov_max_rad, "]"));
   }
   return absl::OkStatus();
 }
 
-Eigen::Vector2d RangeBearingModel::Observe(const Pose2& p, const Eigen::Vector2d& l,
-                                           Matrix23d* J_z_pose,
+Eigen::Vector2d RangeBearingModel::Observe(const Pose2& p, const Eigen::Vector2d& l, Matrix23d* J_z_pose,
                                            Eigen::Matrix2d* J_z_landmark) const {
   return {ObserveRange(p, l, J_z_pose, J_z_landmark), Bearing(p, l)};
 }
 
-double RangeBearingModel::ObserveRange(const Pose2& p, const Eigen::Vector2d& l,
-                                       Matrix23d* J_z_pose, Eigen::Matrix2d* J_z_landmark) const {
+double RangeBearingModel::ObserveRange(const Pose2& p, const Eigen::Vector2d& l, Matrix23d* J_z_pose,
+                                       Eigen::Matrix2d* J_z_landmark) const {
   const double dx = l.x() - p.x, dy = l.y() - p.y;
   const double q = dx * dx + dy * dy;
   SUBSLAM_CHECK(q > 0.0) << "landmark coincides with the sensor position";
@@ -57,8 +52,7 @@ double RangeBearingModel::Bearing(const Pose2& p, const Eigen::Vector2d& l) {
   return WrapAngle(std::atan2(l.y() - p.y, l.x() - p.x) - p.theta);
 }
 
-Eigen::Vector2d RangeBearingModel::InverseObserve(const Pose2& p, const Eigen::Vector2d& z,
-                                                  Matrix23d* J_landmark_pose,
+Eigen::Vector2d RangeBearingModel::InverseObserve(const Pose2& p, const Eigen::Vector2d& z, Matrix23d* J_landmark_pose,
                                                   Eigen::Matrix2d* J_landmark_z) const {
   const double r = z[0];
   const double angle = p.theta + z[1];
@@ -81,12 +75,9 @@ Eigen::Matrix2d RangeBearingModel::NoiseCovariance() const {
   return r;
 }
 
-bool RangeBearingModel::IsVisible(const Eigen::Vector2d& z, double range_margin_m,
-                                  double bearing_margin_rad) const {
-  return z[0] >= config_.min_range_m + range_margin_m &&
-         z[0] <= config_.max_range_m - range_margin_m &&
-         z[1] >= config_.fov_min_rad + bearing_margin_rad &&
-         z[1] <= config_.fov_max_rad - bearing_margin_rad;
+bool RangeBearingModel::IsVisible(const Eigen::Vector2d& z, double range_margin_m, double bearing_margin_rad) const {
+  return z[0] >= config_.min_range_m + range_margin_m && z[0] <= config_.max_range_m - range_margin_m &&
+         z[1] >= config_.fov_min_rad + bearing_margin_rad && z[1] <= config_.fov_max_rad - bearing_margin_rad;
 }
 
 }  // namespace subslam::models

@@ -15,18 +15,16 @@ struct ArcCoefficients {
 ArcCoefficients Arc(double phi) {
   if (std::abs(phi) < kSeriesThreshold) {
     const double p2 = phi * phi;
-    return {1.0 - p2 / 6.0, phi / 2.0 - phi * p2 / 24.0, -phi / 3.0 + phi * p2 / 30.0,
-            0.5 - p2 / 8.0};
+    return {1.0 - p2 / 6.0, phi / 2.0 - phi * p2 / 24.0, -phi / 3.0 + phi * p2 / 30.0, 0.5 - p2 / 8.0};
   }
   const double s = std::sin(phi), c = std::cos(phi);
-  return {s / phi, (1.0 - c) / phi, (phi * c - s) / (phi * phi),
-          (phi * s - (1.0 - c)) / (phi * phi)};
+  return {s / phi, (1.0 - c) / phi, (phi * c - s) / (phi * phi), (phi * s - (1.0 - c)) / (phi * phi)};
 }
 
 }  // namespace
 
-Pose2 UnicycleModel::Predict(const Pose2& x, const Eigen::Vector2d& u, double dt,
-                             Eigen::Matrix3d* J_next_x, Matrix32d* J_next_u) const {
+Pose2 UnicycleModel::Predict(const Pose2& x, const Eigen::Vector2d& u, double dt, Eigen::Matrix3d* J_next_x,
+                             Matrix32d* J_next_u) const {
   const double v = u[0], omega = u[1];
   const double phi = omega * dt;
   const ArcCoefficients arc = Arc(phi);

@@ -68,7 +68,8 @@ absl::StatusOr<CalibrateResult> RunCalibration(io::Dataset dataset, const Calibr
   SetKnownAssociation(options.calibration.known_association, &start_options);
   absl::StatusOr<RunResult> run = RunPipeline(dataset, start_options);
   if (!run.ok()) return run.status();
-  if (run->stop) return absl::FailedPreconditionError(absl::StrCat("calibrate: the start run stopped: ", run->stop->reason));
+  if (run->stop)
+    return absl::FailedPreconditionError(absl::StrCat("calibrate: the start run stopped: ", run->stop->reason));
   calibration::CalibrationStart start;
   if (absl::Status s = StartPoses(dataset, run->final_trajectory, &start); !s.ok()) return s;
   for (const LandmarkEstimate& l : run->landmarks) {
@@ -105,8 +106,11 @@ nlohmann::json MotionJson(const io::MotionConfig& m, const std::array<double, 4>
 }
 
 nlohmann::json SensorJson(const models::RangeBearingConfig& rb) {
-  return {{"sigma_range", rb.sigma_range_m}, {"sigma_bearing", rb.sigma_bearing_rad}, {"min_range", rb.min_range_m},
-          {"max_range", rb.max_range_m}, {"fov", {rb.fov_min_rad, rb.fov_max_rad}}};
+  return {{"sigma_range", rb.sigma_range_m},
+          {"sigma_bearing", rb.sigma_bearing_rad},
+          {"min_range", rb.min_range_m},
+          {"max_range", rb.max_range_m},
+          {"fov", {rb.fov_min_rad, rb.fov_max_rad}}};
 }
 
 }  // namespace
@@ -130,20 +134,24 @@ nlohmann::json CalibrationJson(const CalibrateResult& r, const nlohmann::json& i
   const models::ControlNoise& n0 = r.motion_before.noise;
   nlohmann::json standard_errors = {
       {"motion", MotionJson(motion, noise_se, false)},
-      {"sensor", {{"sigma_range", c.sigma_range_m.standard_error}, {"sigma_bearing", c.sigma_bearing_rad.standard_error}}}};
+      {"sensor",
+       {{"sigma_range", c.sigma_range_m.standard_error}, {"sigma_bearing", c.sigma_bearing_rad.standard_error}}}};
   standard_errors["motion"]["control_scale"] = {c.correction_standard_error[0], c.correction_standard_error[1]};
   standard_errors["motion"]["control_offset"] = {0.0, c.correction_standard_error[2]};
   nlohmann::json curve = nlohmann::json::array();
   for (const calibration::DetectionBin& b : c.detection_by_range) {
-    curve.push_back({{"range_min", b.range_min_m}, {"range_max", b.range_max_m}, {"predicted", b.predicted},
-                     {"detected", b.detected}, {"probability", b.probability}, {"lower", b.lower},
+    curve.push_back({{"range_min", b.range_min_m},
+                     {"range_max", b.range_max_m},
+                     {"predicted", b.predicted},
+                     {"detected", b.detected},
+                     {"probability", b.probability},
+                     {"lower", b.lower},
                      {"upper", b.upper}});
   }
-  nlohmann::json fit = {{"detections", c.detections},     {"paired", c.detections_paired},
-                        {"outliers", c.detections_outliers}, {"landmarks", c.landmarks},
-                        {"redundancy", c.redundancy},     {"rounds", c.rounds},
-                        {"converged", c.converged},       {"start_landmarks", r.start_landmarks},
-                        {"seconds", r.wall_seconds}};
+  nlohmann::json fit = {
+      {"detections", c.detections}, {"paired", c.detections_paired},        {"outliers", c.detections_outliers},
+      {"landmarks", c.landmarks},   {"redundancy", c.redundancy},           {"rounds", c.rounds},
+      {"converged", c.converged},   {"start_landmarks", r.start_landmarks}, {"seconds", r.wall_seconds}};
   if (r.start_rms_position_m) fit["start_rms_position_m"] = *r.start_rms_position_m;
   if (r.rms_position_m) fit["rms_position_m"] = *r.rms_position_m;
   return {{"source", r.source},
@@ -178,14 +186,14 @@ std::string CalibrationTable(const CalibrateResult& r) {
                         c.min_range_m, c.max_range_m, c.fov_min_rad, c.fov_max_rad);
   std::string curve;
   for (const calibration::DetectionBin& b : c.detection_by_range) {
-    absl::StrAppendFormat(&curve, " %.1f-%.1f m: %.2f [%.2f, %.2f] of %d;", b.range_min_m, b.range_max_m,
-                          b.probability, b.lower, b.upper, b.predicted);
+    absl::StrAppendFormat(&curve, " %.1f-%.1f m: %.2f [%.2f, %.2f] of %d;", b.range_min_m, b.range_max_m, b.probability,
+                          b.lower, b.upper, b.predicted);
   }
   absl::StrAppendFormat(&t, "  %-34s%s\n", "detection probability by range", curve);
-  absl::StrAppendFormat(&t, "  %-34s %d of %d paired (%d outliers left out), %d landmarks, redundancy %.0f\n",
-                        "fit", c.detections_paired, c.detections, c.detections_outliers, c.landmarks, c.redundancy);
-  absl::StrAppendFormat(&t, "  %-34s %d%s, %.1f s\n", "rounds", c.rounds, c.converged ? " (converged)" : " (NOT CONVERGED)",
-                        r.wall_seconds);
+  absl::StrAppendFormat(&t, "  %-34s %d of %d paired (%d outliers left out), %d landmarks, redundancy %.0f\n", "fit",
+                        c.detections_paired, c.detections, c.detections_outliers, c.landmarks, c.redundancy);
+  absl::StrAppendFormat(&t, "  %-34s %d%s, %.1f s\n", "rounds", c.rounds,
+                        c.converged ? " (converged)" : " (NOT CONVERGED)", r.wall_seconds);
   if (r.rms_position_m) {
     absl::StrAppendFormat(&t, "  %-34s %.3f m (start run %.3f m, %d landmarks)\n", "scan poses vs truth, RMS",
                           *r.rms_position_m, r.start_rms_position_m.value_or(NAN), r.start_landmarks);

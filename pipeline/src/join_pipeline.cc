@@ -1,9 +1,5 @@
 #include "subslam/pipeline/join_pipeline.h"
 
-#include "joins_csv.h"
-
-#include "report_json.h"
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -14,6 +10,8 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "joins_csv.h"
+#include "report_json.h"
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
@@ -34,7 +32,7 @@ AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph, const
   std::map<int, std::set<int>> globals_of_truth;
   std::set<int> globals_with_mixed_feature;
   std::map<int, std::vector<std::vector<int>>> feature_truths_of_global;  // per global: each feature's true ids
-  std::map<int, std::pair<int, int>> last_seen;  // truth id → (local map index, global id)
+  std::map<int, std::pair<int, int>> last_seen;                           // truth id → (local map index, global id)
   int map_index = 0;
   for (const SubmapFactor& f : graph.factors()) {
     for (int i = 0; i < f.submap.num_landmarks(); ++i) {
@@ -89,7 +87,6 @@ AssociationVsTruth CountAssociationsAgainstTruth(const SubmapGraph& graph, const
   }
   return c;
 }
-
 
 absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, const JoinOptions& options) {
   if (absl::Status s = options.backend.Validate(); !s.ok()) return s;
@@ -148,11 +145,10 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   if (!options.truth_landmarks.empty()) {
     const std::vector<io::TruthLandmark>& observed =
         options.observed_truth_landmarks.empty() ? options.truth_landmarks : options.observed_truth_landmarks;
-    metrics["map"] = MapErrorsJson(eval::ComputeMapErrors(r.landmarks, observed), options.truth_landmarks.size(),
-                                   observed.size());
+    metrics["map"] =
+        MapErrorsJson(eval::ComputeMapErrors(r.landmarks, observed), options.truth_landmarks.size(), observed.size());
     const eval::LabelledMapErrors labelled = eval::ComputeLabelledMapErrors(
-        r.landmarks, eval::GlobalLandmarkTruthLabels(joiner->graph(), submaps, r.landmarks),
-        options.truth_landmarks);
+        r.landmarks, eval::GlobalLandmarkTruthLabels(joiner->graph(), submaps, r.landmarks), options.truth_landmarks);
     if (labelled.labelled > 0) metrics["map_by_truth_label"] = LabelledMapErrorsJson(labelled);
   }
   if (!options.gps.empty()) {
@@ -181,25 +177,24 @@ absl::StatusOr<JoinResult> RunJoin(const std::vector<LocalSubmap>& submaps, cons
   for (const auto& [name, value] : joiner_extras.notes) extras[name] = value;
   nlohmann::json stages = nlohmann::json::object();
   for (const auto& [stage, seconds] : joiner->stage_times()) stages[stage] = seconds;
-  r.report = {{"format", "subslam-join-report/1"},
-              {"configuration",
-               {{"backend", ToString(options.backend.kind)},
-                {"known_association", options.backend.eif.association.known_association},
-                {"anchor_search_radius_m", options.backend.eif.association.anchor_search_radius_m},
-                {"landmark_search_radius_m", options.backend.eif.association.landmark_search_radius_m},
-                {"gate_probability", options.backend.eif.association.gate_probability},
-                {"relinearize_heading_change", options.backend.eif.relinearize_heading_change},
-                {"relinearize_linearization_chi2", options.backend.eif.relinearize_linearization_chi2},
-                {"relinearize_every", options.backend.eif.relinearize_every},
-                {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}}},
-              {"counts", counts},
-              {"time_seconds",
-               {{"total", r.wall_seconds},
-                {"stages", stages},
-                {"joiner_all_anchor_covariances", joiner_covariance_seconds}}},
-              {"extras", extras},
-              {"metrics", metrics},
-              {"build", BuildJson()}};
+  r.report = {
+      {"format", "subslam-join-report/1"},
+      {"configuration",
+       {{"backend", ToString(options.backend.kind)},
+        {"known_association", options.backend.eif.association.known_association},
+        {"anchor_search_radius_m", options.backend.eif.association.anchor_search_radius_m},
+        {"landmark_search_radius_m", options.backend.eif.association.landmark_search_radius_m},
+        {"gate_probability", options.backend.eif.association.gate_probability},
+        {"relinearize_heading_change", options.backend.eif.relinearize_heading_change},
+        {"relinearize_linearization_chi2", options.backend.eif.relinearize_linearization_chi2},
+        {"relinearize_every", options.backend.eif.relinearize_every},
+        {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}}},
+      {"counts", counts},
+      {"time_seconds",
+       {{"total", r.wall_seconds}, {"stages", stages}, {"joiner_all_anchor_covariances", joiner_covariance_seconds}}},
+      {"extras", extras},
+      {"metrics", metrics},
+      {"build", BuildJson()}};
   if (!options.invocation.is_null()) r.report["invocation"] = options.invocation;
 
   if (!options.out_dir.empty()) {

@@ -4,16 +4,15 @@
 #define SUBSLAM_APPS_SRC_REPORT_JSON_H_
 
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 
-#include <nlohmann/json.hpp>
-
-#include "subslam/pipeline/build_info.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/trajectory_errors.h"
+#include "subslam/pipeline/build_info.h"
 #include "subslam/pipeline/join_pipeline.h"
 
 namespace subslam::pipeline {
@@ -35,17 +34,25 @@ inline nlohmann::json ErrorsJson(const eval::TrajectoryErrors& e) {
 }
 
 inline nlohmann::json MapErrorsJson(const eval::MapErrors& m, size_t true_landmarks, size_t observed) {
-  return {{"estimated", m.estimated},   {"matched", m.matched},
-          {"spurious", m.spurious},     {"duplicates", m.duplicates},
-          {"true_landmarks", true_landmarks}, {"true_landmarks_observed", observed}, {"rms_m", m.rms_m},
+  return {{"estimated", m.estimated},
+          {"matched", m.matched},
+          {"spurious", m.spurious},
+          {"duplicates", m.duplicates},
+          {"true_landmarks", true_landmarks},
+          {"true_landmarks_observed", observed},
+          {"rms_m", m.rms_m},
           {"mean_landmark_nees", m.mean_nees}};
 }
 
 inline nlohmann::json LabelledMapErrorsJson(const eval::LabelledMapErrors& m) {
-  return {{"labelled", m.labelled},           {"distinct_true_landmarks", m.true_landmarks},
-          {"duplicates", m.duplicates},       {"rms_m", m.rms_m},
-          {"rms_x_m", m.rms_x_m},             {"rms_y_m", m.rms_y_m},
-          {"mean_landmark_nees", m.mean_nees}, {"fraction_nees_in_95", m.fraction_nees_in_95}};
+  return {{"labelled", m.labelled},
+          {"distinct_true_landmarks", m.true_landmarks},
+          {"duplicates", m.duplicates},
+          {"rms_m", m.rms_m},
+          {"rms_x_m", m.rms_x_m},
+          {"rms_y_m", m.rms_y_m},
+          {"mean_landmark_nees", m.mean_nees},
+          {"fraction_nees_in_95", m.fraction_nees_in_95}};
 }
 
 inline nlohmann::json AssociationVsTruthJson(const AssociationVsTruth& a) {

@@ -1,9 +1,5 @@
 #include "subslam/pipeline/run_pipeline.h"
 
-#include "joins_csv.h"
-#include "report_json.h"
-#include "run_report.h"
-
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -17,17 +13,20 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "joins_csv.h"
+#include "report_json.h"
+#include "run_report.h"
 #include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/local_map_errors.h"
-#include "subslam/pipeline/submap_slam.h"
 #include "subslam/frontend/dead_reckoning.h"
 #include "subslam/frontend/ekf_local_mapper.h"
 #include "subslam/graph/enum_names.h"
-#include "subslam/io/submaps_jsonl.h"
-#include "subslam/models/gating.h"
 #include "subslam/io/output_directory.h"
 #include "subslam/io/run_output_writer.h"
 #include "subslam/io/steps.h"
+#include "subslam/io/submaps_jsonl.h"
+#include "subslam/models/gating.h"
+#include "subslam/pipeline/submap_slam.h"
 
 namespace subslam::pipeline {
 namespace {
@@ -135,14 +134,13 @@ absl::StatusOr<CheckedOptions> CheckOptions(const io::Dataset& dataset, const Ru
   if (absl::Status s = options.Validate(); !s.ok()) return s;
   CheckedOptions checked;
   checked.seif = SeifOptionsOf(options);
-  checked.known_association = checked.seif.landmarks.known_association ||
-                              options.ekf.landmarks.known_association ||
+  checked.known_association = checked.seif.landmarks.known_association || options.ekf.landmarks.known_association ||
                               options.fastslam.landmarks.known_association ||
                               options.backend.eif.association.known_association ||
                               options.backend.ekf.association.known_association;
   if (checked.known_association && !dataset.sensor.has_truth_id) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "known association needs detections with true ids; data set \"", dataset.name, "\" has none"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("known association needs detections with true ids; data set \"", dataset.name, "\" has none"));
   }
   return checked;
 }
@@ -160,12 +158,12 @@ std::unique_ptr<frontend::OnlineEstimator> MakeEstimator(const io::Dataset& data
       const double t0 = dataset.controls.empty() ? 0.0 : dataset.controls.front().t;
       std::unique_ptr<frontend::LocalMapper> mapper;
       if (options.frontend == Frontend::kRbpf) {
-        mapper = std::make_unique<frontend::RbpfLocalMapper>(
-            dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.fastslam, options.policy, t0);
+        mapper = std::make_unique<frontend::RbpfLocalMapper>(dataset.motion.MakeModel(), dataset.sensor.range_bearing,
+                                                             options.fastslam, options.policy, t0);
       } else {
-        mapper = std::make_unique<frontend::EkfLocalMapper>(
-            dataset.motion.MakeModel(), dataset.sensor.range_bearing, options.ekf, options.policy, t0,
-            options.fastslam.moment_matching.min_existence);
+        mapper = std::make_unique<frontend::EkfLocalMapper>(dataset.motion.MakeModel(), dataset.sensor.range_bearing,
+                                                            options.ekf, options.policy, t0,
+                                                            options.fastslam.moment_matching.min_existence);
       }
       auto slam = std::make_unique<SubmapSlam>(std::move(mapper), dataset.initial_pose, options.backend);
       *chain = slam.get();
@@ -189,8 +187,8 @@ std::unique_ptr<frontend::OnlineEstimator> MakeEstimator(const io::Dataset& data
 // tenth of the run, and (submap pipeline) the truth votes of each scan's features and the
 // final joins. Fills r's counts, online trajectory and times. Stops early (r->stop) at the
 // first step whose estimate is not finite, or once a join has failed.
-void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Dataset& dataset,
-           bool show_progress, RunResult* r, TruthVotes* truth_votes) {
+void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Dataset& dataset, bool show_progress,
+           RunResult* r, TruthVotes* truth_votes) {
   const std::vector<io::Step> steps = io::BuildSteps(dataset);
   r->steps = static_cast<int>(steps.size());
   r->scans = static_cast<int>(dataset.scans.size());
@@ -250,25 +248,27 @@ json EvaluateLocalMaps(const io::Dataset& dataset, RunResult* r) {
   json per_map = json::array();
   LocalMapSummary summary;
   for (const LocalSubmap& s : r->local_maps) {
-    const std::optional<eval::LocalMapNees> e =
-        eval::EvaluateLocalMap(s, dataset.truth_poses, dataset.truth_landmarks);
+    const std::optional<eval::LocalMapNees> e = eval::EvaluateLocalMap(s, dataset.truth_poses, dataset.truth_landmarks);
     if (!e) continue;
     ++summary.evaluated;
     summary.inside += e->inside() ? 1 : 0;
-    summary.pose_inside += e->pose_nees <= models::ChiSquareQuantile(0.975, 3) &&
-                                   e->pose_nees >= models::ChiSquareQuantile(0.025, 3)
-                               ? 1 : 0;
+    summary.pose_inside +=
+        e->pose_nees <= models::ChiSquareQuantile(0.975, 3) && e->pose_nees >= models::ChiSquareQuantile(0.025, 3) ? 1
+                                                                                                                   : 0;
     summary.nees_per_dof += e->nees / e->dof;
     summary.false_alarms += e->false_alarms;
     for (double nees : e->landmark_nees) {
       ++summary.landmarks;
-      summary.landmarks_inside += nees >= models::ChiSquareQuantile(0.025, 2) &&
-                                          nees <= models::ChiSquareQuantile(0.975, 2)
-                                      ? 1 : 0;
+      summary.landmarks_inside +=
+          nees >= models::ChiSquareQuantile(0.025, 2) && nees <= models::ChiSquareQuantile(0.975, 2) ? 1 : 0;
     }
-    per_map.push_back({{"id", e->id}, {"nees", e->nees}, {"dof", e->dof},
-                       {"pose_nees", e->pose_nees}, {"landmarks", e->landmarks_evaluated},
-                       {"false_alarms", e->false_alarms}, {"inside_95", e->inside()}});
+    per_map.push_back({{"id", e->id},
+                       {"nees", e->nees},
+                       {"dof", e->dof},
+                       {"pose_nees", e->pose_nees},
+                       {"landmarks", e->landmarks_evaluated},
+                       {"false_alarms", e->false_alarms},
+                       {"inside_95", e->inside()}});
   }
   if (summary.evaluated > 0) summary.nees_per_dof /= summary.evaluated;
   r->local_map_summary = summary;
@@ -330,8 +330,9 @@ json Evaluate(const io::Dataset& dataset, const RunOptions& options, const Subma
 // covariance is singular).
 std::string PoseErrorsCsv(const RunResult& r, const std::vector<io::TimedPose>& truth) {
   const eval::TrajectoryErrors& online = r.errors_online ? *r.errors_online : *r.errors;
-  std::string text = "t,online_position_error_m,online_heading_error_rad,online_nees,final_position_error_m,"
-                     "final_heading_error_rad,final_nees\n";
+  std::string text =
+      "t,online_position_error_m,online_heading_error_rad,online_nees,final_position_error_m,"
+      "final_heading_error_rad,final_nees\n";
   text.reserve(r.online.size() * 90);
   for (size_t k = 0; k < r.online.size() && k < r.final_trajectory.size(); ++k) {
     const Pose2 t = eval::InterpolatePose(truth, r.online[k].t);
@@ -369,7 +370,8 @@ absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, 
   if (!dataset.truth_poses.empty()) {
     here.push_back(io::WriteTruthTrajectoryCsv((out / "truth_trajectory.csv").string(), dataset.truth_poses));
     here.push_back(io::WriteTumTrajectory((out / "truth.tum").string(), dataset.truth_poses));
-    if (r.errors) here.push_back(io::WriteTextFile((out / "pose_errors.csv").string(), PoseErrorsCsv(r, dataset.truth_poses)));
+    if (r.errors)
+      here.push_back(io::WriteTextFile((out / "pose_errors.csv").string(), PoseErrorsCsv(r, dataset.truth_poses)));
   }
   if (!dataset.truth_landmarks.empty()) {
     here.push_back(io::WriteTruthLandmarksCsv((out / "truth_landmarks.csv").string(), dataset.truth_landmarks));
@@ -402,19 +404,22 @@ absl::Status WriteOutputs(const std::filesystem::path& out, const RunResult& r, 
 }  // namespace
 
 namespace {
-constexpr EnumName<Frontend> kFrontendNames[] = {
-    {Frontend::kOdometry, "odometry"}, {Frontend::kEkfSlam, "ekfslam"}, {Frontend::kFastSlam, "fastslam"},
-    {Frontend::kSeif, "seif"},         {Frontend::kIseif, "iseif"},     {Frontend::kRbpf, "rbpf"},
-    {Frontend::kEkfLocal, "ekf"}};
+constexpr EnumName<Frontend> kFrontendNames[] = {{Frontend::kOdometry, "odometry"}, {Frontend::kEkfSlam, "ekfslam"},
+                                                 {Frontend::kFastSlam, "fastslam"}, {Frontend::kSeif, "seif"},
+                                                 {Frontend::kIseif, "iseif"},       {Frontend::kRbpf, "rbpf"},
+                                                 {Frontend::kEkfLocal, "ekf"}};
 }  // namespace
 
 const char* ToString(Frontend frontend) { return NameOf(kFrontendNames, frontend); }
 
 const char* ToString(RunStop::Cause cause) {
   switch (cause) {
-    case RunStop::Cause::kExportFailed: return "local_map_export_failed";
-    case RunStop::Cause::kJoinFailed: return "join_failed";
-    case RunStop::Cause::kNonFiniteEstimate: break;
+    case RunStop::Cause::kExportFailed:
+      return "local_map_export_failed";
+    case RunStop::Cause::kJoinFailed:
+      return "join_failed";
+    case RunStop::Cause::kNonFiniteEstimate:
+      break;
   }
   return "non_finite_estimate";
 }
@@ -439,8 +444,10 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
     }
     return absl::OkStatus();
   };
-  for (const auto& [v, name] : {std::pair{sigma_v, "sigma_v"}, {sigma_u1, "sigma_u1"},
-                                {sigma_range, "sigma_range"}, {sigma_bearing, "sigma_bearing"},
+  for (const auto& [v, name] : {std::pair{sigma_v, "sigma_v"},
+                                {sigma_u1, "sigma_u1"},
+                                {sigma_range, "sigma_range"},
+                                {sigma_bearing, "sigma_bearing"},
                                 {max_range, "max_range"}}) {
     if (absl::Status s = positive(v, name); !s.ok()) return s;
   }
@@ -459,7 +466,7 @@ absl::Status NoiseOverrides::ApplyTo(io::Dataset* d) const {
 }
 
 absl::StatusOr<std::unique_ptr<frontend::OnlineEstimator>> MakeOnlineEstimator(const io::Dataset& dataset,
-                                                                              const RunOptions& options) {
+                                                                               const RunOptions& options) {
   io::Dataset models;  // the models and the start: the recorded data are not needed
   models.name = dataset.name;
   models.initial_pose = dataset.initial_pose;
@@ -504,9 +511,8 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
   if (!r.join_failed) r.landmarks = estimator->Map();
   if (r.stop) {  // a broken estimate's landmarks are not part of the map
     const size_t before = r.landmarks.size();
-    std::erase_if(r.landmarks, [](const LandmarkEstimate& l) {
-      return !l.position.allFinite() || !l.covariance.allFinite();
-    });
+    std::erase_if(r.landmarks,
+                  [](const LandmarkEstimate& l) { return !l.position.allFinite() || !l.covariance.allFinite(); });
     r.non_finite_landmarks = static_cast<int>(before - r.landmarks.size());
   }
   if (chain != nullptr) {  // the local maps move into the result (held once)

@@ -23,8 +23,11 @@ json Health(const RunResult& r, const std::map<std::string, double>& counters) {
   json h = {{"completed", !r.stop.has_value()}};
   if (r.stop) {
     h["stopped"] = {{"cause", ToString(r.stop->cause)},
-                    {"step", r.stop->step}, {"t", r.stop->t}, {"reason", r.stop->reason},
-                    {"steps_in_outputs", r.online.size()}, {"final_trajectory_steps", r.final_trajectory.size()}};
+                    {"step", r.stop->step},
+                    {"t", r.stop->t},
+                    {"reason", r.stop->reason},
+                    {"steps_in_outputs", r.online.size()},
+                    {"final_trajectory_steps", r.final_trajectory.size()}};
   }
   h["inputs"] = {{"control_spikes_replaced", r.inputs.control_spikes},
                  {"time_gaps", r.inputs.time_gaps},
@@ -106,9 +109,7 @@ json RunReport(const io::Dataset& dataset, const RunOptions& options, const Chec
         {"landmarks", r.landmarks.size()}}},
       {"estimator_counters", counters},
       {"time_seconds",
-       {{"total", r.wall_seconds},
-        {"stages", stage_times},
-        {"cumulative_by_tenth_of_steps", r.wall_seconds_by_tenth}}},
+       {{"total", r.wall_seconds}, {"stages", stage_times}, {"cumulative_by_tenth_of_steps", r.wall_seconds_by_tenth}}},
       {"peak_rss_kb", r.peak_rss_kb},
       {"rss_kb_by_tenth_of_steps", r.rss_kb_by_tenth},
       {"health", Health(r, estimator_counters)},
@@ -126,22 +127,21 @@ json RunReport(const io::Dataset& dataset, const RunOptions& options, const Chec
         {"relinearize_at_end", EifRelinearizesAtEnd(options.backend)}};
   }
   if (options.frontend == Frontend::kSeif || options.frontend == Frontend::kIseif) {
-    report["configuration"]["seif"] = {
-        {"known_association", seif.landmarks.known_association},
-        {"association", association::ToString(seif.association)},
-        {"max_active_landmarks", seif.max_active_landmarks},
-        {"mean_recovery", frontend::ToString(seif.recovery)},
-        {"relaxation_sweeps", seif.relaxation_sweeps},
-        {"relaxation_extra_landmarks", seif.relaxation_extra_landmarks},
-        {"covariance_recovery", frontend::ToString(seif.covariance)},
-        {"pose_covariance", frontend::ToString(seif.pose_covariance)},
-        {"candidate_radius_m", seif.candidate_radius_m},
-        {"blanket_max_landmarks", seif.blanket_max_landmarks},
-        {"iterated", seif.iterated.enabled},
-        {"iterated_period_scans", seif.iterated.period_scans},
-        {"iterated_max_iterations", seif.iterated.max_iterations},
-        {"iterated_stop_change", seif.iterated.stop_change},
-        {"iterated_exact_recoveries", seif.iterated.exact_recoveries}};
+    report["configuration"]["seif"] = {{"known_association", seif.landmarks.known_association},
+                                       {"association", association::ToString(seif.association)},
+                                       {"max_active_landmarks", seif.max_active_landmarks},
+                                       {"mean_recovery", frontend::ToString(seif.recovery)},
+                                       {"relaxation_sweeps", seif.relaxation_sweeps},
+                                       {"relaxation_extra_landmarks", seif.relaxation_extra_landmarks},
+                                       {"covariance_recovery", frontend::ToString(seif.covariance)},
+                                       {"pose_covariance", frontend::ToString(seif.pose_covariance)},
+                                       {"candidate_radius_m", seif.candidate_radius_m},
+                                       {"blanket_max_landmarks", seif.blanket_max_landmarks},
+                                       {"iterated", seif.iterated.enabled},
+                                       {"iterated_period_scans", seif.iterated.period_scans},
+                                       {"iterated_max_iterations", seif.iterated.max_iterations},
+                                       {"iterated_stop_change", seif.iterated.stop_change},
+                                       {"iterated_exact_recoveries", seif.iterated.exact_recoveries}};
   }
   if (options.frontend == Frontend::kFastSlam || options.frontend == Frontend::kRbpf) {
     const frontend::FastSlamOptions& f = options.fastslam;

@@ -9,10 +9,10 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
+#include "report_json.h"
 #include "subslam/io/output_directory.h"
 #include "subslam/io/run_output_writer.h"
 #include "subslam/io/submaps_jsonl.h"
-#include "report_json.h"
 #include "subslam/posegraph/batch_solver.h"
 #include "subslam/posegraph/graph_format.h"
 #include "subslam/posegraph/submap_route.h"
@@ -138,7 +138,8 @@ absl::Status SolveOptions::Validate() const {
           absl::StrCat("unknown solve method \"", name, "\" (", absl::StrJoin(SolveMethodNames(), ", "), ")"));
     }
   }
-  if (poses_per_map < 1) return absl::InvalidArgumentError(absl::StrCat("poses_per_map must be >= 1, got ", poses_per_map));
+  if (poses_per_map < 1)
+    return absl::InvalidArgumentError(absl::StrCat("poses_per_map must be >= 1, got ", poses_per_map));
   if (absl::Status s = ceres.Validate(); !s.ok()) return s;
   return eif.Validate();
 }
@@ -150,7 +151,8 @@ absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const So
   posegraph::PoseGraph start = graph;
   if (options.initial_from_file) {
     if (!graph.HasEstimates()) {
-      return absl::InvalidArgumentError("--initial file: the graph file does not give every pose and point an estimate");
+      return absl::InvalidArgumentError(
+          "--initial file: the graph file does not give every pose and point an estimate");
     }
   } else if (absl::Status s = posegraph::InitializeByDeadReckoning(&start); !s.ok()) {
     return s;
@@ -178,9 +180,9 @@ absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const So
       const std::string path = (std::filesystem::path(options.out_dir) / (name + ".g2o")).string();
       if (absl::Status s = posegraph::WriteGraph(solution, path, write); !s.ok()) return s;
     }
-    nlohmann::json entry = {{"name", m.name},       {"status", m.status},          {"converged", m.converged},  {"error", m.error},
-                            {"chi2", m.chi2},       {"iterations", m.iterations},  {"seconds", m.seconds},
-                            {"peak_rss_mb", m.peak_rss_mb}};
+    nlohmann::json entry = {
+        {"name", m.name}, {"status", m.status},         {"converged", m.converged}, {"error", m.error},
+        {"chi2", m.chi2}, {"iterations", m.iterations}, {"seconds", m.seconds},     {"peak_rss_mb", m.peak_rss_mb}};
     if (!m.details.is_null()) entry["details"] = m.details;
     entries.push_back(entry);
     result.methods.push_back(std::move(m));
@@ -204,18 +206,18 @@ absl::StatusOr<SolveResult> RunSolve(const posegraph::PoseGraph& graph, const So
 
 std::string SolveTable(const SolveResult& result) {
   std::string out = absl::StrFormat("start: error %.6g, chi2 %.6g\n", result.initial_error, result.initial_chi2);
-  absl::StrAppendFormat(&out, "%-11s %14s %14s %10s %9s %9s  %s\n", "method", "error", "chi2", "iterations",
-                        "seconds", "peak MB", "status");
+  absl::StrAppendFormat(&out, "%-11s %14s %14s %10s %9s %9s  %s\n", "method", "error", "chi2", "iterations", "seconds",
+                        "peak MB", "status");
   for (const SolveMethodResult& m : result.methods) {
     if (m.status != "ok") {
       absl::StrAppendFormat(&out, "%-11s %14s %14s %10s %9.3f %9.1f  %s\n", m.name, "-", "-", "-", m.seconds,
                             m.peak_rss_mb, m.status);
       continue;
     }
-    absl::StrAppendFormat(&out, "%-11s %14.4f %14.4f %10d %9.3f %9.1f  %s\n", m.name, m.error, m.chi2, m.iterations,
-                          m.seconds, m.peak_rss_mb,
-                          m.converged ? "converged"
-                                      : absl::StrCat("NOT CONVERGED: stopped at the iteration limit (--max_iterations)"));
+    absl::StrAppendFormat(
+        &out, "%-11s %14.4f %14.4f %10d %9.3f %9.1f  %s\n", m.name, m.error, m.chi2, m.iterations, m.seconds,
+        m.peak_rss_mb,
+        m.converged ? "converged" : absl::StrCat("NOT CONVERGED: stopped at the iteration limit (--max_iterations)"));
   }
   return out;
 }

@@ -1,5 +1,7 @@
 #include "subslam/pipeline/submap_slam.h"
 
+#include <algorithm>
+#include <exception>
 #include <utility>
 
 #include "absl/strings/match.h"
@@ -9,15 +11,12 @@
 #include "subslam/graph/enum_names.h"
 #include "subslam/models/gating.h"
 
-#include <algorithm>
-#include <exception>
-
 namespace subslam::pipeline {
 
 namespace {
-constexpr EnumName<Backend> kBackendNames[] = {{Backend::kNone, "none"},         {Backend::kEif, "eif"},
-                                               {Backend::kCeres, "ceres"},       {Backend::kEkf, "ekf"},
-                                               {Backend::kTreeEkf, "tree-ekf"},   {Backend::kTreeEif, "tree-eif"},
+constexpr EnumName<Backend> kBackendNames[] = {{Backend::kNone, "none"},           {Backend::kEif, "eif"},
+                                               {Backend::kCeres, "ceres"},         {Backend::kEkf, "ekf"},
+                                               {Backend::kTreeEkf, "tree-ekf"},    {Backend::kTreeEif, "tree-eif"},
                                                {Backend::kTreeCeres, "tree-ceres"}};
 }  // namespace
 
@@ -44,24 +43,25 @@ bool EifRelinearizesAtEnd(const BackendOptions& options) {
   return options.eif.relinearize_at_end && options.kind != Backend::kCeres && options.kind != Backend::kTreeCeres;
 }
 
-
 std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, const Pose2& initial_pose) {
   switch (options.kind) {
-    case Backend::kNone: return nullptr;
-    case Backend::kEif: return std::make_unique<backend::EifJoiner>(initial_pose, options.eif);
+    case Backend::kNone:
+      return nullptr;
+    case Backend::kEif:
+      return std::make_unique<backend::EifJoiner>(initial_pose, options.eif);
     case Backend::kCeres:
       return std::make_unique<backend::CeresJoiner>(
-          initial_pose, backend::CeresJoinerOptions{.eif = options.eif,
-                                                    .solve = options.ceres,
-                                                    .solve_every = options.ceres_every});
+          initial_pose,
+          backend::CeresJoinerOptions{.eif = options.eif, .solve = options.ceres, .solve_every = options.ceres_every});
     case Backend::kTreeCeres:
       return std::make_unique<backend::TreeJoiner>(
-          std::make_unique<backend::CeresJoiner>(initial_pose,
-                                                 backend::CeresJoinerOptions{.eif = options.eif.ForTreeNode(),
-                                                                             .solve = options.ceres,
-                                                                             .solve_every = options.ceres_every}),
+          std::make_unique<backend::CeresJoiner>(
+              initial_pose,
+              backend::CeresJoinerOptions{
+                  .eif = options.eif.ForTreeNode(), .solve = options.ceres, .solve_every = options.ceres_every}),
           options.tree);
-    case Backend::kEkf: return std::make_unique<backend::EkfJoiner>(initial_pose, options.ekf);
+    case Backend::kEkf:
+      return std::make_unique<backend::EkfJoiner>(initial_pose, options.ekf);
     case Backend::kTreeEkf: {
       backend::EkfJoinerOptions ekf = options.ekf;
       ekf.keep_anchors = true;  // tree joins need every node's anchors
@@ -88,7 +88,9 @@ SubmapSlam::SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose
                        std::unique_ptr<backend::MapJoiner> joiner, bool background, std::string backend_name,
                        const backend::SensorYawCalibrationOptions& sensor_yaw)
     : mapper_(std::move(mapper)),
-      backend_name_(joiner == nullptr ? "" : backend_name.empty() ? joiner->Name() : std::move(backend_name)),
+      backend_name_(joiner == nullptr      ? ""
+                    : backend_name.empty() ? joiner->Name()
+                                           : std::move(backend_name)),
       joiner_(std::move(joiner)),
       yaw_calibration_(sensor_yaw),
       initial_pose_(initial_pose),
@@ -120,7 +122,7 @@ void SubmapSlam::JoinWorker() {
     if (!joining_.has_value()) return;  // stopped, nothing pending
     lock.unlock();
     try {
-      JoinOne(*joining_);  // joining_ is not touched by anyone else while it is set
+      JoinOne(*joining_);                // joining_ is not touched by anyone else while it is set
     } catch (const std::exception& e) {  // e.g. out of memory: reported by Finish()
       status_ = absl::InternalError(absl::StrCat("joining local map ", joining_->id, ": ", e.what()));
       join_failed_.store(true, std::memory_order_release);
@@ -168,7 +170,7 @@ void SubmapSlam::JoinClosed() {
   }
   if (joiner_) {
     if (background_ || !status_.ok()) return;  // set by Submit, or the last one joined stays
-    anchor_ = joiner_->LastAnchor();  // the tree joiner answers without folding its nodes
+    anchor_ = joiner_->LastAnchor();           // the tree joiner answers without folding its nodes
     anchor_covariance_ = joiner_->LastAnchorCovariance();
   } else {
     anchor_ = chain_.back();

@@ -18,19 +18,17 @@ std::string SummaryTable(const RunResult& r) {
   };
   row("ran", absl::StrCat(r.frontend, " on ", r.source));
   if (r.stop) {
-    row("STOPPED", absl::StrFormat("at step %d of %d (t = %.3f s): %s; outputs up to there", r.stop->step,
-                                   r.steps, r.stop->t, r.stop->reason));
+    row("STOPPED", absl::StrFormat("at step %d of %d (t = %.3f s): %s; outputs up to there", r.stop->step, r.steps,
+                                   r.stop->t, r.stop->reason));
   }
   row("steps / scans / detections", absl::StrCat(r.steps, " / ", r.scans, " / ", r.detections));
   row("landmarks in map", absl::StrCat(r.landmarks.size()));
   if (r.errors) {
     const eval::TrajectoryErrors& e = *r.errors;
-    row("RMS position / heading", absl::StrFormat("%.3f m / %.3f deg", e.rms_position_m,
-                                                  RadToDeg(e.rms_heading_rad)));
-    row("max / final position error", absl::StrFormat("%.3f m / %.3f m", e.max_position_error_m,
-                                                      e.final_position_error_m));
-    row("mean pose NEES (3 dof)", absl::StrFormat("%.2f  (CI %.2f)", e.mean_nees,
-                                                  e.mean_consistency_index));
+    row("RMS position / heading", absl::StrFormat("%.3f m / %.3f deg", e.rms_position_m, RadToDeg(e.rms_heading_rad)));
+    row("max / final position error",
+        absl::StrFormat("%.3f m / %.3f m", e.max_position_error_m, e.final_position_error_m));
+    row("mean pose NEES (3 dof)", absl::StrFormat("%.2f  (CI %.2f)", e.mean_nees, e.mean_consistency_index));
     row("steps with NEES in 95% bounds", absl::StrFormat("%.1f %%", 100 * e.fraction_nees_in_bounds));
     row("10-sigma failure test", e.failed ? "FAILED" : "passed");
   }
@@ -45,14 +43,12 @@ std::string SummaryTable(const RunResult& r) {
                         r.map_errors->duplicates, r.map_errors->rms_m));
   }
   if (r.gps_final) {
-    row("aligned RMS vs GPS (final)",
-        absl::StrFormat("%.2f m (x %.2f, y %.2f; %d fixes, %d gross faults dropped)", r.gps_final->rms_m,
-                        r.gps_final->rms_x_m, r.gps_final->rms_y_m, r.gps_final->matched_fixes,
-                        r.gps_final->rejected_fixes));
+    row("aligned RMS vs GPS (final)", absl::StrFormat("%.2f m (x %.2f, y %.2f; %d fixes, %d gross faults dropped)",
+                                                      r.gps_final->rms_m, r.gps_final->rms_x_m, r.gps_final->rms_y_m,
+                                                      r.gps_final->matched_fixes, r.gps_final->rejected_fixes));
   }
   if (r.gps_online) {
-    row("aligned RMS vs GPS (online)",
-        absl::StrFormat("%.2f m (trajectory_online.csv)", r.gps_online->rms_m));
+    row("aligned RMS vs GPS (online)", absl::StrFormat("%.2f m (trajectory_online.csv)", r.gps_online->rms_m));
   }
   if (!r.local_maps.empty()) {
     std::map<std::string, int> reasons;
@@ -64,12 +60,13 @@ std::string SummaryTable(const RunResult& r) {
   if (r.local_map_summary) {
     const LocalMapSummary& m = *r.local_map_summary;
     row("local maps: NEES in 95% bounds",
-        absl::StrFormat("%d / %d joint, %d / %d end pose; mean NEES/dof %.2f", m.inside,
-                        m.evaluated, m.pose_inside, m.evaluated, m.nees_per_dof));
+        absl::StrFormat("%d / %d joint, %d / %d end pose; mean NEES/dof %.2f", m.inside, m.evaluated, m.pose_inside,
+                        m.evaluated, m.nees_per_dof));
     row("local maps: landmark NEES in bounds",
         absl::StrFormat("%d / %d (2-dof marginals)", m.landmarks_inside, m.landmarks));
     std::string held_back;
-    if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("moving_features_not_exported")) {
+    if (r.report.contains("estimator_counters") &&
+        r.report["estimator_counters"].contains("moving_features_not_exported")) {
       held_back = absl::StrFormat(" (%.0f features held back as moving)",
                                   r.report["estimator_counters"]["moving_features_not_exported"].get<double>());
     }
@@ -78,9 +75,9 @@ std::string SummaryTable(const RunResult& r) {
   }
   if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("join_landmarks_merged")) {
     const nlohmann::json& c = r.report["estimator_counters"];
-    row("back-end association revised", absl::StrFormat("%.0f landmarks merged, %.0f features split",
-                                                         c["join_landmarks_merged"].get<double>(),
-                                                         c["join_features_split"].get<double>()));
+    row("back-end association revised",
+        absl::StrFormat("%.0f landmarks merged, %.0f features split", c["join_landmarks_merged"].get<double>(),
+                        c["join_features_split"].get<double>()));
   }
   if (r.report.contains("estimator_counters") && r.report["estimator_counters"].contains("sensor_yaw_correction")) {
     const nlohmann::json& c = r.report["estimator_counters"];
@@ -175,9 +172,9 @@ std::string JoinSummaryTable(const JoinResult& r) {
                         a.correct, a.missed, a.wrong, a.loop_missed, a.loop_merged + a.loop_missed));
   }
   if (counts.contains("sensor_yaw_correction")) {
-    row("sensor yaw, online calibration", absl::StrFormat("%+.4f rad (sigma %.4f)",
-                                                          counts["sensor_yaw_correction"].get<double>(),
-                                                          counts["sensor_yaw_correction_sigma"].get<double>()));
+    row("sensor yaw, online calibration",
+        absl::StrFormat("%+.4f rad (sigma %.4f)", counts["sensor_yaw_correction"].get<double>(),
+                        counts["sensor_yaw_correction_sigma"].get<double>()));
   }
   row("time", absl::StrFormat("%.3f s joining", r.wall_seconds));
   return s;

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "subslam/backend/internal/ceres_options.h"
+#include "subslam/backend/ceres_options.h"
 #include "subslam/posegraph/measurement_residuals.h"
 
 namespace subslam::posegraph {
@@ -33,8 +33,8 @@ class OdometryCost final : public ceres::SizedCostFunction<3, 3, 3> {
   bool Evaluate(double const* const* x, double* residuals, double** jacobians) const override {
     Eigen::Matrix3d J_from, J_to;
     const bool want = jacobians != nullptr;
-    const Eigen::Vector3d r = OdometryResidual(z_, PoseOf(x[0]), PoseOf(x[1]), want ? &J_from : nullptr,
-                                               want ? &J_to : nullptr);
+    const Eigen::Vector3d r =
+        OdometryResidual(z_, PoseOf(x[0]), PoseOf(x[1]), want ? &J_from : nullptr, want ? &J_to : nullptr);
     Eigen::Map<Eigen::Vector3d>{residuals} = W_ * r;
     if (want && jacobians[0] != nullptr) Eigen::Map<RowMajor33>{jacobians[0]} = W_ * J_from;
     if (want && jacobians[1] != nullptr) Eigen::Map<RowMajor33>{jacobians[1]} = W_ * J_to;
@@ -56,8 +56,8 @@ class SightingCost final : public ceres::SizedCostFunction<2, 3, 2> {
     Matrix23d J_pose;
     Eigen::Matrix2d J_point;
     const bool want = jacobians != nullptr;
-    const Eigen::Vector2d r = Residual(PoseOf(x[0]), Eigen::Vector2d(x[1][0], x[1][1]), want ? &J_pose : nullptr,
-                                       want ? &J_point : nullptr);
+    const Eigen::Vector2d r =
+        Residual(PoseOf(x[0]), Eigen::Vector2d(x[1][0], x[1][1]), want ? &J_pose : nullptr, want ? &J_point : nullptr);
     Eigen::Map<Eigen::Vector2d>{residuals} = W_ * r;
     if (want && jacobians[0] != nullptr) Eigen::Map<RowMajor23>{jacobians[0]} = W_ * J_pose;
     if (want && jacobians[1] != nullptr) Eigen::Map<RowMajor22>{jacobians[1]} = W_ * J_point;
@@ -113,10 +113,12 @@ absl::StatusOr<BatchSolveReport> SolveGraphWithCeres(PoseGraph* graph, const bac
     problem.AddResidualBlock(new OdometryCost(m), loss(), poses[m.from].data(), poses[m.to].data());
   }
   for (const PointMeasurement& m : graph->point_measurements) {
-    problem.AddResidualBlock(new SightingCost<PointMeasurement>(m), loss(), poses[m.pose].data(), points[m.point].data());
+    problem.AddResidualBlock(new SightingCost<PointMeasurement>(m), loss(), poses[m.pose].data(),
+                             points[m.point].data());
   }
   for (const BearingRangeMeasurement& m : graph->bearing_range_measurements) {
-    problem.AddResidualBlock(new SightingCost<BearingRangeMeasurement>(m), loss(), poses[m.pose].data(), points[m.point].data());
+    problem.AddResidualBlock(new SightingCost<BearingRangeMeasurement>(m), loss(), poses[m.pose].data(),
+                             points[m.point].data());
   }
   for (const BearingMeasurement& m : graph->bearing_measurements) {
     problem.AddResidualBlock(new BearingCost(m), loss(), poses[m.pose].data(), points[m.point].data());
@@ -129,7 +131,8 @@ absl::StatusOr<BatchSolveReport> SolveGraphWithCeres(PoseGraph* graph, const bac
   if (!o.IsValid(&why)) return absl::InvalidArgumentError(absl::StrCat("Ceres options: ", why));
   ceres::Solver::Summary summary;
   ceres::Solve(o, &problem, &summary);
-  if (!summary.IsSolutionUsable()) return absl::InternalError(absl::StrCat("Ceres: no usable solution: ", summary.message));
+  if (!summary.IsSolutionUsable())
+    return absl::InternalError(absl::StrCat("Ceres: no usable solution: ", summary.message));
   for (size_t i = 0; i < poses.size(); ++i) {
     graph->poses[i].estimate = Pose2(poses[i][0], poses[i][1], WrapAngle(poses[i][2]));
     graph->poses[i].has_estimate = true;

@@ -5,9 +5,8 @@
 #include <cmath>
 #include <filesystem>
 
-#include "subslam/posegraph/graph_format.h"
-
 #include "subslam/io/steps.h"
+#include "subslam/posegraph/graph_format.h"
 
 namespace subslam::posegraph {
 

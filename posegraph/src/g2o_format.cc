@@ -47,8 +47,8 @@ absl::Status ParseG2oLine(GraphLine& line, NoiseConvention noise, PoseGraph* gra
     if (graph->FindPoint(a) >= 0) return line.FieldError(1, absl::StrCat("names point ", a, ", not a pose"));
     const bool pose_pose = tag == "EDGE_SE2";
     if (pose_pose ? graph->FindPoint(b) >= 0 : graph->FindPose(b) >= 0) {
-      return line.FieldError(2, absl::StrCat("names ", pose_pose ? "point " : "pose ", b, ", not a ",
-                                             pose_pose ? "pose" : "point"));
+      return line.FieldError(
+          2, absl::StrCat("names ", pose_pose ? "point " : "pose ", b, ", not a ", pose_pose ? "pose" : "point"));
     }
     if (pose_pose) {
       auto z = line.Numbers(3, 3);
@@ -92,8 +92,9 @@ absl::StatusOr<std::string> FormatG2o(const PoseGraph& graph, NoiseConvention no
     if (!bearing_range_as_points) {
       return absl::InvalidArgumentError("g2o has no bearing-range edge (write them as points, or use isam / gtsam)");
     }
-    absl::StrAppend(&out, "# bearing-range measurements written as EDGE_SE2_XY: the measured point, with the "
-                          "covariance through the polar-to-Cartesian Jacobian at it\n");
+    absl::StrAppend(&out,
+                    "# bearing-range measurements written as EDGE_SE2_XY: the measured point, with the "
+                    "covariance through the polar-to-Cartesian Jacobian at it\n");
   }
   for (const PoseVertex& p : graph.poses) {
     absl::StrAppend(&out, "VERTEX_SE2 ", p.id);
@@ -118,8 +119,8 @@ absl::StatusOr<std::string> FormatG2o(const PoseGraph& graph, NoiseConvention no
       }
       case MeasurementRef::kPoint: {
         const PointMeasurement& m = graph.point_measurements[ref.index];
-        AppendMeasurementLine(&out, "EDGE_SE2_XY", graph.poses[m.pose].id, graph.points[m.point].id + offset, {m.z.x(), m.z.y()},
-                              m.information, noise);
+        AppendMeasurementLine(&out, "EDGE_SE2_XY", graph.poses[m.pose].id, graph.points[m.point].id + offset,
+                              {m.z.x(), m.z.y()}, m.information, noise);
         continue;
       }
       case MeasurementRef::kBearingRange: {
@@ -134,8 +135,7 @@ absl::StatusOr<std::string> FormatG2o(const PoseGraph& graph, NoiseConvention no
       }
       case MeasurementRef::kBearing: {
         const BearingMeasurement& m = graph.bearing_measurements[ref.index];
-        absl::StrAppend(&out, "EDGE_BEARING_SE2_XY ", graph.poses[m.pose].id, " ",
-                        graph.points[m.point].id + offset);
+        absl::StrAppend(&out, "EDGE_BEARING_SE2_XY ", graph.poses[m.pose].id, " ", graph.points[m.point].id + offset);
         AppendNumbers(&out, {m.bearing});
         AppendNumbers(&out, UpperTriangleFromInformation(Eigen::Matrix<double, 1, 1>(m.information), noise));
         break;

@@ -5,7 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "graph_text.h"
-#include "subslam/io/internal/text_table.h"
+#include "subslam/io/text_table.h"
 
 namespace subslam::posegraph {
 
@@ -36,8 +36,9 @@ absl::StatusOr<GraphFormat> GraphFormatFromPath(const std::string& path) {
   if (ext == ".graph" || ext == ".toro") return GraphFormat::kToro;
   if (ext == ".isam") return GraphFormat::kIsam;
   return absl::InvalidArgumentError(absl::StrCat(
-      path, ": the graph format cannot be told from the name; give --format g2o, toro, isam or gtsam (a .txt file "
-            "may be iSAM's, whose noise is square-root information, or GTSAM's, whose noise is covariance)"));
+      path,
+      ": the graph format cannot be told from the name; give --format g2o, toro, isam or gtsam (a .txt file "
+      "may be iSAM's, whose noise is square-root information, or GTSAM's, whose noise is covariance)"));
 }
 
 const char* ToString(NoiseConvention noise) {
@@ -78,19 +79,20 @@ absl::StatusOr<PoseGraph> ParseGraph(std::string_view text, const std::string& s
                                      std::optional<NoiseConvention> noise) {
   const NoiseConvention convention = noise.value_or(DefaultNoise(format));
   PoseGraph graph;
-  const absl::Status status = internal::ForEachLine(absl::string_view(text.data(), text.size()), source, [&](internal::GraphLine& line) {
-    switch (format) {
-      case GraphFormat::kG2o:
-        return internal::ParseG2oLine(line, convention, &graph);
-      case GraphFormat::kToro:
-        return internal::ParseToroLine(line, convention, &graph);
-      case GraphFormat::kIsam:
-        return internal::ParseIsamLine(line, convention, /*gtsam_landmarks=*/false, &graph);
-      case GraphFormat::kGtsam:
-        return internal::ParseIsamLine(line, convention, /*gtsam_landmarks=*/true, &graph);
-    }
-    return absl::InternalError("unknown format");
-  });
+  const absl::Status status =
+      internal::ForEachLine(absl::string_view(text.data(), text.size()), source, [&](internal::GraphLine& line) {
+        switch (format) {
+          case GraphFormat::kG2o:
+            return internal::ParseG2oLine(line, convention, &graph);
+          case GraphFormat::kToro:
+            return internal::ParseToroLine(line, convention, &graph);
+          case GraphFormat::kIsam:
+            return internal::ParseIsamLine(line, convention, /*gtsam_landmarks=*/false, &graph);
+          case GraphFormat::kGtsam:
+            return internal::ParseIsamLine(line, convention, /*gtsam_landmarks=*/true, &graph);
+        }
+        return absl::InternalError("unknown format");
+      });
   if (!status.ok()) return status;
   if (graph.poses.empty()) return absl::InvalidArgumentError(absl::StrCat(source, ": the graph has no pose"));
   return graph;
@@ -99,7 +101,7 @@ absl::StatusOr<PoseGraph> ParseGraph(std::string_view text, const std::string& s
 absl::StatusOr<PoseGraph> ReadGraph(const std::string& path, const GraphReadOptions& options) {
   absl::StatusOr<GraphFormat> format = options.format.has_value() ? *options.format : GraphFormatFromPath(path);
   if (!format.ok()) return format.status();
-  absl::StatusOr<std::string> text = subslam::internal::ReadFileToString(path);
+  absl::StatusOr<std::string> text = subslam::io::ReadFileToString(path);
   if (!text.ok()) return text.status();
   return ParseGraph(*text, path, *format, options.noise);
 }

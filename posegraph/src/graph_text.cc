@@ -17,8 +17,8 @@ absl::Status GraphLine::Expect(std::initializer_list<const char*> names) {
     return Error(absl::StrCat("missing field '", names_[size()], "' (field ", size() + 1, " of ", want, ")"));
   }
   if (size() > want) {
-    return Error(absl::StrCat(size() - want, " field(s) beyond the ", want, " expected, from '", fields_[want + 1],
-                              "'"));
+    return Error(
+        absl::StrCat(size() - want, " field(s) beyond the ", want, " expected, from '", fields_[want + 1], "'"));
   }
   return absl::OkStatus();
 }
@@ -80,7 +80,8 @@ absl::Status ParseVertexEstimate(const GraphLine& line, bool pose, bool shared_i
   auto id = line.Id(1);
   if (!id.ok()) return id.status();
   if (shared_ids && (pose ? graph->FindPoint(*id) : graph->FindPose(*id)) >= 0) {
-    return line.FieldError(1, absl::StrCat("names ", pose ? "point " : "pose ", *id, ", not a ", pose ? "pose" : "point"));
+    return line.FieldError(1,
+                           absl::StrCat("names ", pose ? "point " : "pose ", *id, ", not a ", pose ? "pose" : "point"));
   }
   auto v = line.Numbers(2, pose ? 3 : 2);
   if (!v.ok()) return v.status();

@@ -8,12 +8,12 @@
 #include <array>
 #include <initializer_list>
 #include <string>
-#include "absl/strings/string_view.h"
 #include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "subslam/posegraph/graph_format.h"
 
 namespace subslam::posegraph::internal {

@@ -38,8 +38,10 @@ absl::Status ParseIsamLine(GraphLine& line, NoiseConvention noise, bool gtsam_la
     if (gtsam_landmarks) {
       const double c11 = (*upper)[0], c12 = (*upper)[1], c22 = (*upper)[2];
       if (!(c11 > 0.0) || c12 != 0.0 || std::abs(c11 - c22) > 1e-9 * c11) {
-        return line.Error(absl::StrCat("GTSAM's bearing-range reading needs a covariance c·I (c11 = c22 > 0, c12 = 0); "
-                                       "found ", c11, " ", c12, " ", c22));
+        return line.Error(
+            absl::StrCat("GTSAM's bearing-range reading needs a covariance c·I (c11 = c22 > 0, c12 = 0); "
+                         "found ",
+                         c11, " ", c12, " ", c22));
       }
       const double range = std::hypot((*z)[0], (*z)[1]);
       if (!(range > 0.0)) return line.Error("a landmark at the pose itself has no bearing");
@@ -122,9 +124,9 @@ absl::StatusOr<std::string> FormatIsam(const PoseGraph& graph, NoiseConvention n
         const BearingRangeMeasurement& m = graph.bearing_range_measurements[ref.index];
         const Eigen::Matrix2d& I = m.information;
         if (I(0, 1) != 0.0) {
-          return absl::InvalidArgumentError(absl::StrCat(
-              "bearing-range measurement ", graph.poses[m.pose].id, " -> ", graph.points[m.point].id,
-              ": correlated bearing and range noise has no line in this format"));
+          return absl::InvalidArgumentError(
+              absl::StrCat("bearing-range measurement ", graph.poses[m.pose].id, " -> ", graph.points[m.point].id,
+                           ": correlated bearing and range noise has no line in this format"));
         }
         const double c = 1.0 / I(1, 1);  // range variance
         if (gtsam_landmarks && std::abs(I(0, 0) - kGtsamLandmarkRange * I(1, 1)) <= 1e-12 * I(0, 0)) {

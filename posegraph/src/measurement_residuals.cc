@@ -7,8 +7,7 @@ namespace subslam::posegraph {
 Eigen::Vector3d OdometryResidual(const Pose2& z, const Pose2& from, const Pose2& to, Eigen::Matrix3d* J_from,
                                  Eigen::Matrix3d* J_to) {
   Eigen::Matrix3d J_rel_from, J_rel_to, J_e_rel;
-  const Pose2 rel = Between(from, to, J_from != nullptr ? &J_rel_from : nullptr,
-                            J_to != nullptr ? &J_rel_to : nullptr);
+  const Pose2 rel = Between(from, to, J_from != nullptr ? &J_rel_from : nullptr, J_to != nullptr ? &J_rel_to : nullptr);
   const Pose2 e = Between(z, rel, nullptr, &J_e_rel);
   if (J_from != nullptr) *J_from = J_e_rel * J_rel_from;
   if (J_to != nullptr) *J_to = J_e_rel * J_rel_to;

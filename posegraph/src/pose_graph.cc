@@ -98,7 +98,8 @@ absl::Status PoseGraph::Validate() const {
     }
   }
   for (const PointVertex& p : points) {
-    if (!p.estimate.allFinite()) return absl::InvalidArgumentError(absl::StrCat("point ", p.id, ": estimate not finite"));
+    if (!p.estimate.allFinite())
+      return absl::InvalidArgumentError(absl::StrCat("point ", p.id, ": estimate not finite"));
   }
   Components components(num_poses + num_points);
   const auto pose_ok = [&](int i) { return i >= 0 && i < num_poses; };

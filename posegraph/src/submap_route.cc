@@ -38,17 +38,19 @@ struct RunSolution {
 
 absl::Status CheckRouteApplies(const PoseGraph& graph) {
   if (!graph.bearing_measurements.empty()) {
-    return absl::UnimplementedError(absl::StrCat("the submap route needs point or bearing-range sightings; the graph has ",
-                                                 graph.bearing_measurements.size(), " bearing-only ones"));
+    return absl::UnimplementedError(
+        absl::StrCat("the submap route needs point or bearing-range sightings; the graph has ",
+                     graph.bearing_measurements.size(), " bearing-only ones"));
   }
   const int num_poses = static_cast<int>(graph.poses.size());
   if (num_poses < 2) return absl::InvalidArgumentError("the submap route needs at least two poses");
   std::vector<bool> reached(num_poses, false);
   for (const OdometryMeasurement& m : graph.odometry) {
     if (m.to != m.from + 1 || reached[m.to]) {
-      return absl::UnimplementedError(absl::StrCat("the submap route needs the odometry as a chain through the poses in "
-                                                   "order; measurement ",
-                                                   graph.poses[m.from].id, " -> ", graph.poses[m.to].id, " is not its next step"));
+      return absl::UnimplementedError(
+          absl::StrCat("the submap route needs the odometry as a chain through the poses in "
+                       "order; measurement ",
+                       graph.poses[m.from].id, " -> ", graph.poses[m.to].id, " is not its next step"));
     }
     reached[m.to] = true;
   }
@@ -65,8 +67,7 @@ absl::Status CheckRouteApplies(const PoseGraph& graph) {
 // Gauss-Newton over one run in the frame of its first pose (held at the identity), then
 // the Gaussian over [last pose, points] from the inverse of the information.
 absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, const std::vector<int>& odometry_into,
-                                     const std::vector<std::vector<Sighting>>& sightings, int id,
-                                     int max_iterations) {
+                                     const std::vector<std::vector<Sighting>>& sightings, int id, int max_iterations) {
   const int steps = run.last - run.first;
   std::vector<Pose2> poses(steps + 1);  // poses[0]: the first, the identity
   for (int k = 1; k <= steps; ++k) poses[k] = Compose(poses[k - 1], graph.odometry[odometry_into[run.first + k]].z);
@@ -80,7 +81,8 @@ absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, con
   }
   absl::flat_hash_map<int, int> slot;
   for (const auto& [k, s] : run_sightings) {
-    const int point = s.bearing_range ? graph.bearing_range_measurements[s.index].point : graph.point_measurements[s.index].point;
+    const int point =
+        s.bearing_range ? graph.bearing_range_measurements[s.index].point : graph.point_measurements[s.index].point;
     if (slot.contains(point)) continue;
     slot[point] = static_cast<int>(point_of_slot.size());
     point_of_slot.push_back(point);
@@ -165,7 +167,8 @@ absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, con
   Eigen::LDLT<Eigen::MatrixXd> ldlt;
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
     ldlt.compute(H);
-    if (ldlt.info() != Eigen::Success) return absl::InternalError(absl::StrCat("local map ", id, ": factorisation failed"));
+    if (ldlt.info() != Eigen::Success)
+      return absl::InternalError(absl::StrCat("local map ", id, ": factorisation failed"));
     const Eigen::VectorXd step = -ldlt.solve(g);
     // Halve a step that raises the cost (Gauss-Newton from dead reckoning seldom needs it).
     const std::vector<Pose2> saved_poses = poses;
@@ -185,7 +188,8 @@ absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, con
     if (!descended || scale * step.cwiseAbs().maxCoeff() < 1e-9) break;
   }
   ldlt.compute(H);
-  if (ldlt.info() != Eigen::Success) return absl::InternalError(absl::StrCat("local map ", id, ": factorisation failed"));
+  if (ldlt.info() != Eigen::Success)
+    return absl::InternalError(absl::StrCat("local map ", id, ": factorisation failed"));
   // The marginal over [last pose, points]: those columns of H⁻¹.
   std::vector<int> keep;
   for (int c = 0; c < 3; ++c) keep.push_back(pose_col(steps) + c);

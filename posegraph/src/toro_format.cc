@@ -26,8 +26,8 @@ absl::Status ParseToroLine(GraphLine& line, NoiseConvention noise, PoseGraph* gr
 
 absl::StatusOr<std::string> FormatToro(const PoseGraph& graph, NoiseConvention noise) {
   if (!graph.points.empty()) {
-    return absl::InvalidArgumentError(absl::StrCat("TORO holds poses only; the graph has ", graph.points.size(),
-                                                   " points (use g2o or isam)"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("TORO holds poses only; the graph has ", graph.points.size(), " points (use g2o or isam)"));
   }
   std::string out;
   for (const PoseVertex& p : graph.poses) {

@@ -5,13 +5,11 @@
 
 namespace subslam::sim {
 
-WaypointFollower::WaypointFollower(std::vector<Eigen::Vector2d> waypoints,
-                                   const WaypointFollowerOptions& options)
+WaypointFollower::WaypointFollower(std::vector<Eigen::Vector2d> waypoints, const WaypointFollowerOptions& options)
     : waypoints_(std::move(waypoints)), options_(options) {}
 
 Eigen::Vector2d WaypointFollower::Control(const Pose2& pose, double dt) {
-  while (next_ < waypoints_.size() &&
-         (waypoints_[next_] - pose.translation()).norm() < options_.reach_m) {
+  while (next_ < waypoints_.size() && (waypoints_[next_] - pose.translation()).norm() < options_.reach_m) {
     ++next_;
   }
   if (Finished()) return {0.0, options_.car_like ? u1_ : 0.0};
@@ -31,8 +29,7 @@ Eigen::Vector2d KanayamaControl(const Pose2& pose, const ReferenceState& referen
                                 const ReferenceTrackerGains& gains) {
   const Pose2 e = Between(pose, reference.pose);  // reference in the vehicle frame
   const double v = reference.v * std::cos(e.theta) + gains.k_x * e.x;
-  const double omega =
-      reference.omega + reference.v * (gains.k_y * e.y + gains.k_theta * std::sin(e.theta));
+  const double omega = reference.omega + reference.v * (gains.k_y * e.y + gains.k_theta * std::sin(e.theta));
   return {v, omega};
 }
 

@@ -38,9 +38,8 @@ Pose2 StartPose(const std::vector<Vector2d>& waypoints) {
 
 // Landmarks scattered along a path: arc length uniform, lateral offset uniform in
 // ±half_width (never closer than min_offset to the path centre line).
-std::vector<io::TruthLandmark> CorridorLandmarks(const std::vector<Vector2d>& path, int count,
-                                                 double half_width, double min_offset,
-                                                 std::mt19937_64& rng) {
+std::vector<io::TruthLandmark> CorridorLandmarks(const std::vector<Vector2d>& path, int count, double half_width,
+                                                 double min_offset, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> along(0.0, PolylineLength(path));
   std::uniform_real_distribution<double> across(min_offset, half_width);
   std::bernoulli_distribution side(0.5);
@@ -116,18 +115,18 @@ ScenarioConfig FmjEllipse(int fmj_case, std::mt19937_64& world) {
   ScenarioConfig c;
   c.name = "fmj-ellipse";
   c.motion.model = io::MotionModelType::kUnicycle;
-  c.motion.noise = {0.1, DegToRad(2.0), 0.0, 0.0};  // ours: FMJ gives no values
+  c.motion.noise = {0.1, DegToRad(2.0), 0.0, 0.0};        // ours: FMJ gives no values
   c.sensor = {0.1, DegToRad(1.0), 0.0, 12.0, -kPi, kPi};  // ours
   c.control_rate_hz = 40.0;
-  c.observation_every = 4;  // 10 Hz (ours)
+  c.observation_every = 4;                // 10 Hz (ours)
   const double period = 2.0 * kPi / 0.1;  // one lap of FMJ Eq. 11
   c.max_duration_s = 1.5 * period;
   c.guidance = Guidance::kReference;
   c.reference = [](double t) {
     // FMJ Eq. 11: x = 30 sin(0.1 t), y = 20 cos(0.1 t) − 20.
     const double s = std::sin(0.1 * t), co = std::cos(0.1 * t);
-    const double dx = 3.0 * co, dy = -2.0 * s;           // first derivatives
-    const double ddx = -0.3 * s, ddy = -0.2 * co;        // second derivatives
+    const double dx = 3.0 * co, dy = -2.0 * s;     // first derivatives
+    const double ddx = -0.3 * s, ddy = -0.2 * co;  // second derivatives
     ReferenceState r;
     r.pose = Pose2(30.0 * s, 20.0 * co - 20.0, std::atan2(dy, dx));
     r.v = std::hypot(dx, dy);
@@ -307,8 +306,7 @@ std::vector<std::string> ScenarioNames() {
   return {"combined-2km", "hybrid-120m", "fmj-ellipse", "iseif-circle", "random", "camera-robot"};
 }
 
-absl::StatusOr<ScenarioConfig> MakeScenario(const std::string& name,
-                                            const ScenarioOptions& options) {
+absl::StatusOr<ScenarioConfig> MakeScenario(const std::string& name, const ScenarioOptions& options) {
   if (absl::Status s = options.Validate(); !s.ok()) return s;
   std::mt19937_64 world(options.world_seed.value_or(options.seed) * 0x9E3779B97F4A7C15ULL + 17);
   ScenarioConfig c;
@@ -325,16 +323,16 @@ absl::StatusOr<ScenarioConfig> MakeScenario(const std::string& name,
   } else if (name == "camera-robot") {
     c = CameraRobot(world);
   } else {
-    return absl::InvalidArgumentError(absl::StrCat("unknown scenario \"", name, "\" (known: ",
-                                                   absl::StrJoin(ScenarioNames(), ", "), ")"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("unknown scenario \"", name, "\" (known: ", absl::StrJoin(ScenarioNames(), ", "), ")"));
   }
   c.detection_probability = options.detection_probability.value_or(c.detection_probability);
   c.false_alarm_probability = options.false_alarm_probability.value_or(c.false_alarm_probability);
   if (options.duration_s.has_value()) c.max_duration_s = std::min(c.max_duration_s, *options.duration_s);
   if (options.moving_objects.has_value()) {
     if (*options.moving_objects > 0 && c.moving_object_region.isEmpty()) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("moving objects must be 0 in scenario \"", name, "\" (only camera-robot has a region for them)"));
+      return absl::InvalidArgumentError(absl::StrCat("moving objects must be 0 in scenario \"", name,
+                                                     "\" (only camera-robot has a region for them)"));
     }
     c.moving_objects = *options.moving_objects;
   }

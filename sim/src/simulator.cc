@@ -155,8 +155,7 @@ absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed
   return d;
 }
 
-absl::StatusOr<io::Dataset> SimulateScenario(const std::string& name,
-                                             const ScenarioOptions& options) {
+absl::StatusOr<io::Dataset> SimulateScenario(const std::string& name, const ScenarioOptions& options) {
   absl::StatusOr<ScenarioConfig> config = MakeScenario(name, options);
   if (!config.ok()) return config.status();
   return Simulate(*config, options.seed);

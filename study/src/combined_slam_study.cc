@@ -95,8 +95,9 @@ std::string PaperFinding(const std::string& method, const std::vector<double>&) 
 std::unique_ptr<Study> MakeCombinedSlamStudy() {
   MonteCarloSpec spec;
   spec.name = "combined-slam";
-  spec.title = "Combined SLAM, section 7: consistency and accuracy over Monte Carlo runs on the 2 km world, and the "
-               "joining times of Table 1";
+  spec.title =
+      "Combined SLAM, section 7: consistency and accuracy over Monte Carlo runs on the 2 km world, and the "
+      "joining times of Table 1";
   spec.scenario = "combined-2km";
   spec.paper_trials = 50;
   spec.methods = Methods();

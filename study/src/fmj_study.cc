@@ -53,7 +53,8 @@ std::vector<StudyMethod> Methods() {
 std::string PaperFinding(const std::string& method, const std::vector<double>& setting) {
   const bool case1 = !setting.empty() && setting[0] == 1.0;
   if (method == "fmj") {
-    return case1 ? "position CI below 1 throughout, 0.125 at the end; 92.2 s" : "68.6 s; the lowest joining time and CI";
+    return case1 ? "position CI below 1 throughout, 0.125 at the end; 92.2 s"
+                 : "68.6 s; the lowest joining time and CI";
   }
   if (method == "fmj-fixed") return case1 ? "–" : "more joining time and a higher CI than fmj";
   return case1 ? "368 s" : "more time and a higher CI than fmj";
@@ -64,8 +65,9 @@ std::string PaperFinding(const std::string& method, const std::vector<double>& s
 std::unique_ptr<Study> MakeFmjStudy() {
   MonteCarloSpec spec;
   spec.name = "fmj";
-  spec.title = "Fast Map Joining, section IV and Table I: density-sized EKF local maps joined hierarchically on the "
-               "ellipse, both cases, against EKF-SLAM";
+  spec.title =
+      "Fast Map Joining, section IV and Table I: density-sized EKF local maps joined hierarchically on the "
+      "ellipse, both cases, against EKF-SLAM";
   spec.scenario = "fmj-ellipse";
   spec.paper_trials = 20;
   spec.setting_names = {"fmj_case"};

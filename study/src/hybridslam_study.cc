@@ -71,7 +71,8 @@ const std::vector<StudyMethod>& Methods() {
          TenSecondMaps(o);
          o->backend.kind = pipeline::Backend::kEkf;
        }},
-      {"hybrid", "FastSLAM 2.0 local maps (500 particles, data-association sampling) closed every 10 s, dense EKF joining",
+      {"hybrid",
+       "FastSLAM 2.0 local maps (500 particles, data-association sampling) closed every 10 s, dense EKF joining",
        absl::StrCat("--frontend rbpf --particles 500 --sample_association ", kTenSecondFlags, " --backend ekf"),
        [](pipeline::RunOptions* o) {
          o->frontend = pipeline::Frontend::kRbpf;
@@ -111,14 +112,12 @@ class HybridSlamStudy final : public Study {
            "reliabilities (alpha, beta) on random 120 m worlds";
   }
   int paper_trials() const override { return 100; }
-  std::vector<std::string> method_names() const override {
-    return MethodNames(Methods());
-  }
+  std::vector<std::string> method_names() const override { return MethodNames(Methods()); }
   std::vector<std::string> setting_names() const override { return {"alpha", "beta"}; }
   std::vector<std::string> metric_names() const override {
-    return {"success",        "success_final",  "rms_online_m", "rms_final_m", "final_error_m",
-            "mean_nees_online", "nees_in_bounds_online", "landmarks",  "matched",    "spurious",
-            "duplicates",     "landmarks_seen", "local_maps"};
+    return {"success",          "success_final",         "rms_online_m", "rms_final_m", "final_error_m",
+            "mean_nees_online", "nees_in_bounds_online", "landmarks",    "matched",     "spurious",
+            "duplicates",       "landmarks_seen",        "local_maps"};
   }
 
   std::vector<StudyRun> Runs(int trials, const std::string& /*dataset_dir*/) const override {
@@ -126,8 +125,12 @@ class HybridSlamStudy final : public Study {
     for (const auto& [alpha, beta] : kSettings) {
       for (int trial = 1; trial <= trials; ++trial) {
         for (const StudyMethod& method : Methods()) {
-          runs.push_back({static_cast<int>(runs.size()), method.name, {{"alpha", alpha}, {"beta", beta}}, trial,
-                          static_cast<uint64_t>(trial), ""});
+          runs.push_back({static_cast<int>(runs.size()),
+                          method.name,
+                          {{"alpha", alpha}, {"beta", beta}},
+                          trial,
+                          static_cast<uint64_t>(trial),
+                          ""});
         }
       }
     }
@@ -172,10 +175,12 @@ class HybridSlamStudy final : public Study {
     for (const auto& [alpha, beta] : kSettings) settings.push_back({{"alpha", alpha}, {"beta", beta}});
     return {{"scenario", "hybrid-120m"},
             {"settings", settings},
-            {"seeds", "trial k (1-based) uses --seed k: its own world, noise and detections, the same for every "
-                      "method"},
-            {"success", "the online pose within 10 sigma (Mahalanobis) of the true pose, except for at most 20 "
-                        "consecutive steps"},
+            {"seeds",
+             "trial k (1-based) uses --seed k: its own world, noise and detections, the same for every "
+             "method"},
+            {"success",
+             "the online pose within 10 sigma (Mahalanobis) of the true pose, except for at most 20 "
+             "consecutive steps"},
             {"methods", methods}};
   }
 

@@ -37,7 +37,8 @@ std::vector<StudyMethod> Methods() {
          Common(o);
          o->frontend = pipeline::Frontend::kSeif;
        }},
-      {"iseif", "ISEIF: SEIF with the iterated MAP update every 100th scan", std::string(kCommonFlags) + " --frontend iseif",
+      {"iseif", "ISEIF: SEIF with the iterated MAP update every 100th scan",
+       std::string(kCommonFlags) + " --frontend iseif",
        [](pipeline::RunOptions* o) {
          Common(o);
          o->frontend = pipeline::Frontend::kIseif;
@@ -74,15 +75,17 @@ std::string PaperFinding(const std::string& method, const std::vector<double>&) 
 std::unique_ptr<Study> MakeIseifStudy() {
   MonteCarloSpec spec;
   spec.name = "iseif";
-  spec.title = "Iterative Sparse Extended Information Filter, section 4.1 and Table 2: EKF-SLAM, SEIF and ISEIF over 50 "
-               "runs on the circle";
+  spec.title =
+      "Iterative Sparse Extended Information Filter, section 4.1 and Table 2: EKF-SLAM, SEIF and ISEIF over 50 "
+      "runs on the circle";
   spec.scenario = "iseif-circle";
   spec.paper_trials = 50;
   spec.methods = Methods();
   spec.series_period_s = 5.0;
   spec.paper_finding = PaperFinding;
-  spec.paper_timings = "The paper (Matlab, average of 50 runs): EKF 37.17 s, SEIF 4.78 s, ISEIF 5.60 s; Victoria Park: "
-                      "SEIF 1,374 s, ISEIF 1,658 s.";
+  spec.paper_timings =
+      "The paper (Matlab, average of 50 runs): EKF 37.17 s, SEIF 4.78 s, ISEIF 5.60 s; Victoria Park: "
+      "SEIF 1,374 s, ISEIF 1,658 s.";
   spec.dataset_title = "Victoria Park, the paper's Table 3 (`--dataset DIR`)";
   spec.dataset_methods = DatasetMethods();
   spec.paper_dataset_finding = PaperDatasetFinding;

@@ -51,8 +51,8 @@ class MonteCarloStudy final : public Study {
   bool uses_dataset() const override { return !spec_.dataset_methods.empty(); }
   std::vector<std::string> setting_names() const override { return spec_.setting_names; }
   std::vector<std::string> metric_names() const override {
-    return {"rms_online_m", "rms_final_m", "rms_x_m",   "rms_y_m",   "rms_heading_rad", "final_error_m",
-            "mean_nees_online", "nees_in_bounds_online", "success", "map_rms_m", "map_rms_x_m", "map_rms_y_m",
+    return {"rms_online_m",     "rms_final_m",           "rms_x_m", "rms_y_m",   "rms_heading_rad", "final_error_m",
+            "mean_nees_online", "nees_in_bounds_online", "success", "map_rms_m", "map_rms_x_m",     "map_rms_y_m",
             "local_maps"};
   }
   std::vector<std::string> series_names() const override { return {"t_s", "nees", "position_error_m"}; }
@@ -145,9 +145,19 @@ class MonteCarloStudy final : public Study {
     }
     const std::string nan = "nan";
     RunMeasurement m;
-    m.metrics = {FormatNumber(r->gps_online->rms_m), FormatNumber(r->gps_final->rms_m),
-                 FormatNumber(r->gps_final->rms_x_m), FormatNumber(r->gps_final->rms_y_m), nan, nan, nan, nan, nan,
-                 nan, nan, nan, absl::StrCat(r->local_maps.size())};
+    m.metrics = {FormatNumber(r->gps_online->rms_m),
+                 FormatNumber(r->gps_final->rms_m),
+                 FormatNumber(r->gps_final->rms_x_m),
+                 FormatNumber(r->gps_final->rms_y_m),
+                 nan,
+                 nan,
+                 nan,
+                 nan,
+                 nan,
+                 nan,
+                 nan,
+                 nan,
+                 absl::StrCat(r->local_maps.size())};
     m.timings = JoinTimings(*r);
     return m;
   }
@@ -179,12 +189,13 @@ class MonteCarloStudy final : public Study {
     json settings = json::object();
     for (size_t s = 0; s < spec_.settings.size(); ++s) settings[spec_.setting_names[s]] = spec_.settings[s];
     json config = {{"scenario", spec_.scenario},
-            {"settings", settings},
-            {"seeds", "trial k (1-based) uses --seed k: its own world, noise and detections, the same for every "
-                      "method"},
-            {"series", absl::StrFormat("the online pose every %s s: its NEES (3 dof) and position error",
-                                       FormatNumber(spec_.series_period_s))},
-            {"methods", MethodsJson(spec_.methods, command)}};
+                   {"settings", settings},
+                   {"seeds",
+                    "trial k (1-based) uses --seed k: its own world, noise and detections, the same for every "
+                    "method"},
+                   {"series", absl::StrFormat("the online pose every %s s: its NEES (3 dof) and position error",
+                                              FormatNumber(spec_.series_period_s))},
+                   {"methods", MethodsJson(spec_.methods, command)}};
     if (!spec_.dataset_methods.empty()) {
       config["dataset_methods"] = MethodsJson(spec_.dataset_methods, "subslam run --dataset DATASET");
     }
@@ -233,22 +244,28 @@ class MonteCarloStudy final : public Study {
                     " s (ANEES) against its two-sided 95 % χ² band for that many runs; the consistency index CI = "
                     "NEES / χ²₃(0.95) averaged over the runs; success: the 10σ test.\n\n");
     const std::string settings_header = Header(" | ");
-    absl::StrAppend(&md, "| method", settings_header, " | runs | ANEES inside the band | mean CI < 1 | max mean CI | 10σ "
-                    "successes | local maps | the paper |\n", Rule(8 + spec_.setting_names.size()));
+    absl::StrAppend(&md, "| method", settings_header,
+                    " | runs | ANEES inside the band | mean CI < 1 | max mean CI | 10σ "
+                    "successes | local maps | the paper |\n",
+                    Rule(8 + spec_.setting_names.size()));
     for (const json& row : summary["rows"]) {
       if (row.contains("dataset")) continue;
-      absl::StrAppend(&md, absl::StrFormat("| %s%s | %d | %.1f %% of %d times | %.1f %% | %.3g | %d / %d | %.0f | %s |\n",
-                                           row["method"].get<std::string>(), SettingCells(row), row["trials"].get<int>(),
-                                           100 * row["anees_inside_band"].get<double>(), row["anees_times"].get<int>(),
-                                           100 * row["mean_ci_below_one"].get<double>(),
-                                           row["max_mean_ci"].get<double>(), row["successes"].get<int>(),
-                                           row["trials"].get<int>(), row["median_local_maps"].get<double>(),
-                                           row["paper"].get<std::string>()));
+      absl::StrAppend(&md,
+                      absl::StrFormat("| %s%s | %d | %.1f %% of %d times | %.1f %% | %.3g | %d / %d | %.0f | %s |\n",
+                                      row["method"].get<std::string>(), SettingCells(row), row["trials"].get<int>(),
+                                      100 * row["anees_inside_band"].get<double>(), row["anees_times"].get<int>(),
+                                      100 * row["mean_ci_below_one"].get<double>(), row["max_mean_ci"].get<double>(),
+                                      row["successes"].get<int>(), row["trials"].get<int>(),
+                                      row["median_local_maps"].get<double>(), row["paper"].get<std::string>()));
     }
-    absl::StrAppend(&md, "\nAccuracy, averaged over the runs (the final trajectory and map; online: the estimate as it "
-                    "was at each step, median over the runs):\n\n| method", settings_header,
-                    " | pose x [m] | pose y [m] | heading [°] | landmark x [m] | landmark y [m] | online RMS [m] | final "
-                    "RMS [m] |\n", Rule(8 + spec_.setting_names.size()));
+    absl::StrAppend(
+        &md,
+        "\nAccuracy, averaged over the runs (the final trajectory and map; online: the estimate as it "
+        "was at each step, median over the runs):\n\n| method",
+        settings_header,
+        " | pose x [m] | pose y [m] | heading [°] | landmark x [m] | landmark y [m] | online RMS [m] | final "
+        "RMS [m] |\n",
+        Rule(8 + spec_.setting_names.size()));
     for (const json& row : summary["rows"]) {
       if (row.contains("dataset")) continue;
       absl::StrAppend(&md, "| ", row["method"].get<std::string>(), SettingCells(row));
@@ -269,10 +286,10 @@ class MonteCarloStudy final : public Study {
                         "--- | --- |\n");
         dataset_header = true;
       }
-      absl::StrAppend(&md, absl::StrFormat("| %s | %.2f | %.2f | %.2f | %.2f | %s |\n", row["method"].get<std::string>(),
-                                           row["gps_rms_x_m"].get<double>(), row["gps_rms_y_m"].get<double>(),
-                                           row["gps_rms_m"].get<double>(), row["gps_rms_online_m"].get<double>(),
-                                           row["paper"].get<std::string>()));
+      absl::StrAppend(&md, absl::StrFormat("| %s | %.2f | %.2f | %.2f | %.2f | %s |\n",
+                                           row["method"].get<std::string>(), row["gps_rms_x_m"].get<double>(),
+                                           row["gps_rms_y_m"].get<double>(), row["gps_rms_m"].get<double>(),
+                                           row["gps_rms_online_m"].get<double>(), row["paper"].get<std::string>()));
     }
     return md;
   }

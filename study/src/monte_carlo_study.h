@@ -1,9 +1,8 @@
 // A Monte Carlo consistency study: methods run on a simulated scenario over trials (and,
-// optionally, settings of the scenario) — and, for some, on a real data set — measured by the pose NEES of the online estimate
-// averaged over the runs against time with its χ² band, the consistency index, RMS errors
-// of the pose and the map, and the joining times. Combined SLAM §7, Fast Map Joining §IV
-// and ISEIF §4 are studies of this shape (combined_slam_study.cc, fmj_study.cc,
-// iseif_study.cc).
+// optionally, settings of the scenario) — and, for some, on a real data set — measured by the pose NEES of the online
+// estimate averaged over the runs against time with its χ² band, the consistency index, RMS errors of the pose and the
+// map, and the joining times. Combined SLAM §7, Fast Map Joining §IV and ISEIF §4 are studies of this shape
+// (combined_slam_study.cc, fmj_study.cc, iseif_study.cc).
 #ifndef SUBSLAM_STUDY_SRC_MONTE_CARLO_STUDY_H_
 #define SUBSLAM_STUDY_SRC_MONTE_CARLO_STUDY_H_
 

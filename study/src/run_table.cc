@@ -50,8 +50,8 @@ absl::StatusOr<double> RunTable::Number(int row, const std::string& name) const 
   if (*text == "nan") return std::nan("");
   double value = 0.0;
   if (!absl::SimpleAtod(*text, &value)) {
-    return absl::InvalidArgumentError(absl::StrCat("row ", row + 1, ", column ", name, ": \"", *text,
-                                                   "\" is not a number"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("row ", row + 1, ", column ", name, ": \"", *text, "\" is not a number"));
   }
   return value;
 }
@@ -101,8 +101,8 @@ absl::StatusOr<RunTable> RunTable::Read(const std::string& path) {
     if (line.empty()) continue;
     std::vector<std::string> row = absl::StrSplit(line, ',');
     if (row.size() != table.columns_.size()) {
-      return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": ", row.size(), " values, the header has ",
-                                                     table.columns_.size(), " columns"));
+      return absl::InvalidArgumentError(absl::StrCat(path, ":", line_number, ": ", row.size(),
+                                                     " values, the header has ", table.columns_.size(), " columns"));
     }
     table.rows_.push_back(std::move(row));
   }

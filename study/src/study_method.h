@@ -5,10 +5,9 @@
 #define SUBSLAM_STUDY_SRC_STUDY_METHOD_H_
 
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
 #include "subslam/io/dataset.h"

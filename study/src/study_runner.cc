@@ -87,8 +87,8 @@ std::vector<StudyRun> SelectedRuns(const Study& study, int trials, const std::ve
   return runs;
 }
 
-json ConfigJson(const Study& study, int trials, const std::vector<std::string>& methods,
-                const std::string& dataset_dir, const Shard& shard, int runs_total) {
+json ConfigJson(const Study& study, int trials, const std::vector<std::string>& methods, const std::string& dataset_dir,
+                const Shard& shard, int runs_total) {
   return {{"study", study.name()},
           {"dataset", dataset_dir},
           {"title", study.title()},
@@ -108,8 +108,8 @@ class ProgressLine {
     if (!enabled_) return;
     const double elapsed = absl::ToDoubleSeconds(absl::Now() - start_);
     const double left = done > 0 ? elapsed * (total_ - done) / done : 0.0;
-    std::fprintf(stderr, "\rstudy %s: %d / %d runs, %.0f s elapsed, about %.0f s left   ", name_.c_str(), done,
-                 total_, elapsed, left);
+    std::fprintf(stderr, "\rstudy %s: %d / %d runs, %.0f s elapsed, about %.0f s left   ", name_.c_str(), done, total_,
+                 elapsed, left);
     if (done == total_) std::fprintf(stderr, "\n");
     std::fflush(stderr);
   }
@@ -123,8 +123,9 @@ class ProgressLine {
 
 // timings.md: per method, the median and minimum of each timing column.
 std::string TimingsMarkdown(const Study& study, const RunTable& runs, const RunTable& timings) {
-  std::string md = absl::StrCat("# ", study.name(), ": run times\n\nWall-clock seconds per run (median / minimum over ",
-                                "the runs), each run on one thread; they vary with the machine and its load.\n\n| method |");
+  std::string md =
+      absl::StrCat("# ", study.name(), ": run times\n\nWall-clock seconds per run (median / minimum over ",
+                   "the runs), each run on one thread; they vary with the machine and its load.\n\n| method |");
   std::string rule = "| --- |";
   for (size_t c = 1; c < timings.columns().size(); ++c) {
     absl::StrAppend(&md, " ", timings.columns()[c], " |");
@@ -194,7 +195,8 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
     }
   }
   if (!options.dataset_dir.empty() && !study.uses_dataset()) {
-    return absl::InvalidArgumentError(absl::StrCat("study ", study.name(), " has no runs on a real data set (--dataset)"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("study ", study.name(), " has no runs on a real data set (--dataset)"));
   }
   const std::vector<StudyRun> all = SelectedRuns(study, trials, options.methods, options.dataset_dir);
   std::vector<StudyRun> runs;
@@ -205,15 +207,16 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
   std::filesystem::create_directories(options.out_dir, ec);
   if (ec) return absl::InternalError(absl::StrCat(options.out_dir, ": ", ec.message()));
   const int total_runs = static_cast<int>(all.size());
-  if (absl::Status s = WriteText(options.out_dir + "/config.json",
-                                 ConfigJson(study, trials, options.methods, options.dataset_dir, options.shard, total_runs).dump(2) + "\n");
+  if (absl::Status s = WriteText(
+          options.out_dir + "/config.json",
+          ConfigJson(study, trials, options.methods, options.dataset_dir, options.shard, total_runs).dump(2) + "\n");
       !s.ok()) {
     return s;
   }
 
-  const int workers = std::max(1, std::min<int>(options.workers > 0 ? options.workers
-                                                                     : static_cast<int>(std::thread::hardware_concurrency()),
-                                                static_cast<int>(runs.size())));
+  const int workers = std::max(
+      1, std::min<int>(options.workers > 0 ? options.workers : static_cast<int>(std::thread::hardware_concurrency()),
+                       static_cast<int>(runs.size())));
   std::vector<std::optional<RunMeasurement>> measured(runs.size());
   std::vector<double> wall(runs.size(), 0.0);
   std::atomic<size_t> next{0};
@@ -228,7 +231,8 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
       absl::StatusOr<RunMeasurement> m = study.Execute(runs[i]);
       std::lock_guard<std::mutex> lock(mutex);
       if (!m.ok()) {
-        if (first_error.ok()) first_error = absl::Status(m.status().code(), absl::StrCat(Describe(runs[i]), ": ", m.status().message()));
+        if (first_error.ok())
+          first_error = absl::Status(m.status().code(), absl::StrCat(Describe(runs[i]), ": ", m.status().message()));
         stop = true;
         return;
       }
@@ -237,7 +241,8 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
       });
       if (m->metrics.size() != study.metric_names().size() || m->timings.size() != study.timing_names().size() ||
           !series_ok) {
-        if (first_error.ok()) first_error = absl::InternalError(absl::StrCat(Describe(runs[i]), ": wrong number of values"));
+        if (first_error.ok())
+          first_error = absl::InternalError(absl::StrCat(Describe(runs[i]), ": wrong number of values"));
         stop = true;
         return;
       }
@@ -267,8 +272,8 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
     for (double t : measured[i]->timings) timing.push_back(FormatNumber(t));
     if (absl::Status s = timings.Add(std::move(timing)); !s.ok()) return s;
     for (size_t j = 0; j < measured[i]->join_seconds.size(); ++j) {
-      if (absl::Status s = join_times.Add({absl::StrCat(run.index), absl::StrCat(j),
-                                           FormatNumber(measured[i]->join_seconds[j])});
+      if (absl::Status s =
+              join_times.Add({absl::StrCat(run.index), absl::StrCat(j), FormatNumber(measured[i]->join_seconds[j])});
           !s.ok()) {
         return s;
       }
@@ -288,9 +293,8 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
     if (absl::Status s = join_times.Write(options.out_dir + "/join_times.csv"); !s.ok()) return s;
   }
   if (!first_error.ok()) {
-    return absl::Status(first_error.code(),
-                        absl::StrCat(first_error.message(), " (the ", table.num_rows(), " runs measured are in ",
-                                     options.out_dir, "/runs.csv)"));
+    return absl::Status(first_error.code(), absl::StrCat(first_error.message(), " (the ", table.num_rows(),
+                                                         " runs measured are in ", options.out_dir, "/runs.csv)"));
   }
   if (options.shard.count > 1) return absl::OkStatus();
   return Summarise(study, options.out_dir);
@@ -308,22 +312,25 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   for (const std::string& dir : shard_dirs) {
     absl::StatusOr<json> config = ReadJson(dir + "/config.json");
     if (!config.ok()) return config.status();
-    absl::StatusOr<Shard> shard =
-        ShardFromString(config->contains("shard") && (*config)["shard"].is_string() ? (*config)["shard"].get<std::string>() : "");
-    if (!shard.ok()) return absl::InvalidArgumentError(absl::StrCat(dir, "/config.json: field shard: ", shard.status().message()));
+    absl::StatusOr<Shard> shard = ShardFromString(
+        config->contains("shard") && (*config)["shard"].is_string() ? (*config)["shard"].get<std::string>() : "");
+    if (!shard.ok())
+      return absl::InvalidArgumentError(absl::StrCat(dir, "/config.json: field shard: ", shard.status().message()));
     json same = *config;
     same.erase("shard");
     if (!reference) {
       reference = same;
       count = shard->count;
       absl::StatusOr<std::unique_ptr<Study>> made = MakeStudy(same.value("study", ""));
-      if (!made.ok()) return absl::InvalidArgumentError(absl::StrCat(dir, "/config.json: field study: ", made.status().message()));
+      if (!made.ok())
+        return absl::InvalidArgumentError(absl::StrCat(dir, "/config.json: field study: ", made.status().message()));
       study = *std::move(made);
     } else if (same != *reference) {
-      return absl::InvalidArgumentError(absl::StrCat(dir, "/config.json: another study, trial count or configuration than ",
-                                                     shard_dirs.front(), "/config.json"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          dir, "/config.json: another study, trial count or configuration than ", shard_dirs.front(), "/config.json"));
     } else if (shard->count != count) {
-      return absl::InvalidArgumentError(absl::StrCat(dir, ": slice ", shard->index, "/", shard->count, ", the others are of ", count));
+      return absl::InvalidArgumentError(
+          absl::StrCat(dir, ": slice ", shard->index, "/", shard->count, ", the others are of ", count));
     }
     if (!slices.insert(shard->index).second) {
       return absl::InvalidArgumentError(absl::StrCat(dir, ": slice ", shard->index, "/", count, " given twice"));
@@ -339,7 +346,8 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
         if (absl::Status s = join_times.Add(row); !s.ok()) return s;
       }
     }
-    if (part->columns() != RunColumns(*study)) return absl::InvalidArgumentError(absl::StrCat(dir, "/runs.csv: columns are not the study's"));
+    if (part->columns() != RunColumns(*study))
+      return absl::InvalidArgumentError(absl::StrCat(dir, "/runs.csv: columns are not the study's"));
     if (!runs) {
       runs.emplace(part->columns());
       timings.emplace(part_timings->columns());
@@ -382,8 +390,8 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
     return absl::InvalidArgumentError(absl::StrCat(shard_dirs.front(), "/config.json: ", e.what()));
   }
   if (runs->num_rows() != static_cast<int>(expected.size())) {
-    return absl::InvalidArgumentError(absl::StrCat("the slices hold ", runs->num_rows(), " runs of ", expected.size(),
-                                                   " (a slice stopped early?)"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("the slices hold ", runs->num_rows(), " runs of ", expected.size(), " (a slice stopped early?)"));
   }
   for (size_t i = 0; i < expected.size(); ++i) {
     if (runs->rows()[i][0] != absl::StrCat(expected[i].index)) {

@@ -20,7 +20,8 @@ std::vector<int> RowsWhere(const RunTable& runs, const std::vector<std::pair<std
   return rows;
 }
 
-absl::StatusOr<std::vector<double>> Values(const RunTable& runs, const std::vector<int>& rows, const std::string& column) {
+absl::StatusOr<std::vector<double>> Values(const RunTable& runs, const std::vector<int>& rows,
+                                           const std::string& column) {
   std::vector<double> values;
   for (int r : rows) {
     absl::StatusOr<double> v = runs.Number(r, column);

@@ -14,7 +14,8 @@ namespace subslam::study {
 std::vector<int> RowsWhere(const RunTable& runs, const std::vector<std::pair<std::string, std::string>>& key);
 
 // A column's values over some rows (an error if one is not a number).
-absl::StatusOr<std::vector<double>> Values(const RunTable& runs, const std::vector<int>& rows, const std::string& column);
+absl::StatusOr<std::vector<double>> Values(const RunTable& runs, const std::vector<int>& rows,
+                                           const std::string& column);
 
 double Median(std::vector<double> values);  // NaN when empty; NaNs are left out
 double Sum(const std::vector<double>& values);

@@ -3,9 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
-#include <Eigen/LU>
 #include <functional>
 #include <numeric>
 #include <random>
@@ -232,7 +232,8 @@ TEST(JointCompatibility, EqualsExhaustiveSearch) {
           if (c.landmark == pairs[x].second) nu.segment<2>(2 * x) = c.innovation;
         }
         for (int y = 0; y < k; ++y) {
-          S.block<2, 2>(2 * x, 2 * y) = p.covariance_block(pairs[x].first, pairs[x].second, pairs[y].first, pairs[y].second);
+          S.block<2, 2>(2 * x, 2 * y) =
+              p.covariance_block(pairs[x].first, pairs[x].second, pairs[y].first, pairs[y].second);
         }
       }
       return k == 0 ? 0.0 : nu.dot(S.llt().solve(nu));

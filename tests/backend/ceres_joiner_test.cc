@@ -41,7 +41,8 @@ TEST(CeresJoiner, FinishesAtTheIteratedEifOptimumAndAnswersWithIt) {
     e[2] = WrapAngle(e[2]);
     EXPECT_LT(e.cwiseAbs().maxCoeff(), 1e-6) << "anchor " << k;
     moved = std::max(moved, (ceres.anchor(k).vector() - before.anchors()[k].vector()).cwiseAbs().maxCoeff());
-    EXPECT_TRUE(testing::MatricesNear(ceres.AnchorCovariance(k), reference.AnchorCovariance(k), 1e-7));  // estimates 1e-6 apart
+    EXPECT_TRUE(
+        testing::MatricesNear(ceres.AnchorCovariance(k), reference.AnchorCovariance(k), 1e-7));  // estimates 1e-6 apart
   }
   EXPECT_GT(moved, 1e-6);  // the solve changed the estimate the joiner answers with
   for (int j = 0; j < ceres.num_landmarks(); ++j) {
@@ -62,7 +63,8 @@ TEST(CeresJoiner, TreeOfCeresNodesSolvesOnceAtTheRootToTheSameOptimum) {
   const auto truth_of_landmark = [](const MapJoiner& j) {
     std::map<int, int> out;
     for (const SubmapFactor& f : j.graph().factors()) {
-      for (int i = 0; i < f.submap.num_landmarks(); ++i) out[*f.submap.landmarks[i].truth_id] = f.landmark_of_feature[i];
+      for (int i = 0; i < f.submap.num_landmarks(); ++i)
+        out[*f.submap.landmarks[i].truth_id] = f.landmark_of_feature[i];
     }
     return out;
   };

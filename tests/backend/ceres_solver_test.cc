@@ -49,9 +49,8 @@ TEST(SubmapCostFunction, JacobiansMatchNumericalDifferentiation) {
   evaluate(x, &J);
   // The whitened heading residual mixes into every row, so the wrap is handled by
   // perturbing well inside (−π, π] (no angle outputs to unwrap).
-  EXPECT_TRUE(testing::JacobianMatches(J, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-    return evaluate(v, nullptr);
-  }, x, {}));
+  EXPECT_TRUE(testing::JacobianMatches(
+      J, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return evaluate(v, nullptr); }, x, {}));
 }
 
 // Two features of one local map on the same landmark share one parameter block: same
@@ -66,14 +65,18 @@ TEST(SubmapCostFunction, SharedLandmarkBlockSumsTheFeatureJacobians) {
   const SubmapCostFunction separate(s), shared(s, block_of_feature);
   const double start[3] = {0.5, -1.0, 0.2}, end[3] = {9.0, 1.0, 0.1};
   std::vector<std::array<double, 2>> l(n);
-  for (int i = 0; i < n; ++i) l[i] = {run.landmarks[*s.landmarks[i].truth_id].x(), run.landmarks[*s.landmarks[i].truth_id].y()};
+  for (int i = 0; i < n; ++i)
+    l[i] = {run.landmarks[*s.landmarks[i].truth_id].x(), run.landmarks[*s.landmarks[i].truth_id].y()};
   l[n - 1] = l[0];
   std::vector<const double*> p_sep = {start, end}, p_sh = {start, end};
   for (int i = 0; i < n; ++i) p_sep.push_back(l[i].data());
   for (int i = 0; i < n - 1; ++i) p_sh.push_back(l[i].data());
   using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   std::vector<RowMajor> J_sep(n + 2, RowMajor(m, 2)), J_sh(n + 1, RowMajor(m, 2));
-  J_sep[0].resize(m, 3); J_sep[1].resize(m, 3); J_sh[0].resize(m, 3); J_sh[1].resize(m, 3);
+  J_sep[0].resize(m, 3);
+  J_sep[1].resize(m, 3);
+  J_sh[0].resize(m, 3);
+  J_sh[1].resize(m, 3);
   std::vector<double*> j_sep, j_sh;
   for (auto& J : J_sep) j_sep.push_back(J.data());
   for (auto& J : J_sh) j_sh.push_back(J.data());
@@ -98,8 +101,7 @@ TEST(SolveWithCeres, AllMethodsEqualTheIteratedEif) {
   EifJoiner reference(run.anchors[0], ConvergingKnownAssociation());
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(reference.Join(s).ok());
   ASSERT_TRUE(reference.Finish().ok());
-  for (const CeresMethod method : {CeresMethod::kGaussNewton, CeresMethod::kLevenbergMarquardt,
-                                   CeresMethod::kDogleg}) {
+  for (const CeresMethod method : {CeresMethod::kGaussNewton, CeresMethod::kLevenbergMarquardt, CeresMethod::kDogleg}) {
     SubmapGraph g = linearised_once;
     CeresSolveOptions o;
     o.method = method;

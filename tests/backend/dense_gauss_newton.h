@@ -27,7 +27,8 @@ inline Eigen::VectorXd DenseGaussNewton(const SubmapGraph& graph, int iterations
     for (const SubmapFactor& f : graph.factors()) {
       std::vector<Eigen::Vector2d> lms;
       for (int j : f.landmark_of_feature) lms.push_back(x.segment<2>(3 * A + 2 * j));
-      const SubmapFactorLinearization lin = LinearizeSubmapFactor(f.submap, pose(f.start_anchor), pose(f.end_anchor), lms);
+      const SubmapFactorLinearization lin =
+          LinearizeSubmapFactor(f.submap, pose(f.start_anchor), pose(f.end_anchor), lms);
       Eigen::MatrixXd J = Eigen::MatrixXd::Zero(lin.residual.size(), n);
       if (f.start_anchor > 0) J.middleCols<3>(3 * (f.start_anchor - 1)) = lin.J_start;
       J.middleCols<3>(3 * (f.end_anchor - 1)) = lin.J_end;

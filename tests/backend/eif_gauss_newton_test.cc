@@ -1,8 +1,6 @@
 // The EIF joiner's relinearisation: its triggers, Gauss-Newton's stopping rules and
 // their agreement with the converged solution.
 
-#include "subslam/backend/eif_joiner.h"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
@@ -15,9 +13,10 @@
 #include <set>
 #include <sstream>
 
+#include "dense_gauss_newton.h"
+#include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/moment_matching.h"
-#include "dense_gauss_newton.h"
 #include "synthetic_run.h"
 #include "test_util.h"
 
@@ -286,7 +285,6 @@ double SquaredDistanceInCovariance(const EifJoiner& stopped, const EifJoiner& co
   for (size_t k = 0; k < anchors.size(); ++k) difference[3 * k + 2] = WrapAngle(difference[3 * k + 2]);
   return difference.dot(covariance.ldlt().solve(difference));
 }
-
 
 // relinearize_step_chi2, ISEIF's adaptive stop with the Mahalanobis length of the step:
 // Gauss-Newton stops once a step is a small fraction of the estimate's uncertainty. While

@@ -5,21 +5,20 @@
 
 #include <gtest/gtest.h>
 
-#include <limits>
-
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <random>
 #include <set>
 #include <sstream>
 
+#include "dense_gauss_newton.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/moment_matching.h"
-#include "dense_gauss_newton.h"
 #include "synthetic_run.h"
 #include "test_util.h"
 
@@ -43,19 +42,24 @@ TEST(SubmapFactor, JacobiansMatchNumericalDifferentiation) {
     };
     EXPECT_TRUE(MatricesNear(lin.residual, residual(start, end, lms), 1e-12));
     std::vector<int> angle_rows = {2};
-    EXPECT_TRUE(testing::JacobianMatches(lin.J_start, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return residual(Pose2::FromVector(v), end, lms);
-    }, start.vector(), angle_rows));
-    EXPECT_TRUE(testing::JacobianMatches(lin.J_end, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return residual(start, Pose2::FromVector(v), lms);
-    }, end.vector(), angle_rows));
+    EXPECT_TRUE(testing::JacobianMatches(
+        lin.J_start,
+        [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return residual(Pose2::FromVector(v), end, lms); },
+        start.vector(), angle_rows));
+    EXPECT_TRUE(testing::JacobianMatches(
+        lin.J_end,
+        [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return residual(start, Pose2::FromVector(v), lms); },
+        end.vector(), angle_rows));
     Eigen::VectorXd flat(2 * lms.size());
     for (size_t i = 0; i < lms.size(); ++i) flat.segment<2>(2 * i) = lms[i];
-    EXPECT_TRUE(testing::JacobianMatches(lin.J_landmarks, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      std::vector<Eigen::Vector2d> l(lms.size());
-      for (size_t i = 0; i < l.size(); ++i) l[i] = v.segment<2>(2 * i);
-      return residual(start, end, l);
-    }, flat, angle_rows));
+    EXPECT_TRUE(testing::JacobianMatches(
+        lin.J_landmarks,
+        [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+          std::vector<Eigen::Vector2d> l(lms.size());
+          for (size_t i = 0; i < l.size(); ++i) l[i] = v.segment<2>(2 * i);
+          return residual(start, end, l);
+        },
+        flat, angle_rows));
   }
 }
 

@@ -1,14 +1,11 @@
 // The EIF joiner's confirmation of loop closures made under a lost anchor, and of thin ones.
 
-#include "subslam/backend/eif_joiner.h"
-
 #include <gtest/gtest.h>
-
-#include <cmath>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <cmath>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -17,11 +14,12 @@
 #include <set>
 #include <sstream>
 
+#include "dense_gauss_newton.h"
 #include "subslam/backend/ceres_joiner.h"
+#include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/local_map_rotation.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/moment_matching.h"
-#include "dense_gauss_newton.h"
 #include "synthetic_run.h"
 #include "test_util.h"
 
@@ -39,8 +37,8 @@ struct Tree {
 
 // A local map from `start` to `end` (world poses, as the map's own estimate places them)
 // seeing `trees`, its mean exact, with diagonal covariance.
-LocalSubmap Map(int id, const Pose2& start, const Pose2& end, const std::vector<Tree>& trees,
-                double sigma_end_xy, double sigma_end_theta) {
+LocalSubmap Map(int id, const Pose2& start, const Pose2& end, const std::vector<Tree>& trees, double sigma_end_xy,
+                double sigma_end_theta) {
   LocalSubmap m;
   m.id = id;
   m.t_start = 10.0 * id;
@@ -57,7 +55,7 @@ LocalSubmap Map(int id, const Pose2& start, const Pose2& end, const std::vector<
   return m;
 }
 
-const std::vector<Tree> kOld = {{0, {5, 8}},  {1, {12, -6}}, {2, {18, 9}},  {3, {25, -4}},
+const std::vector<Tree> kOld = {{0, {5, 8}},  {1, {12, -6}}, {2, {18, 9}}, {3, {25, -4}},
                                 {4, {30, 7}}, {5, {36, -8}}, {6, {42, 5}}, {7, {50, -3}}};
 
 // Map 0 seeing the old trees, then a loop of four maps back to the origin, two new trees
@@ -94,9 +92,7 @@ std::vector<LocalSubmap> Run(bool true_closure) {
   // landmark, but one the closure used, which confirms nothing.
   maps.push_back(Map(6, a, e,
                      true_closure ? std::vector<Tree>(old.begin() + 4, old.end())
-                                  : std::vector<Tree>{{304, {45, 20}},
-                                                      {305, {50, -20}},
-                                                      {303, old[3].world}},
+                                  : std::vector<Tree>{{304, {45, 20}}, {305, {50, -20}}, {303, old[3].world}},
                      0.1, 0.005));
   maps.push_back(Map(7, e, f, {{200, {55, 15}}, {201, {70, -15}}}, 0.1, 0.005));
   maps.push_back(Map(8, f, g, {{202, {78, 12}}, {203, {90, -14}}}, 0.1, 0.005));
@@ -317,8 +313,7 @@ TEST(EifJoiner, OnlineAnchorDoesNotCarryAHeldLoopClosure) {
         if (waiting) {
           waiting_trace = held->LastAnchorCovariance().trace();
           // The graph's last anchor carries the two held pairings: far more certain.
-          EXPECT_LT(held->AnchorCovariance(last).trace(), 0.5 * held->LastAnchorCovariance().trace())
-              << "map " << s.id;
+          EXPECT_LT(held->AnchorCovariance(last).trace(), 0.5 * held->LastAnchorCovariance().trace()) << "map " << s.id;
         }
         EXPECT_TRUE(same_pose(held->LastAnchor(), dropped->LastAnchor())) << "map " << s.id;
         EXPECT_TRUE(same_covariance(held->LastAnchorCovariance(), dropped->LastAnchorCovariance())) << "map " << s.id;

@@ -120,7 +120,8 @@ TEST(EkfJoiner, DroppingAnchorsKeepsTheMapAndTheCurrentAnchor) {
   EXPECT_EQ(dropped.state_dimension(), 3 + 2 * dropped.num_landmarks());
   std::vector<int> landmarks(kept.num_landmarks());
   std::iota(landmarks.begin(), landmarks.end(), 0);
-  EXPECT_TRUE(RelativelyNear(kept.JointCovariance({last}, landmarks), dropped.JointCovariance({last}, landmarks), 1e-9));
+  EXPECT_TRUE(
+      RelativelyNear(kept.JointCovariance({last}, landmarks), dropped.JointCovariance({last}, landmarks), 1e-9));
   EXPECT_TRUE(testing::MatricesNear(kept.anchor(last).vector(), dropped.anchor(last).vector(), 1e-9));
   for (int j = 0; j < kept.num_landmarks(); ++j) {
     EXPECT_TRUE(testing::MatricesNear(kept.landmark(j), dropped.landmark(j), 1e-9)) << "landmark " << j;

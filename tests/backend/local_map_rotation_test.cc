@@ -56,7 +56,7 @@ TEST(LocalMapRotation, RotationJacobianMatchesNumericalDerivative) {
   Eigen::VectorXd numerical = (plus - minus) / (2 * h);
   numerical[2] = WrapAngle(plus[2] - minus[2]) / (2 * h);
   EXPECT_TRUE(RotationAboutStart(s).isApprox(numerical, 1e-6)) << RotationAboutStart(s).transpose() << "\n"
-                                                                << numerical.transpose();
+                                                               << numerical.transpose();
 }
 
 TEST(LocalMapRotation, WideningAddsTheRotationNuisanceAndRecordsIt) {
@@ -119,7 +119,8 @@ TEST(SubmapAssociator, FindsAMapRotatedAboutItsStartAndPairsItRotatedBack) {
   const RecentFixture f;
   SubmapAssociationOptions off;
   off.map_rotation_sigma_rad = 0.0;
-  const SubmapAssociation plain = SubmapAssociator(off).Associate(f.NewMap(0.15), 1, f.graph, RecentFixture::Covariance);
+  const SubmapAssociation plain =
+      SubmapAssociator(off).Associate(f.NewMap(0.15), 1, f.graph, RecentFixture::Covariance);
   EXPECT_LE(Pairings(plain), 1);
   EXPECT_FALSE(plain.map_rotated);
 

@@ -78,8 +78,8 @@ TEST(MapRotationSpread, TakesTheWideningOffAndSkipsWhatIsNotAFit) {
   EXPECT_EQ(a.beyond(), 1);
   EXPECT_EQ(b.beyond(), 1);
   EXPECT_EQ(b.fits(), 2);
-  b.Add(NAN, 1e-6);            // not reached
-  b.Add(0.01, 4e-6, 0.003);    // nothing left of its variance once the widening is off
+  b.Add(NAN, 1e-6);          // not reached
+  b.Add(0.01, 4e-6, 0.003);  // nothing left of its variance once the widening is off
   b.Add(0.01, INFINITY);
   EXPECT_EQ(b.fits(), 2);
   // One gross outlier among a few fits is what the rotation test is for, not a spread.

@@ -86,7 +86,8 @@ TEST(SensorYawCalibration, RotatedTurnsFeaturesAboutThePathCentreAndTransformsTh
     LocalSubmap plus = map, minus = map;
     plus.mean[c] += h;
     minus.mean[c] -= h;
-    G.col(c) = (SensorYawCalibration::Rotated(plus, yaw).mean - SensorYawCalibration::Rotated(minus, yaw).mean) / (2 * h);
+    G.col(c) =
+        (SensorYawCalibration::Rotated(plus, yaw).mean - SensorYawCalibration::Rotated(minus, yaw).mean) / (2 * h);
   }
   const Eigen::MatrixXd expected_covariance = G * map.covariance * G.transpose();
   EXPECT_LT((turned.covariance - expected_covariance).cwiseAbs().maxCoeff(), 1e-8);
@@ -99,7 +100,8 @@ TEST(SensorYawCalibration, RotatedTurnsFeaturesAboutThePathCentreAndTransformsTh
 // gives in this model), then perturbed by the maps' own covariance (fixed seed).
 std::vector<LocalSubmap> ModelMaps(double yaw, int maps, std::mt19937_64* rng) {
   std::vector<Eigen::Vector2d> trees;
-  for (int i = 0; i < 12 * maps; ++i) trees.emplace_back(2.5 * i + 0.7 * (i % 3), (i % 2 == 0 ? 1 : -1) * (4.0 + (i % 5) * 3.0));
+  for (int i = 0; i < 12 * maps; ++i)
+    trees.emplace_back(2.5 * i + 0.7 * (i % 3), (i % 2 == 0 ? 1 : -1) * (4.0 + (i % 5) * 3.0));
   const double step = 6.0;
   std::normal_distribution<double> normal(0.0, 1.0);
   std::vector<LocalSubmap> out;

@@ -3,8 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
-#include <algorithm>
 #include <Eigen/LU>
+#include <algorithm>
 #include <random>
 
 #include "test_util.h"
@@ -122,8 +122,8 @@ TEST(SparseCholesky, ManyColumnsThroughTheSharedPathEqualTheDenseInverse) {
   const Eigen::MatrixXd A2 = Updated(A, n, rows, W);
   const std::vector<Eigen::MatrixXd> star = L.InverseStarBlocks({vars[2], vars[3]}, {{vars[4], vars[5]}, {n - 2}});
   const Eigen::MatrixXd inverse = A2.inverse();
-  EXPECT_TRUE(MatricesNear(inverse({vars[2], vars[3], vars[4], vars[5]}, {vars[2], vars[3], vars[4], vars[5]}),
-                           star[0], 1e-9));
+  EXPECT_TRUE(
+      MatricesNear(inverse({vars[2], vars[3], vars[4], vars[5]}, {vars[2], vars[3], vars[4], vars[5]}), star[0], 1e-9));
   EXPECT_TRUE(MatricesNear(inverse({vars[2], vars[3], n - 2}, {vars[2], vars[3], n - 2}), star[1], 1e-9));
   EXPECT_TRUE(MatricesNear(inverse(vars, vars), L.InverseBlock(vars), 1e-9));
 }
@@ -155,7 +155,7 @@ TEST(SparseCholesky, DiagonalInverseBlocksEqualTheDenseInverse) {
     }
     return L.columns_solved() - solved_before;
   };
-  EXPECT_EQ(check(A), 0);  // every group on the pattern: no forward solve
+  EXPECT_EQ(check(A), 0);     // every group on the pattern: no forward solve
   groups.push_back({3, 57});  // across the components: off the pattern
   EXPECT_GT(check(A), 0);
   // A long link in the first chain, then new variables linked to both chains.

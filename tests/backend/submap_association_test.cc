@@ -58,8 +58,8 @@ SubmapAssociator::JointCovarianceFn Covariance(double anchor_sigma_m) {
     const int n = 3 * static_cast<int>(anchors.size()) + 2 * static_cast<int>(landmarks.size());
     Eigen::MatrixXd m = 0.01 * Eigen::MatrixXd::Identity(n, n);
     for (size_t a = 0; a < anchors.size(); ++a) {
-      m.block<3, 3>(3 * a, 3 * a) = Eigen::Vector3d(anchor_sigma_m * anchor_sigma_m,
-                                                    anchor_sigma_m * anchor_sigma_m, 1e-6).asDiagonal();
+      m.block<3, 3>(3 * a, 3 * a) =
+          Eigen::Vector3d(anchor_sigma_m * anchor_sigma_m, anchor_sigma_m * anchor_sigma_m, 1e-6).asDiagonal();
     }
     return m;
   };
@@ -126,7 +126,7 @@ TEST(SubmapAssociator, KeepsTheCertainPairingsOfADroppedLoopClosure) {
   const SubmapAssociator associator{SubmapAssociationOptions{}};
   ASSERT_TRUE(associator.options().keep_certain_loop_pairings);
   const SubmapAssociation kept = associator.Associate(f.NewMap(2), 4, f.graph, correlated);
-  EXPECT_EQ(kept.loop_pairings_dropped, 2);  // both counted: a thin closure
+  EXPECT_EQ(kept.loop_pairings_dropped, 2);    // both counted: a thin closure
   EXPECT_EQ(kept.landmark_of_feature[2], 0);   // old landmark 0: certain, kept
   EXPECT_EQ(kept.landmark_of_feature[3], -1);  // old landmark 1: dropped
   EXPECT_EQ(kept.landmark_of_feature[0], 5);
@@ -206,8 +206,7 @@ TEST(SubmapAssociator, WholeMapLoopTestsApplyToEachLocalMap) {
   const LocalSubmap whole = f.NewMap(4);  // features: 2 recent, then old landmarks 0-3
   const std::vector<std::vector<int>> two_maps = {{0, 1, 2, 3}, {0, 1, 4, 5}};
   const SubmapAssociation grouped =
-      associator.Associate(whole, 4, f.graph, Covariance(3.0), /*anchor_prefilter=*/false, nullptr, nullptr,
-                           &two_maps);
+      associator.Associate(whole, 4, f.graph, Covariance(3.0), /*anchor_prefilter=*/false, nullptr, nullptr, &two_maps);
   EXPECT_EQ(OldPairings(grouped), 0);
   EXPECT_EQ(grouped.loop_pairings_dropped, 4);  // 2 + 2
   EXPECT_EQ(grouped.landmark_of_feature[0], 5);
@@ -284,7 +283,8 @@ TEST(SubmapAssociator, WholeMapGroupsAfterAClosureAreGatedAboutTheAnchorItImplie
                                                             const std::vector<int>& ls) {
     const int n = 3 * static_cast<int>(anchors.size()) + 2 * static_cast<int>(ls.size());
     Eigen::MatrixXd m = 0.01 * Eigen::MatrixXd::Identity(n, n);
-    for (size_t a = 0; a < anchors.size(); ++a) m.block<3, 3>(3 * a, 3 * a) = Eigen::Vector3d(900, 900, 0.09).asDiagonal();
+    for (size_t a = 0; a < anchors.size(); ++a)
+      m.block<3, 3>(3 * a, 3 * a) = Eigen::Vector3d(900, 900, 0.09).asDiagonal();
     return m;
   };
   const SubmapAssociator associator{SubmapAssociationOptions{}};

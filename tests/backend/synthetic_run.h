@@ -57,8 +57,7 @@ inline SyntheticRun MakeRun(uint64_t seed, int legs = 12, double noise = 1.0) {
     std::vector<Eigen::Vector2d> seen;
     std::vector<int> ids;
     for (size_t j = 0; j < run.landmarks.size(); ++j) {
-      if ((run.landmarks[j] - s.translation()).norm() < 15.0 ||
-          (run.landmarks[j] - e.translation()).norm() < 15.0) {
+      if ((run.landmarks[j] - s.translation()).norm() < 15.0 || (run.landmarks[j] - e.translation()).norm() < 15.0) {
         seen.push_back(run.landmarks[j]);
         ids.push_back(static_cast<int>(j));
       }

@@ -74,9 +74,9 @@ TEST(TreeJoiner, EifTreeEqualsSequentialEifAtConvergence) {
   EifJoiner sequential(run.anchors[0], ConvergingKnownAssociation());
   for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(sequential.Join(s).ok());
   ASSERT_TRUE(sequential.Finish().ok());
-  for (const auto& [running, node] : {std::pair{true, ConvergingKnownAssociation()},
-                                      std::pair{false, ConvergingKnownAssociation()},
-                                      std::pair{true, ConvergingKnownAssociation().ForTreeNode()}}) {
+  for (const auto& [running, node] :
+       {std::pair{true, ConvergingKnownAssociation()}, std::pair{false, ConvergingKnownAssociation()},
+        std::pair{true, ConvergingKnownAssociation().ForTreeNode()}}) {
     SCOPED_TRACE(::testing::Message() << (running ? "running" : "batch")
                                       << (node.incremental_factorization ? "" : ", tree nodes"));
     auto tree = Tree(std::make_unique<EifJoiner>(run.anchors[0], node), running);
@@ -195,7 +195,8 @@ TEST(SummarizeAsLocalSubmap, WithoutCovarianceKeepsWhatAssociationByTruthReads) 
   EXPECT_EQ(means_only.t_start, full.t_start);
   EXPECT_EQ(means_only.t_end, full.t_end);
   ASSERT_EQ(means_only.num_landmarks(), full.num_landmarks());
-  for (int i = 0; i < full.num_landmarks(); ++i) EXPECT_EQ(means_only.landmarks[i].truth_id, full.landmarks[i].truth_id);
+  for (int i = 0; i < full.num_landmarks(); ++i)
+    EXPECT_EQ(means_only.landmarks[i].truth_id, full.landmarks[i].truth_id);
 }
 
 }  // namespace

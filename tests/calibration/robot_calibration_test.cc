@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <boost/math/distributions/binomial.hpp>
-
 #include <cmath>
 #include <random>
 
@@ -30,8 +29,8 @@ std::vector<RecordedStep> SomeSteps(int n, double v, double u1, uint64_t seed) {
 TEST(OdometryInterval, PredictionJacobianMatchesNumericalDifferentiation) {
   const models::UnicycleModel unicycle;
   const models::AckermannModel car(models::AckermannGeometry{}, {});
-  for (const models::MotionModel* model : {static_cast<const models::MotionModel*>(&unicycle),
-                                           static_cast<const models::MotionModel*>(&car)}) {
+  for (const models::MotionModel* model :
+       {static_cast<const models::MotionModel*>(&unicycle), static_cast<const models::MotionModel*>(&car)}) {
     for (const double u1 : {0.0, 0.3, -0.5}) {
       const OdometryInterval interval(model, SomeSteps(12, 1.5, u1, 7), 0.05);
       const Eigen::Vector3d c(0.93, 1.04, 0.01);
@@ -51,9 +50,9 @@ TEST(OdometryInterval, NoiseComponentsSumToTheFiltersPropagatedCovariance) {
   const Eigen::Vector3d c(0.95, 0.9, -0.02);
   const models::ControlNoise noise{0.03, 0.05, 0.1, 0.2};
   const std::array<Eigen::Matrix3d, 4> T = interval.NoiseComponents(c);
-  const Eigen::Matrix3d from_components = noise.sigma_u0 * noise.sigma_u0 * T[0] +
-                                          noise.scale_u0 * noise.scale_u0 * T[1] +
-                                          noise.sigma_u1 * noise.sigma_u1 * T[2] + noise.scale_u1 * noise.scale_u1 * T[3];
+  const Eigen::Matrix3d from_components =
+      noise.sigma_u0 * noise.sigma_u0 * T[0] + noise.scale_u0 * noise.scale_u0 * T[1] +
+      noise.sigma_u1 * noise.sigma_u1 * T[2] + noise.scale_u1 * noise.scale_u1 * T[3];
   // The filter's propagation from the identity with the corrected controls.
   Pose2 x;
   Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
@@ -78,9 +77,11 @@ TEST(OdometryInterval, ResidualJacobiansMatchNumericalDifferentiation) {
     Eigen::Matrix3d J_a, J_b;
     IntervalResidual(x_a, x_b, predicted, &J_a, &J_b);
     EXPECT_TRUE(JacobianMatches(
-        J_a, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return IntervalResidual(v, x_b, predicted); }, x_a, {2}));
+        J_a, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return IntervalResidual(v, x_b, predicted); }, x_a,
+        {2}));
     EXPECT_TRUE(JacobianMatches(
-        J_b, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return IntervalResidual(x_a, v, predicted); }, x_b, {2}));
+        J_b, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return IntervalResidual(x_a, v, predicted); }, x_b,
+        {2}));
   }
 }
 
@@ -127,8 +128,10 @@ TEST(CalibrationCosts, DetectionCostJacobiansMatchNumericalDifferentiation) {
   const double* p[] = {x.data(), l.data()};
   Eigen::Vector2d r;
   ASSERT_TRUE(cost.Evaluate(p, r.data(), jacobians));
-  EXPECT_TRUE(JacobianMatches(J_x, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return residual(v, l); }, x, {1}));
-  EXPECT_TRUE(JacobianMatches(J_l, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return residual(x, v); }, l, {1}));
+  EXPECT_TRUE(
+      JacobianMatches(J_x, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return residual(v, l); }, x, {1}));
+  EXPECT_TRUE(
+      JacobianMatches(J_l, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return residual(x, v); }, l, {1}));
 }
 
 // The simulated camera robot: the odometry reported as commanded while the robot drives at
@@ -206,7 +209,8 @@ TEST_P(CameraRobotCalibration, RecoversTheOdometryScaleAndTheNoiseLevels) {
     misses += p < b.lower || p > b.upper ? 1 : 0;
   }
   EXPECT_GE(bins, 10);
-  EXPECT_LE(misses, static_cast<int>(boost::math::quantile(boost::math::binomial(bins, 0.05), 0.99))) << misses << " of " << bins;
+  EXPECT_LE(misses, static_cast<int>(boost::math::quantile(boost::math::binomial(bins, 0.05), 0.99)))
+      << misses << " of " << bins;
 }
 
 INSTANTIATE_TEST_SUITE_P(KnownAndUnknownAssociation, CameraRobotCalibration, ::testing::Bool());
@@ -229,8 +233,8 @@ TEST_F(CameraRobotCalibration, WithoutControlGapsRecoversTheControlNoise) {
   const models::ControlNoise fitted{c->control_noise[0].value, c->control_noise[2].value, c->control_noise[1].value,
                                     c->control_noise[3].value};
   for (const io::ControlRecord& u : d.controls) {
-    estimated += fitted.Covariance(Eigen::Vector2d(c->control_scale[0] * u.u[0], c->control_scale[1] * u.u[1]))
-                     .diagonal();
+    estimated +=
+        fitted.Covariance(Eigen::Vector2d(c->control_scale[0] * u.u[0], c->control_scale[1] * u.u[1])).diagonal();
     simulated += truth.Covariance(u.u).diagonal();
   }
   for (int i = 0; i < 2; ++i) {

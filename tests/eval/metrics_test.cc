@@ -2,8 +2,8 @@
 
 #include <cmath>
 
-#include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/gps_alignment.h"
+#include "subslam/eval/labelled_map_errors.h"
 #include "subslam/eval/local_map_errors.h"
 #include "subslam/eval/nees.h"
 #include "subslam/eval/trajectory_errors.h"

@@ -7,13 +7,12 @@
 #include <cstdio>
 #include <memory>
 
-#include "subslam/graph/check.h"
-
 #include "subslam/eval/nees.h"
-#include "subslam/models/gating.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/frontend/dead_reckoning.h"
+#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
+#include "subslam/models/gating.h"
 #include "subslam/models/unicycle_model.h"
 #include "subslam/sim/simulator.h"
 #include "test_util.h"
@@ -48,15 +47,14 @@ RunOutput RunEkf(const std::string& scenario, sim::ScenarioOptions o, EkfSlamOpt
 
 // Per-step average pose NEES over Monte Carlo runs of one world (noise seeds vary).
 struct MonteCarloNees {
-  int evaluated = 0;      // steps evaluable in every run
-  int below_upper = 0;    // average NEES ≤ χ²_{3N}(0.975)/N
-  int inside = 0;         // inside the two-sided 95% bounds
-  int failed_runs = 0;    // HybridSLAM 10σ failure test
+  int evaluated = 0;    // steps evaluable in every run
+  int below_upper = 0;  // average NEES ≤ χ²_{3N}(0.975)/N
+  int inside = 0;       // inside the two-sided 95% bounds
+  int failed_runs = 0;  // HybridSLAM 10σ failure test
 };
 
 template <typename MakeEstimator>
-MonteCarloNees RunMonteCarlo(int runs, const std::string& scenario, sim::ScenarioOptions o,
-                             MakeEstimator make) {
+MonteCarloNees RunMonteCarlo(int runs, const std::string& scenario, sim::ScenarioOptions o, MakeEstimator make) {
   std::vector<double> sum;
   std::vector<int> count;
   MonteCarloNees r;
@@ -130,14 +128,13 @@ TEST(EkfSlam, MonteCarloPoseNeesOnRandomWorld) {
   o.world_seed = 1;
   o.random_path_length_m = 600.0;
   const MonteCarloNees r = RunMonteCarlo(20, "random", o, [](const io::Dataset& d) {
-    return std::make_unique<EkfSlam>(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose,
-                                     EkfSlamOptions{});
+    return std::make_unique<EkfSlam>(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, EkfSlamOptions{});
   });
   ASSERT_GT(r.evaluated, 5000);
   const double fraction = static_cast<double>(r.below_upper) / r.evaluated;
   RecordProperty("fraction_below_upper", std::to_string(fraction));
-  std::printf("EKF-SLAM MC average NEES: %.1f%% of steps below the upper bound, %.1f%% inside\n",
-              100.0 * fraction, 100.0 * r.inside / r.evaluated);
+  std::printf("EKF-SLAM MC average NEES: %.1f%% of steps below the upper bound, %.1f%% inside\n", 100.0 * fraction,
+              100.0 * r.inside / r.evaluated);
   EXPECT_EQ(r.failed_runs, 0);
   EXPECT_GE(fraction, 0.5);
 }
@@ -255,8 +252,7 @@ TEST(EkfSlam, BatchUpdateEqualsDenseTextbookUpdate) {
     Eigen::VectorXd nu(m);
     const Eigen::VectorXd h = predict_all(x);
     for (int i = 0; i < m / 2; ++i) {
-      nu.segment<2>(2 * i) =
-          models::RangeBearingModel::Difference(scan.detections[i].z(), h.segment<2>(2 * i));
+      nu.segment<2>(2 * i) = models::RangeBearingModel::Difference(scan.detections[i].z(), h.segment<2>(2 * i));
     }
     Eigen::MatrixXd R = Eigen::MatrixXd::Zero(m, m);
     for (int i = 0; i < m / 2; ++i) R.block<2, 2>(2 * i, 2 * i) = model.NoiseCovariance();

@@ -63,8 +63,8 @@ TEST(FastSlam, ThreadCountDoesNotChangeTheRun) {
   absl::StatusOr<io::Dataset> simulated = sim::SimulateScenario("hybrid-120m", so);
   ASSERT_TRUE(simulated.ok());
   const io::Dataset& d = *simulated;
-  for (const auto& [sample_association, sensor_yaw_sigma] : {std::pair{false, 0.0}, std::pair{true, 0.0},
-                                                               std::pair{false, 0.01}}) {
+  for (const auto& [sample_association, sensor_yaw_sigma] :
+       {std::pair{false, 0.0}, std::pair{true, 0.0}, std::pair{false, 0.01}}) {
     FastSlamOptions options;
     options.num_particles = 37;  // not a multiple of the chunk or the thread count
     options.sample_association = sample_association;
@@ -172,7 +172,7 @@ TEST_P(PoseMoments, EqualTheParticlesMoments) {
     const double scale = GetParam() ? (1.0 + R) / (1.0 - R) : 1.0;
     double sum_sq = 0.0;
     for (const ParticleHypothesis& p : h) sum_sq += (p.weight / total) * (p.weight / total);
-    if (f.counters().scans > 0) {  // (0 before: no draw yet)
+    if (f.counters().scans > 0) {                                               // (0 before: no draw yet)
       EXPECT_GE(f.SharedAncestry(), sum_sq - 1e-12) << "step at t " << step.t;  // ρ_pq ≥ 0, ρ_pp = 1
     }
     largest_genealogy_share = std::max(largest_genealogy_share, f.SharedAncestry() - sum_sq);
@@ -187,8 +187,7 @@ TEST_P(PoseMoments, EqualTheParticlesMoments) {
     EXPECT_LE((f.pose_covariance() - covariance).norm(), tolerance) << "step at t " << step.t;
     if (step.scan_index >= 0) {  // MomentMatched() takes the pose at the scan
       const MomentMatchedGaussian g = f.MomentMatched();
-      EXPECT_LE((g.covariance.topLeftCorner<3, 3>() - covariance).norm(), tolerance)
-          << "step at t " << step.t;
+      EXPECT_LE((g.covariance.topLeftCorner<3, 3>() - covariance).norm(), tolerance) << "step at t " << step.t;
     }
     ++checked;
   }
@@ -232,11 +231,9 @@ TEST(FastSlam, WithoutMotionNoiseEqualsEkfSlam) {
   FastSlamOptions fo;
   fo.num_particles = 3;
   fo.association_score = AssociationScore::kMahalanobis;  // as EKF-SLAM's NN
-  FastSlam fast(std::make_unique<models::UnicycleModel>(none), d.sensor.range_bearing,
-                d.initial_pose, fo);
+  FastSlam fast(std::make_unique<models::UnicycleModel>(none), d.sensor.range_bearing, d.initial_pose, fo);
   EkfSlamOptions eo;
-  EkfSlam ekf(std::make_unique<models::UnicycleModel>(none), d.sensor.range_bearing,
-              d.initial_pose, eo);
+  EkfSlam ekf(std::make_unique<models::UnicycleModel>(none), d.sensor.range_bearing, d.initial_pose, eo);
   RunFilter(&fast, d);
   RunFilter(&ekf, d);
   // Every landmark, tentative ones included: EKF-SLAM's state against the particles'.

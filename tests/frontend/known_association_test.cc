@@ -45,8 +45,8 @@ std::map<int, int> CheckFeaturesFollowTrueIds(Filter* filter, const io::Dataset&
     for (size_t k = 0; k < features.size(); ++k) {
       const int truth = scan.detections[k].truth_id;
       const Detection& z = scan.detections[k];
-      const bool in_range = z.range_m >= d.sensor.range_bearing.min_range_m &&
-                            z.range_m <= d.sensor.range_bearing.max_range_m;
+      const bool in_range =
+          z.range_m >= d.sensor.range_bearing.min_range_m && z.range_m <= d.sensor.range_bearing.max_range_m;
       if (truth < 0) {
         *false_alarms += in_range ? 1 : 0;
         EXPECT_EQ(features[k], -1) << "a false alarm became feature " << features[k];

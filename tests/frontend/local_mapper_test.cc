@@ -88,7 +88,8 @@ TEST(LocalMapper, DoesNotExportAFeatureWiderThanOneDetectionAtMaximumRange) {
     EXPECT_TRUE(MatricesNear(g.covariance(rows, rows), s.covariance, 0.0));
     EXPECT_EQ(s.landmarks[0].local_id, 4);
     EXPECT_EQ(s.landmarks[1].local_id, 9);
-    EXPECT_GT(std::sqrt(s.covariance.block<2, 2>(5, 5).eigenvalues().real().maxCoeff()), 2.5);  // 3 m in the start frame
+    EXPECT_GT(std::sqrt(s.covariance.block<2, 2>(5, 5).eigenvalues().real().maxCoeff()),
+              2.5);  // 3 m in the start frame
     EXPECT_EQ(s.landmarks[1].existence, 0.97);
     EXPECT_EQ(s.landmarks[1].signature, 0.3);
     EXPECT_EQ(mapper.Counters().at("features_too_uncertain_to_export"), 1.0);

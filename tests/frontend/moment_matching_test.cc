@@ -41,8 +41,8 @@ TEST(MomentMatch, TwoParticlesMatchTheClosedForm) {
   Pa.bottomRightCorner(2, 2) = 0.04 * Eigen::Matrix2d::Identity();
   Pb.topLeftCorner(3, 3) = 0.02 * Eigen::Matrix3d::Identity();
   Pb.bottomRightCorner(2, 2) = 0.08 * Eigen::Matrix2d::Identity();
-  const Eigen::MatrixXd cov = 0.25 * (Pa + (xa - mean) * (xa - mean).transpose()) +
-                              0.75 * (Pb + (xb - mean) * (xb - mean).transpose());
+  const Eigen::MatrixXd cov =
+      0.25 * (Pa + (xa - mean) * (xa - mean).transpose()) + 0.75 * (Pb + (xb - mean) * (xb - mean).transpose());
   EXPECT_TRUE(MatricesNear(mean, g.mean, 1e-12));
   EXPECT_TRUE(MatricesNear(cov, g.covariance, 1e-12));
   EXPECT_EQ(g.covariance_repairs, 0);
@@ -88,8 +88,7 @@ TEST(MomentMatch, SharedAncestryScalesTheSpreadOnly) {
     ASSERT_EQ(plain.covariance_repairs + corrected.covariance_repairs, 0) << (complete ? "complete" : "per block");
     EXPECT_TRUE(MatricesNear(plain.mean, corrected.mean, 0.0));
     const Eigen::MatrixXd expected = (plain.covariance - own) * (1.0 + R) / (1.0 - R) + own;
-    EXPECT_TRUE(MatricesNear(expected, corrected.covariance, 1e-12))
-        << (complete ? "complete" : "per block");
+    EXPECT_TRUE(MatricesNear(expected, corrected.covariance, 1e-12)) << (complete ? "complete" : "per block");
   }
 }
 

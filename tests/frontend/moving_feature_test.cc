@@ -166,8 +166,8 @@ TEST(MovingFeatureTest, FeaturesHandOverAlongATrack) {
 }
 
 // An RBPF local mapper watching three static landmarks and an object that crosses the view
-// at 0.2 m/s (the filter follows it with a chain of features) exports the three landmarks and not the object; with the test off it exports
-// the object too.
+// at 0.2 m/s (the filter follows it with a chain of features) exports the three landmarks and not the object; with the
+// test off it exports the object too.
 TEST(MovingFeatureTest, TheLocalMapperDoesNotExportAMovingObject) {
   models::RangeBearingConfig sensor = Sensor(0.05, 0.01);
   sensor.max_range_m = 10.0;
@@ -198,8 +198,7 @@ TEST(MovingFeatureTest, TheLocalMapperDoesNotExportAMovingObject) {
       points.push_back(Eigen::Vector2d(3.0, -1.5 + 0.2 * scan.t));  // the moving object
       for (const Eigen::Vector2d& p : points) {
         const Eigen::Vector2d z = model.Observe(truth, p);
-        scan.detections.push_back(
-            {z[0] + sensor.sigma_range_m * n01(rng), z[1] + sensor.sigma_bearing_rad * n01(rng)});
+        scan.detections.push_back({z[0] + sensor.sigma_range_m * n01(rng), z[1] + sensor.sigma_bearing_rad * n01(rng)});
       }
       mapper.Update(scan);
     }

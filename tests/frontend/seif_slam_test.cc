@@ -39,8 +39,7 @@ Eigen::Matrix3d PriorCovariance(const SeifOptions& o) {
 }
 
 // Feeds the data set to the filter, calling after_scan(scan) after every update.
-void Drive(SeifSlam* seif, const io::Dataset& d,
-           const std::function<void(const Scan&)>& after_scan = nullptr) {
+void Drive(SeifSlam* seif, const io::Dataset& d, const std::function<void(const Scan&)>& after_scan = nullptr) {
   for (const io::Step& step : io::BuildSteps(d)) {
     seif->Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
@@ -65,8 +64,7 @@ TEST(SeifSlam, EqualsEkfSlamWithoutSparsificationAndWithExactRecovery) {
   io::Dataset d = Simulate("hybrid-120m", so);
   const SeifOptions seif_options = ExactEifOptions();
   EkfSlamOptions ekf_options;
-  EkfSlam ekf(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, ekf_options,
-              PriorCovariance(seif_options));
+  EkfSlam ekf(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, ekf_options, PriorCovariance(seif_options));
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, seif_options);
   double worst_mean = 0, worst_cov = 0;
   int scans = 0;
@@ -85,11 +83,11 @@ TEST(SeifSlam, EqualsEkfSlamWithoutSparsificationAndWithExactRecovery) {
     ekf_mean[2] = 0;
     worst_mean = std::max(worst_mean, MaxRelativeDifference(mean, ekf_mean));
     if (scans % 25 == 0) {
-      const Eigen::MatrixXd covariance = seif.DenseInformation().llt().solve(
-          Eigen::MatrixXd::Identity(ekf.state_dimension(), ekf.state_dimension()));
+      const Eigen::MatrixXd covariance =
+          seif.DenseInformation().llt().solve(Eigen::MatrixXd::Identity(ekf.state_dimension(), ekf.state_dimension()));
       worst_cov = std::max(worst_cov, MaxRelativeDifference(covariance, ekf.covariance()));
-      worst_cov = std::max(worst_cov, MaxRelativeDifference(seif.pose_covariance(),
-                                                            ekf.covariance().topLeftCorner<3, 3>()));
+      worst_cov =
+          std::max(worst_cov, MaxRelativeDifference(seif.pose_covariance(), ekf.covariance().topLeftCorner<3, 3>()));
     }
   }
   EXPECT_GT(scans, 100);
@@ -97,8 +95,7 @@ TEST(SeifSlam, EqualsEkfSlamWithoutSparsificationAndWithExactRecovery) {
   EXPECT_GE(seif.num_landmarks(), 8);
   EXPECT_LT(worst_mean, 1e-7);
   EXPECT_LT(worst_cov, 1e-7);
-  std::printf("SEIF vs EKF over %d scans: mean %.2g, covariance %.2g (max relative)\n", scans,
-              worst_mean, worst_cov);
+  std::printf("SEIF vs EKF over %d scans: mean %.2g, covariance %.2g (max relative)\n", scans, worst_mean, worst_cov);
 }
 
 // JCBB, and a world on both sides of the axes (the landmark grid's cells around the origin).
@@ -111,8 +108,7 @@ TEST(SeifSlam, JcbbEqualsEkfSlamToo) {
   seif_options.association = association::AssociationMethod::kJointCompatibility;
   EkfSlamOptions ekf_options;
   ekf_options.association = association::AssociationMethod::kJointCompatibility;
-  EkfSlam ekf(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, ekf_options,
-              PriorCovariance(seif_options));
+  EkfSlam ekf(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, ekf_options, PriorCovariance(seif_options));
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, seif_options);
   for (const io::Step& step : io::BuildSteps(d)) {
     ekf.Predict(step.control, step.dt);
@@ -133,7 +129,7 @@ struct SeifRun {
 };
 
 SeifRun RunSeif(const io::Dataset& d, const SeifOptions& options,
-            const std::function<void(const SeifSlam&)>& after_scan = nullptr) {
+                const std::function<void(const SeifSlam&)>& after_scan = nullptr) {
   SeifSlam seif(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, options);
   SeifRun run;
   for (const io::Step& step : io::BuildSteps(d)) {
@@ -156,9 +152,8 @@ TEST(SeifSlam, SparsificationBoundsTheActiveLandmarksAndStaysClose) {
   SeifOptions options;
   options.max_active_landmarks = 6;
   int worst_active = 0;
-  const SeifRun run = RunSeif(d, options, [&](const SeifSlam& s) {
-    worst_active = std::max(worst_active, s.num_active_landmarks());
-  });
+  const SeifRun run =
+      RunSeif(d, options, [&](const SeifSlam& s) { worst_active = std::max(worst_active, s.num_active_landmarks()); });
   EXPECT_LE(worst_active, 6);
   EXPECT_GT(run.counters.sparsifications, 100);
   EXPECT_GT(run.counters.deactivated_landmarks, 100);
@@ -281,9 +276,8 @@ TEST(Iseif, OneIterationIsTheSeifUpdate) {
 //   ∇J = Ω⁻ (μ⁺ − μ⁻) − Σ Hᵀ R⁻¹ (z − h(μ⁺)),
 // relative to the size of its first term.
 double RelativeMapGradient(const Eigen::MatrixXd& omega_prior, const Eigen::VectorXd& mu_prior,
-                           const Eigen::VectorXd& mu_post, const std::vector<int>& live,
-                           const Scan& scan, const std::vector<int>& features,
-                           const models::RangeBearingModel& sensor) {
+                           const Eigen::VectorXd& mu_post, const std::vector<int>& live, const Scan& scan,
+                           const std::vector<int>& features, const models::RangeBearingModel& sensor) {
   Eigen::VectorXd delta = mu_post - mu_prior;
   delta[2] = WrapAngle(delta[2]);
   const Eigen::VectorXd prior_term = omega_prior * delta;

@@ -6,8 +6,7 @@ namespace subslam {
 namespace {
 
 enum class Colour { kRed, kGreen, kBlue };
-constexpr EnumName<Colour> kColourNames[] = {
-    {Colour::kRed, "red"}, {Colour::kGreen, "green"}, {Colour::kBlue, "blue"}};
+constexpr EnumName<Colour> kColourNames[] = {{Colour::kRed, "red"}, {Colour::kGreen, "green"}, {Colour::kBlue, "blue"}};
 
 TEST(EnumNames, NamesAndParsesEveryValue) {
   for (const EnumName<Colour>& entry : kColourNames) {

@@ -35,8 +35,8 @@ TEST(LocalSubmap, AcceptsAValidMapAndReadsBlocks) {
 TEST(LocalSubmap, RejectsANumericallySingularCovariance) {
   LocalSubmap s = Valid();
   Eigen::VectorXd direction = Eigen::VectorXd::Ones(7).normalized();
-  s.covariance = Eigen::MatrixXd::Identity(7, 7) - direction * direction.transpose() +
-                 1e-17 * direction * direction.transpose();
+  s.covariance =
+      Eigen::MatrixXd::Identity(7, 7) - direction * direction.transpose() + 1e-17 * direction * direction.transpose();
   ASSERT_EQ(Eigen::LLT<Eigen::MatrixXd>(s.covariance).info(), Eigen::Success);
   const absl::Status st = s.Validate();
   EXPECT_FALSE(st.ok());

@@ -9,8 +9,8 @@
 namespace subslam {
 namespace {
 
-using testing::kExactTolerance;
 using testing::JacobianMatches;
+using testing::kExactTolerance;
 using testing::kJacobianTolerance;
 using testing::MatricesNear;
 using testing::TestPoses;
@@ -82,8 +82,8 @@ TEST(Pose2, JacobiansMatchNumericalDifferentiation) {
     EXPECT_TRUE(JacobianMatches(Jb, of_b(between), b.vector(), {2}));
     Inverse(a, &Ji);
     EXPECT_TRUE(JacobianMatches(
-        Ji, [](const Eigen::VectorXd& v) -> Eigen::VectorXd { return V(Inverse(Pose2::FromVector(v))); },
-        a.vector(), {2}));
+        Ji, [](const Eigen::VectorXd& v) -> Eigen::VectorXd { return V(Inverse(Pose2::FromVector(v))); }, a.vector(),
+        {2}));
 
     const Eigen::Vector2d p(b.x, b.y);
     for (auto transform : {&TransformFrom, &TransformTo}) {

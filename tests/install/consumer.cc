@@ -1,16 +1,16 @@
 // Runs the README's snippets as another project would: reads a data set, runs EKF-SLAM
 // over it, builds RBPF local maps and joins them with the EIF. Exits 0 when both ran and
 // every local map joined.
-#include <cmath>
-#include <cstdio>
-#include <string>
-#include <vector>
-
 #include <subslam/backend/eif_joiner.h>
 #include <subslam/frontend/ekf_slam.h>
 #include <subslam/frontend/local_mapper.h>
 #include <subslam/io/dataset_reader.h>
 #include <subslam/io/steps.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
 
 int main(int argc, char** argv) {
   if (argc != 2) {
@@ -73,7 +73,7 @@ int main(int argc, char** argv) {
   }
   const subslam::Pose2 anchor = joiner.LastAnchor();
   const Eigen::Matrix3d covariance = joiner.LastAnchorCovariance();
-  std::printf("joined %d local maps; last anchor (%.2f, %.2f, %.3f), position sd %.2f m\n", joined, anchor.x,
-              anchor.y, anchor.theta, std::sqrt(covariance(0, 0) + covariance(1, 1)));
+  std::printf("joined %d local maps; last anchor (%.2f, %.2f, %.3f), position sd %.2f m\n", joined, anchor.x, anchor.y,
+              anchor.theta, std::sqrt(covariance(0, 0) + covariance(1, 1)));
   return joined > 0 ? 0 : 1;
 }

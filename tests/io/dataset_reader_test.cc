@@ -53,16 +53,13 @@ class MalformedDataset : public ::testing::Test {
     Write("o.dat", "0.1 5 0.2 3\n0.1 7 -0.4 -1\n0.2 5.1 0.21 3\n");
     Write("p.dat", "0 0 0 0\n0.1 0.1 0 0\n0.2 0.2 0 0.01\n");
   }
-  void Write(const std::string& name, const std::string& text) {
-    std::ofstream(dir_ / name) << text;
-  }
+  void Write(const std::string& name, const std::string& text) { std::ofstream(dir_ / name) << text; }
   // Expects ReadDataset to fail with a message containing every fragment.
   void ExpectError(const std::vector<std::string>& fragments) {
     absl::StatusOr<Dataset> d = ReadDataset(dir_.string());
     ASSERT_FALSE(d.ok());
     for (const std::string& f : fragments) {
-      EXPECT_NE(d.status().message().find(f), std::string::npos)
-          << "'" << f << "' not in: " << d.status().message();
+      EXPECT_NE(d.status().message().find(f), std::string::npos) << "'" << f << "' not in: " << d.status().message();
     }
   }
   fs::path dir_;
@@ -224,12 +221,13 @@ TEST_F(MalformedDataset, UnknownModelAndSteeringOutOfRange) {
 
 TEST(ReadTrajectoryCsv, RejectsMalformedLines) {
   const std::string path = ::testing::TempDir() + "/subslam_bad_trajectory.csv";
-  ASSERT_TRUE(WriteTextFile(path, "t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt\n"
-                                  "0,1,2,3,1,0,0,1,0,1\n0.1,1,2,3\n").ok());
+  ASSERT_TRUE(WriteTextFile(path,
+                            "t,x,y,theta,cov_xx,cov_xy,cov_xt,cov_yy,cov_yt,cov_tt\n"
+                            "0,1,2,3,1,0,0,1,0,1\n0.1,1,2,3\n")
+                  .ok());
   absl::StatusOr<Trajectory> t = ReadTrajectoryCsv(path);
   ASSERT_FALSE(t.ok());
-  EXPECT_NE(t.status().message().find(":3: expected 10 columns"), std::string::npos)
-      << t.status().message();
+  EXPECT_NE(t.status().message().find(":3: expected 10 columns"), std::string::npos) << t.status().message();
   ASSERT_TRUE(WriteTextFile(path, "header\n0,1,x,3,1,0,0,1,0,1\n").ok());
   t = ReadTrajectoryCsv(path);
   ASSERT_FALSE(t.ok());

@@ -43,7 +43,7 @@ TEST(ScreenInputs, LeavesAStepInTheControlAlone) {
 TEST(ScreenInputs, CountsTimeGapsRepeatedTimesAndDetectionsOutOfRange) {
   Dataset d = Steady(50);
   for (int k = 30; k < 50; ++k) d.controls[k].t += 5.0;  // one 5.1 s interval among 0.1 s ones
-  d.duplicate_control_times = 2;                        // as the reader counted them
+  d.duplicate_control_times = 2;                         // as the reader counted them
   d.scans.push_back({0.05, {Detection{.range_m = 0.5}, Detection{.range_m = 5.0}, Detection{.range_m = 31.0}}});
   const InputScreening s = ScreenInputs(InputScreeningOptions{}, &d);
   EXPECT_EQ(s.time_gaps, 1);

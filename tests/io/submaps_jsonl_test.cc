@@ -95,8 +95,7 @@ TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
     return R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4,5],"cov":[1,0,0,0,0, 0,1,0,0,0, 0,0,1,0,0, 0,0,0,1,0, 0,0,0,0,1],"landmarks":[)" +
            landmark + "]}";
   };
-  const std::string good =
-      OneLandmark(R"({"local_id":3,"signature":null,"existence":0.99,"truth_id":null})");
+  const std::string good = OneLandmark(R"({"local_id":3,"signature":null,"existence":0.99,"truth_id":null})");
   ASSERT_TRUE(ReadSubmapsJsonl(Write("good.jsonl", good + "\n")).ok());
   struct Case {
     std::string text;
@@ -110,11 +109,15 @@ TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,-2.1e803665060896854],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})",
        ":1: field '(line)': invalid JSON: [json.exception.out_of_range.406] number overflow"},
       {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1]})", "field 'landmarks': missing"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})", "field 'state': has 4 numbers"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,-1,0,0,0,1],"landmarks":[]})", "not positive definite"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,"x",0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})", "field 'state[1]'"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1,4],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})",
+       "field 'state': has 4 numbers"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,-1,0,0,0,1],"landmarks":[]})",
+       "not positive definite"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,"x",0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})",
+       "field 'state[1]'"},
       {R"({"id":0,"t_start":2,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})", "field 't_end'"},
-      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[],"extra":1})", "field 'extra': unknown key"},
+      {R"({"id":0,"t_start":0,"t_end":1,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[],"extra":1})",
+       "field 'extra': unknown key"},
       {good + "\n" + good + "\n", ":2: field 'id': ids must increase"},
       {OneLandmark(R"({"local_id":3,"signature":null,"existence":0.99,"truth_id":2,"truth_landmarks":-1})"),
        "field 'landmarks[0].truth_landmarks': must be >= 0"},
@@ -138,8 +141,7 @@ TEST(SubmapsJsonl, RejectsMalformedInputWithFileLineAndField) {
     const std::string path = Write("bad" + std::to_string(k) + ".jsonl", cases[k].text);
     absl::StatusOr<std::vector<LocalSubmap>> r = ReadSubmapsJsonl(path);
     ASSERT_FALSE(r.ok()) << k;
-    EXPECT_NE(r.status().message().find(cases[k].expect), std::string::npos)
-        << k << ": " << r.status().message();
+    EXPECT_NE(r.status().message().find(cases[k].expect), std::string::npos) << k << ": " << r.status().message();
     EXPECT_NE(r.status().message().find(path), std::string::npos) << k;
   }
   EXPECT_FALSE(ReadSubmapsJsonl(::testing::TempDir() + "/does_not_exist.jsonl").ok());

@@ -19,26 +19,21 @@ void CheckJacobians(const MotionModel& model, const Pose2& x, const Eigen::Vecto
   model.Predict(x, u, dt, &Jx, &Ju);
   EXPECT_TRUE(JacobianMatches(
       Jx,
-      [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-        return model.Predict(Pose2::FromVector(v), u, dt).vector();
-      },
+      [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return model.Predict(Pose2::FromVector(v), u, dt).vector(); },
       x.vector(), {2}))
       << model.Name() << " J_x at " << x << " u " << u.transpose();
   EXPECT_TRUE(JacobianMatches(
       Ju,
-      [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-        return model.Predict(x, Eigen::Vector2d(v), dt).vector();
-      },
-      u, {2}))
+      [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return model.Predict(x, Eigen::Vector2d(v), dt).vector(); }, u,
+      {2}))
       << model.Name() << " J_u at " << x << " u " << u.transpose();
 }
 
 TEST(UnicycleModel, JacobiansMatchNumericalDifferentiation) {
   const UnicycleModel model;
   for (const Pose2& x : TestPoses()) {
-    for (const Eigen::Vector2d& u : {Eigen::Vector2d(1.0, 0.5), Eigen::Vector2d(3.0, -2.0),
-                                     Eigen::Vector2d(2.0, 0.0), Eigen::Vector2d(2.0, 1e-6),
-                                     Eigen::Vector2d(0.0, 0.3)}) {
+    for (const Eigen::Vector2d& u : {Eigen::Vector2d(1.0, 0.5), Eigen::Vector2d(3.0, -2.0), Eigen::Vector2d(2.0, 0.0),
+                                     Eigen::Vector2d(2.0, 1e-6), Eigen::Vector2d(0.0, 0.3)}) {
       CheckJacobians(model, x, u, 0.1);
     }
   }
@@ -65,8 +60,8 @@ TEST(AckermannModel, JacobiansMatchNumericalDifferentiation) {
   const AckermannModel vp({2.83, 0.76, 3.78, 0.50}, {0.5, 0.05, 0, 0});
   const AckermannModel bicycle({4.0, 0.0, 0.0, 0.0}, {0.3, 0.03, 0, 0});
   for (const Pose2& x : TestPoses()) {
-    for (const Eigen::Vector2d& u : {Eigen::Vector2d(2.0, 0.3), Eigen::Vector2d(3.0, -0.5),
-                                     Eigen::Vector2d(1.0, 0.0), Eigen::Vector2d(0.0, 0.2)}) {
+    for (const Eigen::Vector2d& u : {Eigen::Vector2d(2.0, 0.3), Eigen::Vector2d(3.0, -0.5), Eigen::Vector2d(1.0, 0.0),
+                                     Eigen::Vector2d(0.0, 0.2)}) {
       CheckJacobians(vp, x, u, 0.025);
       CheckJacobians(bicycle, x, u, 0.025);
     }

@@ -30,22 +30,21 @@ TEST(RangeBearingModel, JacobiansAndInverse) {
     Matrix23d Jp;
     Eigen::Matrix2d Jl;
     const Eigen::Vector2d z = model.Observe(p, l, &Jp, &Jl);
-    EXPECT_TRUE(JacobianMatches(Jp, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return model.Observe(Pose2::FromVector(v), l);
-    }, p.vector(), {1}));
-    EXPECT_TRUE(JacobianMatches(Jl, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return model.Observe(p, Eigen::Vector2d(v));
-    }, l, {1}));
+    EXPECT_TRUE(JacobianMatches(
+        Jp, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return model.Observe(Pose2::FromVector(v), l); },
+        p.vector(), {1}));
+    EXPECT_TRUE(JacobianMatches(
+        Jl, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return model.Observe(p, Eigen::Vector2d(v)); }, l, {1}));
     Matrix23d Gp;
     Eigen::Matrix2d Gz;
     const Eigen::Vector2d back = model.InverseObserve(p, z, &Gp, &Gz);
     EXPECT_TRUE(MatricesNear(l, back, 1e-9));
-    EXPECT_TRUE(JacobianMatches(Gp, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return model.InverseObserve(Pose2::FromVector(v), z);
-    }, p.vector()));
-    EXPECT_TRUE(JacobianMatches(Gz, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return model.InverseObserve(p, Eigen::Vector2d(v));
-    }, z));
+    EXPECT_TRUE(JacobianMatches(
+        Gp, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return model.InverseObserve(Pose2::FromVector(v), z); },
+        p.vector()));
+    EXPECT_TRUE(JacobianMatches(
+        Gz, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return model.InverseObserve(p, Eigen::Vector2d(v)); },
+        z));
     // The inverse Jacobian w.r.t. z is the inverse of the forward one w.r.t. l.
     EXPECT_TRUE(MatricesNear(Jl.inverse(), Gz, 1e-9));
   }

@@ -7,12 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <boost/math/distributions/binomial.hpp>
-
-#include "subslam/pipeline/run_pipeline.h"
-#include "subslam/io/submaps_jsonl.h"
-#include "subslam/sim/simulator.h"
-
 #include <set>
+
+#include "subslam/io/submaps_jsonl.h"
+#include "subslam/pipeline/run_pipeline.h"
+#include "subslam/sim/simulator.h"
 
 namespace subslam::pipeline {
 namespace {
@@ -27,9 +26,8 @@ struct Totals {
   double fraction_steps_in_bounds = 0.0;
 };
 
-Totals RunLocalMaps(const std::string& scenario, const std::vector<uint64_t>& seeds,
-                    double duration_s, const RunOptions& options,
-                    std::optional<double> alpha = std::nullopt,
+Totals RunLocalMaps(const std::string& scenario, const std::vector<uint64_t>& seeds, double duration_s,
+                    const RunOptions& options, std::optional<double> alpha = std::nullopt,
                     std::optional<double> beta = std::nullopt) {
   Totals t;
   for (uint64_t seed : seeds) {
@@ -70,8 +68,7 @@ TEST(RbpfLocalMaps, Hybrid120mJointNeesIsConsistent) {
   const Totals t = RunLocalMaps("hybrid-120m", {1, 2}, 150.0, Rbpf(300));
   ASSERT_GT(t.maps, 50);
   EXPECT_GE(t.inside, BinomialLowerBound(t.maps)) << t.inside << " / " << t.maps;
-  EXPECT_GE(t.landmarks_inside, BinomialLowerBound(t.landmarks))
-      << t.landmarks_inside << " / " << t.landmarks;
+  EXPECT_GE(t.landmarks_inside, BinomialLowerBound(t.landmarks)) << t.landmarks_inside << " / " << t.landmarks;
 }
 
 // ...and with the default 100 particles, over twelve seeds (1,241 maps), once the moment
@@ -125,8 +122,7 @@ TEST(RbpfLocalMaps, WritesSubmapsJsonlAndConsecutiveMapsShareFeatures) {
   options.out_dir = ::testing::TempDir() + "/subslam_rbpf_run";
   absl::StatusOr<RunResult> r = RunPipeline(*std::move(d), options);
   ASSERT_TRUE(r.ok()) << r.status();
-  absl::StatusOr<std::vector<LocalSubmap>> back =
-      io::ReadSubmapsJsonl(options.out_dir + "/submaps.jsonl");
+  absl::StatusOr<std::vector<LocalSubmap>> back = io::ReadSubmapsJsonl(options.out_dir + "/submaps.jsonl");
   ASSERT_TRUE(back.ok()) << back.status();
   ASSERT_EQ(back->size(), r->local_maps.size());
   ASSERT_GT(back->size(), 4u);
@@ -167,8 +163,7 @@ TEST(RbpfLocalMaps, Combined2kmWithKnownAssociationIsConsistent) {
   const Totals t = RunLocalMaps("combined-2km", {1, 2}, 2000.0, options);
   ASSERT_GT(t.maps, 200);
   EXPECT_GE(t.inside, BinomialLowerBound(t.maps)) << t.inside << " / " << t.maps;
-  EXPECT_GE(t.landmarks_inside, BinomialLowerBound(t.landmarks))
-      << t.landmarks_inside << " / " << t.landmarks;
+  EXPECT_GE(t.landmarks_inside, BinomialLowerBound(t.landmarks)) << t.landmarks_inside << " / " << t.landmarks;
 }
 
 // With clutter (α = 0.7, β = 0.02) no false alarm is exported into a local map.

@@ -35,8 +35,7 @@ bool BlockStaysInTheHeap() {
 // binary), so no other test's heap history or allocator setting reaches it.
 TEST(ProcessMemory, FreedBlocksStayInTheProcess) {
   GTEST_FLAG_SET(death_test_style, "threadsafe");
-  EXPECT_EXIT(std::exit(KeepFreedMemoryInProcess() && BlockStaysInTheHeap() ? 0 : 1),
-              ::testing::ExitedWithCode(0), "");
+  EXPECT_EXIT(std::exit(KeepFreedMemoryInProcess() && BlockStaysInTheHeap() ? 0 : 1), ::testing::ExitedWithCode(0), "");
 }
 
 TEST(ProcessMemory, WithoutItAFreedBlockIsReturned) {

@@ -8,9 +8,9 @@
 #include <fstream>
 #include <functional>
 #include <memory>
-
 #include <nlohmann/json.hpp>
 
+#include "simulated_dataset.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/frontend/ekf_local_mapper.h"
 #include "subslam/io/steps.h"
@@ -18,7 +18,6 @@
 #include "subslam/pipeline/run_pipeline.h"
 #include "subslam/pipeline/submap_slam.h"
 #include "subslam/sim/simulator.h"
-#include "simulated_dataset.h"
 
 namespace subslam::pipeline {
 namespace {
@@ -233,8 +232,9 @@ TEST(RunHealth, AFailedJoinStopsJoiningAndKeepsWhatWasJoined) {
   const io::Dataset d = Simulate(1, "hybrid-120m", 60.0);
   for (bool background : {false, true}) {
     bool failed_seen = false;
-    const std::unique_ptr<SubmapSlam> chain = DriveWithFailingJoiner(
-        d, /*fail_at_finish=*/false, background, [&](const SubmapSlam& s) { failed_seen = failed_seen || s.join_failed(); });
+    const std::unique_ptr<SubmapSlam> chain =
+        DriveWithFailingJoiner(d, /*fail_at_finish=*/false, background,
+                               [&](const SubmapSlam& s) { failed_seen = failed_seen || s.join_failed(); });
     SubmapSlam& slam = *chain;
     const absl::Status st = slam.Finish();
     EXPECT_TRUE(slam.join_failed());

@@ -49,7 +49,8 @@ TEST(RunPipeline, WritesOutputsWithMetrics) {
   // about z; the ground truth and the per-step errors are beside it.
   std::ifstream tum(options.out_dir + "/trajectory_online.tum");
   std::vector<std::array<double, 8>> poses;
-  for (std::array<double, 8> p; tum >> p[0] >> p[1] >> p[2] >> p[3] >> p[4] >> p[5] >> p[6] >> p[7];) poses.push_back(p);
+  for (std::array<double, 8> p; tum >> p[0] >> p[1] >> p[2] >> p[3] >> p[4] >> p[5] >> p[6] >> p[7];)
+    poses.push_back(p);
   ASSERT_EQ(poses.size(), r->online.size());
   for (size_t k = 0; k < poses.size(); k += 97) {
     EXPECT_NEAR(poses[k][1], r->online[k].pose.x, 1e-6);
@@ -62,8 +63,9 @@ TEST(RunPipeline, WritesOutputsWithMetrics) {
   std::ifstream errors(options.out_dir + "/pose_errors.csv");
   std::string line;
   std::getline(errors, line);
-  EXPECT_EQ(line, "t,online_position_error_m,online_heading_error_rad,online_nees,final_position_error_m,"
-                  "final_heading_error_rad,final_nees");
+  EXPECT_EQ(line,
+            "t,online_position_error_m,online_heading_error_rad,online_nees,final_position_error_m,"
+            "final_heading_error_rad,final_nees");
   size_t lines = 0;
   while (std::getline(errors, line)) ++lines;
   EXPECT_EQ(lines, r->online.size());
@@ -110,8 +112,8 @@ TEST(RunPipeline, SensorYawRotatesEveryBearing) {
   long checked = 0;
   for (size_t s = 0; s < d->scans.size(); ++s) {
     for (size_t k = 0; k < d->scans[s].detections.size(); ++k) {
-      EXPECT_NEAR(WrapAngle(rotated.scans[s].detections[k].bearing_rad - d->scans[s].detections[k].bearing_rad),
-                  0.25, 1e-12);
+      EXPECT_NEAR(WrapAngle(rotated.scans[s].detections[k].bearing_rad - d->scans[s].detections[k].bearing_rad), 0.25,
+                  1e-12);
       EXPECT_LE(std::abs(rotated.scans[s].detections[k].bearing_rad), kPi);
       ++checked;
     }
@@ -126,7 +128,8 @@ TEST(RunPipeline, SensorYawRotatesEveryBearing) {
 // likely (per dimension) when the correction is −0.03, less so at 0 or −0.06.
 // hybrid-120m (seed, optionally cut to `duration_s`) with every bearing turned by `yaw`: what
 // a sensor mounted with that yaw error sees.
-absl::StatusOr<io::Dataset> MisalignedHybrid(uint64_t seed, double yaw, std::optional<double> duration_s = std::nullopt) {
+absl::StatusOr<io::Dataset> MisalignedHybrid(uint64_t seed, double yaw,
+                                             std::optional<double> duration_s = std::nullopt) {
   sim::ScenarioOptions o;
   o.seed = seed;
   o.duration_s = duration_s;
@@ -322,7 +325,9 @@ TEST(RunPipeline, OnlineYawCalibrationUndoesASimulatedMisalignment) {
   const nlohmann::json& c = on.report["estimator_counters"];
   EXPECT_NEAR(c["sensor_yaw_correction"].get<double>(), -0.0175, 0.1 * 0.0175);
   EXPECT_EQ(c["sensor_yaw_joiner_restarts"].get<double>(), 1);  // the warm-up's maps joined again, turned
-  const auto final_rms = [](const RunResult& r) { return r.report["metrics"]["trajectory"]["rms_position_m"].get<double>(); };
+  const auto final_rms = [](const RunResult& r) {
+    return r.report["metrics"]["trajectory"]["rms_position_m"].get<double>();
+  };
   const auto duplicates = [](const RunResult& r) { return r.report["metrics"]["map"]["duplicates"].get<int>(); };
   EXPECT_LT(final_rms(on), 0.3);
   EXPECT_GT(final_rms(off), 1.0);

@@ -2,22 +2,21 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <fstream>
-
 #include <boost/math/distributions/binomial.hpp>
 #include <cmath>
+#include <fstream>
 #include <optional>
 
-#include "subslam/pipeline/join_pipeline.h"
+#include "simulated_dataset.h"
 #include "subslam/eval/nees.h"
 #include "subslam/eval/trajectory_errors.h"
-#include "subslam/models/gating.h"
-#include "subslam/pipeline/run_pipeline.h"
-#include "subslam/pipeline/submap_slam.h"
 #include "subslam/io/steps.h"
 #include "subslam/io/submaps_jsonl.h"
+#include "subslam/models/gating.h"
+#include "subslam/pipeline/join_pipeline.h"
+#include "subslam/pipeline/run_pipeline.h"
+#include "subslam/pipeline/submap_slam.h"
 #include "subslam/sim/simulator.h"
-#include "simulated_dataset.h"
 
 namespace subslam::pipeline {
 namespace {
@@ -64,7 +63,7 @@ TEST(CountAssociationsAgainstTruth, CountsWrongMergesByMajorityAndBySharedTrueLa
   EXPECT_EQ(c.wrong, 2);  // global 0 holds majorities 10, 365 and 7
   EXPECT_EQ(c.wrong_with_mixed_feature, 2);
   EXPECT_EQ(c.wrong_sharing_no_true_landmark, 1);  // only tree 7 shares nothing
-  EXPECT_EQ(c.correct, 4);  // true landmarks 10, 365, 7, 8
+  EXPECT_EQ(c.correct, 4);                         // true landmarks 10, 365, 7, 8
   EXPECT_EQ(c.missed, 0);
   EXPECT_EQ(c.recent_merged, 1);  // tree 8, seen again by the next map
   EXPECT_EQ(c.recent_missed + c.loop_merged + c.loop_missed, 0);
@@ -213,7 +212,8 @@ TEST(SubmapPipeline, BackgroundJoinsGiveEveryBackendsSynchronousEstimates) {
     ASSERT_EQ(background->online.size(), synchronous->online.size()) << ToString(kind);
     size_t differing = 0;
     for (size_t k = 0; k < synchronous->online.size(); ++k) {
-      differing += (background->online[k].pose.vector() - synchronous->online[k].pose.vector()).cwiseAbs().maxCoeff() > 1e-6;
+      differing +=
+          (background->online[k].pose.vector() - synchronous->online[k].pose.vector()).cwiseAbs().maxCoeff() > 1e-6;
     }
     EXPECT_GT(differing, synchronous->online.size() / 4) << ToString(kind);
     EXPECT_FALSE(background->errors_online->failed) << ToString(kind);
@@ -230,8 +230,8 @@ TEST(SubmapSlam, BackgroundOnlinePoseIsTheLastJoinedAnchorThroughTheClosedMapsEn
     frontend::FastSlamOptions fastslam;
     fastslam.num_threads = 2;
     const double t0 = d.controls.empty() ? 0.0 : d.controls.front().t;
-    auto mapper = std::make_unique<frontend::RbpfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing,
-                                                              fastslam, frontend::SubmapPolicyOptions{}, t0);
+    auto mapper = std::make_unique<frontend::RbpfLocalMapper>(d.motion.MakeModel(), d.sensor.range_bearing, fastslam,
+                                                              frontend::SubmapPolicyOptions{}, t0);
     BackendOptions backend;
     backend.kind = Backend::kEif;
     backend.background = true;
@@ -552,8 +552,8 @@ TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
 // Back-end names round-trip; a bad name, a bad option or a join without a back-end or
 // without local maps is an error, not a crash.
 TEST(BackendOptions, RejectsBadInput) {
-  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf,
-                    Backend::kTreeEif, Backend::kTreeCeres}) {
+  for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf, Backend::kTreeEif,
+                    Backend::kTreeCeres}) {
     absl::StatusOr<Backend> parsed = BackendFromString(ToString(b));
     ASSERT_TRUE(parsed.ok());
     EXPECT_EQ(*parsed, b);

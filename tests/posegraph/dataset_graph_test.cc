@@ -7,7 +7,7 @@
 #include <set>
 
 #include "subslam/io/dataset_reader.h"
-#include "subslam/io/internal/text_table.h"
+#include "subslam/io/text_table.h"
 #include "subslam/posegraph/graph_format.h"
 
 namespace subslam::posegraph {
@@ -76,7 +76,7 @@ TEST(DatasetGraph, WrittenGraphsRoundTripInEveryFormat) {
     write.format = *GraphFormatFromPath(path);
     auto again = FormatGraph(*g, write);
     ASSERT_TRUE(again.ok()) << again.status();
-    auto original = subslam::internal::ReadFileToString(path);
+    auto original = subslam::io::ReadFileToString(path);
     ASSERT_TRUE(original.ok());
     if (DefaultNoise(write.format) == NoiseConvention::kInformation) {
       // Information as written: the same bytes (the first difference shown; files are long).

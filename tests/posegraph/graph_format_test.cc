@@ -212,7 +212,8 @@ TEST(GraphFormat, RefusesBadLinesNamingFileLineAndField) {
   const Case cases[] = {
       {GraphFormat::kG2o, "VERTEX_SE2 0 0 0\n", "test.graph:1: VERTEX_SE2: missing field 'theta'"},
       {GraphFormat::kG2o, "VERTEX_SE2 0 0 0 0 7\n", "field(s) beyond the 4 expected"},
-      {GraphFormat::kG2o, "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 x 0 0\n", "test.graph:2: VERTEX_SE2: field 'x' (field 2) is not a number"},
+      {GraphFormat::kG2o, "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 x 0 0\n",
+       "test.graph:2: VERTEX_SE2: field 'x' (field 2) is not a number"},
       {GraphFormat::kG2o, "VERTEX_SE2 0 0 0 nan\n", "field 'theta' (field 4) is not finite"},
       {GraphFormat::kG2o, "VERTEX_SE2 -1 0 0 0\n", "is a negative id"},
       {GraphFormat::kG2o, "VERTEX_SE2 1.5 0 0 0\n", "is not an integer id"},
@@ -276,8 +277,8 @@ TEST(GraphFormat, FormatFromPathAndNames) {
 
 // The field's standard known-association graph (../shared/data/graphs), when present.
 TEST(GraphFormat, ReadsTheVictoriaParkGraph) {
-  const std::string path = std::filesystem::path(testing::VictoriaParkDir()).parent_path().string() +
-                           "/graphs/victoria_park.txt";
+  const std::string path =
+      std::filesystem::path(testing::VictoriaParkDir()).parent_path().string() + "/graphs/victoria_park.txt";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent";
   GraphReadOptions read;
   read.format = GraphFormat::kGtsam;

@@ -67,8 +67,8 @@ TEST(BatchSolver, MethodsAgreeAndTheMinimumHasTheExpectedChi2) {
     PoseGraph start = s.graph;
     ASSERT_TRUE(InitializeByDeadReckoning(&start).ok());
     std::vector<double> errors;
-    for (backend::CeresMethod method :
-         {backend::CeresMethod::kLevenbergMarquardt, backend::CeresMethod::kDogleg, backend::CeresMethod::kGaussNewton}) {
+    for (backend::CeresMethod method : {backend::CeresMethod::kLevenbergMarquardt, backend::CeresMethod::kDogleg,
+                                        backend::CeresMethod::kGaussNewton}) {
       PoseGraph g = start;
       backend::CeresSolveOptions options;
       options.method = method;

@@ -50,22 +50,30 @@ TEST(MeasurementResiduals, PointBearingRangeAndBearingJacobiansMatchCentralDiffe
     PointResidual(Eigen::Vector2d(0.1, 0.2), pose, point, &Jp, &Jl);
     Eigen::MatrixXd J(2, 5);
     J << Jp, Jl;
-    EXPECT_TRUE(JacobianMatches(J, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return PointResidual(Eigen::Vector2d(0.1, 0.2), Pose2(v[0], v[1], v[2]), v.tail<2>());
-    }, x));
+    EXPECT_TRUE(JacobianMatches(
+        J,
+        [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+          return PointResidual(Eigen::Vector2d(0.1, 0.2), Pose2(v[0], v[1], v[2]), v.tail<2>());
+        },
+        x));
     BearingRangeResidual(0.3, 2.0, pose, point, &Jp, &Jl);
     J << Jp, Jl;
-    EXPECT_TRUE(JacobianMatches(J, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return BearingRangeResidual(0.3, 2.0, Pose2(v[0], v[1], v[2]), v.tail<2>());
-    }, x, {0}));
+    EXPECT_TRUE(JacobianMatches(J,
+                                [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+                                  return BearingRangeResidual(0.3, 2.0, Pose2(v[0], v[1], v[2]), v.tail<2>());
+                                },
+                                x, {0}));
     Eigen::RowVector3d jp;
     Eigen::RowVector2d jl;
     BearingResidual(-0.2, pose, point, &jp, &jl);
     Eigen::MatrixXd Jb(1, 5);
     Jb << jp, jl;
-    EXPECT_TRUE(JacobianMatches(Jb, [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      return Eigen::VectorXd::Constant(1, BearingResidual(-0.2, Pose2(v[0], v[1], v[2]), v.tail<2>()));
-    }, x, {0}));
+    EXPECT_TRUE(JacobianMatches(Jb,
+                                [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+                                  return Eigen::VectorXd::Constant(
+                                      1, BearingResidual(-0.2, Pose2(v[0], v[1], v[2]), v.tail<2>()));
+                                },
+                                x, {0}));
   }
 }
 

@@ -72,8 +72,8 @@ TEST(SolvePipeline, ListsAMethodThatDoesNotApplyAndRefusesBadRequests) {
 // The field's standard known-association graph (../shared/data/graphs), when present: in
 // GTSAM's reading, the submap route and its polish reach the best minimum known (2,339.22).
 TEST(SolvePipeline, ReachesTheBestKnownMinimumOfTheVictoriaParkGraph) {
-  const std::string path = std::filesystem::path(SUBSLAM_VICTORIA_PARK_DIR).parent_path().string() +
-                           "/graphs/victoria_park.txt";
+  const std::string path =
+      std::filesystem::path(SUBSLAM_VICTORIA_PARK_DIR).parent_path().string() + "/graphs/victoria_park.txt";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent";
   posegraph::GraphReadOptions read;
   read.format = posegraph::GraphFormat::kGtsam;

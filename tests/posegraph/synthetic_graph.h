@@ -47,14 +47,14 @@ inline SyntheticGraph MakeSyntheticGraph(int num_poses, int num_points, Sighting
   posegraph::PoseGraph& g = s.graph;
   for (int i = 0; i < num_poses; ++i) g.PoseIndex(i);
   for (int j = 0; j < num_points; ++j) g.PointIndex(num_poses + j);
-  Eigen::Matrix3d odometry_information = Eigen::Vector3d(1.0 / (0.05 * 0.05), 1.0 / (0.02 * 0.02),
-                                                         1.0 / (0.01 * 0.01)).asDiagonal();
+  Eigen::Matrix3d odometry_information =
+      Eigen::Vector3d(1.0 / (0.05 * 0.05), 1.0 / (0.02 * 0.02), 1.0 / (0.01 * 0.01)).asDiagonal();
   odometry_information(0, 2) = odometry_information(2, 0) = 100.0;  // a correlation, so order matters
   for (int i = 1; i < num_poses; ++i) {
     const Eigen::Vector3d e = draw(odometry_information);
     const Pose2 rel = Between(s.true_poses[i - 1], s.true_poses[i]);
-    g.odometry.push_back({i - 1, i, Pose2(rel.x + e.x(), rel.y + e.y(), WrapAngle(rel.theta + e.z())),
-                          odometry_information});
+    g.odometry.push_back(
+        {i - 1, i, Pose2(rel.x + e.x(), rel.y + e.y(), WrapAngle(rel.theta + e.z())), odometry_information});
     // Sightings from pose i − 1 (the pose before the step), in time order.
     for (int j = 0; j < num_points; ++j) {
       const Eigen::Vector2d local = TransformTo(s.true_poses[i - 1], s.true_points[j]);

@@ -128,8 +128,7 @@ TEST(Simulator, DetectionsMatchTruthWithinNoise) {
   }
   ASSERT_GT(n, 1000);
   // Sample σ within 10% of the configured one (n > 1000 samples: ~2% standard error).
-  EXPECT_NEAR(std::sqrt(sum_r / n), d->sensor.range_bearing.sigma_range_m,
-              0.1 * d->sensor.range_bearing.sigma_range_m);
+  EXPECT_NEAR(std::sqrt(sum_r / n), d->sensor.range_bearing.sigma_range_m, 0.1 * d->sensor.range_bearing.sigma_range_m);
   EXPECT_NEAR(std::sqrt(sum_b / n), d->sensor.range_bearing.sigma_bearing_rad,
               0.1 * d->sensor.range_bearing.sigma_bearing_rad);
 }
@@ -173,8 +172,8 @@ TEST(Simulator, TruthFollowsTheMotionModelAndPath) {
   ASSERT_TRUE(circle.ok());
   double max_radius_error = 0;
   for (const io::TimedPose& p : circle->truth_poses) {
-    max_radius_error = std::max(max_radius_error,
-                                std::abs((p.pose.translation() - Eigen::Vector2d(0, 100)).norm() - 100));
+    max_radius_error =
+        std::max(max_radius_error, std::abs((p.pose.translation() - Eigen::Vector2d(0, 100)).norm() - 100));
   }
   EXPECT_LT(max_radius_error, 10.0);
   EXPECT_GT(circle->truth_poses.back().t, 2 * kPi * 100 / 3.0);

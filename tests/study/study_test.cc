@@ -1,17 +1,18 @@
+#include "subslam/study/study.h"
+
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_replace.h"
 #include "subslam/study/binomial_interval.h"
 #include "subslam/study/run_table.h"
-#include "subslam/study/study.h"
 #include "subslam/study/study_runner.h"
 #include "test_util.h"
 
@@ -183,7 +184,8 @@ TEST(MonteCarloStudies, TablesHaveTheirShapeAndRanges) {
     std::vector<std::string> methods;
     size_t rows;
   };
-  for (const Case& c : {Case{"fmj", 5, {}, 6}, Case{"iseif", 3, {}, 3}, Case{"combined-slam", 2, {"rbpf-eif", "ekfslam"}, 2}}) {
+  for (const Case& c :
+       {Case{"fmj", 5, {}, 6}, Case{"iseif", 3, {}, 3}, Case{"combined-slam", 2, {"rbpf-eif", "ekfslam"}, 2}}) {
     SCOPED_TRACE(c.study);
     absl::StatusOr<std::unique_ptr<Study>> study = MakeStudy(c.study);
     ASSERT_TRUE(study.ok());
@@ -358,8 +360,8 @@ TEST(StudyTool, RefusesFlagsItDoesNotRead) {
   const std::string err = dir + "/stderr.txt";
   for (const std::string flags : {"--join_merge_loops=false --particles 7", "--backend ceres"}) {
     SCOPED_TRACE(flags);
-    const std::string command = absl::StrCat(SUBSLAM_TOOL, " study fmj --trials 1 --quiet --progress=false --out ",
-                                             dir, "/study ", flags, " 2> ", err);
+    const std::string command = absl::StrCat(SUBSLAM_TOOL, " study fmj --trials 1 --quiet --progress=false --out ", dir,
+                                             "/study ", flags, " 2> ", err);
     EXPECT_NE(std::system(command.c_str()), 0);
     const std::string message = Slurp(err);
     EXPECT_NE(message.find("study does not read"), std::string::npos) << message;

@@ -35,9 +35,9 @@ const char* ToString(AssociationMethod method);
 absl::StatusOr<AssociationMethod> AssociationMethodFromString(const std::string& name);
 
 struct AssociationCandidate {
-  int landmark = -1;                                    // caller's landmark index
-  double d2 = 0.0;                                      // individual Mahalanobis d²
-  Eigen::Vector2d innovation = Eigen::Vector2d::Zero(); // z − ẑ (bearing wrapped)
+  int landmark = -1;                                     // caller's landmark index
+  double d2 = 0.0;                                       // individual Mahalanobis d²
+  Eigen::Vector2d innovation = Eigen::Vector2d::Zero();  // z − ẑ (bearing wrapped)
 };
 
 struct AssociationProblem {
@@ -64,8 +64,7 @@ struct AssociationResult {
 
 AssociationResult NearestNeighbour(const AssociationProblem& problem);
 
-AssociationResult JointCompatibility(const AssociationProblem& problem, double gate_probability,
-                                     long max_nodes);
+AssociationResult JointCompatibility(const AssociationProblem& problem, double gate_probability, long max_nodes);
 
 }  // namespace subslam::association
 

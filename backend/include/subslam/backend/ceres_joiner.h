@@ -40,8 +40,7 @@ class CeresJoiner final : public MapJoiner {
   absl::Status Finish() override;
 
   const SubmapGraph& graph() const override { return eif_.graph(); }
-  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
-                                  const std::vector<int>& landmarks) const override {
+  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const override {
     return eif_.JointCovariance(anchors, landmarks);
   }
   std::vector<Eigen::Matrix3d> AnchorCovariances() const override { return eif_.AnchorCovariances(); }

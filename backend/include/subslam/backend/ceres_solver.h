@@ -29,7 +29,7 @@ absl::StatusOr<RobustLoss> RobustLossFromString(const std::string& name);
 struct CeresSolveOptions {
   CeresMethod method = CeresMethod::kLevenbergMarquardt;
   RobustLoss loss = RobustLoss::kNone;
-  double loss_scale = 3.0;          // in whitened residual units (σ)
+  double loss_scale = 3.0;  // in whitened residual units (σ)
   int max_iterations = 100;
   double function_tolerance = 1e-12;
   double gradient_tolerance = 1e-14;
@@ -45,18 +45,17 @@ struct CeresSolveReport {
   double initial_cost = 0.0;  // ½ Σ ‖whitened residual‖²
   double final_cost = 0.0;
   double seconds = 0.0;
-  std::string termination;    // Ceres's termination type
-  std::string brief;          // Ceres's one-line report
+  std::string termination;          // Ceres's termination type
+  std::string brief;                // Ceres's one-line report
   double covariance_seconds = 0.0;  // ceres::Covariance, when asked for
 };
 
 // Optimises the graph's anchors 1 … k and landmarks in place (headings wrapped after).
 // When `anchor_covariances` is given, it receives, through ceres::Covariance at the
 // solution, the marginal covariance of each listed anchor (anchor 0: zero).
-absl::StatusOr<CeresSolveReport> SolveWithCeres(
-    SubmapGraph* graph, const CeresSolveOptions& options,
-    const std::vector<int>& covariance_anchors = {},
-    std::vector<Eigen::Matrix3d>* anchor_covariances = nullptr);
+absl::StatusOr<CeresSolveReport> SolveWithCeres(SubmapGraph* graph, const CeresSolveOptions& options,
+                                                const std::vector<int>& covariance_anchors = {},
+                                                std::vector<Eigen::Matrix3d>* anchor_covariances = nullptr);
 
 }  // namespace subslam::backend
 

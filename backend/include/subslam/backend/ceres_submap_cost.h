@@ -9,8 +9,9 @@
 #ifndef SUBSLAM_BACKEND_CERES_SUBMAP_COST_H_
 #define SUBSLAM_BACKEND_CERES_SUBMAP_COST_H_
 
-#include <Eigen/Core>
 #include <ceres/cost_function.h>
+
+#include <Eigen/Core>
 #include <vector>
 
 #include "subslam/graph/local_submap.h"
@@ -22,8 +23,7 @@ class SubmapCostFunction final : public ceres::CostFunction {
   // Without block_of_feature: feature i is block i.
   explicit SubmapCostFunction(const LocalSubmap& submap, std::vector<int> block_of_feature = {});
 
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override;
+  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
 
  private:
   LocalSubmap submap_;

@@ -94,7 +94,7 @@ struct EifJoinerOptions {
   // a navigation stack reads, nor shrink its covariance (a thin closure by a chance fit
   // would put it metres off with centimetres of σ).
   // Relinearisation.
-  int relinearize_every = 0;       // every K joins (0: not on a schedule)
+  int relinearize_every = 0;  // every K joins (0: not on a schedule)
   // At Finish(): Gauss-Newton to convergence, so that the final anchors and map are the
   // optimum for the associations made. Between relinearisations the factors stay
   // linearised where each join left them: with the heading trigger alone, on a random
@@ -249,8 +249,7 @@ class EifJoiner final : public MapJoiner {
   Pose2 LastAnchor() const override;
   Eigen::Matrix3d LastAnchorCovariance() const override;
   // Marginal covariances by sparse solves with the factor.
-  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
-                                  const std::vector<int>& landmarks) const override;
+  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const override;
   // All marginals from Λ⁻¹ on the factor's pattern (one sparse-inverse recursion).
   std::vector<Eigen::Matrix3d> AnchorCovariances() const override;
   std::vector<Eigen::Matrix2d> LandmarkCovariances() const override;
@@ -298,11 +297,11 @@ class EifJoiner final : public MapJoiner {
 
  private:
   struct Factor {
-    int index = 0;                  // into graph_.factors()
-    std::vector<int> offsets;       // state offset of each variable block (−1: fixed P0)
-    std::vector<int> sizes;         // 3 or 2
-    Eigen::MatrixXd H;              // Jᵀ Q⁻¹ J over the stacked variable blocks
-    Eigen::VectorXd b;              // Jᵀ Q⁻¹ (J x̂ − r)
+    int index = 0;                              // into graph_.factors()
+    std::vector<int> offsets;                   // state offset of each variable block (−1: fixed P0)
+    std::vector<int> sizes;                     // 3 or 2
+    Eigen::MatrixXd H;                          // Jᵀ Q⁻¹ J over the stacked variable blocks
+    Eigen::VectorXd b;                          // Jᵀ Q⁻¹ (J x̂ − r)
     double start_theta = 0.0, end_theta = 0.0;  // the anchors' headings at the linearisation
     // The levers from the start anchor to the end anchor and to each landmark at the
     // linearisation (what LinearizationError needs).
@@ -422,7 +421,7 @@ class EifJoiner final : public MapJoiner {
 
   EifJoinerOptions options_;
   SubmapGraph graph_;
-  std::vector<int> anchor_offset_;    // −1 for P0
+  std::vector<int> anchor_offset_;  // −1 for P0
   std::vector<int> landmark_offset_;
   std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
   int dim_ = 0;

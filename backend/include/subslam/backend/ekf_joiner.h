@@ -80,8 +80,7 @@ class EkfJoiner final : public MapJoiner {
   const SubmapGraph& graph() const override { return graph_; }
   // Blocks of the dense covariance; an anchor marginalised out (keep_anchors false) has
   // its covariance frozen when it was dropped and zero cross-covariance.
-  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
-                                  const std::vector<int>& landmarks) const override;
+  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const override;
   const std::vector<int>& last_association() const override { return last_association_; }
   std::map<std::string, double> stage_times() const override { return times_; }
   const JoinerCounters& counters() const override { return counters_; }
@@ -115,8 +114,7 @@ class EkfJoiner final : public MapJoiner {
                            const std::vector<Block>& blocks);
   // Error: the fusion's innovation covariance is not positive definite (nothing changed).
   absl::Status FuseZeroNoise(const std::vector<std::pair<int, int>>& copy_and_landmark_offsets);
-  absl::Status FuseConditional(const LocalSubmap& s, int start, int end,
-                               const std::vector<int>& landmark_of_feature,
+  absl::Status FuseConditional(const LocalSubmap& s, int start, int end, const std::vector<int>& landmark_of_feature,
                                const std::vector<char>& matched);
   // Association of `s` (starting at anchor `start`) with the map, timed and counted: a
   // local map, or with `whole_map_groups` a whole map's summary (SubmapAssociator::Associate).

@@ -84,7 +84,7 @@ struct LandmarkRevisionOptions {
   // bench/RESULTS.md).
   bool merge_by_density = true;
   double density_gate_probability = 0.999;  // in (0, 1); at or below merge_probability: no effect
-  double density_radius_m = 10.0;  // as the association's candidate radius (TH2)
+  double density_radius_m = 10.0;           // as the association's candidate radius (TH2)
   // Off by default: on hybrid-120m, combined-2km and Victoria Park it changed no figure
   // while a pass per split doubled Victoria Park's time (bench/RESULTS.md); the wrong
   // merges seen there are joint loop-closure decisions that the estimate bends to fit,
@@ -133,15 +133,13 @@ using AnchorLandmarkCovarianceFn =
 // touched landmark are tested: those whose own evidence changed since the last pass.
 // Loop merges need `joint_covariance` and the association's loop tests (`loop_merges`).
 struct LoopMergeTests {
-  int min_pairings = 0;                   // min_loop_pairings (< 1: no loop merges)
-  double max_sigma_radius_m = 0.0;        // loop_confirmation_min_sigma_radius_m
+  int min_pairings = 0;             // min_loop_pairings (< 1: no loop merges)
+  double max_sigma_radius_m = 0.0;  // loop_confirmation_min_sigma_radius_m
   LandmarkJointCovarianceFn joint_covariance;
 };
-std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph,
-                                              const std::vector<Eigen::Matrix2d>& marginals,
+std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const std::vector<Eigen::Matrix2d>& marginals,
                                               const LandmarkPairCovarianceFn& pair_covariance,
-                                              const LandmarkRevisionOptions& options,
-                                              double loop_sigma_radius_m,
+                                              const LandmarkRevisionOptions& options, double loop_sigma_radius_m,
                                               const std::vector<char>& touched = {},
                                               const LoopMergeTests& loop_merges = {});
 

@@ -24,9 +24,9 @@ namespace subslam::backend {
 
 struct JoinerCounters {
   long joins = 0;
-  long associated = 0;        // features matched to an existing landmark
+  long associated = 0;  // features matched to an existing landmark
   long new_landmarks = 0;
-  long relinearizations = 0;  // Gauss-Newton iterations spent relinearising
+  long relinearizations = 0;           // Gauss-Newton iterations spent relinearising
   long relinearizations_diverged = 0;  // stopped at their best iterate (cost rises in a row)
   // Gauss-Newton runs stopped by a predicted step, before another factorisation.
   long relinearizations_predicted_converged = 0;
@@ -34,7 +34,7 @@ struct JoinerCounters {
   // relinearize_heading_change and relinearize_linearization_chi2).
   long relinearized_on_heading = 0;
   long relinearized_on_linearization_error = 0;
-  long jcbb_truncated = 0;    // joins whose JCBB search hit its node budget
+  long jcbb_truncated = 0;  // joins whose JCBB search hit its node budget
   // Loop closures dropped under an uncertain start anchor: too few pairings, or ambiguous.
   long loop_closures_thin = 0;
   long loop_closures_ambiguous = 0;
@@ -52,7 +52,7 @@ struct JoinerCounters {
   // Local maps joined with their features widened by the maps' measured rotation spread
   // (SubmapAssociationOptions::map_rotation_spread_probability).
   long maps_spread = 0;
-  long rejected_joins = 0;    // failed validation: joined again without associations
+  long rejected_joins = 0;  // failed validation: joined again without associations
   // Revisions of the association (landmark_revision.h): passes run, landmarks merged into
   // another, features split off to a landmark of their own.
   long revision_passes = 0;
@@ -130,8 +130,7 @@ class MapJoiner {
   Eigen::Vector2d landmark(int j) const { return graph().landmarks()[j]; }
 
   // Marginal covariances (anchor 0 is fixed: zero).
-  virtual Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
-                                          const std::vector<int>& landmarks) const = 0;
+  virtual Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const = 0;
   Eigen::Matrix3d AnchorCovariance(int k) const { return JointCovariance({k}, {}); }
   Eigen::Matrix2d LandmarkCovariance(int j) const { return JointCovariance({}, {j}); }
   // Every anchor's and every landmark's marginal at once (the final trajectory's and the
@@ -209,8 +208,7 @@ absl::Status ReviseUntilSettled(MapJoiner& joiner, int max_passes = 50);
 LocalSubmap SummarizeAsLocalSubmap(const MapJoiner& j, bool with_covariance = true);
 // The summary of `right` for a whole-map join onto a map that ends at `left_t_end` (s);
 // an error if right starts before.
-absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end,
-                                             bool with_covariance = true);
+absl::StatusOr<LocalSubmap> SummarizeForJoin(const MapJoiner& right, double left_t_end, bool with_covariance = true);
 
 }  // namespace subslam::backend
 

@@ -81,12 +81,11 @@ struct SensorYawCalibrationOptions {
 // with its Jacobians (analytic; tested numerically).
 struct YawPairDifference {
   Eigen::Vector2d d;
-  Eigen::Vector2d d_yaw;                   // ∂d/∂yaw
-  Eigen::Matrix<double, 2, 5> d_earlier;   // ∂d/∂[l_i, earlier end pose (x, y, θ)]
-  Eigen::Matrix<double, 2, 4> d_later;     // ∂d/∂[l_j, later end position (x, y)]
+  Eigen::Vector2d d_yaw;                  // ∂d/∂yaw
+  Eigen::Matrix<double, 2, 5> d_earlier;  // ∂d/∂[l_i, earlier end pose (x, y, θ)]
+  Eigen::Matrix<double, 2, 4> d_later;    // ∂d/∂[l_j, later end position (x, y)]
 };
-YawPairDifference PairDifference(const LocalSubmap& earlier, int i, const LocalSubmap& later, int j,
-                                 double yaw);
+YawPairDifference PairDifference(const LocalSubmap& earlier, int i, const LocalSubmap& later, int j, double yaw);
 
 class SensorYawCalibration {
  public:
@@ -101,12 +100,12 @@ class SensorYawCalibration {
   // Takes the next local map as the front-end built it (maps in run order, each valid).
   Ready Add(const LocalSubmap& built);
 
-  double estimate() const;  // δ̂ [rad], to be added to the sensor's yaw
-  double sigma() const;     // its standard deviation [rad] (the least squares')
+  double estimate() const;               // δ̂ [rad], to be added to the sensor's yaw
+  double sigma() const;                  // its standard deviation [rad] (the least squares')
   long pairs() const { return pairs_; }  // feature pairs used so far
   bool enabled() const { return options_.enabled; }
   long maps_turned() const { return maps_turned_; }  // maps passed on with a correction
-  int restarts() const { return restarts_; }          // Ready::restart handed out (0 or 1)
+  int restarts() const { return restarts_; }         // Ready::restart handed out (0 or 1)
   // The figures above under their report.json names (sensor_yaw_correction, _sigma,
   // _pairs, _maps_turned, _joiner_restarts); none when off.
   std::map<std::string, double> Counters() const;

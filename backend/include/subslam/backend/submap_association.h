@@ -163,7 +163,7 @@ struct SubmapAssociation {
   // A loop closure with too few pairings: how many it had (those kept as certain, see
   // keep_certain_loop_pairings, included).
   int loop_pairings_dropped = 0;
-  bool loop_ambiguous = false;           // a loop closure dropped by loop_ambiguity_test
+  bool loop_ambiguous = false;  // a loop closure dropped by loop_ambiguity_test
   // A thin closure (fewer than min_loop_pairings loop pairings) that no other hypothesis
   // explains as well (with confirm_thin_loops, joint compatibility and loop_ambiguity_test;
   // not for whole-map groups): its dropped uncertain pairings, (feature, landmark), for a
@@ -197,9 +197,9 @@ struct SubmapAssociation {
   // from above by the joint gate.
   double pairings_d2 = 0.0;
   int pairings_dof = 0;
-  double covariance_seconds = 0.0;       // spent in the joiner's covariance recovery
-  int candidates = 0;                    // candidate landmarks (step 1)
-  int candidates_bounded_out = 0;        // of those, dropped under the joiner's bound (step 2)
+  double covariance_seconds = 0.0;  // spent in the joiner's covariance recovery
+  int candidates = 0;               // candidate landmarks (step 1)
+  int candidates_bounded_out = 0;   // of those, dropped under the joiner's bound (step 2)
   // The start anchor's marginal covariance before the join (zero for the fixed P0;
   // unset under known association).
   Eigen::Matrix3d start_anchor_covariance = Eigen::Matrix3d::Constant(NAN);
@@ -226,18 +226,17 @@ class SubmapAssociator {
  public:
   // Joint marginal covariance of the listed anchors then landmarks (3 rows per anchor,
   // 2 per landmark; a fixed anchor has zero rows and columns).
-  using JointCovarianceFn = std::function<Eigen::MatrixXd(const std::vector<int>& anchors,
-                                                          const std::vector<int>& landmarks)>;
+  using JointCovarianceFn =
+      std::function<Eigen::MatrixXd(const std::vector<int>& anchors, const std::vector<int>& landmarks)>;
   // For each landmark, the joint marginal covariance of [anchor, landmark] (5 × 5), without
   // the landmarks' cross-covariances: what individual compatibility needs. Optional; when
   // given, the joint covariance is asked only for the individually compatible landmarks.
-  using PairCovarianceFn =
-      std::function<std::vector<Matrix5d>(int anchor, const std::vector<int>& landmarks)>;
+  using PairCovarianceFn = std::function<std::vector<Matrix5d>(int anchor, const std::vector<int>& landmarks)>;
   // For each landmark, an upper bound (Loewner order) on the 5 × 5 marginal of
   // [anchor, landmark], or nullopt when the joiner has none. Optional, used only with a
   // PairCovarianceFn.
-  using PairBoundFn = std::function<std::vector<std::optional<Matrix5d>>(int anchor,
-                                                                         const std::vector<int>& landmarks)>;
+  using PairBoundFn =
+      std::function<std::vector<std::optional<Matrix5d>>(int anchor, const std::vector<int>& landmarks)>;
 
   explicit SubmapAssociator(const SubmapAssociationOptions& options);
 
@@ -254,8 +253,7 @@ class SubmapAssociator {
   // budget, and the loop tests, made for one local map's few features, would weigh a whole
   // map's pairings against chance fits of its many others.
   SubmapAssociation Associate(const LocalSubmap& submap, int start_anchor, const SubmapGraph& graph,
-                              const JointCovarianceFn& joint_covariance,
-                              bool anchor_prefilter = true,
+                              const JointCovarianceFn& joint_covariance, bool anchor_prefilter = true,
                               const PairCovarianceFn& pair_covariance = nullptr,
                               const PairBoundFn& pair_bound = nullptr,
                               const std::vector<std::vector<int>>* groups = nullptr) const;
@@ -263,8 +261,8 @@ class SubmapAssociator {
   // After the join: `landmark_of_feature` is the final landmark of each feature; landmarks
   // numbered `first_new_landmark` and up were created by this join. Records signatures and,
   // if `define_truth`, the truth ids of the new landmarks.
-  void Record(const LocalSubmap& submap, const std::vector<int>& landmark_of_feature,
-              int first_new_landmark, bool define_truth);
+  void Record(const LocalSubmap& submap, const std::vector<int>& landmark_of_feature, int first_new_landmark,
+              bool define_truth);
 
   // Follow a revision of the graph's association (landmark_revision.h): landmark `drop`
   // merged into `keep` (landmarks after `drop` move down by one); or a feature with

@@ -16,22 +16,20 @@
 namespace subslam::backend {
 
 struct SubmapFactorLinearization {
-  Eigen::VectorXd residual;  // h(X) ⊖ z, 3 + 2n
-  Eigen::MatrixXd J_start;   // (3 + 2n) × 3
-  Eigen::MatrixXd J_end;     // (3 + 2n) × 3
+  Eigen::VectorXd residual;     // h(X) ⊖ z, 3 + 2n
+  Eigen::MatrixXd J_start;      // (3 + 2n) × 3
+  Eigen::MatrixXd J_end;        // (3 + 2n) × 3
   Eigen::MatrixXd J_landmarks;  // (3 + 2n) × 2n; column block i is ∂r/∂L_i (nonzero in row block i only)
 };
 
 // h(X) alone.
-Eigen::VectorXd PredictSubmap(const Pose2& start, const Pose2& end,
-                              const std::vector<Eigen::Vector2d>& landmarks);
+Eigen::VectorXd PredictSubmap(const Pose2& start, const Pose2& end, const std::vector<Eigen::Vector2d>& landmarks);
 
 // r(X) alone (no Jacobians): what a cost evaluation needs.
 Eigen::VectorXd SubmapResidual(const LocalSubmap& submap, const Pose2& start, const Pose2& end,
                                const std::vector<Eigen::Vector2d>& landmarks);
 
-SubmapFactorLinearization LinearizeSubmapFactor(const LocalSubmap& submap, const Pose2& start,
-                                                const Pose2& end,
+SubmapFactorLinearization LinearizeSubmapFactor(const LocalSubmap& submap, const Pose2& start, const Pose2& end,
                                                 const std::vector<Eigen::Vector2d>& landmarks);
 
 }  // namespace subslam::backend

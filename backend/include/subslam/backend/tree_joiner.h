@@ -66,8 +66,7 @@ class TreeJoiner final : public MapJoiner {
 
   // The whole map: after Finish() the root; before, the stack folded on demand.
   const SubmapGraph& graph() const override { return Whole().graph(); }
-  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors,
-                                  const std::vector<int>& landmarks) const override {
+  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const override {
     return Whole().JointCovariance(anchors, landmarks);
   }
   std::vector<Eigen::Matrix3d> AnchorCovariances() const override { return Whole().AnchorCovariances(); }
@@ -115,7 +114,7 @@ class TreeJoiner final : public MapJoiner {
   std::unique_ptr<MapJoiner> prototype_;
   TreeJoinerOptions options_;
   Pose2 initial_pose_;
-  std::vector<Node> nodes_;  // left to right (running: levels strictly decreasing)
+  std::vector<Node> nodes_;                   // left to right (running: levels strictly decreasing)
   std::unique_ptr<MapJoiner> previous_leaf_;  // a copy of the last local map's leaf
   long maps_widened_ = 0;                     // leaves joined rotated back and widened
   // The maps' rotation spread over the leaves' rotation tests (map_rotation_spread.h); the

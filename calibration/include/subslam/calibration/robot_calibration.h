@@ -38,12 +38,11 @@
 // four control-noise components nor pulls the fit.
 // Then, from the final estimate: the field of view and range limits as the extremes of the
 // paired detections' predicted range and bearing (the estimate's, not the noisy measured
-// ones, whose extremes overshoot the limits by a few σ), and the detection probability by range inside them: in each range
-// bin, the scans at which a landmark was predicted in view against those that detected it,
-// corrected for the scans a data set does not record (those that detected nothing) by the
-// zero-truncated maximum likelihood, with a 95 % interval: Jeffreys' (Beta(k + ½, n − k + ½)
-// quantiles) for the binomial of the same information, n = p(1 − p) / var(p), var(p) from
-// the truncated likelihood's observed information.
+// ones, whose extremes overshoot the limits by a few σ), and the detection probability by range inside them: in each
+// range bin, the scans at which a landmark was predicted in view against those that detected it, corrected for the
+// scans a data set does not record (those that detected nothing) by the zero-truncated maximum likelihood, with a 95 %
+// interval: Jeffreys' (Beta(k + ½, n − k + ½) quantiles) for the binomial of the same information, n = p(1 − p) /
+// var(p), var(p) from the truncated likelihood's observed information.
 //
 // Units: metres, radians, seconds; poses in the data set's world frame.
 #ifndef SUBSLAM_CALIBRATION_ROBOT_CALIBRATION_H_
@@ -65,14 +64,14 @@ struct CalibrationOptions {
   // true: detections are paired by their true ids (the data set must have them); false:
   // by the gate each round, against CalibrationStart::landmarks.
   bool known_association = false;
-  double gate_probability = 0.99;       // P(χ²₂ ≤ gate) for pairing
-  double outlier_probability = 0.999;   // P(χ²₂ ≤ bound) for keeping a paired detection
-  int max_rounds = 30;                  // estimate, then variances: at most this many times
+  double gate_probability = 0.99;      // P(χ²₂ ≤ gate) for pairing
+  double outlier_probability = 0.999;  // P(χ²₂ ≤ bound) for keeping a paired detection
+  int max_rounds = 30;                 // estimate, then variances: at most this many times
   // Stop once every σ moves by less than this fraction of itself or a tenth of its
   // standard error.
   double relative_tolerance = 0.01;
-  int max_solver_iterations = 50;       // Gauss-Newton iterations per round
-  double detection_bin_m = 0.5;         // width of the detection curve's range bins [m]
+  int max_solver_iterations = 50;  // Gauss-Newton iterations per round
+  double detection_bin_m = 0.5;    // width of the detection curve's range bins [m]
   // σ of a Gaussian prior on each odometry scale about the data set's own (0: none). Weak
   // against data that turn and drive enough to show a scale (standard errors of 1–3 % on
   // the camera robots), it keeps a scale the data cannot see — a robot that hardly turns —
@@ -84,9 +83,9 @@ struct CalibrationOptions {
 
 // Where the estimate starts: typically a SLAM run's final trajectory and map.
 struct CalibrationStart {
-  std::vector<Pose2> scan_poses;                  // one per dataset.scans
-  std::vector<Eigen::Matrix3d> scan_covariances;  // optional (first pairing's gate)
-  std::vector<Eigen::Vector2d> landmarks;         // unknown association: the map to pair with
+  std::vector<Pose2> scan_poses;                      // one per dataset.scans
+  std::vector<Eigen::Matrix3d> scan_covariances;      // optional (first pairing's gate)
+  std::vector<Eigen::Vector2d> landmarks;             // unknown association: the map to pair with
   std::vector<Eigen::Matrix2d> landmark_covariances;  // optional, one per landmark (first gate)
 };
 
@@ -100,13 +99,13 @@ struct Estimated {
 // one landmark (a data set records no scan that detected nothing; see `probability`).
 struct DetectionBin {
   double range_min_m = 0.0, range_max_m = 0.0;
-  int predicted = 0;   // landmark-scan pairs predicted in view
-  int detected = 0;    // of those, detected
-  double expected_unrecorded = 0.0;   // trials in the scans that detected nothing (EM)
+  int predicted = 0;                 // landmark-scan pairs predicted in view
+  int detected = 0;                  // of those, detected
+  double expected_unrecorded = 0.0;  // trials in the scans that detected nothing (EM)
   // The maximum-likelihood probability under that truncation:
   // detected / (predicted + expected_unrecorded).
   double probability = std::nan("");
-  double lower = 0.0, upper = 1.0;    // 95 % interval (robot_calibration.h, above)
+  double lower = 0.0, upper = 1.0;  // 95 % interval (robot_calibration.h, above)
 };
 
 struct RobotCalibration {

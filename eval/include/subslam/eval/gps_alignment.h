@@ -34,19 +34,18 @@ struct GpsFaultRule {
 std::vector<int> GrossGpsFaults(const std::vector<io::TimedPoint>& gps, const GpsFaultRule& rule = {});
 
 struct GpsComparison {
-  int matched_fixes = 0;     // GPS fixes inside the trajectory's time span (faults dropped)
-  int rejected_fixes = 0;    // of those, gross faults dropped (GrossGpsFaults)
-  Pose2 gps_T_estimate;      // the aligning transform
-  double rms_m = 0.0;        // √mean ‖residual‖²
-  double rms_x_m = 0.0;      // per GPS axis
+  int matched_fixes = 0;   // GPS fixes inside the trajectory's time span (faults dropped)
+  int rejected_fixes = 0;  // of those, gross faults dropped (GrossGpsFaults)
+  Pose2 gps_T_estimate;    // the aligning transform
+  double rms_m = 0.0;      // √mean ‖residual‖²
+  double rms_x_m = 0.0;    // per GPS axis
   double rms_y_m = 0.0;
   double max_m = 0.0;
 };
 
 // Fixes outside [trajectory.front().t, trajectory.back().t] are skipped, and gross
 // faults (GrossGpsFaults with `rule`) are dropped and counted.
-absl::StatusOr<GpsComparison> CompareWithGps(const Trajectory& trajectory,
-                                             const std::vector<io::TimedPoint>& gps,
+absl::StatusOr<GpsComparison> CompareWithGps(const Trajectory& trajectory, const std::vector<io::TimedPoint>& gps,
                                              const GpsFaultRule& rule = {});
 
 }  // namespace subslam::eval

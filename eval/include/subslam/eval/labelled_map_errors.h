@@ -14,13 +14,13 @@
 namespace subslam::eval {
 
 struct LabelledMapErrors {
-  int labelled = 0;           // estimates with a label found in the truth
-  int true_landmarks = 0;     // distinct labels among them
-  int duplicates = 0;         // labelled − true_landmarks: surplus estimates of a true landmark
-  double rms_m = 0.0;         // over labelled estimates
+  int labelled = 0;        // estimates with a label found in the truth
+  int true_landmarks = 0;  // distinct labels among them
+  int duplicates = 0;      // labelled − true_landmarks: surplus estimates of a true landmark
+  double rms_m = 0.0;      // over labelled estimates
   double rms_x_m = 0.0;
   double rms_y_m = 0.0;
-  double mean_nees = 0.0;     // 2-dof NEES, over labelled estimates with a valid covariance
+  double mean_nees = 0.0;            // 2-dof NEES, over labelled estimates with a valid covariance
   double fraction_nees_in_95 = 0.0;  // of those, NEES ≤ χ²₂(0.95)
 };
 

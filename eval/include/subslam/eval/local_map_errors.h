@@ -19,21 +19,20 @@ namespace subslam::eval {
 
 struct LocalMapNees {
   int id = 0;
-  double nees = 0.0;       // joint, dof = 3 + 2k
+  double nees = 0.0;  // joint, dof = 3 + 2k
   int dof = 3;
   double pose_nees = 0.0;  // end pose alone, 3 dof
   int landmarks_evaluated = 0;
   std::vector<double> landmark_nees;  // per evaluated feature, its 2-dof marginal
-  int false_alarms = 0;    // exported features whose truth_id is −1
-  int unlabelled = 0;      // exported features without a truth id
-  double lower = 0.0, upper = 0.0;  // two-sided 95% χ²_dof bounds
+  int false_alarms = 0;               // exported features whose truth_id is −1
+  int unlabelled = 0;                 // exported features without a truth id
+  double lower = 0.0, upper = 0.0;    // two-sided 95% χ²_dof bounds
   bool inside() const { return nees >= lower && nees <= upper; }
 };
 
 // nullopt when the truth does not cover the map's time span or the covariance block is
 // not positive definite.
-std::optional<LocalMapNees> EvaluateLocalMap(const LocalSubmap& submap,
-                                             const std::vector<io::TimedPose>& truth_poses,
+std::optional<LocalMapNees> EvaluateLocalMap(const LocalSubmap& submap, const std::vector<io::TimedPose>& truth_poses,
                                              const std::vector<io::TruthLandmark>& truth_landmarks);
 
 }  // namespace subslam::eval

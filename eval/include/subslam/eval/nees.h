@@ -22,8 +22,7 @@ inline constexpr double kMinRelativeEigenvalue = 1e-12;
 
 // Pose NEES; nullopt when the covariance is singular (see kMinRelativeEigenvalue) or
 // not positive definite.
-std::optional<double> PoseNees(const Pose2& truth, const Pose2& estimate,
-                               const Eigen::Matrix3d& covariance);
+std::optional<double> PoseNees(const Pose2& truth, const Pose2& estimate, const Eigen::Matrix3d& covariance);
 
 // Point (landmark) NEES.
 std::optional<double> PointNees(const Eigen::Vector2d& truth, const Eigen::Vector2d& estimate,
@@ -32,9 +31,7 @@ std::optional<double> PointNees(const Eigen::Vector2d& truth, const Eigen::Vecto
 struct NeesBounds {
   double lower = 0.0;
   double upper = 0.0;
-  bool Contains(double average_nees) const {
-    return average_nees >= lower && average_nees <= upper;
-  }
+  bool Contains(double average_nees) const { return average_nees >= lower && average_nees <= upper; }
 };
 
 // Two-sided bounds for the average NEES of `num_runs` runs of a `dof`-dimensional state

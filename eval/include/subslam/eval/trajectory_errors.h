@@ -47,22 +47,21 @@ struct TrajectoryErrors {
   double mean_nees = 0.0;                // over nees_steps
   double fraction_nees_in_bounds = 0.0;  // of nees_steps, inside [χ²₃(0.025), χ²₃(0.975)]
   double mean_consistency_index = 0.0;
-  bool failed = false;                   // HybridSLAM failure test
-  int longest_excursion_steps = 0;       // longest run beyond failure_sigma
-  std::vector<double> nees;              // per step (NaN if P is singular)
+  bool failed = false;              // HybridSLAM failure test
+  int longest_excursion_steps = 0;  // longest run beyond failure_sigma
+  std::vector<double> nees;         // per step (NaN if P is singular)
 };
 
-TrajectoryErrors ComputeTrajectoryErrors(const Trajectory& estimate,
-                                         const std::vector<io::TimedPose>& truth,
+TrajectoryErrors ComputeTrajectoryErrors(const Trajectory& estimate, const std::vector<io::TimedPose>& truth,
                                          const TrajectoryErrorOptions& options = {});
 
 struct MapErrors {
   int estimated = 0;
   int matched = 0;
-  int spurious = 0;        // estimates with no true landmark within the radius at all
-  int duplicates = 0;      // unmatched estimates near true landmarks, all matched
-  double rms_m = 0.0;      // over matched pairs
-  double rms_x_m = 0.0;    // per axis, over matched pairs
+  int spurious = 0;      // estimates with no true landmark within the radius at all
+  int duplicates = 0;    // unmatched estimates near true landmarks, all matched
+  double rms_m = 0.0;    // over matched pairs
+  double rms_x_m = 0.0;  // per axis, over matched pairs
   double rms_y_m = 0.0;
   double mean_nees = 0.0;  // over matched pairs
 };
@@ -70,8 +69,7 @@ struct MapErrors {
 // `truth`: the true landmarks an estimate may stand for — those the sensor saw
 // (ObservedTruthLandmarks). Matched against every true landmark, a copy or a displaced
 // estimate takes an unseen neighbour within the radius and is counted as a match.
-MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate,
-                           const std::vector<io::TruthLandmark>& truth,
+MapErrors ComputeMapErrors(const std::vector<LandmarkEstimate>& estimate, const std::vector<io::TruthLandmark>& truth,
                            double match_radius_m = 5.0);
 
 // The true landmarks whose id some detection of `dataset` carries; all of them when its

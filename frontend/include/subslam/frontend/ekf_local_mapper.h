@@ -15,14 +15,12 @@ namespace subslam::frontend {
 
 class EkfLocalMapper final : public LocalMapper {
  public:
-  EkfLocalMapper(std::unique_ptr<models::MotionModel> motion,
-                 const models::RangeBearingConfig& sensor, const EkfSlamOptions& ekf,
-                 const SubmapPolicyOptions& policy, double t_start, double min_existence = 0.95);
+  EkfLocalMapper(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+                 const EkfSlamOptions& ekf, const SubmapPolicyOptions& policy, double t_start,
+                 double min_existence = 0.95);
 
   std::string Name() const override { return "ekf"; }
-  const std::vector<int>& last_scan_features() const override {
-    return filter_.last_scan_features();
-  }
+  const std::vector<int>& last_scan_features() const override { return filter_.last_scan_features(); }
   const EkfSlam& filter() const { return filter_; }
 
  private:

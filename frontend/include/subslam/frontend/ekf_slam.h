@@ -31,9 +31,9 @@
 
 #include "absl/status/status.h"
 #include "subslam/association/data_association.h"
+#include "subslam/frontend/innovation_monitor.h"
 #include "subslam/frontend/landmark_options.h"
 #include "subslam/frontend/moment_matching.h"
-#include "subslam/frontend/innovation_monitor.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
 #include "subslam/models/range_bearing_model.h"
@@ -108,14 +108,12 @@ class EkfSlam final : public OnlineEstimator {
   const EkfSlamCounters& counters() const { return counters_; }
   // The full state mean and covariance (views valid until the next call).
   Eigen::VectorXd mean() const { return x_.head(dim_); }
-  Eigen::MatrixXd covariance() const {
-    return P_.topLeftCorner(dim_, dim_).selfadjointView<Eigen::Lower>();
-  }
+  Eigen::MatrixXd covariance() const { return P_.topLeftCorner(dim_, dim_).selfadjointView<Eigen::Lower>(); }
 
  private:
   struct LandmarkInfo {
-    int id = 0;               // stable id reported in Map()
-    int truth_id = -1;        // known association only
+    int id = 0;         // stable id reported in Map()
+    int truth_id = -1;  // known association only
     double existence = 0.5;
     bool confirmed = false;
   };

@@ -15,12 +15,12 @@
 namespace subslam::frontend {
 
 struct ExistenceModel {
-  double detection_probability = 0.9;   // α
-  double false_alarm_probability = 0.05; // β
-  double prior_existence = 0.5;    // before the creating detection is applied
-  double confirm_existence = 0.95; // confirmed (reported, never deleted) above this
-  double delete_existence = 0.05;  // tentative landmarks below this are removed
-  double max_existence = 0.9999;   // keeps the log-odds finite
+  double detection_probability = 0.9;     // α
+  double false_alarm_probability = 0.05;  // β
+  double prior_existence = 0.5;           // before the creating detection is applied
+  double confirm_existence = 0.95;        // confirmed (reported, never deleted) above this
+  double delete_existence = 0.05;         // tentative landmarks below this are removed
+  double max_existence = 0.9999;          // keeps the log-odds finite
 
   absl::Status Validate() const;
   // The updated existence after a detection (detected) or an expected miss.
@@ -29,9 +29,7 @@ struct ExistenceModel {
   double Initial() const { return Update(prior_existence, true); }
   bool Confirms(double existence) const { return existence > confirm_existence; }
   // Whether a landmark should be culled (never a confirmed one).
-  bool Deletes(double existence, bool confirmed) const {
-    return !confirmed && existence < delete_existence;
-  }
+  bool Deletes(double existence, bool confirmed) const { return !confirmed && existence < delete_existence; }
 };
 
 }  // namespace subslam::frontend

@@ -59,8 +59,8 @@
 
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
+#include "subslam/frontend/genealogy.h"
 #include "subslam/frontend/landmark_options.h"
-#include "subslam/frontend/internal/genealogy.h"
 #include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
@@ -111,7 +111,7 @@ struct FastSlamOptions {
   // the particles' spread by (1 + R) / (1 − R), R = SharedAncestry(): after resampling
   // the particles descend from few ancestors whose pose draws they share, so their
   // spread under-states the uncertainty, and their weighted mean carries a Monte Carlo
-  // error of its own (MomentMatch; internal/genealogy.h). false: the mixture's own
+  // error of its own (MomentMatch; genealogy.h). false: the mixture's own
   // moments (HybridSLAM Eqs. 6-7). The particle filter itself runs the same either way;
   // the local maps differ in their covariance, and so in which features the mapper's
   // max_feature_sigma_ratio rule leaves out.
@@ -144,12 +144,12 @@ struct FastSlamCounters {
   long scans = 0;
   long detections = 0;
   long resamples = 0;
-  long associated = 0;         // detection-landmark pairings, summed over particles
-  long ignored = 0;            // detections left unexplained (between the gates), summed
-  long landmarks_created = 0;  // summed over particles
-  long landmarks_culled = 0;   // summed over particles
-  long landmark_copies = 0;    // copy-on-write copies (with threads, timing may add a few)
-  long features = 0;           // common feature ids issued
+  long associated = 0;                // detection-landmark pairings, summed over particles
+  long ignored = 0;                   // detections left unexplained (between the gates), summed
+  long landmarks_created = 0;         // summed over particles
+  long landmarks_culled = 0;          // summed over particles
+  long landmark_copies = 0;           // copy-on-write copies (with threads, timing may add a few)
+  long features = 0;                  // common feature ids issued
   long scans_with_fewer_threads = 0;  // run below the pool's size (set_thread_limit)
   // Depletion. The smallest N_eff / N after an update; updates below
   // FastSlamOptions::depletion_ess_ratio; entries into lineage collapse (every particle
@@ -164,8 +164,8 @@ struct FastSlamCounters {
 
 class FastSlam final : public OnlineEstimator {
  public:
-  FastSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
-           const Pose2& start, const FastSlamOptions& options);
+  FastSlam(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor, const Pose2& start,
+           const FastSlamOptions& options);
   ~FastSlam() override;
 
   std::string Name() const override { return "fastslam"; }
@@ -244,11 +244,11 @@ class FastSlam final : public OnlineEstimator {
     bool missed = false;  // scratch: expected in the last scan but not detected
   };
   struct Particle {
-    Pose2 pose;  // at the last scan (or Reset); now: CurrentPose(). Set by SetPose().
+    Pose2 pose;                               // at the last scan (or Reset); now: CurrentPose(). Set by SetPose().
     double cos_theta = 1.0, sin_theta = 0.0;  // of pose.theta
-    double log_weight = 0.0;  // normalised: Σ exp(log_weight) = 1 after each scan
-    int lineage = -1;         // index of the ancestor at the first scan after Reset()
-    double sensor_yaw = 0.0;  // the sensor yaw [rad] it assumes (sensor_yaw_sigma), from Reset()
+    double log_weight = 0.0;                  // normalised: Σ exp(log_weight) = 1 after each scan
+    int lineage = -1;                         // index of the ancestor at the first scan after Reset()
+    double sensor_yaw = 0.0;                  // the sensor yaw [rad] it assumes (sensor_yaw_sigma), from Reset()
     std::vector<LandmarkRecord> landmarks;
   };
   struct PairScore {
@@ -266,14 +266,14 @@ class FastSlam final : public OnlineEstimator {
   struct Prediction {  // of one landmark of the particle being updated
     Eigen::Vector2d z;
     Matrix23d H_pose;
-    Eigen::Matrix2d Z;  // H_l Σ_l H_lᵀ + R
+    Eigen::Matrix2d Z;         // H_l Σ_l H_lᵀ + R
     Eigen::Matrix2d S, S_inv;  // at the prior proposal: H_x Σ H_xᵀ + Z
     double det = 0.0;          // det S
     double log_norm = 0.0;     // −log 2π − ½ log det S (NaN until needed)
     bool in_reach = false;
     bool expected = false;  // well inside range and field of view (missed-detection test)
-    bool gated = false;  // some detection within the new-landmark gate
-    bool used = false;   // associated in this scan
+    bool gated = false;     // some detection within the new-landmark gate
+    bool used = false;      // associated in this scan
   };
   // Landmarks further than this outside the field of view are not predicted.
   static constexpr double kFovMarginRad = 0.35;
@@ -288,12 +288,11 @@ class FastSlam final : public OnlineEstimator {
   void UpdatePoseCache() const;
   void UpdateMoments() const;
   PairScore Score(const Prediction& prediction, const LandmarkGaussian& landmark, const Eigen::Vector2d& z,
-                  double signature, const Eigen::Vector3d& delta,
-                  const Eigen::Matrix3d& Sigma) const;
+                  double signature, const Eigen::Vector3d& delta, const Eigen::Matrix3d& Sigma) const;
   double SignatureLogLikelihood(const LandmarkGaussian& l, double signature) const;
   class ScanUpdate;  // one particle's scan update, phase by phase (fastslam_particle_update.cc)
   // Per-thread scratch of UpdateParticle, reused across scans, and its counts.
-  struct alignas(64) Scratch {  // a cache line apart: written by different threads
+  struct alignas(64) Scratch {            // a cache line apart: written by different threads
     std::vector<Prediction> predictions;  // of the particle's landmarks
     std::vector<GatedPair> pairs;
     std::vector<double> min_d2;
@@ -309,14 +308,13 @@ class FastSlam final : public OnlineEstimator {
   // Associates the scan for one particle, samples its pose and updates its weight;
   // touches only the particle, its decisions, `scratch` and `rng` (safe to run for
   // different particles in parallel).
-  void UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z,
-                      const std::vector<double>& signature, int* decisions, Scratch* scratch,
-                      std::mt19937_64* rng) const;
+  void UpdateParticle(Particle* particle, const std::vector<Eigen::Vector2d>& z, const std::vector<double>& signature,
+                      int* decisions, Scratch* scratch, std::mt19937_64* rng) const;
   // The landmark updates, creations, existence updates and culls of one particle's
   // decisions; touches only the particle, landmarks it alone holds (copy-on-write) and
   // `scratch` (safe to run for different particles in parallel).
-  void ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z,
-                      const std::vector<double>& signature, const int* decisions, Scratch* scratch) const;
+  void ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z, const std::vector<double>& signature,
+                      const int* decisions, Scratch* scratch) const;
   void Vote(int m);
   void Normalise();
   void Resample();
@@ -331,7 +329,7 @@ class FastSlam final : public OnlineEstimator {
   std::vector<Particle> particles_, resampled_;
   std::mt19937_64 rng_;                         // resampling
   std::vector<std::mt19937_64> particle_rngs_;  // one stream per particle slot
-  std::mt19937_64 yaw_rng_;  // the particles' sensor yaws (sensor_yaw_sigma)
+  std::mt19937_64 yaw_rng_;                     // the particles' sensor yaws (sensor_yaw_sigma)
   std::unique_ptr<WorkerPool> pool_;
   int thread_limit_ = 0;
   // The particles' weighted sensor yaw [rad] and its spread, now and summed over the
@@ -343,19 +341,19 @@ class FastSlam final : public OnlineEstimator {
   double yaw_mean_sum_ = 0.0, yaw_spread_sum_ = 0.0;
   long yaw_maps_ = 0;
   long scans_at_reset_ = 0;
-  std::vector<Scratch> scratch_;                // one per thread
-  std::vector<int> owner_;                      // the pool index that associated each particle
-  struct alignas(64) ParticleBlock {            // a pool index's own particles in Update(); a cache line apart
-    std::atomic<int> next{0};                   // the first not yet taken
-    int end = 0;                                // one past the last
+  std::vector<Scratch> scratch_;      // one per thread
+  std::vector<int> owner_;            // the pool index that associated each particle
+  struct alignas(64) ParticleBlock {  // a pool index's own particles in Update(); a cache line apart
+    std::atomic<int> next{0};         // the first not yet taken
+    int end = 0;                      // one past the last
   };
-  std::unique_ptr<ParticleBlock[]> blocks_;     // one per pool index
-  static constexpr int kChunk = 4;              // particles an index takes from a block at a time
+  std::unique_ptr<ParticleBlock[]> blocks_;  // one per pool index
+  static constexpr int kChunk = 4;           // particles an index takes from a block at a time
   int next_feature_ = 0;
   // Scratch reused across scans.
-  std::vector<int> decisions_;        // particles × detections: landmark index | kNew | kIgnore
-  std::vector<int> decision_label_;   // the common id each decision votes for
-  std::vector<int> voted_label_;      // per detection: the id written into landmarks
+  std::vector<int> decisions_;       // particles × detections: landmark index | kNew | kIgnore
+  std::vector<int> decision_label_;  // the common id each decision votes for
+  std::vector<int> voted_label_;     // per detection: the id written into landmarks
   std::vector<std::pair<int, double>> tally_;
   std::vector<double> weights_;
   std::vector<int> scan_features_;
@@ -382,12 +380,12 @@ class FastSlam final : public OnlineEstimator {
   bool lineage_collapsed_ = false;
   std::vector<Eigen::Vector2d> z_;
   std::vector<double> signature_;
-  std::vector<int> truth_;  // known association: the true id of each usable detection
+  std::vector<int> truth_;                       // known association: the true id of each usable detection
   absl::flat_hash_map<int, int> feature_truth_;  // known association: common id → true id
   mutable std::vector<int> features_scratch_;
   mutable std::vector<char> lineage_seen_;
-  Genealogy genealogy_;               // since Reset()
-  std::vector<int> parent_;           // scratch of Resample
+  Genealogy genealogy_;                           // since Reset()
+  std::vector<int> parent_;                       // scratch of Resample
   mutable std::vector<double> ancestry_weights_;  // scratch of SharedAncestry
   double scan_disagreement_ = 0.0;
   FastSlamCounters counters_;

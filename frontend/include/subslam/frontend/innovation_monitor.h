@@ -20,7 +20,7 @@
 namespace subslam::frontend {
 
 struct InnovationTestOptions {
-  int window_scans = 20;      // scans with associations per window; 0 turns the test off
+  int window_scans = 20;       // scans with associations per window; 0 turns the test off
   double probability = 0.999;  // the window's χ² quantile
 
   absl::Status Validate() const;

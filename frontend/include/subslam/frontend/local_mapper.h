@@ -63,12 +63,11 @@ class LocalMapper {
   virtual void SetSpareCores(int /*cores*/) {}
 
  protected:
-  LocalMapper(const SubmapPolicyOptions& policy, const models::RangeBearingConfig& sensor,
-              double t_start);
+  LocalMapper(const SubmapPolicyOptions& policy, const models::RangeBearingConfig& sensor, double t_start);
 
   virtual void FilterPredict(const Eigen::Vector2d& u, double dt) = 0;
   virtual void FilterUpdate(const Scan& scan) = 0;
-  virtual void FilterReset() = 0;  // new map: identity pose, no uncertainty, no landmarks
+  virtual void FilterReset() = 0;                 // new map: identity pose, no uncertainty, no landmarks
   virtual SubmapStatus FilterStatus() const = 0;  // elapsed_s and delayed_for_s filled by the caller
   virtual Pose2 FilterPose() const = 0;
   virtual Eigen::Matrix3d FilterPoseCovariance() const = 0;
@@ -104,14 +103,11 @@ class LocalMapper {
 // matching (moment_matching.h) of the particles on the common feature set.
 class RbpfLocalMapper final : public LocalMapper {
  public:
-  RbpfLocalMapper(std::unique_ptr<models::MotionModel> motion,
-                  const models::RangeBearingConfig& sensor, const FastSlamOptions& fastslam,
-                  const SubmapPolicyOptions& policy, double t_start);
+  RbpfLocalMapper(std::unique_ptr<models::MotionModel> motion, const models::RangeBearingConfig& sensor,
+                  const FastSlamOptions& fastslam, const SubmapPolicyOptions& policy, double t_start);
 
   std::string Name() const override { return "rbpf"; }
-  const std::vector<int>& last_scan_features() const override {
-    return filter_.last_scan_features();
-  }
+  const std::vector<int>& last_scan_features() const override { return filter_.last_scan_features(); }
   const FastSlam& filter() const { return filter_; }
   void SetSpareCores(int cores) override {
     filter_.set_thread_limit(cores > 0 ? std::max(1, filter_.threads() - cores) : 0);

@@ -61,15 +61,15 @@ struct MomentMatchingOptions {
 };
 
 struct MomentMatchedGaussian {
-  Eigen::VectorXd mean;        // [pose (3), feature 1 (2), …], features by increasing id
+  Eigen::VectorXd mean;  // [pose (3), feature 1 (2), …], features by increasing id
   Eigen::MatrixXd covariance;
-  std::vector<int> features;   // common ids, increasing
+  std::vector<int> features;  // common ids, increasing
   std::vector<double> existence;
   std::vector<double> signature;  // weighted mean over particles holding it (NaN if none)
   // Known association only (else empty): each feature's true landmark id (−1: unknown).
   std::vector<int> truth_id;
   int covariance_repairs = 0;
-  int particles_used = 0;         // with nonzero weight (kDiscardParticle: holding all)
+  int particles_used = 0;            // with nonzero weight (kDiscardParticle: holding all)
   bool fell_back_to_ignore = false;  // kDiscardParticle found no particle holding all
 };
 
@@ -103,8 +103,7 @@ bool RepairCovariance(Eigen::MatrixXd* covariance, double relative_floor);
 double SharedAncestrySpreadScale(double shared_ancestry);
 
 MomentMatchedGaussian MomentMatch(std::span<const ParticleHypothesis> particles,
-                                  const MomentMatchingOptions& options = {},
-                                  double shared_ancestry = 0.0);
+                                  const MomentMatchingOptions& options = {}, double shared_ancestry = 0.0);
 
 }  // namespace subslam::frontend
 

@@ -84,10 +84,10 @@ absl::StatusOr<CovarianceRecovery> CovarianceRecoveryFromString(const std::strin
 
 // ISEIF's iterated measurement update (ISEIF §2.3).
 struct IteratedUpdateOptions {
-  bool enabled = false;         // false: SEIF
-  int period_scans = 100;       // iterate on every this-many-th scan (the paper: 100 or 500 steps)
-  int max_iterations = 10;      // linearisations per iterated update (1 = the SEIF update)
-  double stop_change = 1e-3;    // adaptive stop: max |Δμ| over the pose and observed landmarks [m, rad]
+  bool enabled = false;       // false: SEIF
+  int period_scans = 100;     // iterate on every this-many-th scan (the paper: 100 or 500 steps)
+  int max_iterations = 10;    // linearisations per iterated update (1 = the SEIF update)
+  double stop_change = 1e-3;  // adaptive stop: max |Δμ| over the pose and observed landmarks [m, rad]
   // The first this-many linearisations are followed by an exact recovery of the whole
   // mean (CHOLMOD); later ones by relaxation of the pose and the active landmarks. The
   // first carries the correction to the whole map; the later ones are local.
@@ -110,7 +110,7 @@ struct SeifOptions {
   int relaxation_extra_landmarks = 20;  // round-robin landmarks added to each scan's sweeps
   // Covariances for gating.
   CovarianceRecovery covariance = CovarianceRecovery::kMarkovBlanket;
-  int blanket_max_landmarks = 40;       // cap on the Markov-blanket landmarks per scan
+  int blanket_max_landmarks = 40;  // cap on the Markov-blanket landmarks per scan
   // The reported pose covariance. The Markov blanket conditions the pose on every
   // passive landmark and is far over-confident even without sparsification; kExact is
   // the marginal of the filter's own Ω, factorised once per scan and propagated
@@ -132,12 +132,12 @@ struct SeifCounters {
   long ambiguous = 0;
   long deleted_landmarks = 0;
   long jcbb_truncated = 0;
-  long sparsifications = 0;          // scans on which landmarks were made passive
+  long sparsifications = 0;  // scans on which landmarks were made passive
   long deactivated_landmarks = 0;
-  long iterated_updates = 0;         // ISEIF: updates that iterated
-  long iterations = 0;               // ISEIF: linearisations over those updates
+  long iterated_updates = 0;  // ISEIF: updates that iterated
+  long iterations = 0;        // ISEIF: linearisations over those updates
   long exact_recoveries = 0;
-  long max_active = 0;               // largest active set seen after an update
+  long max_active = 0;  // largest active set seen after an update
 };
 
 class SeifSlam final : public OnlineEstimator {
@@ -161,7 +161,7 @@ class SeifSlam final : public OnlineEstimator {
   // Recovers the whole mean exactly (Ω μ = ξ) now, whatever options.recovery says.
   void RecoverMeanExactly();
   const SeifCounters& counters() const { return counters_; }
-  int num_landmarks() const;             // live landmarks (tentative included)
+  int num_landmarks() const;  // live landmarks (tentative included)
   int num_active_landmarks() const { return static_cast<int>(pose_links_.size()); }
   // Landmark-landmark links (off-diagonal 2×2 blocks, each counted once).
   long num_landmark_links() const;
@@ -196,8 +196,8 @@ class SeifSlam final : public OnlineEstimator {
   };
   // Covariance over a few variables: pose (if asked) and landmarks, as one dense matrix.
   struct LocalCovariance {
-    Eigen::MatrixXd sigma;                        // over [pose, landmarks in `index` order]
-    absl::flat_hash_map<int, int> offset;         // landmark → row offset in sigma
+    Eigen::MatrixXd sigma;                 // over [pose, landmarks in `index` order]
+    absl::flat_hash_map<int, int> offset;  // landmark → row offset in sigma
   };
 
   int Offset(int landmark) const { return 3 + 2 * landmark; }
@@ -228,10 +228,9 @@ class SeifSlam final : public OnlineEstimator {
                         std::vector<int>* landmark_of_detection, std::vector<bool>* creates,
                         absl::flat_hash_map<int, bool>* gated) const;
   void AssociateByGates(const Pose2& p, const std::vector<Eigen::Vector2d>& z, const std::vector<int>& in_reach,
-                        const Eigen::Matrix2d& R, std::vector<int>* landmark_of_detection,
-                        std::vector<bool>* creates, absl::flat_hash_map<int, bool>* gated);
-  void MeasurementUpdate(const std::vector<std::pair<int, Eigen::Vector2d>>& pairs,
-                         const std::vector<int>& touched);
+                        const Eigen::Matrix2d& R, std::vector<int>* landmark_of_detection, std::vector<bool>* creates,
+                        absl::flat_hash_map<int, bool>* gated);
+  void MeasurementUpdate(const std::vector<std::pair<int, Eigen::Vector2d>>& pairs, const std::vector<int>& touched);
   std::vector<int> ManageLandmarks(const Scan& scan, const std::vector<int>& detection_index,
                                    const std::vector<Eigen::Vector2d>& z, const Pose2& p,
                                    const std::vector<int>& landmark_of_detection, const std::vector<bool>& creates,

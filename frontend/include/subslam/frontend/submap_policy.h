@@ -35,12 +35,12 @@ namespace subslam::frontend {
 struct SubmapPolicyOptions {
   bool enabled = true;
   double min_duration_s = 1.0;
-  double max_duration_s = 10.0;       // 0: off (10 s: HybridSLAM §5)
-  double max_pose_sigma_ratio = 0.0;  // 0: off
-  double min_lineage_diversity = 0.5; // 0: off (our choice, bench/RESULTS.md)
-  double min_ess_ratio = 0.0;         // 0: off
-  int max_features = 30;              // 0: off (10 × the pose dimension)
-  int density_min_features = 0;      // 0: off
+  double max_duration_s = 10.0;        // 0: off (10 s: HybridSLAM §5)
+  double max_pose_sigma_ratio = 0.0;   // 0: off
+  double min_lineage_diversity = 0.5;  // 0: off (our choice, bench/RESULTS.md)
+  double min_ess_ratio = 0.0;          // 0: off
+  int max_features = 30;               // 0: off (10 × the pose dimension)
+  int density_min_features = 0;        // 0: off
   int density_min_visible = 8;
   bool delay_while_ambiguous = false;
   double ambiguity_threshold = 0.2;

@@ -26,9 +26,9 @@ class CheckFailure {
 
 }  // namespace subslam::internal
 
-#define SUBSLAM_CHECK(condition)                                                    \
-  if (condition) {                                                                  \
-  } else /* NOLINT */                                                               \
+#define SUBSLAM_CHECK(condition) \
+  if (condition) {               \
+  } else /* NOLINT */            \
     ::subslam::internal::CheckFailure(__FILE__, __LINE__, #condition)
 
 #endif  // SUBSLAM_GRAPH_CHECK_H_

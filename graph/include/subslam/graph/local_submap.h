@@ -24,8 +24,8 @@ namespace subslam {
 struct LocalSubmapLandmark {
   int local_id = 0;  // the front-end's feature id (unique within the local map)
   double signature = std::numeric_limits<double>::quiet_NaN();  // NaN when absent
-  double existence = 1.0;      // P(exists) at export, in [0, 1]
-  std::optional<int> truth_id; // evaluation / known-association studies only
+  double existence = 1.0;                                       // P(exists) at export, in [0, 1]
+  std::optional<int> truth_id;                                  // evaluation / known-association studies only
   // Evaluation only: how many distinct true landmarks the feature's detections came from
   // (≥ 2: the front-end mixed them; truth_id is the majority).
   std::optional<int> truth_landmarks;
@@ -35,8 +35,8 @@ struct LocalSubmapLandmark {
 
 struct LocalSubmap {
   int id = 0;
-  double t_start = 0.0;  // s
-  double t_end = 0.0;    // s
+  double t_start = 0.0;        // s
+  double t_end = 0.0;          // s
   Eigen::VectorXd mean;        // 3 + 2n, in the start-pose frame
   Eigen::MatrixXd covariance;  // (3 + 2n) × (3 + 2n)
   std::vector<LocalSubmapLandmark> landmarks;
@@ -62,9 +62,7 @@ struct LocalSubmap {
   int num_landmarks() const { return static_cast<int>(landmarks.size()); }
   Pose2 end_pose() const { return Pose2::FromVector(mean.head<3>()); }
   Eigen::Vector2d landmark(int i) const { return mean.segment<2>(3 + 2 * i); }
-  Eigen::Matrix2d landmark_covariance(int i) const {
-    return covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
-  }
+  Eigen::Matrix2d landmark_covariance(int i) const { return covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i); }
 
   // Sizes agree, values finite, t_start ≤ t_end, heading wrapped, local ids unique,
   // existence in [0, 1], covariance symmetric (to 1e-9 relative), positive definite and

@@ -48,30 +48,26 @@ struct Pose2 {
 std::ostream& operator<<(std::ostream& os, const Pose2& p);
 
 // a ∘ b; the heading is wrapped.
-Pose2 Compose(const Pose2& a, const Pose2& b, Eigen::Matrix3d* J_ab_a = nullptr,
-              Eigen::Matrix3d* J_ab_b = nullptr);
+Pose2 Compose(const Pose2& a, const Pose2& b, Eigen::Matrix3d* J_ab_a = nullptr, Eigen::Matrix3d* J_ab_b = nullptr);
 
 // a ∘ b for independent uncertain a and b, with its covariance to first order:
 //   *cov_ab = J_a cov_a J_aᵀ + J_b cov_b J_bᵀ   (J_a, J_b: Compose's Jacobians);
 // cov_ab may be cov_a or cov_b.
-Pose2 ComposeWithCovariance(const Pose2& a, const Eigen::Matrix3d& cov_a, const Pose2& b,
-                            const Eigen::Matrix3d& cov_b, Eigen::Matrix3d* cov_ab);
+Pose2 ComposeWithCovariance(const Pose2& a, const Eigen::Matrix3d& cov_a, const Pose2& b, const Eigen::Matrix3d& cov_b,
+                            Eigen::Matrix3d* cov_ab);
 
 // a⁻¹, so that Compose(Inverse(a), a) is the identity.
 Pose2 Inverse(const Pose2& a, Eigen::Matrix3d* J_inv_a = nullptr);
 
 // a⁻¹ ∘ b: b expressed in a's frame (the relative pose from a to b).
-Pose2 Between(const Pose2& a, const Pose2& b, Eigen::Matrix3d* J_ab_a = nullptr,
-              Eigen::Matrix3d* J_ab_b = nullptr);
+Pose2 Between(const Pose2& a, const Pose2& b, Eigen::Matrix3d* J_ab_a = nullptr, Eigen::Matrix3d* J_ab_b = nullptr);
 
 // p given in `frame` → the same point in frame's parent: frame.xy + R(frame.θ)·p.
-Eigen::Vector2d TransformFrom(const Pose2& frame, const Eigen::Vector2d& p_in_frame,
-                              Matrix23d* J_out_frame = nullptr,
+Eigen::Vector2d TransformFrom(const Pose2& frame, const Eigen::Vector2d& p_in_frame, Matrix23d* J_out_frame = nullptr,
                               Eigen::Matrix2d* J_out_point = nullptr);
 
 // q given in frame's parent → the same point in `frame`: R(frame.θ)ᵀ (q − frame.xy).
-Eigen::Vector2d TransformTo(const Pose2& frame, const Eigen::Vector2d& q_in_parent,
-                            Matrix23d* J_out_frame = nullptr,
+Eigen::Vector2d TransformTo(const Pose2& frame, const Eigen::Vector2d& q_in_parent, Matrix23d* J_out_frame = nullptr,
                             Eigen::Matrix2d* J_out_point = nullptr);
 
 // Difference a − b of two pose vectors with the heading difference wrapped: the

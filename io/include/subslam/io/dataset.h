@@ -39,9 +39,7 @@ struct MotionConfig {
   // the corrected control). Dataset::controls keep the values as recorded. Defaults: none.
   Eigen::Vector2d control_scale = Eigen::Vector2d::Ones();
   Eigen::Vector2d control_offset = Eigen::Vector2d::Zero();
-  Eigen::Vector2d Corrected(const Eigen::Vector2d& u) const {
-    return control_scale.cwiseProduct(u) + control_offset;
-  }
+  Eigen::Vector2d Corrected(const Eigen::Vector2d& u) const { return control_scale.cwiseProduct(u) + control_offset; }
 
   // Builds the motion model this configuration describes.
   std::unique_ptr<models::MotionModel> MakeModel() const;

@@ -34,17 +34,17 @@ struct InputScreeningOptions {
   // Spike bound in σ (see above). Under the noise model a departure of 10 σ has
   // probability below 1e-20; Victoria Park's largest is below 1 σ.
   double control_spike_sigmas = 10.0;
-  double time_gap_factor = 20.0;  // a gap: longer than this many median intervals
+  double time_gap_factor = 20.0;       // a gap: longer than this many median intervals
   bool replace_control_spikes = true;  // false: count only
 
   absl::Status Validate() const;
 };
 
 struct InputScreening {
-  int control_spikes = 0;           // records with a channel replaced (or that would be)
+  int control_spikes = 0;  // records with a channel replaced (or that would be)
   int time_gaps = 0;
-  double longest_gap_s = 0.0;       // longest interval between steps
-  double median_interval_s = 0.0;   // median interval between steps
+  double longest_gap_s = 0.0;      // longest interval between steps
+  double median_interval_s = 0.0;  // median interval between steps
   int duplicate_control_times = 0;
   long detections_out_of_range = 0;
 };

@@ -20,8 +20,7 @@
 namespace subslam::io {
 
 absl::Status WriteTrajectoryCsv(const std::string& path, const Trajectory& trajectory);
-absl::Status WriteLandmarksCsv(const std::string& path,
-                               const std::vector<LandmarkEstimate>& landmarks);
+absl::Status WriteLandmarksCsv(const std::string& path, const std::vector<LandmarkEstimate>& landmarks);
 absl::Status WriteTextFile(const std::string& path, const std::string& content);
 
 absl::Status WriteTumTrajectory(const std::string& path, const Trajectory& trajectory);

@@ -32,8 +32,7 @@ class AckermannModel final : public MotionModel {
   AckermannModel(const AckermannGeometry& geometry, const ControlNoise& noise)
       : MotionModel(noise), geometry_(geometry) {}
 
-  Pose2 Predict(const Pose2& x, const Eigen::Vector2d& u, double dt,
-                Eigen::Matrix3d* J_next_x = nullptr,
+  Pose2 Predict(const Pose2& x, const Eigen::Vector2d& u, double dt, Eigen::Matrix3d* J_next_x = nullptr,
                 Matrix32d* J_next_u = nullptr) const override;
   std::string Name() const override { return "ackermann"; }
   const AckermannGeometry& geometry() const { return geometry_; }

@@ -20,12 +20,10 @@ double ChiSquareQuantile(double p, double dof);
 double ChiSquareCdf(double x, double dof);
 
 // d² = νᵀ S⁻¹ ν; std::nullopt when S is not positive definite.
-std::optional<double> MahalanobisSquared(const Eigen::VectorXd& innovation,
-                                         const Eigen::MatrixXd& covariance);
+std::optional<double> MahalanobisSquared(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& covariance);
 
 // Two-dimensional specialisation, the hot path of data association.
-std::optional<double> MahalanobisSquared2(const Eigen::Vector2d& innovation,
-                                          const Eigen::Matrix2d& covariance);
+std::optional<double> MahalanobisSquared2(const Eigen::Vector2d& innovation, const Eigen::Matrix2d& covariance);
 
 }  // namespace subslam::models
 

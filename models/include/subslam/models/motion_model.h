@@ -37,8 +37,7 @@ class MotionModel {
   virtual ~MotionModel() = default;
 
   // Pose after holding control u for dt seconds. dt ≥ 0.
-  virtual Pose2 Predict(const Pose2& x, const Eigen::Vector2d& u, double dt,
-                        Eigen::Matrix3d* J_next_x = nullptr,
+  virtual Pose2 Predict(const Pose2& x, const Eigen::Vector2d& u, double dt, Eigen::Matrix3d* J_next_x = nullptr,
                         Matrix32d* J_next_u = nullptr) const = 0;
 
   // Process covariance J_next_u · M(u) · J_next_uᵀ for this step.

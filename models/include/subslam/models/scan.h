@@ -15,7 +15,7 @@ inline constexpr int kUnknownTruthId = -2;  // no truth id in the data set
 
 struct Detection {
   double range_m = 0.0;
-  double bearing_rad = 0.0;  // in the vehicle frame (offset applied)
+  double bearing_rad = 0.0;                                     // in the vehicle frame (offset applied)
   double signature = std::numeric_limits<double>::quiet_NaN();  // NaN when absent
   // Evaluation; read by estimators only under their known-association study option.
   int truth_id = kUnknownTruthId;

@@ -16,8 +16,7 @@ class UnicycleModel final : public MotionModel {
  public:
   explicit UnicycleModel(const ControlNoise& noise = {}) : MotionModel(noise) {}
 
-  Pose2 Predict(const Pose2& x, const Eigen::Vector2d& u, double dt,
-                Eigen::Matrix3d* J_next_x = nullptr,
+  Pose2 Predict(const Pose2& x, const Eigen::Vector2d& u, double dt, Eigen::Matrix3d* J_next_x = nullptr,
                 Matrix32d* J_next_u = nullptr) const override;
   std::string Name() const override { return "unicycle"; }
 };

@@ -5,10 +5,9 @@
 #ifndef SUBSLAM_PIPELINE_CALIBRATE_PIPELINE_H_
 #define SUBSLAM_PIPELINE_CALIBRATE_PIPELINE_H_
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
 #include "subslam/calibration/robot_calibration.h"
@@ -23,9 +22,9 @@ struct CalibrateOptions {
   // noise; known association follows `calibration.known_association`.
   RunOptions start;
   calibration::CalibrationOptions calibration;
-  std::string out_dir;          // empty: write nothing
-  std::string source;           // what was calibrated, for calibration.json
-  nlohmann::json invocation;    // the tool's command line and flags
+  std::string out_dir;        // empty: write nothing
+  std::string source;         // what was calibrated, for calibration.json
+  nlohmann::json invocation;  // the tool's command line and flags
 
   CalibrateOptions();
   absl::Status Validate() const;
@@ -33,12 +32,12 @@ struct CalibrateOptions {
 
 struct CalibrateResult {
   std::string source;
-  io::MotionConfig motion_before;                  // the data set's values the fit started from
+  io::MotionConfig motion_before;  // the data set's values the fit started from
   models::RangeBearingConfig sensor_before;
   calibration::RobotCalibration calibration;
-  int start_landmarks = 0;                          // in the start run's map
-  std::optional<double> start_rms_position_m;      // the start run vs the ground truth
-  std::optional<double> rms_position_m;            // the fitted scan poses vs the ground truth
+  int start_landmarks = 0;                     // in the start run's map
+  std::optional<double> start_rms_position_m;  // the start run vs the ground truth
+  std::optional<double> rms_position_m;        // the fitted scan poses vs the ground truth
   double wall_seconds = 0.0;
 };
 

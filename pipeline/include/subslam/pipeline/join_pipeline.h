@@ -15,17 +15,16 @@
 #ifndef SUBSLAM_PIPELINE_JOIN_PIPELINE_H_
 #define SUBSLAM_PIPELINE_JOIN_PIPELINE_H_
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "absl/status/statusor.h"
-#include "subslam/pipeline/submap_slam.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/io/dataset.h"
+#include "subslam/pipeline/submap_slam.h"
 
 namespace subslam::pipeline {
 
@@ -36,8 +35,8 @@ struct JoinOptions {
     o.kind = Backend::kEif;
     return o;
   }();
-  Pose2 initial_pose;           // anchor 0
-  std::string out_dir;          // empty: write nothing
+  Pose2 initial_pose;   // anchor 0
+  std::string out_dir;  // empty: write nothing
   // How the job was invoked, recorded as report.json's "invocation" (the tool: its command
   // line and every flag's value).
   nlohmann::json invocation;
@@ -93,8 +92,8 @@ struct JoinResult {
   // online pose composes with until the next join; row 0: the initial pose).
   Trajectory anchors_online;
   std::vector<LandmarkEstimate> landmarks;
-  double wall_seconds = 0.0;  // joining and Finish (a Ceres solve included), not the online records
-  AssociationVsTruth association;  // against the local maps' truth ids
+  double wall_seconds = 0.0;                // joining and Finish (a Ceres solve included), not the online records
+  AssociationVsTruth association;           // against the local maps' truth ids
   std::vector<backend::JoinSummary> joins;  // what each join did, in order
   nlohmann::json report;
 };

@@ -14,10 +14,9 @@
 #define SUBSLAM_PIPELINE_RUN_PIPELINE_H_
 
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
 #include "subslam/backend/map_joiner.h"
@@ -27,13 +26,13 @@
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
 #include "subslam/frontend/seif_slam.h"
-#include "subslam/pipeline/submap_slam.h"
 #include "subslam/frontend/submap_policy.h"
-#include "subslam/graph/local_submap.h"
 #include "subslam/graph/estimates.h"
+#include "subslam/graph/local_submap.h"
 #include "subslam/io/dataset.h"
 #include "subslam/io/input_screening.h"
 #include "subslam/pipeline/join_pipeline.h"
+#include "subslam/pipeline/submap_slam.h"
 
 namespace subslam::pipeline {
 
@@ -67,12 +66,12 @@ struct RunOptions {
   // seif, iseif (--frontend iseif turns seif.iterated.enabled on).
   frontend::SeifOptions seif;
   frontend::SubmapPolicyOptions policy;  // rbpf, ekf
-  BackendOptions backend;                 // rbpf, ekf: how local maps are joined
+  BackendOptions backend;                // rbpf, ekf: how local maps are joined
   NoiseOverrides noise;
   io::InputScreeningOptions inputs;  // implausible inputs: the rules of io/input_screening.h
-  std::string out_dir;          // empty: write nothing
-  bool progress = false;        // progress line on stderr (when it is a terminal)
-  std::string source;           // what was run, for the report ("scenario hybrid-120m seed 1")
+  std::string out_dir;               // empty: write nothing
+  bool progress = false;             // progress line on stderr (when it is a terminal)
+  std::string source;                // what was run, for the report ("scenario hybrid-120m seed 1")
   // How the run was invoked, recorded as report.json's "invocation" (the tool: its command
   // line and every flag's value, so that `subslam run --config report.json` repeats it).
   nlohmann::json invocation;
@@ -84,12 +83,12 @@ struct RunOptions {
 
 struct LocalMapSummary {
   int evaluated = 0;
-  int inside = 0;       // joint NEES inside its two-sided 95% χ² bounds
-  int pose_inside = 0;  // end-pose NEES inside the 3-dof bounds
+  int inside = 0;             // joint NEES inside its two-sided 95% χ² bounds
+  int pose_inside = 0;        // end-pose NEES inside the 3-dof bounds
   double nees_per_dof = 0.0;  // mean over maps of NEES / dof
   int landmarks = 0;          // features evaluated, over all maps
   int landmarks_inside = 0;   // their 2-dof marginal NEES inside the 95% bounds
-  int false_alarms = 0; // exported features whose detections were false alarms
+  int false_alarms = 0;       // exported features whose detections were false alarms
 };
 
 // Why a run stopped before its end (RunResult::stop). The outputs hold everything up to
@@ -99,8 +98,8 @@ struct RunStop {
   // (SubmapSlam::export_failed); a join failed (SubmapSlam::join_failed).
   enum class Cause { kNonFiniteEstimate, kExportFailed, kJoinFailed };
   Cause cause = Cause::kNonFiniteEstimate;
-  int step = 0;     // index of the first step not in the outputs (io::BuildSteps order)
-  double t = 0.0;   // its time [s]
+  int step = 0;    // index of the first step not in the outputs (io::BuildSteps order)
+  double t = 0.0;  // its time [s]
   std::string reason;
 };
 
@@ -116,20 +115,20 @@ struct RunResult {
   Trajectory online;
   Trajectory final_trajectory;
   std::vector<LandmarkEstimate> landmarks;
-  double wall_seconds = 0.0;        // estimator time (excludes reading and writing)
-  std::vector<double> wall_seconds_by_tenth;  // cumulative, after each tenth of the steps
-  std::vector<long> rss_kb_by_tenth;          // resident memory after each tenth of the steps
-  long peak_rss_kb = 0;             // process peak resident memory after the run
-  std::optional<eval::TrajectoryErrors> errors;       // final trajectory vs true poses
+  double wall_seconds = 0.0;                            // estimator time (excludes reading and writing)
+  std::vector<double> wall_seconds_by_tenth;            // cumulative, after each tenth of the steps
+  std::vector<long> rss_kb_by_tenth;                    // resident memory after each tenth of the steps
+  long peak_rss_kb = 0;                                 // process peak resident memory after the run
+  std::optional<eval::TrajectoryErrors> errors;         // final trajectory vs true poses
   std::optional<eval::TrajectoryErrors> errors_online;  // joined local maps: the online one
-  std::optional<eval::MapErrors> map_errors;          // vs true landmarks
+  std::optional<eval::MapErrors> map_errors;            // vs true landmarks
   // Submap runs with a back-end: the global map against the truth by label (each global
   // landmark's majority true id over the local-map features joined into it).
   std::optional<eval::LabelledMapErrors> labelled_map_errors;
   // The same runs, when the local maps carry true ids: the joined association against
   // them (subslam join's report holds the same counts).
   std::optional<AssociationVsTruth> association;
-  std::optional<eval::GpsComparison> gps_online;      // vs GPS, aligned
+  std::optional<eval::GpsComparison> gps_online;  // vs GPS, aligned
   std::optional<eval::GpsComparison> gps_final;
   // Local-map front-ends: the local maps (truth ids attached when the data set has
   // them), why each was closed, and their consistency against ground truth.
@@ -137,7 +136,7 @@ struct RunResult {
   std::vector<std::string> close_reasons;
   std::vector<backend::JoinSummary> joins;  // with a back-end: what each join did, in order
   std::optional<LocalMapSummary> local_map_summary;
-  int impure_features = 0;  // exported features built from detections of ≥ 2 true landmarks
+  int impure_features = 0;    // exported features built from detections of ≥ 2 true landmarks
   io::InputScreening inputs;  // what the input rules found (and repaired)
   // Set when the run could not go on: the estimate became non-finite, or a local map could
   // not be exported or joined. The trajectories, the map and the report then stop at the
@@ -145,7 +144,7 @@ struct RunResult {
   // failed part-way may have left it half-made): the final trajectory is the online one
   // and the map is empty.
   std::optional<RunStop> stop;
-  bool join_failed = false;  // a join (or the joiner's Finish) failed: the back-end estimate is not used
+  bool join_failed = false;      // a join (or the joiner's Finish) failed: the back-end estimate is not used
   int non_finite_landmarks = 0;  // dropped from the map (a stopped run's broken estimate)
   nlohmann::json report;
 };
@@ -156,7 +155,7 @@ struct RunResult {
 // local-map front-end gives a SubmapSlam. Errors: invalid options or overrides, known
 // association on a data set without true ids.
 absl::StatusOr<std::unique_ptr<frontend::OnlineEstimator>> MakeOnlineEstimator(const io::Dataset& dataset,
-                                                                              const RunOptions& options);
+                                                                               const RunOptions& options);
 
 // Errors: invalid options or overrides, an output that cannot be written. A run that
 // cannot go on is not an error: its result and outputs stop at the last good step, and

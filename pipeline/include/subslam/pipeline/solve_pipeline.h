@@ -15,17 +15,16 @@
 //
 // Outputs (SolveOptions::out_dir, when set): METHOD.g2o per method that ran (the graph
 // with its solution; bearing-range measurements as Cartesian sightings, which g2o's
-// format needs), METHOD_submaps.jsonl for the submap routes when asked, and report.json: the graph's counts and reading, the start's error, and
-// under `methods` one entry per method — name, status ("ok" or why it did not run),
+// format needs), METHOD_submaps.jsonl for the submap routes when asked, and report.json: the graph's counts and
+// reading, the start's error, and under `methods` one entry per method — name, status ("ok" or why it did not run),
 // error (½ Σ rᵀΩr), chi2 (Σ rᵀΩr), iterations, seconds, peak_rss_mb, and what the method
 // reports beyond (Ceres's termination, the route's local maps and stage times).
 #ifndef SUBSLAM_PIPELINE_SOLVE_PIPELINE_H_
 #define SUBSLAM_PIPELINE_SOLVE_PIPELINE_H_
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
 #include "subslam/backend/ceres_solver.h"

@@ -70,11 +70,11 @@ absl::StatusOr<Backend> BackendFromString(const std::string& name);
 
 struct BackendOptions {
   Backend kind = Backend::kNone;
-  backend::EifJoinerOptions eif;    // eif, ceres, tree-eif
-  backend::EkfJoinerOptions ekf;    // ekf, tree-ekf (tree-ekf keeps every anchor)
-  backend::TreeJoinerOptions tree;  // tree-ekf, tree-eif
-  backend::CeresSolveOptions ceres; // ceres
-  int ceres_every = 0;              // ceres: also solve every K joins (0: at the end only)
+  backend::EifJoinerOptions eif;     // eif, ceres, tree-eif
+  backend::EkfJoinerOptions ekf;     // ekf, tree-ekf (tree-ekf keeps every anchor)
+  backend::TreeJoinerOptions tree;   // tree-ekf, tree-eif
+  backend::CeresSolveOptions ceres;  // ceres
+  int ceres_every = 0;               // ceres: also solve every K joins (0: at the end only)
   // Every back-end that joins (not kNone) gets the local maps with the sensor's yaw
   // calibrated online from consecutive maps (backend/sensor_yaw_calibration.h); the maps
   // kept in local_maps() and written to submaps.jsonl are the front-end's, and `subslam
@@ -106,8 +106,7 @@ std::unique_ptr<backend::MapJoiner> MakeJoiner(const BackendOptions& options, co
 class SubmapSlam final : public frontend::OnlineEstimator {
  public:
   // `backend` must be valid (BackendOptions::Validate).
-  SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose,
-             const BackendOptions& backend);
+  SubmapSlam(std::unique_ptr<frontend::LocalMapper> mapper, const Pose2& initial_pose, const BackendOptions& backend);
   ~SubmapSlam() override;
   // With a joiner of the caller's (nullptr: the local maps are chained by their end poses),
   // joined on a background thread if `background`; `backend_name` (default: the joiner's
@@ -215,7 +214,7 @@ class SubmapSlam final : public frontend::OnlineEstimator {
   mutable std::condition_variable join_done_;
   std::condition_variable join_wanted_;
   std::optional<LocalSubmap> joining_;
-  std::atomic<bool> join_busy_{false};  // joining_ is set (read without the lock)
+  std::atomic<bool> join_busy_{false};    // joining_ is set (read without the lock)
   std::atomic<bool> join_failed_{false};  // status_ holds a join's error
   bool join_stop_ = false;
   std::thread join_thread_;

@@ -21,8 +21,8 @@ struct BatchSolveReport {
   int iterations = 0;          // Ceres's, the start not counted
   double initial_error = 0.0;  // ½ Σ rᵀΩr
   double final_error = 0.0;
-  double seconds = 0.0;        // Ceres's total time
-  std::string termination;     // Ceres's termination type
+  double seconds = 0.0;     // Ceres's total time
+  std::string termination;  // Ceres's termination type
 };
 
 // Optimises every vertex estimate of `graph` in place (headings wrapped after). Errors:

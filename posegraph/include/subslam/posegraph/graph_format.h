@@ -72,10 +72,10 @@ struct GraphWriteOptions {
 // Writes the graph: the vertices — g2o and TORO declare every one (a vertex without an
 // estimate at the origin), iSAM / GTSAM write VERTEX2 / POINT2 only for those with an
 // estimate — then the measurements in time order (graph_text.h's writing order: the
-// odometry into a pose, then the sightings from it). Numbers are written in the shortest form that reads back to the same
-// double. Errors: what the format cannot hold (points in TORO; bearing-only or
-// bearing-range measurements where it has no such line; GTSAM's reading, which is not
-// invertible for measurements it did not produce) and an unwritable file.
+// odometry into a pose, then the sightings from it). Numbers are written in the shortest form that reads back to the
+// same double. Errors: what the format cannot hold (points in TORO; bearing-only or bearing-range measurements where it
+// has no such line; GTSAM's reading, which is not invertible for measurements it did not produce) and an unwritable
+// file.
 absl::Status WriteGraph(const PoseGraph& graph, const std::string& path, const GraphWriteOptions& options);
 absl::StatusOr<std::string> FormatGraph(const PoseGraph& graph, const GraphWriteOptions& options);
 

@@ -13,8 +13,8 @@
 namespace subslam::posegraph {
 
 // (z⁻¹ ∘ (from⁻¹ ∘ to)) as (x, y, θ), θ wrapped.
-Eigen::Vector3d OdometryResidual(const Pose2& z, const Pose2& from, const Pose2& to,
-                                 Eigen::Matrix3d* J_from = nullptr, Eigen::Matrix3d* J_to = nullptr);
+Eigen::Vector3d OdometryResidual(const Pose2& z, const Pose2& from, const Pose2& to, Eigen::Matrix3d* J_from = nullptr,
+                                 Eigen::Matrix3d* J_to = nullptr);
 
 // pose⁻¹ · point − z.
 Eigen::Vector2d PointResidual(const Eigen::Vector2d& z, const Pose2& pose, const Eigen::Vector2d& point,

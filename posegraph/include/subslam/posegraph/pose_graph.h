@@ -29,10 +29,10 @@
 namespace subslam::posegraph {
 
 struct PoseVertex {
-  long id = 0;           // the file's id
-  Pose2 estimate;        // the file's estimate when has_estimate, else set by the solver
+  long id = 0;     // the file's id
+  Pose2 estimate;  // the file's estimate when has_estimate, else set by the solver
   bool has_estimate = false;
-  bool fixed = false;    // held constant (g2o FIX); with none fixed, the first pose is
+  bool fixed = false;  // held constant (g2o FIX); with none fixed, the first pose is
 };
 
 struct PointVertex {

@@ -23,12 +23,12 @@
 namespace subslam::sim {
 
 struct WaypointFollowerOptions {
-  double speed_mps = 3.0;           // commanded speed
-  double reach_m = 2.0;             // switch to the next waypoint within this distance
-  bool car_like = true;             // true: u1 = steering angle; false: u1 = turn rate
-  double max_u1 = DegToRad(30.0);   // max |steer| [rad] or |ω| [rad/s]
+  double speed_mps = 3.0;               // commanded speed
+  double reach_m = 2.0;                 // switch to the next waypoint within this distance
+  bool car_like = true;                 // true: u1 = steering angle; false: u1 = turn rate
+  double max_u1 = DegToRad(30.0);       // max |steer| [rad] or |ω| [rad/s]
   double max_u1_rate = DegToRad(20.0);  // max |d steer / dt| [rad/s] (car only)
-  double heading_gain = 1.5;        // ω per rad of heading error [1/s] (unicycle only)
+  double heading_gain = 1.5;            // ω per rad of heading error [1/s] (unicycle only)
 };
 
 class WaypointFollower {
@@ -56,14 +56,13 @@ struct ReferenceState {
 using ReferenceFunction = std::function<ReferenceState(double t)>;
 
 struct ReferenceTrackerGains {
-  double k_x = 32.0;    // FMJ Eq. 12 as printed
+  double k_x = 32.0;  // FMJ Eq. 12 as printed
   double k_y = 20.0;
   double k_theta = 0.01;
 };
 
 // Kanayama tracking control (unicycle output (v, ω)).
-Eigen::Vector2d KanayamaControl(const Pose2& pose, const ReferenceState& reference,
-                                const ReferenceTrackerGains& gains);
+Eigen::Vector2d KanayamaControl(const Pose2& pose, const ReferenceState& reference, const ReferenceTrackerGains& gains);
 
 }  // namespace subslam::sim
 

@@ -26,13 +26,12 @@
 #ifndef SUBSLAM_SIM_SCENARIO_H_
 #define SUBSLAM_SIM_SCENARIO_H_
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <limits>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "absl/status/statusor.h"
 #include "subslam/io/dataset.h"
@@ -42,25 +41,25 @@ namespace subslam::sim {
 
 // User-facing knobs; every field has a documented default.
 struct ScenarioOptions {
-  uint64_t seed = 1;                       // noise, detections, clutter
-  std::optional<uint64_t> world_seed;      // landmarks and path jitter; default: seed
+  uint64_t seed = 1;                              // noise, detections, clutter
+  std::optional<uint64_t> world_seed;             // landmarks and path jitter; default: seed
   std::optional<double> detection_probability;    // α; default: the scenario's (1.0)
   std::optional<double> false_alarm_probability;  // β per visible feature; default 0.0
-  std::optional<double> duration_s;        // truncate the run (default: whole path)
+  std::optional<double> duration_s;               // truncate the run (default: whole path)
   // Objects moving with landmark markers (default: the scenario's; camera-robot 4); more
   // than none only where the scenario has a region for them (camera-robot).
   std::optional<int> moving_objects;
-  int fmj_case = 1;                        // fmj-ellipse: 1 or 2
+  int fmj_case = 1;  // fmj-ellipse: 1 or 2
   // random scenario knobs.
-  double random_world_size_m = 200.0;      // square world side
-  int random_landmarks = 300;              // uniformly placed landmarks
+  double random_world_size_m = 200.0;  // square world side
+  int random_landmarks = 300;          // uniformly placed landmarks
   // > 0: the landmarks on a square lattice of this spacing [m] over the whole world
   // instead (random_landmarks ignored): a world where a loop closure shifted by one
   // lattice cell fits almost as well as the right one.
   double random_lattice_spacing_m = 0.0;
-  double random_path_length_m = 1000.0;    // distance driven
-  double random_noise_scale = 1.0;         // multiplies every σ
-  bool with_signature = false;             // detections carry a noisy landmark signature
+  double random_path_length_m = 1000.0;  // distance driven
+  double random_noise_scale = 1.0;       // multiplies every σ
+  bool with_signature = false;           // detections carry a noisy landmark signature
 
   absl::Status Validate() const;
 };
@@ -70,19 +69,19 @@ enum class Guidance { kWaypoints, kReference };
 // Everything the simulator needs; produced by MakeScenario, editable by callers.
 struct ScenarioConfig {
   std::string name;
-  io::MotionConfig motion;             // the model and the control noise
-  models::RangeBearingConfig sensor;   // the sensor and its noise
+  io::MotionConfig motion;            // the model and the control noise
+  models::RangeBearingConfig sensor;  // the sensor and its noise
   double control_rate_hz = 40.0;
-  int observation_every = 8;           // one scan every N control steps
-  double max_duration_s = 1000.0;      // hard stop
+  int observation_every = 8;       // one scan every N control steps
+  double max_duration_s = 1000.0;  // hard stop
   Pose2 initial_pose;
   Guidance guidance = Guidance::kWaypoints;
   std::vector<Eigen::Vector2d> waypoints;
   WaypointFollowerOptions follower;
-  ReferenceFunction reference;         // kReference only
+  ReferenceFunction reference;  // kReference only
   ReferenceTrackerGains tracker_gains;
   std::vector<io::TruthLandmark> landmarks;
-  double detection_probability = 1.0;  // α (ScenarioOptions overrides it)
+  double detection_probability = 1.0;    // α (ScenarioOptions overrides it)
   double false_alarm_probability = 0.0;  // β: per visible feature and scan
   // The detection probability falls with range: α up to detection_full_range_m, then
   // linearly to zero at the sensor's max_range_m (infinity: α at every range).
@@ -103,15 +102,14 @@ struct ScenarioConfig {
   double control_gap_probability = 0.0;
   double max_control_gap_s = 1.0;
   bool with_signature = false;
-  double signature_sigma = 0.02;       // σ of the signature cue (e.g. trunk diameter [m])
+  double signature_sigma = 0.02;            // σ of the signature cue (e.g. trunk diameter [m])
   std::vector<double> landmark_signatures;  // true signature per landmark, when used
 };
 
 // Names accepted by MakeScenario.
 std::vector<std::string> ScenarioNames();
 
-absl::StatusOr<ScenarioConfig> MakeScenario(const std::string& name,
-                                            const ScenarioOptions& options);
+absl::StatusOr<ScenarioConfig> MakeScenario(const std::string& name, const ScenarioOptions& options);
 
 }  // namespace subslam::sim
 

@@ -30,8 +30,7 @@ namespace subslam::sim {
 absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed);
 
 // MakeScenario + Simulate.
-absl::StatusOr<io::Dataset> SimulateScenario(const std::string& name,
-                                             const ScenarioOptions& options);
+absl::StatusOr<io::Dataset> SimulateScenario(const std::string& name, const ScenarioOptions& options);
 
 }  // namespace subslam::sim
 

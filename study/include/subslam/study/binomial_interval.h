@@ -6,7 +6,7 @@
 namespace subslam::study {
 
 struct ProportionInterval {
-  double low = 0.0;   // in [0, 1]
+  double low = 0.0;  // in [0, 1]
   double high = 1.0;
 };
 

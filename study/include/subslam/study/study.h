@@ -11,11 +11,10 @@
 
 #include <cstdint>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "absl/status/statusor.h"
 #include "subslam/study/run_table.h"
@@ -23,12 +22,12 @@
 namespace subslam::study {
 
 struct StudyRun {
-  int index = 0;        // position in Study::Runs(), the key of runs.csv
-  std::string method;   // e.g. "hybrid"
+  int index = 0;                                        // position in Study::Runs(), the key of runs.csv
+  std::string method;                                   // e.g. "hybrid"
   std::vector<std::pair<std::string, double>> setting;  // in Study::setting_names() order
-  int trial = 0;        // 1-based
-  uint64_t seed = 0;    // the scenario seed of this trial (the world and the noise)
-  std::string dataset;  // a real data set's directory, for runs on one (else empty)
+  int trial = 0;                                        // 1-based
+  uint64_t seed = 0;                                    // the scenario seed of this trial (the world and the noise)
+  std::string dataset;                                  // a real data set's directory, for runs on one (else empty)
 };
 
 // What one run measured: values of Study::metric_names() (deterministic: runs.csv), rows

@@ -31,13 +31,13 @@ struct Shard {
 absl::StatusOr<Shard> ShardFromString(const std::string& text);  // "K/N"
 
 struct StudyOptions {
-  int trials = 0;     // per method and setting; 0: the paper's (Study::paper_trials())
-  int workers = 0;    // runs at a time, each on one thread; 0: every core
+  int trials = 0;   // per method and setting; 0: the paper's (Study::paper_trials())
+  int workers = 0;  // runs at a time, each on one thread; 0: every core
   Shard shard;
   std::vector<std::string> methods;  // only these of Study::method_names(); empty: all
-  std::string dataset_dir;  // the real data set of a study that uses one (iseif: Victoria Park)
-  std::string out_dir;     // required
-  bool progress = false;   // a progress line on stderr (when it is a terminal)
+  std::string dataset_dir;           // the real data set of a study that uses one (iseif: Victoria Park)
+  std::string out_dir;               // required
+  bool progress = false;             // a progress line on stderr (when it is a terminal)
 };
 
 // Runs the study's slice. On a failed run, the rows measured so far are still written

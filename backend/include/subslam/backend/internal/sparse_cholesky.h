@@ -55,14 +55,12 @@ class SparseCholesky {
   // (iSAM2 constrains its ordering the same way): CAMD's constrained minimum degree, or
   // nested dissection's order with them moved to its end.
   absl::Status Factorize(const Eigen::SparseMatrix<double>& A, int spare,
-                         FillReducingOrdering ordering = FillReducingOrdering::kAmd,
-                         const std::vector<int>& last = {});
+                         FillReducingOrdering ordering = FillReducingOrdering::kAmd, const std::vector<int>& last = {});
   // The same from A's lower triangle as it is stored. A malformed A (sizes, columns'
   // ranges, rows unsorted or above the diagonal) is rejected before anything changes:
   // the previous factor stays.
   absl::Status Factorize(const SparseLowerTriangle& A, int spare,
-                         FillReducingOrdering ordering = FillReducingOrdering::kAmd,
-                         const std::vector<int>& last = {});
+                         FillReducingOrdering ordering = FillReducingOrdering::kAmd, const std::vector<int>& last = {});
   // A += W Wᵀ, where row r of W belongs to variable rows[r]; variables numbered from dim()
   // up to new_dim − 1 are new and claim spare slots (their identity is removed).
   // Requires new_dim ≤ capacity().
@@ -81,8 +79,8 @@ class SparseCholesky {
   // change that is not exactly zero). Appends the variables whose value changed to `changed` and, when given, the
   // changes to `change_sizes`. Work: the paths, the columns entered, and one pass over the
   // elimination tree's parents.
-  void SolveChange(const std::vector<int>& rows, const Eigen::VectorXd& r_local, double threshold,
-                   Eigen::VectorXd* x, std::vector<int>* changed, std::vector<double>* change_sizes = nullptr) const;
+  void SolveChange(const std::vector<int>& rows, const Eigen::VectorXd& r_local, double threshold, Eigen::VectorXd* x,
+                   std::vector<int>* changed, std::vector<double>* change_sizes = nullptr) const;
   // The block of A⁻¹ on the listed variables (rows and columns in the listed order):
   // with P A Pᵀ = L D Lᵀ, (A⁻¹)_SS = Yᵀ D⁻¹ Y for Y = L⁻¹ P E_S, each column of Y by a
   // forward solve limited to the reach of its unit right-hand side — the elimination-tree
@@ -171,12 +169,12 @@ class SparseCholesky {
   // The symbolic analysis of `all` (A's lower triangle `a`, then the spare slots) with
   // A ordered by `ordering` (kAmd or kNestedDissection) and the spare slots last.
   struct Analysis {
-    cholmod_factor_struct* symbolic = nullptr;  // owned by the caller
+    cholmod_factor_struct* symbolic = nullptr;                   // owned by the caller
     FillReducingOrdering ordering = FillReducingOrdering::kAmd;  // used
-    double flops = 0.0;                         // of a numeric factorisation
+    double flops = 0.0;                                          // of a numeric factorisation
   };
-  absl::StatusOr<Analysis> Analyse(FillReducingOrdering ordering, cholmod_sparse_struct* a,
-                                   cholmod_sparse_struct* all, const std::vector<int>& last);
+  absl::StatusOr<Analysis> Analyse(FillReducingOrdering ordering, cholmod_sparse_struct* a, cholmod_sparse_struct* all,
+                                   const std::vector<int>& last);
   // kAmdOrNestedDissection's analysis: nested dissection once switched (AMD if METIS
   // fails); before, AMD's, or nested dissection's when AMD's costs at least
   // kNestedDissectionMinFlopsPerEntry per entry of `a` (the switch).
@@ -211,7 +209,7 @@ class SparseCholesky {
   // (DiagonalInverseBlocks): per factor column j (factor order), its rows below the
   // diagonal sorted, and Z there; Z's diagonal apart.
   struct SelectedInverse {
-    std::vector<int> start;     // column j's entries: [start[j], start[j + 1])
+    std::vector<int> start;  // column j's entries: [start[j], start[j + 1])
     std::vector<int> rows;
     std::vector<double> lower;  // L_ij
     std::vector<double> z;      // Z_ij
@@ -229,14 +227,14 @@ class SparseCholesky {
   // out[o] = aᵀ others[o] for o ≥ begin (the columns carry D^{-1/2}); a is scattered once.
   void Dots(const SparseColumn& a, const std::vector<const SparseColumn*>& others, int begin, double* out) const;
 
-  std::vector<int> position_;  // variable → row of the permuted factor
+  std::vector<int> position_;            // variable → row of the permuted factor
   mutable std::vector<double> scatter_;  // Dots()' dense scatter of one column, all zero between calls
   // Columns of Y solved since the factor last changed (std::map: references stay valid).
   mutable std::map<int, SparseColumn> column_cache_;
   // The walks' y (capacity × kMaxCarried), all zero between walks; sized on first use.
   std::vector<double>& ForwardWorkspace() const;
   mutable std::vector<double> forward_workspace_;
-  mutable std::vector<int> forward_stamp_;         // SolveColumns()'s rows written, by walk
+  mutable std::vector<int> forward_stamp_;  // SolveColumns()'s rows written, by walk
   // Position → index in SolveThroughSharedPath()'s path S, or in InverseBlock()'s dense Y;
   // all −1 between uses.
   mutable std::vector<int> path_index_;

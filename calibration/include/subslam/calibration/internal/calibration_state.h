@@ -60,7 +60,7 @@ class CalibrationState {
 
   struct OdometryTerm {
     const OdometryCost* cost;
-    Eigen::Matrix3d S;                // the whitening, L⁻¹ for Σ = L Lᵀ
+    Eigen::Matrix3d S;                 // the whitening, L⁻¹ for Σ = L Lᵀ
     std::array<Eigen::Matrix3d, 4> T;  // the covariance components
   };
 
@@ -100,7 +100,7 @@ class CalibrationState {
   std::vector<Pairing> pairs_;
   std::set<std::pair<int, int>> outliers_;  // (scan, detection) left out
   std::map<int, int> landmark_of_truth_;    // known association
-  int observations_ = 0, unknowns_ = 0;  // the last round's
+  int observations_ = 0, unknowns_ = 0;     // the last round's
 };
 
 }  // namespace subslam::calibration::internal

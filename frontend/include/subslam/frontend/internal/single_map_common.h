@@ -7,11 +7,10 @@
 
 #include "absl/status/status.h"
 #include "subslam/frontend/existence_model.h"
-#include "subslam/models/scan.h"
 #include "subslam/models/range_bearing_model.h"
+#include "subslam/models/scan.h"
 
 namespace subslam::frontend::internal {
-
 
 // The detections inside the sensor's valid range, as measurements z = (range, bearing),
 // with their index in the scan.

@@ -13,10 +13,10 @@
 #ifndef SUBSLAM_FRONTEND_INTERNAL_WORKER_POOL_H_
 #define SUBSLAM_FRONTEND_INTERNAL_WORKER_POOL_H_
 
-#include <functional>
-
 #include <oneapi/tbb/partitioner.h>
 #include <oneapi/tbb/task_arena.h>
+
+#include <functional>
 
 namespace subslam::frontend {
 

@@ -1,9 +1,9 @@
 // Ceres's solver options and robust loss from CeresSolveOptions, shared by the solvers
 // that run Ceres (the submap graph's, backend/ceres_solver.h, and the pose graph's,
 // posegraph/batch_solver.h) so that `lm`, `dogleg` and `gn` mean the same everywhere
-// (internal: not part of the API).
-#ifndef SUBSLAM_BACKEND_INTERNAL_CERES_OPTIONS_H_
-#define SUBSLAM_BACKEND_INTERNAL_CERES_OPTIONS_H_
+// (also the pose-graph solvers' own, through this header).
+#ifndef SUBSLAM_BACKEND_CERES_OPTIONS_H_
+#define SUBSLAM_BACKEND_CERES_OPTIONS_H_
 
 #include <ceres/loss_function.h>
 #include <ceres/solver.h>
@@ -21,4 +21,4 @@ ceres::LossFunction* NewRobustLoss(const CeresSolveOptions& options);
 
 }  // namespace subslam::backend
 
-#endif  // SUBSLAM_BACKEND_INTERNAL_CERES_OPTIONS_H_
+#endif  // SUBSLAM_BACKEND_CERES_OPTIONS_H_

@@ -17,8 +17,8 @@
 // Cost: AddResampling is O(N · d) and SharedAncestry O(N · d), d the resamplings since
 // the latest one from which every particle descends (older ones are dropped: all
 // particles share what came before).
-#ifndef SUBSLAM_FRONTEND_INTERNAL_GENEALOGY_H_
-#define SUBSLAM_FRONTEND_INTERNAL_GENEALOGY_H_
+#ifndef SUBSLAM_FRONTEND_GENEALOGY_H_
+#define SUBSLAM_FRONTEND_GENEALOGY_H_
 
 #include <span>
 #include <vector>
@@ -48,11 +48,11 @@ class Genealogy {
   };
   std::vector<Resampling> resamplings_;
   long scans_ = 0;
-  long coalesced_scans_ = 0;  // scans whose draws every particle shares
-  mutable std::vector<int> ancestor_;       // scratch
+  long coalesced_scans_ = 0;                  // scans whose draws every particle shares
+  mutable std::vector<int> ancestor_;         // scratch
   mutable std::vector<double> group_weight_;  // scratch
 };
 
 }  // namespace subslam::frontend
 
-#endif  // SUBSLAM_FRONTEND_INTERNAL_GENEALOGY_H_
+#endif  // SUBSLAM_FRONTEND_GENEALOGY_H_
