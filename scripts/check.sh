@@ -1,16 +1,19 @@
 #!/usr/bin/env bash
 # The checks to run before submitting a change to threaded or memory-heavy code:
 #
-#   scripts/check.sh [asan] [tsan] [fuzz]      (default: all three, in that order)
-#   scripts/check.sh ci                        (the subset CI runs, a few minutes)
+#   scripts/check.sh [rules] [asan] [tsan] [fuzz]   (default: all four, in that order)
+#   scripts/check.sh ci                             (the subset CI runs, a few minutes)
 #
+#   rules the rules that can be counted: every tracked .cc and .h formatted as
+#         .clang-format says (clang-format --dry-run --Werror), and scripts/house_rules.py
+#         (file and function length, module boundaries, document length);
 #   asan  the whole test suite under AddressSanitizer + UndefinedBehaviorSanitizer
 #         (RelWithDebInfo in build-asan/);
 #   tsan  the test programs with threads — frontend_test (the particle update on oneTBB),
 #         pipeline_test (background joins, every submap run) and study_test (the study
 #         runner's workers) — under ThreadSanitizer (build-tsan/);
 #   fuzz  every reader's fuzz target for FUZZ_SECONDS (default 30) each (scripts/fuzz.sh);
-#   ci    a subset that fits CI's time: io_test (every data-set and local-map reader on
+#   ci    the rules, then a subset that fits CI's time: io_test (every data-set and local-map reader on
 #         malformed input) under ASan + UBSan, and the particle filter's threaded tests
 #         (WorkerPool, FastSlam's thread-count tests, KnownAssociation on two threads)
 #         under TSan. The whole sanitizer steps run for the better part of an hour.
@@ -31,7 +34,7 @@ JOBS="${JOBS:-$(nproc)}"
 steps=("$@")
 NEAR_BOUND=RbpfLocalMaps.Hybrid120mJointNeesIsConsistentAtTheDefaultParticleCount
 BITWISE=HybridSlamStudy.EachMethodIsItsRecordedCommand
-((${#steps[@]})) || steps=(asan tsan fuzz)
+((${#steps[@]})) || steps=(rules asan tsan fuzz)
 
 build() {  # build DIR SANITIZER [TARGET…]
   local dir=$1 sanitizer=$2
@@ -53,9 +56,19 @@ tsan_run() {  # tsan_run TEST [GTEST_FILTER]
     ./"$1" --gtest_brief=1 --gtest_filter="${2:--$NEAR_BOUND:$BITWISE}")
 }
 
+rules() {
+  echo "check.sh: format (.clang-format) and house rules"
+  (cd "$ROOT" && git ls-files -z '*.cc' '*.h' | xargs -0 clang-format --dry-run --Werror)
+  /usr/bin/python3 "$ROOT/scripts/house_rules.py" --self-test
+  /usr/bin/python3 "$ROOT/scripts/house_rules.py" "$ROOT"
+}
+
 for step in "${steps[@]}"; do
   start=$SECONDS
   case "$step" in
+    rules)
+      rules
+      ;;
     asan)
       build "$ROOT/build-asan" address
       ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
@@ -66,6 +79,7 @@ for step in "${steps[@]}"; do
       for t in frontend_test pipeline_test study_test; do tsan_run "$t"; done
       ;;
     ci)
+      rules
       build "$ROOT/build-asan" address io_test
       (cd "$ROOT/build-asan/tests" && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 ./io_test --gtest_brief=1)
       build "$ROOT/build-tsan" thread frontend_test
@@ -76,7 +90,7 @@ for step in "${steps[@]}"; do
       "$ROOT/scripts/fuzz.sh" "${FUZZ_SECONDS:-30}"
       ;;
     *)
-      echo "check.sh: unknown step '$step' (asan, tsan, fuzz or ci)" >&2
+      echo "check.sh: unknown step '$step' (rules, asan, tsan, fuzz or ci)" >&2
       exit 2
       ;;
   esac

@@ -16,7 +16,7 @@ JOBS="${JOBS:-$(nproc)}"
 PACKAGES=(cmake g++ make ccache libceres-dev libeigen3-dev libsuitesparse-dev libabsl-dev
           libgtest-dev libbenchmark-dev libboost-dev nlohmann-json3-dev libtbb-dev python3-matplotlib
           python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-nbconvert
-          python3-ipykernel)
+          python3-ipykernel clang-format)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
