@@ -42,13 +42,7 @@ FUNCTIONS_OVER = {
     "backend/src/submap_association.cc:FitRecentRotation": 122,
     "frontend/src/ekf_slam.cc:EkfSlam::Update": 113,
     "frontend/src/fastslam.cc:FastSlam::Update": 116,
-    "io/src/submaps_jsonl.cc:FromJson": 118,
-    "pipeline/src/join_pipeline.cc:RunJoin": 132,
-    "pipeline/src/summary_tables.cc:SummaryTable": 118,
     "posegraph/src/submap_route.cc:SolveRun": 160,
-    "sim/src/simulator.cc:Simulate": 110,
-    "study/src/study_runner.cc:MergeStudy": 112,
-    "study/src/study_runner.cc:RunStudy": 114,
 }
 DOCUMENTS_OVER = {
     "bench/RESULTS.md": 1212,

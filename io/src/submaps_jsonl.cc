@@ -39,6 +39,78 @@ json ToJson(const LocalSubmap& s) {
   return out;
 }
 
+// A feature's true ids (evaluation only): ascending, distinct, agreeing with its majority
+// truth_id and its count of true landmarks.
+absl::Status TruthIdsFromJson(const json& l, const JsonFields& r, const std::string& path, LocalSubmapLandmark* out) {
+  const json& ids = l.at("truth_ids");
+  const std::string field = path + ".truth_ids";
+  if (!ids.is_array()) return r.Error(field, absl::StrCat("expected an array of true ids, got ", ids.dump()));
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const bool in_range = ids[k].is_number_unsigned() ? ids[k].get<unsigned long long>() <= INT_MAX
+                                                      : ids[k].is_number_integer() && ids[k].get<long long>() >= 0;
+    if (!in_range) {
+      return r.Error(absl::StrCat(field, "[", k, "]"),
+                     absl::StrCat("expected an integer id in [0, ", INT_MAX, "], got ", ids[k].dump()));
+    }
+    const int id = ids[k].get<int>();
+    if (!out->truth_ids.empty() && id <= out->truth_ids.back()) {
+      return r.Error(absl::StrCat(field, "[", k, "]"), "ids must be ascending and distinct");
+    }
+    out->truth_ids.push_back(id);
+  }
+  // They must agree with the feature's majority id and its count of true landmarks.
+  if (out->truth_id.has_value() && *out->truth_id >= 0 && !out->truth_ids.empty() &&
+      !std::binary_search(out->truth_ids.begin(), out->truth_ids.end(), *out->truth_id)) {
+    return r.Error(field, absl::StrCat("does not contain truth_id ", *out->truth_id));
+  }
+  if (out->truth_landmarks.has_value() && *out->truth_landmarks != static_cast<int>(out->truth_ids.size())) {
+    return r.Error(
+        field, absl::StrCat("lists ", out->truth_ids.size(), " ids but truth_landmarks is ", *out->truth_landmarks));
+  }
+  return absl::OkStatus();
+}
+
+// Landmark `path` of a local map.
+absl::StatusOr<LocalSubmapLandmark> LandmarkFromJson(const json& l, const JsonFields& r, const std::string& path) {
+  if (!l.is_object()) return r.Error(path, "expected an object");
+  if (auto st =
+          r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id", "truth_landmarks", "truth_ids"});
+      !st.ok()) {
+    return st;
+  }
+  LocalSubmapLandmark out;
+  auto local_id = r.Integer(l, path, "local_id");
+  if (!local_id.ok()) return local_id.status();
+  out.local_id = *local_id;
+  auto existence = r.Number(l, path, "existence");
+  if (!existence.ok()) return existence.status();
+  if (*existence < 0.0 || *existence > 1.0) {
+    return r.Error(path + ".existence", absl::StrCat("must be in [0, 1], got ", *existence));
+  }
+  out.existence = *existence;
+  if (l.contains("signature") && !l.at("signature").is_null()) {
+    auto sig = r.Number(l, path, "signature");
+    if (!sig.ok()) return sig.status();
+    out.signature = *sig;
+  }
+  if (l.contains("truth_id") && !l.at("truth_id").is_null()) {
+    auto truth = r.Integer(l, path, "truth_id");
+    if (!truth.ok()) return truth.status();
+    if (*truth < -1) return r.Error(path + ".truth_id", "must be >= -1 (-1: false alarm)");
+    out.truth_id = *truth;
+  }
+  if (l.contains("truth_landmarks") && !l.at("truth_landmarks").is_null()) {
+    auto count = r.Integer(l, path, "truth_landmarks");
+    if (!count.ok()) return count.status();
+    if (*count < 0) return r.Error(path + ".truth_landmarks", "must be >= 0");
+    out.truth_landmarks = *count;
+  }
+  if (l.contains("truth_ids") && !l.at("truth_ids").is_null()) {
+    if (absl::Status st = TruthIdsFromJson(l, r, path, &out); !st.ok()) return st;
+  }
+  return out;
+}
+
 // `previous_t_end`: where a map without times is put (see ReadSubmapsJsonl).
 absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double previous_t_end) {
   if (!j.is_object()) return r.Error("(line)", "expected a JSON object");
@@ -77,69 +149,9 @@ absl::StatusOr<LocalSubmap> FromJson(const json& j, const JsonFields& r, double 
   const json& landmarks = j.at("landmarks");
   if (!landmarks.is_array()) return r.Error("landmarks", "expected an array");
   for (size_t i = 0; i < landmarks.size(); ++i) {
-    const json& l = landmarks[i];
-    const std::string path = absl::StrCat("landmarks[", i, "]");
-    if (!l.is_object()) return r.Error(path, "expected an object");
-    if (auto st =
-            r.CheckKeys(l, path, {"local_id", "signature", "existence", "truth_id", "truth_landmarks", "truth_ids"});
-        !st.ok()) {
-      return st;
-    }
-    LocalSubmapLandmark out;
-    auto local_id = r.Integer(l, path, "local_id");
-    if (!local_id.ok()) return local_id.status();
-    out.local_id = *local_id;
-    auto existence = r.Number(l, path, "existence");
-    if (!existence.ok()) return existence.status();
-    if (*existence < 0.0 || *existence > 1.0) {
-      return r.Error(path + ".existence", absl::StrCat("must be in [0, 1], got ", *existence));
-    }
-    out.existence = *existence;
-    if (l.contains("signature") && !l.at("signature").is_null()) {
-      auto sig = r.Number(l, path, "signature");
-      if (!sig.ok()) return sig.status();
-      out.signature = *sig;
-    }
-    if (l.contains("truth_id") && !l.at("truth_id").is_null()) {
-      auto truth = r.Integer(l, path, "truth_id");
-      if (!truth.ok()) return truth.status();
-      if (*truth < -1) return r.Error(path + ".truth_id", "must be >= -1 (-1: false alarm)");
-      out.truth_id = *truth;
-    }
-    if (l.contains("truth_landmarks") && !l.at("truth_landmarks").is_null()) {
-      auto count = r.Integer(l, path, "truth_landmarks");
-      if (!count.ok()) return count.status();
-      if (*count < 0) return r.Error(path + ".truth_landmarks", "must be >= 0");
-      out.truth_landmarks = *count;
-    }
-    if (l.contains("truth_ids") && !l.at("truth_ids").is_null()) {
-      const json& ids = l.at("truth_ids");
-      const std::string field = path + ".truth_ids";
-      if (!ids.is_array()) return r.Error(field, absl::StrCat("expected an array of true ids, got ", ids.dump()));
-      for (size_t k = 0; k < ids.size(); ++k) {
-        const bool in_range = ids[k].is_number_unsigned() ? ids[k].get<unsigned long long>() <= INT_MAX
-                                                          : ids[k].is_number_integer() && ids[k].get<long long>() >= 0;
-        if (!in_range) {
-          return r.Error(absl::StrCat(field, "[", k, "]"),
-                         absl::StrCat("expected an integer id in [0, ", INT_MAX, "], got ", ids[k].dump()));
-        }
-        const int id = ids[k].get<int>();
-        if (!out.truth_ids.empty() && id <= out.truth_ids.back()) {
-          return r.Error(absl::StrCat(field, "[", k, "]"), "ids must be ascending and distinct");
-        }
-        out.truth_ids.push_back(id);
-      }
-      // They must agree with the feature's majority id and its count of true landmarks.
-      if (out.truth_id.has_value() && *out.truth_id >= 0 && !out.truth_ids.empty() &&
-          !std::binary_search(out.truth_ids.begin(), out.truth_ids.end(), *out.truth_id)) {
-        return r.Error(field, absl::StrCat("does not contain truth_id ", *out.truth_id));
-      }
-      if (out.truth_landmarks.has_value() && *out.truth_landmarks != static_cast<int>(out.truth_ids.size())) {
-        return r.Error(
-            field, absl::StrCat("lists ", out.truth_ids.size(), " ids but truth_landmarks is ", *out.truth_landmarks));
-      }
-    }
-    s.landmarks.push_back(out);
+    auto landmark = LandmarkFromJson(landmarks[i], r, absl::StrCat("landmarks[", i, "]"));
+    if (!landmark.ok()) return landmark.status();
+    s.landmarks.push_back(*std::move(landmark));
   }
   const size_t n = 3 + 2 * s.landmarks.size();
   auto state = r.Numbers(j, "", "state");

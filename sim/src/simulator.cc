@@ -40,9 +40,8 @@ void Move(MovingObject* o, double step_m, const Eigen::AlignedBox2d& region, std
   }
 }
 
-}  // namespace
-
-absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed) {
+// The scenario's settings are usable: valid sensor and noise, a control rate, guidance.
+absl::Status CheckScenarioConfig(const ScenarioConfig& config) {
   if (absl::Status s = config.sensor.Validate(); !s.ok()) return s;
   if (absl::Status s = config.motion.noise.Validate(); !s.ok()) return s;
   if (!(config.control_rate_hz > 0.0) || config.observation_every < 1) {
@@ -54,6 +53,60 @@ absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed
   if (config.guidance == Guidance::kReference && !config.reference) {
     return absl::InvalidArgumentError("reference guidance needs a reference function");
   }
+  return absl::OkStatus();
+}
+
+// The scan at t from pose x: each landmark in range and view detected with the scenario's
+// probability, a false alarm per landmark with its probability, the moving objects' markers
+// (no true id). The draws come from `rng` through `gauss` and `unit` in a fixed order.
+Scan SimulateScan(const ScenarioConfig& config, const models::RangeBearingModel& sensor, const Pose2& x, double t,
+                  const std::vector<MovingObject>& objects, std::mt19937_64& rng,
+                  std::normal_distribution<double>* gauss, std::uniform_real_distribution<double>* unit) {
+  const models::RangeBearingConfig& rb = config.sensor;
+  Scan scan;
+  scan.t = t;
+  for (size_t i = 0; i < config.landmarks.size(); ++i) {
+    const io::TruthLandmark& l = config.landmarks[i];
+    if ((l.p - x.translation()).squaredNorm() > rb.max_range_m * rb.max_range_m * 1.01) continue;
+    const Eigen::Vector2d z = sensor.Observe(x, l.p);
+    if (!sensor.IsVisible(z)) continue;
+    if ((*unit)(rng) < DetectionProbability(config, z[0])) {
+      Detection det;
+      det.range_m = std::max(1e-3, z[0] + rb.sigma_range_m * (*gauss)(rng));
+      det.bearing_rad = WrapAngle(z[1] + rb.sigma_bearing_rad * (*gauss)(rng));
+      det.truth_id = l.id;
+      if (config.with_signature) {
+        det.signature = config.landmark_signatures[i] + config.signature_sigma * (*gauss)(rng);
+      }
+      scan.detections.push_back(det);
+    }
+    if ((*unit)(rng) < config.false_alarm_probability) {
+      Detection fa;
+      fa.range_m = std::max(1e-3, rb.min_range_m + (rb.max_range_m - rb.min_range_m) * (*unit)(rng));
+      fa.bearing_rad = rb.fov_min_rad + (rb.fov_max_rad - rb.fov_min_rad) * (*unit)(rng);
+      fa.truth_id = kFalseAlarmId;
+      if (config.with_signature) fa.signature = 0.1 + 0.5 * (*unit)(rng);
+      scan.detections.push_back(fa);
+    }
+  }
+  for (const MovingObject& o : objects) {  // markers on other robots: seen, with no true id
+    const Eigen::Vector2d z = sensor.Observe(x, o.p);
+    if (!sensor.IsVisible(z) || !((*unit)(rng) < DetectionProbability(config, z[0]))) continue;
+    Detection det;
+    det.range_m = std::max(1e-3, z[0] + rb.sigma_range_m * (*gauss)(rng));
+    det.bearing_rad = WrapAngle(z[1] + rb.sigma_bearing_rad * (*gauss)(rng));
+    det.truth_id = kFalseAlarmId;
+    if (config.with_signature) det.signature = 0.1 + 0.5 * (*unit)(rng);
+    scan.detections.push_back(det);
+  }
+  std::shuffle(scan.detections.begin(), scan.detections.end(), rng);
+  return scan;
+}
+
+}  // namespace
+
+absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed) {
+  if (absl::Status s = CheckScenarioConfig(config); !s.ok()) return s;
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -69,7 +122,6 @@ absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed
 
   const std::unique_ptr<models::MotionModel> model = config.motion.MakeModel();
   const models::RangeBearingModel sensor(config.sensor);
-  const models::RangeBearingConfig& rb = config.sensor;
   const double dt = 1.0 / config.control_rate_hz;
   const auto steps = static_cast<int64_t>(std::floor(config.max_duration_s * config.control_rate_hz));
   WaypointFollower follower(config.waypoints, config.follower);
@@ -112,43 +164,7 @@ absl::StatusOr<io::Dataset> Simulate(const ScenarioConfig& config, uint64_t seed
     d.truth_poses.push_back({t_next, x});
     if ((k + 1) % config.observation_every != 0) continue;
 
-    Scan scan;
-    scan.t = t_next;
-    for (size_t i = 0; i < config.landmarks.size(); ++i) {
-      const io::TruthLandmark& l = config.landmarks[i];
-      if ((l.p - x.translation()).squaredNorm() > rb.max_range_m * rb.max_range_m * 1.01) continue;
-      const Eigen::Vector2d z = sensor.Observe(x, l.p);
-      if (!sensor.IsVisible(z)) continue;
-      if (unit(rng) < DetectionProbability(config, z[0])) {
-        Detection det;
-        det.range_m = std::max(1e-3, z[0] + rb.sigma_range_m * gauss(rng));
-        det.bearing_rad = WrapAngle(z[1] + rb.sigma_bearing_rad * gauss(rng));
-        det.truth_id = l.id;
-        if (config.with_signature) {
-          det.signature = config.landmark_signatures[i] + config.signature_sigma * gauss(rng);
-        }
-        scan.detections.push_back(det);
-      }
-      if (unit(rng) < config.false_alarm_probability) {
-        Detection fa;
-        fa.range_m = std::max(1e-3, rb.min_range_m + (rb.max_range_m - rb.min_range_m) * unit(rng));
-        fa.bearing_rad = rb.fov_min_rad + (rb.fov_max_rad - rb.fov_min_rad) * unit(rng);
-        fa.truth_id = kFalseAlarmId;
-        if (config.with_signature) fa.signature = 0.1 + 0.5 * unit(rng);
-        scan.detections.push_back(fa);
-      }
-    }
-    for (const MovingObject& o : objects) {  // markers on other robots: seen, with no true id
-      const Eigen::Vector2d z = sensor.Observe(x, o.p);
-      if (!sensor.IsVisible(z) || !(unit(rng) < DetectionProbability(config, z[0]))) continue;
-      Detection det;
-      det.range_m = std::max(1e-3, z[0] + rb.sigma_range_m * gauss(rng));
-      det.bearing_rad = WrapAngle(z[1] + rb.sigma_bearing_rad * gauss(rng));
-      det.truth_id = kFalseAlarmId;
-      if (config.with_signature) det.signature = 0.1 + 0.5 * unit(rng);
-      scan.detections.push_back(det);
-    }
-    std::shuffle(scan.detections.begin(), scan.detections.end(), rng);
+    Scan scan = SimulateScan(config, sensor, x, t_next, objects, rng, &gauss, &unit);
     if (!scan.detections.empty()) d.scans.push_back(std::move(scan));
   }
   if (d.controls.empty()) return absl::InvalidArgumentError("simulation produced no steps");

@@ -183,10 +183,10 @@ absl::StatusOr<Shard> ShardFromString(const std::string& text) {
   return shard;
 }
 
-absl::Status RunStudy(const Study& study, const StudyOptions& options) {
-  if (options.out_dir.empty()) return absl::InvalidArgumentError("a study needs an output directory (--out)");
-  if (options.trials < 0) return absl::InvalidArgumentError("--trials must be positive");
-  const int trials = options.trials > 0 ? options.trials : study.paper_trials();
+namespace {
+
+// The methods asked for are the study's, and a data set is given only to a study that uses one.
+absl::Status CheckStudyOptions(const Study& study, const StudyOptions& options) {
   const std::vector<std::string> known = study.method_names();
   for (const std::string& method : options.methods) {
     if (std::find(known.begin(), known.end(), method) == known.end()) {
@@ -198,31 +198,31 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
     return absl::InvalidArgumentError(
         absl::StrCat("study ", study.name(), " has no runs on a real data set (--dataset)"));
   }
-  const std::vector<StudyRun> all = SelectedRuns(study, trials, options.methods, options.dataset_dir);
-  std::vector<StudyRun> runs;
-  for (const StudyRun& run : all) {
-    if (run.index % options.shard.count == options.shard.index - 1) runs.push_back(run);
-  }
-  std::error_code ec;
-  std::filesystem::create_directories(options.out_dir, ec);
-  if (ec) return absl::InternalError(absl::StrCat(options.out_dir, ": ", ec.message()));
-  const int total_runs = static_cast<int>(all.size());
-  if (absl::Status s = WriteText(
-          options.out_dir + "/config.json",
-          ConfigJson(study, trials, options.methods, options.dataset_dir, options.shard, total_runs).dump(2) + "\n");
-      !s.ok()) {
-    return s;
-  }
+  return absl::OkStatus();
+}
 
+// What the workers measured: one entry per run (empty where it was not run), its wall time,
+// and the first error (the workers stop at it).
+struct Measurements {
+  std::vector<std::optional<RunMeasurement>> measured;
+  std::vector<double> wall;
+  absl::Status first_error;
+};
+
+// Runs `runs` on options.workers threads (0: every core), each run on one thread.
+Measurements MeasureRuns(const Study& study, const std::vector<StudyRun>& runs, const StudyOptions& options) {
   const int workers = std::max(
       1, std::min<int>(options.workers > 0 ? options.workers : static_cast<int>(std::thread::hardware_concurrency()),
                        static_cast<int>(runs.size())));
-  std::vector<std::optional<RunMeasurement>> measured(runs.size());
-  std::vector<double> wall(runs.size(), 0.0);
+  Measurements out;
+  out.measured.resize(runs.size());
+  out.wall.assign(runs.size(), 0.0);
+  std::vector<std::optional<RunMeasurement>>& measured = out.measured;
+  std::vector<double>& wall = out.wall;
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
   std::mutex mutex;  // guards first_error, done, progress
-  absl::Status first_error;
+  absl::Status& first_error = out.first_error;
   int done = 0;
   ProgressLine progress(options.progress, study.name(), static_cast<int>(runs.size()));
   auto work = [&] {
@@ -255,50 +255,134 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
   for (int w = 0; w < workers; ++w) threads.emplace_back(work);
   for (std::thread& t : threads) t.join();
 
+  return out;
+}
+
+// runs.csv, series.csv, timings.csv and join_times.csv of the runs measured; `rows`: how many.
+absl::Status WriteRunTables(const Study& study, const std::vector<StudyRun>& runs, Measurements* m,
+                            const std::string& out_dir, int* rows) {
   RunTable table(RunColumns(study));
   RunTable timings(TimingColumns(study));
   RunTable series(SeriesColumns(study));
   RunTable join_times({"run", "join", "seconds"});
   for (size_t i = 0; i < runs.size(); ++i) {
-    if (!measured[i]) continue;
+    if (!m->measured[i]) continue;
     const StudyRun& run = runs[i];
     std::vector<std::string> row = {absl::StrCat(run.index), run.method};
     for (const auto& [name, value] : run.setting) row.push_back(FormatNumber(value));
     row.push_back(absl::StrCat(run.trial));
     row.push_back(absl::StrCat(run.seed));
-    for (std::string& value : measured[i]->metrics) row.push_back(std::move(value));
+    for (std::string& value : m->measured[i]->metrics) row.push_back(std::move(value));
     if (absl::Status s = table.Add(std::move(row)); !s.ok()) return s;
-    std::vector<std::string> timing = {absl::StrCat(run.index), FormatNumber(wall[i])};
-    for (double t : measured[i]->timings) timing.push_back(FormatNumber(t));
+    std::vector<std::string> timing = {absl::StrCat(run.index), FormatNumber(m->wall[i])};
+    for (double t : m->measured[i]->timings) timing.push_back(FormatNumber(t));
     if (absl::Status s = timings.Add(std::move(timing)); !s.ok()) return s;
-    for (size_t j = 0; j < measured[i]->join_seconds.size(); ++j) {
+    for (size_t j = 0; j < m->measured[i]->join_seconds.size(); ++j) {
       if (absl::Status s =
-              join_times.Add({absl::StrCat(run.index), absl::StrCat(j), FormatNumber(measured[i]->join_seconds[j])});
+              join_times.Add({absl::StrCat(run.index), absl::StrCat(j), FormatNumber(m->measured[i]->join_seconds[j])});
           !s.ok()) {
         return s;
       }
     }
-    for (std::vector<std::string>& values : measured[i]->series) {
+    for (std::vector<std::string>& values : m->measured[i]->series) {
       std::vector<std::string> row = {absl::StrCat(run.index)};
       for (std::string& value : values) row.push_back(std::move(value));
       if (absl::Status s = series.Add(std::move(row)); !s.ok()) return s;
     }
   }
-  if (absl::Status s = table.Write(options.out_dir + "/runs.csv"); !s.ok()) return s;
+  if (absl::Status s = table.Write(out_dir + "/runs.csv"); !s.ok()) return s;
   if (!study.series_names().empty()) {
-    if (absl::Status s = series.Write(options.out_dir + "/series.csv"); !s.ok()) return s;
+    if (absl::Status s = series.Write(out_dir + "/series.csv"); !s.ok()) return s;
   }
-  if (absl::Status s = timings.Write(options.out_dir + "/timings.csv"); !s.ok()) return s;
+  if (absl::Status s = timings.Write(out_dir + "/timings.csv"); !s.ok()) return s;
   if (join_times.num_rows() > 0) {
-    if (absl::Status s = join_times.Write(options.out_dir + "/join_times.csv"); !s.ok()) return s;
+    if (absl::Status s = join_times.Write(out_dir + "/join_times.csv"); !s.ok()) return s;
   }
-  if (!first_error.ok()) {
-    return absl::Status(first_error.code(), absl::StrCat(first_error.message(), " (the ", table.num_rows(),
-                                                         " runs measured are in ", options.out_dir, "/runs.csv)"));
+  *rows = table.num_rows();
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::Status RunStudy(const Study& study, const StudyOptions& options) {
+  if (options.out_dir.empty()) return absl::InvalidArgumentError("a study needs an output directory (--out)");
+  if (options.trials < 0) return absl::InvalidArgumentError("--trials must be positive");
+  const int trials = options.trials > 0 ? options.trials : study.paper_trials();
+  if (absl::Status s = CheckStudyOptions(study, options); !s.ok()) return s;
+  const std::vector<StudyRun> all = SelectedRuns(study, trials, options.methods, options.dataset_dir);
+  std::vector<StudyRun> runs;
+  for (const StudyRun& run : all) {
+    if (run.index % options.shard.count == options.shard.index - 1) runs.push_back(run);
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(options.out_dir, ec);
+  if (ec) return absl::InternalError(absl::StrCat(options.out_dir, ": ", ec.message()));
+  const int total_runs = static_cast<int>(all.size());
+  if (absl::Status s = WriteText(
+          options.out_dir + "/config.json",
+          ConfigJson(study, trials, options.methods, options.dataset_dir, options.shard, total_runs).dump(2) + "\n");
+      !s.ok()) {
+    return s;
+  }
+
+  Measurements measured = MeasureRuns(study, runs, options);
+  int rows = 0;
+  if (absl::Status s = WriteRunTables(study, runs, &measured, options.out_dir, &rows); !s.ok()) return s;
+  if (!measured.first_error.ok()) {
+    return absl::Status(measured.first_error.code(),
+                        absl::StrCat(measured.first_error.message(), " (the ", rows, " runs measured are in ",
+                                     options.out_dir, "/runs.csv)"));
   }
   if (options.shard.count > 1) return absl::OkStatus();
   return Summarise(study, options.out_dir);
 }
+
+namespace {
+
+// Whether the merged rows are the study's runs, each once.
+absl::Status CheckEveryRunOnce(const Study& study, const json& reference, const RunTable& runs,
+                               const std::string& first_dir) {
+  std::vector<StudyRun> expected;
+  try {
+    expected =
+        SelectedRuns(study, reference.at("trials").get<int>(), reference.at("methods").get<std::vector<std::string>>(),
+                     reference.at("dataset").get<std::string>());
+  } catch (const json::exception& e) {
+    return absl::InvalidArgumentError(absl::StrCat(first_dir, "/config.json: ", e.what()));
+  }
+  if (runs.num_rows() != static_cast<int>(expected.size())) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("the slices hold ", runs.num_rows(), " runs of ", expected.size(), " (a slice stopped early?)"));
+  }
+  for (size_t i = 0; i < expected.size(); ++i) {
+    if (runs.rows()[i][0] != absl::StrCat(expected[i].index)) {
+      return absl::InvalidArgumentError(absl::StrCat("run ", expected[i].index, " is missing or given twice"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+// The merged study's config.json and tables in `out_dir`.
+absl::Status WriteMerged(const Study& study, const json& reference, const RunTable& runs, const RunTable& timings,
+                         const RunTable& series, const RunTable& join_times, const std::string& out_dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(out_dir, ec);
+  if (ec) return absl::InternalError(absl::StrCat(out_dir, ": ", ec.message()));
+  json config = reference;
+  config["shard"] = "1/1";
+  if (absl::Status s = WriteText(out_dir + "/config.json", config.dump(2) + "\n"); !s.ok()) return s;
+  if (absl::Status s = runs.Write(out_dir + "/runs.csv"); !s.ok()) return s;
+  if (absl::Status s = timings.Write(out_dir + "/timings.csv"); !s.ok()) return s;
+  if (join_times.num_rows() > 0) {
+    if (absl::Status s = join_times.Write(out_dir + "/join_times.csv"); !s.ok()) return s;
+  }
+  if (!study.series_names().empty()) {
+    if (absl::Status s = series.Write(out_dir + "/series.csv"); !s.ok()) return s;
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
 
 absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::string& out_dir) {
   if (shard_dirs.empty()) return absl::InvalidArgumentError("merge needs the slices' directories");
@@ -381,36 +465,9 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   if (absl::Status s = timings->SortBy("run"); !s.ok()) return s;
   if (absl::Status s = series->SortBy("run"); !s.ok()) return s;  // stable: each run's rows keep their order
   if (absl::Status s = join_times.SortBy("run"); !s.ok()) return s;
-  std::vector<StudyRun> expected;
-  try {
-    expected = SelectedRuns(*study, (*reference).at("trials").get<int>(),
-                            (*reference).at("methods").get<std::vector<std::string>>(),
-                            (*reference).at("dataset").get<std::string>());
-  } catch (const json::exception& e) {
-    return absl::InvalidArgumentError(absl::StrCat(shard_dirs.front(), "/config.json: ", e.what()));
-  }
-  if (runs->num_rows() != static_cast<int>(expected.size())) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("the slices hold ", runs->num_rows(), " runs of ", expected.size(), " (a slice stopped early?)"));
-  }
-  for (size_t i = 0; i < expected.size(); ++i) {
-    if (runs->rows()[i][0] != absl::StrCat(expected[i].index)) {
-      return absl::InvalidArgumentError(absl::StrCat("run ", expected[i].index, " is missing or given twice"));
-    }
-  }
-  std::error_code ec;
-  std::filesystem::create_directories(out_dir, ec);
-  if (ec) return absl::InternalError(absl::StrCat(out_dir, ": ", ec.message()));
-  json config = *reference;
-  config["shard"] = "1/1";
-  if (absl::Status s = WriteText(out_dir + "/config.json", config.dump(2) + "\n"); !s.ok()) return s;
-  if (absl::Status s = runs->Write(out_dir + "/runs.csv"); !s.ok()) return s;
-  if (absl::Status s = timings->Write(out_dir + "/timings.csv"); !s.ok()) return s;
-  if (join_times.num_rows() > 0) {
-    if (absl::Status s = join_times.Write(out_dir + "/join_times.csv"); !s.ok()) return s;
-  }
-  if (!study->series_names().empty()) {
-    if (absl::Status s = series->Write(out_dir + "/series.csv"); !s.ok()) return s;
+  if (absl::Status s = CheckEveryRunOnce(*study, *reference, *runs, shard_dirs.front()); !s.ok()) return s;
+  if (absl::Status s = WriteMerged(*study, *reference, *runs, *timings, *series, join_times, out_dir); !s.ok()) {
+    return s;
   }
   return Summarise(*study, out_dir);
 }
