@@ -42,7 +42,6 @@ FUNCTIONS_OVER = {
     "backend/src/submap_association.cc:FitRecentRotation": 122,
     "frontend/src/ekf_slam.cc:EkfSlam::Update": 113,
     "frontend/src/fastslam.cc:FastSlam::Update": 116,
-    "posegraph/src/submap_route.cc:SolveRun": 160,
 }
 DOCUMENTS_OVER = {
     "bench/RESULTS.md": 1212,

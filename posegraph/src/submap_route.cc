@@ -64,55 +64,81 @@ absl::Status CheckRouteApplies(const PoseGraph& graph) {
   return absl::OkStatus();
 }
 
-// Gauss-Newton over one run in the frame of its first pose (held at the identity), then
-// the Gaussian over [last pose, points] from the inverse of the information.
-absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, const std::vector<int>& odometry_into,
-                                     const std::vector<std::vector<Sighting>>& sightings, int id, int max_iterations) {
-  const int steps = run.last - run.first;
-  std::vector<Pose2> poses(steps + 1);  // poses[0]: the first, the identity
-  for (int k = 1; k <= steps; ++k) poses[k] = Compose(poses[k - 1], graph.odometry[odometry_into[run.first + k]].z);
-  // Points in order of first sighting.
-  std::vector<int> point_of_slot;
-  std::vector<Eigen::Vector2d> points;
-  const int end = run.final ? run.last : run.last - 1;
-  std::vector<std::pair<int, Sighting>> run_sightings;  // (local pose, sighting)
-  for (int p = run.first; p <= end; ++p) {
-    for (const Sighting& s : sightings[p]) run_sightings.push_back({p - run.first, s});
-  }
-  absl::flat_hash_map<int, int> slot;
-  for (const auto& [k, s] : run_sightings) {
-    const int point =
-        s.bearing_range ? graph.bearing_range_measurements[s.index].point : graph.point_measurements[s.index].point;
-    if (slot.contains(point)) continue;
-    slot[point] = static_cast<int>(point_of_slot.size());
-    point_of_slot.push_back(point);
-    Eigen::Vector2d z;
-    if (s.bearing_range) {
-      const BearingRangeMeasurement& m = graph.bearing_range_measurements[s.index];
-      z = Eigen::Vector2d(m.range * std::cos(m.bearing), m.range * std::sin(m.bearing));
-    } else {
-      z = graph.point_measurements[s.index].z;
+// One run's least-squares problem in the frame of its first pose (held at the identity):
+// the poses after it start from dead reckoning, the points (in order of first sighting) from
+// their first sighting. Variables: poses 1 … steps (3 each), then the points (2 each).
+class RunProblem {
+ public:
+  RunProblem(const PoseGraph& graph, const Run& run, const std::vector<int>& odometry_into,
+             const std::vector<std::vector<Sighting>>& sightings)
+      : graph_(graph), run_(run), odometry_into_(odometry_into), steps_(run.last - run.first) {
+    poses.resize(steps_ + 1);  // poses[0]: the first, the identity
+    for (int k = 1; k <= steps_; ++k) {
+      poses[k] = Compose(poses[k - 1], graph.odometry[odometry_into[run.first + k]].z);
     }
-    points.push_back(TransformFrom(poses[k], z));
+    const int end = run.final ? run.last : run.last - 1;
+    for (int p = run.first; p <= end; ++p) {
+      for (const Sighting& s : sightings[p]) run_sightings_.push_back({p - run.first, s});
+    }
+    for (const auto& [k, s] : run_sightings_) {
+      const int point =
+          s.bearing_range ? graph.bearing_range_measurements[s.index].point : graph.point_measurements[s.index].point;
+      if (slot_.contains(point)) continue;
+      slot_[point] = static_cast<int>(point_of_slot.size());
+      point_of_slot.push_back(point);
+      Eigen::Vector2d z;
+      if (s.bearing_range) {
+        const BearingRangeMeasurement& m = graph.bearing_range_measurements[s.index];
+        z = Eigen::Vector2d(m.range * std::cos(m.bearing), m.range * std::sin(m.bearing));
+      } else {
+        z = graph.point_measurements[s.index].z;
+      }
+      points.push_back(TransformFrom(poses[k], z));
+    }
+    H.resize(dim(), dim());
+    g.resize(dim());
   }
-  const int num_points = static_cast<int>(points.size());
-  const int dim = 3 * steps + 2 * num_points;
-  const auto pose_col = [](int k) { return 3 * (k - 1); };
-  const auto point_col = [steps](int j) { return 3 * steps + 2 * j; };
-  Eigen::MatrixXd H(dim, dim);
-  Eigen::VectorXd g(dim);
-  // Builds H and g at the current estimate and returns the cost ½ Σ rᵀΩr.
-  const auto linearize = [&](bool with_jacobians) {
+
+  int steps() const { return steps_; }
+  int num_points() const { return static_cast<int>(points.size()); }
+  int dim() const { return 3 * steps_ + 2 * num_points(); }
+  int pose_col(int k) const { return 3 * (k - 1); }
+  int point_col(int j) const { return 3 * steps_ + 2 * j; }
+
+  // Builds H and g at the current estimate (with_jacobians) and returns the cost ½ Σ rᵀΩr.
+  double Linearize(bool with_jacobians) {
     double cost = 0.0;
     if (with_jacobians) {
       H.setZero();
       g.setZero();
     }
-    for (int k = 1; k <= steps; ++k) {
-      const OdometryMeasurement& m = graph.odometry[odometry_into[run.first + k]];
+    AddOdometry(with_jacobians, &cost);
+    AddSightings(with_jacobians, &cost);
+    return cost;
+  }
+
+  // Moves the estimate by scale · step.
+  void Apply(const Eigen::VectorXd& step, double scale) {
+    for (int k = 1; k <= steps_; ++k) {
+      const Eigen::Vector3d d = scale * step.segment<3>(pose_col(k));
+      poses[k] = Pose2(poses[k].x + d.x(), poses[k].y + d.y(), poses[k].theta + d.z());
+    }
+    for (int j = 0; j < num_points(); ++j) points[j] += scale * step.segment<2>(point_col(j));
+  }
+
+  std::vector<Pose2> poses;
+  std::vector<Eigen::Vector2d> points;
+  std::vector<int> point_of_slot;  // the graph's point index of each point
+  Eigen::MatrixXd H;
+  Eigen::VectorXd g;
+
+ private:
+  void AddOdometry(bool with_jacobians, double* cost) {
+    for (int k = 1; k <= steps_; ++k) {
+      const OdometryMeasurement& m = graph_.odometry[odometry_into_[run_.first + k]];
       Eigen::Matrix3d J_from, J_to;
       const Eigen::Vector3d r = OdometryResidual(m.z, poses[k - 1], poses[k], &J_from, &J_to);
-      cost += 0.5 * r.dot(m.information * r);
+      *cost += 0.5 * r.dot(m.information * r);
       if (!with_jacobians) continue;
       const int a = pose_col(k);
       H.block<3, 3>(a, a) += J_to.transpose() * m.information * J_to;
@@ -125,23 +151,26 @@ absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, con
         g.segment<3>(b) += J_from.transpose() * m.information * r;
       }
     }
-    for (const auto& [k, s] : run_sightings) {
+  }
+
+  void AddSightings(bool with_jacobians, double* cost) {
+    for (const auto& [k, s] : run_sightings_) {
       Matrix23d J_pose;
       Eigen::Matrix2d J_point, information;
       Eigen::Vector2d r;
       int point;
       if (s.bearing_range) {
-        const BearingRangeMeasurement& m = graph.bearing_range_measurements[s.index];
-        point = slot.at(m.point);
+        const BearingRangeMeasurement& m = graph_.bearing_range_measurements[s.index];
+        point = slot_.at(m.point);
         r = BearingRangeResidual(m.bearing, m.range, poses[k], points[point], &J_pose, &J_point);
         information = m.information;
       } else {
-        const PointMeasurement& m = graph.point_measurements[s.index];
-        point = slot.at(m.point);
+        const PointMeasurement& m = graph_.point_measurements[s.index];
+        point = slot_.at(m.point);
         r = PointResidual(m.z, poses[k], points[point], &J_pose, &J_point);
         information = m.information;
       }
-      cost += 0.5 * r.dot(information * r);
+      *cost += 0.5 * r.dot(information * r);
       if (!with_jacobians) continue;
       const int c = point_col(point);
       H.block<2, 2>(c, c) += J_point.transpose() * information * J_point;
@@ -154,51 +183,68 @@ absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, con
         g.segment<3>(a) += J_pose.transpose() * information * r;
       }
     }
-    return cost;
-  };
-  const auto apply = [&](const Eigen::VectorXd& step, double scale) {
-    for (int k = 1; k <= steps; ++k) {
-      const Eigen::Vector3d d = scale * step.segment<3>(pose_col(k));
-      poses[k] = Pose2(poses[k].x + d.x(), poses[k].y + d.y(), poses[k].theta + d.z());
-    }
-    for (int j = 0; j < num_points; ++j) points[j] += scale * step.segment<2>(point_col(j));
-  };
-  double cost = linearize(true);
-  Eigen::LDLT<Eigen::MatrixXd> ldlt;
+  }
+
+  const PoseGraph& graph_;
+  const Run& run_;
+  const std::vector<int>& odometry_into_;
+  const int steps_;
+  std::vector<std::pair<int, Sighting>> run_sightings_;  // (local pose, sighting)
+  absl::flat_hash_map<int, int> slot_;                   // the graph's point index -> its point
+};
+
+// Gauss-Newton on the run from its start: each step halved while it raises the cost
+// (from dead reckoning it seldom has to be), until a step no longer moves the estimate.
+// Leaves H factorised in `ldlt` at the solution.
+absl::Status MinimizeRun(RunProblem* problem, int id, int max_iterations, Eigen::LDLT<Eigen::MatrixXd>* ldlt) {
+  double cost = problem->Linearize(true);
   for (int iteration = 0; iteration < max_iterations; ++iteration) {
-    ldlt.compute(H);
-    if (ldlt.info() != Eigen::Success)
+    ldlt->compute(problem->H);
+    if (ldlt->info() != Eigen::Success) {
       return absl::InternalError(absl::StrCat("local map ", id, ": factorisation failed"));
-    const Eigen::VectorXd step = -ldlt.solve(g);
-    // Halve a step that raises the cost (Gauss-Newton from dead reckoning seldom needs it).
-    const std::vector<Pose2> saved_poses = poses;
-    const std::vector<Eigen::Vector2d> saved_points = points;
+    }
+    const Eigen::VectorXd step = -ldlt->solve(problem->g);
+    const std::vector<Pose2> saved_poses = problem->poses;
+    const std::vector<Eigen::Vector2d> saved_points = problem->points;
     double scale = 1.0;
     bool descended = false;
     for (int halvings = 0; halvings < 10; ++halvings) {
-      apply(step, scale);
-      descended = linearize(false) <= cost * (1.0 + 1e-12);
+      problem->Apply(step, scale);
+      descended = problem->Linearize(false) <= cost * (1.0 + 1e-12);
       if (descended) break;
-      poses = saved_poses;
-      points = saved_points;
+      problem->poses = saved_poses;
+      problem->points = saved_points;
       scale *= 0.5;
     }
-    cost = linearize(true);
+    cost = problem->Linearize(true);
     // No descent along the step: the run is at its minimum to rounding.
     if (!descended || scale * step.cwiseAbs().maxCoeff() < 1e-9) break;
   }
-  ldlt.compute(H);
-  if (ldlt.info() != Eigen::Success)
+  ldlt->compute(problem->H);
+  if (ldlt->info() != Eigen::Success) {
     return absl::InternalError(absl::StrCat("local map ", id, ": factorisation failed"));
+  }
+  return absl::OkStatus();
+}
+
+// Gauss-Newton over one run in the frame of its first pose (held at the identity), then
+// the Gaussian over [last pose, points] from the inverse of the information.
+absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, const std::vector<int>& odometry_into,
+                                     const std::vector<std::vector<Sighting>>& sightings, int id, int max_iterations) {
+  RunProblem problem(graph, run, odometry_into, sightings);
+  Eigen::LDLT<Eigen::MatrixXd> ldlt;
+  if (absl::Status s = MinimizeRun(&problem, id, max_iterations, &ldlt); !s.ok()) return s;
+  const int steps = problem.steps();
+  const int num_points = problem.num_points();
   // The marginal over [last pose, points]: those columns of H⁻¹.
   std::vector<int> keep;
-  for (int c = 0; c < 3; ++c) keep.push_back(pose_col(steps) + c);
+  for (int c = 0; c < 3; ++c) keep.push_back(problem.pose_col(steps) + c);
   for (int j = 0; j < num_points; ++j) {
-    keep.push_back(point_col(j));
-    keep.push_back(point_col(j) + 1);
+    keep.push_back(problem.point_col(j));
+    keep.push_back(problem.point_col(j) + 1);
   }
   const int m = static_cast<int>(keep.size());
-  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(dim, m);
+  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(problem.dim(), m);
   for (int c = 0; c < m; ++c) E(keep[c], c) = 1.0;
   const Eigen::MatrixXd columns = ldlt.solve(E);
   RunSolution out;
@@ -212,16 +258,16 @@ absl::StatusOr<RunSolution> SolveRun(const PoseGraph& graph, const Run& run, con
     for (int c = 0; c < m; ++c) s.covariance(r, c) = columns(keep[r], c);
   }
   s.covariance = (0.5 * (s.covariance + s.covariance.transpose())).eval();
-  const Pose2& last = poses[steps];
+  const Pose2& last = problem.poses[steps];
   s.mean.head<3>() << last.x, last.y, WrapAngle(last.theta);
   for (int j = 0; j < num_points; ++j) {
-    s.mean.segment<2>(3 + 2 * j) = points[j];
+    s.mean.segment<2>(3 + 2 * j) = problem.points[j];
     LocalSubmapLandmark landmark;
     landmark.local_id = j;
-    landmark.truth_id = point_of_slot[j];
+    landmark.truth_id = problem.point_of_slot[j];
     s.landmarks.push_back(landmark);
   }
-  out.poses.assign(poses.begin() + 1, poses.end() - 1);
+  out.poses.assign(problem.poses.begin() + 1, problem.poses.end() - 1);
   const int interior = 3 * (steps - 1);
   if (interior > 0) {
     const Eigen::MatrixXd C_ik = columns.topRows(interior);
