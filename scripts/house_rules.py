@@ -38,10 +38,7 @@ FUNCTIONS_OVER = {
     "backend/src/eif_information_matrix.cc:EifJoiner::BuildLambdaPattern": 114,
     "backend/src/eif_information_matrix.cc:EifJoiner::Rebuild": 118,
     "backend/src/eif_joiner.cc:EifJoiner::JoinWith": 124,
-    "backend/src/landmark_revision.cc:FindLandmarkMerges": 128,
     "backend/src/submap_association.cc:FitRecentRotation": 122,
-    "frontend/src/ekf_slam.cc:EkfSlam::Update": 113,
-    "frontend/src/fastslam.cc:FastSlam::Update": 116,
 }
 DOCUMENTS_OVER = {
     "bench/RESULTS.md": 1212,

@@ -125,22 +125,10 @@ std::vector<LandmarkMerge> LoopMerges(const SubmapGraph& graph, const std::vecto
   return out;
 }
 
-}  // namespace
-
-std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const std::vector<Eigen::Matrix2d>& marginals,
-                                              const LandmarkPairCovarianceFn& pair_covariance,
-                                              const LandmarkRevisionOptions& options, double loop_sigma_radius_m,
-                                              const std::vector<char>& touched, const LoopMergeTests& loop_merges) {
+// Each landmark's typical single feature, in the world frame: the one of median precision
+// (trace) among its features (infinite for a landmark without one).
+std::vector<Eigen::Matrix2d> TypicalFeatureCovariances(const SubmapGraph& graph) {
   const int n = graph.num_landmarks();
-  std::vector<LandmarkMerge> out;
-  if (!options.merge || n < 2) return out;
-  const double gate = models::ChiSquareQuantile(options.merge_probability, 2);
-  const bool density = options.merge_by_density;
-  const double outer_gate = density ? models::ChiSquareQuantile(options.density_gate_probability, 2) : gate;
-  const double root_gate = std::sqrt(std::max(gate, outer_gate));
-  const std::vector<std::vector<int>> factors_of = FactorsOfLandmarks(graph);
-  // Each landmark's typical single feature, in the world frame: the one of median
-  // precision (trace) among its features.
   std::vector<std::vector<Eigen::Matrix2d>> features_of(n);
   for (const SubmapFactor& f : graph.factors()) {
     const Eigen::Matrix2d R = graph.anchors()[f.start_anchor].rotation();
@@ -157,6 +145,55 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const st
                      [](const Eigen::Matrix2d& x, const Eigen::Matrix2d& y) { return x.trace() < y.trace(); });
     typical[j] = q[q.size() / 2];
   }
+  return typical;
+}
+
+// The pairs merged among those that pass: each landmark's compatible partners; a pair is
+// merged when each is the other's best (smallest d²) and neither has another partner that
+// one local map holds apart from the first: then the landmark could be either of two
+// distinct points (ambiguous). A cluster of copies of one point (never held apart)
+// collapses pair by pair over passes.
+std::vector<LandmarkMerge> MutualBestPairs(const std::vector<LandmarkMerge>& passing,
+                                           const std::vector<std::vector<int>>& factors_of, int n) {
+  std::vector<LandmarkMerge> out;
+  std::vector<std::vector<int>> partners_of(n);
+  std::vector<int> best(n, -1);
+  for (int p = 0; p < static_cast<int>(passing.size()); ++p) {
+    for (int j : {passing[p].keep, passing[p].drop}) {
+      partners_of[j].push_back(j == passing[p].keep ? passing[p].drop : passing[p].keep);
+      if (best[j] < 0 || passing[p].d2 < passing[best[j]].d2) best[j] = p;
+    }
+  }
+  const auto ambiguous = [&](int j, int other) {
+    for (int c : partners_of[j]) {
+      if (c != other && Intersect(factors_of[c], factors_of[other])) return true;
+    }
+    return false;
+  };
+  for (int p = 0; p < static_cast<int>(passing.size()); ++p) {
+    const LandmarkMerge& m = passing[p];
+    if (best[m.keep] != p || best[m.drop] != p) continue;
+    if (ambiguous(m.keep, m.drop) || ambiguous(m.drop, m.keep)) continue;
+    out.push_back(m);
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const std::vector<Eigen::Matrix2d>& marginals,
+                                              const LandmarkPairCovarianceFn& pair_covariance,
+                                              const LandmarkRevisionOptions& options, double loop_sigma_radius_m,
+                                              const std::vector<char>& touched, const LoopMergeTests& loop_merges) {
+  const int n = graph.num_landmarks();
+  std::vector<LandmarkMerge> out;
+  if (!options.merge || n < 2) return out;
+  const double gate = models::ChiSquareQuantile(options.merge_probability, 2);
+  const bool density = options.merge_by_density;
+  const double outer_gate = density ? models::ChiSquareQuantile(options.density_gate_probability, 2) : gate;
+  const double root_gate = std::sqrt(std::max(gate, outer_gate));
+  const std::vector<std::vector<int>> factors_of = FactorsOfLandmarks(graph);
+  const std::vector<Eigen::Matrix2d> typical = TypicalFeatureCovariances(graph);
   const bool resolution = options.merge_unresolved;
   // Per landmark, the largest standard deviation that either test can use (the
   // marginal's, and the typical feature's for the resolution test).
@@ -224,30 +261,7 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const st
       passing.push_back({std::min(a, b), std::max(a, b), d2});
     }
   }
-  // Each landmark's compatible partners; a pair is merged when each is the other's best
-  // (smallest d²) and neither has another partner that one local map holds apart from
-  // the first: then the landmark could be either of two distinct points (ambiguous). A
-  // cluster of copies of one point (never held apart) collapses pair by pair over passes.
-  std::vector<std::vector<int>> partners_of(n);
-  std::vector<int> best(n, -1);
-  for (int p = 0; p < static_cast<int>(passing.size()); ++p) {
-    for (int j : {passing[p].keep, passing[p].drop}) {
-      partners_of[j].push_back(j == passing[p].keep ? passing[p].drop : passing[p].keep);
-      if (best[j] < 0 || passing[p].d2 < passing[best[j]].d2) best[j] = p;
-    }
-  }
-  const auto ambiguous = [&](int j, int other) {
-    for (int c : partners_of[j]) {
-      if (c != other && Intersect(factors_of[c], factors_of[other])) return true;
-    }
-    return false;
-  };
-  for (int p = 0; p < static_cast<int>(passing.size()); ++p) {
-    const LandmarkMerge& m = passing[p];
-    if (best[m.keep] != p || best[m.drop] != p) continue;
-    if (ambiguous(m.keep, m.drop) || ambiguous(m.drop, m.keep)) continue;
-    out.push_back(m);
-  }
+  out = MutualBestPairs(passing, factors_of, n);
   if (options.merge_loops && loop_merges.joint_covariance && loop_merges.min_pairings >= 1) {
     std::vector<char> merged(n, 0);
     for (const LandmarkMerge& m : out) merged[m.keep] = merged[m.drop] = 1;

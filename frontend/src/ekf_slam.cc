@@ -101,6 +101,56 @@ void EkfSlam::UpdateExistence(LandmarkInfo* info, bool detected) const {
   if (options_.landmarks.existence.Confirms(info->existence)) info->confirmed = true;
 }
 
+void EkfSlam::GateDetections(const std::vector<Eigen::Vector2d>& z, const std::vector<Prediction>& predictions,
+                             association::AssociationProblem* problem, std::vector<double>* min_d2,
+                             std::vector<bool>* gated) {
+  for (size_t j = 0; j < z.size(); ++j) {
+    for (const Prediction& pr : predictions) {
+      const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+      const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
+      if (!d2.has_value()) {  // S not positive definite: this pairing is not considered
+        ++counters_.numerical_failures;
+        continue;
+      }
+      (*min_d2)[j] = std::min((*min_d2)[j], *d2);
+      if (*d2 < new_landmark_d2_) (*gated)[pr.landmark] = true;
+      if (*d2 < gate_d2_) problem->candidates[j].push_back({pr.landmark, *d2, nu});
+    }
+    std::sort(problem->candidates[j].begin(), problem->candidates[j].end(),
+              [](const association::AssociationCandidate& a, const association::AssociationCandidate& b) {
+                return a.d2 < b.d2;
+              });
+  }
+}
+
+association::AssociationResult EkfSlam::AssociateByTruth(const std::vector<Eigen::Vector2d>& z,
+                                                         const std::vector<int>& known_landmark,
+                                                         const std::vector<Prediction>& predictions,
+                                                         const std::vector<int>& prediction_of_landmark,
+                                                         association::AssociationProblem* problem,
+                                                         std::vector<bool>* gated) {
+  association::AssociationResult association;
+  association.landmark_of_detection.assign(z.size(), -1);
+  for (size_t j = 0; j < z.size(); ++j) {
+    const int i = known_landmark[j];
+    if (i == kDropped) ++counters_.known_ignored;
+    if (i < 0) continue;
+    const Prediction& pr = predictions[prediction_of_landmark[i]];
+    const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
+    const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
+    if (!d2.has_value()) {  // S not positive definite: this detection is not used
+      ++counters_.numerical_failures;
+      association.landmark_of_detection[j] = -1;
+      (*gated)[i] = true;  // not a new landmark either
+      continue;
+    }
+    problem->candidates[j].push_back({i, *d2, nu});
+    association.landmark_of_detection[j] = i;
+    (*gated)[i] = true;
+  }
+  return association;
+}
+
 void EkfSlam::Update(const Scan& scan) {
   ++counters_.scans;
   const Pose2 p = pose();
@@ -147,47 +197,13 @@ void EkfSlam::Update(const Scan& scan) {
       if (i >= 0 && prediction_of_landmark[i] < 0) predict(i);
     }
     for (Prediction& pr : predictions) pr.S = CrossCovariance(pr, pr) + R;
-    for (int j = 0; j < m && !options_.landmarks.known_association; ++j) {
-      for (const Prediction& pr : predictions) {
-        const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
-        const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
-        if (!d2.has_value()) {  // S not positive definite: this pairing is not considered
-          ++counters_.numerical_failures;
-          continue;
-        }
-        min_d2[j] = std::min(min_d2[j], *d2);
-        if (*d2 < new_landmark_d2_) gated[pr.landmark] = true;
-        if (*d2 < gate_d2_) problem.candidates[j].push_back({pr.landmark, *d2, nu});
-      }
-      std::sort(problem.candidates[j].begin(), problem.candidates[j].end(),
-                [](const association::AssociationCandidate& a, const association::AssociationCandidate& b) {
-                  return a.d2 < b.d2;
-                });
-    }
+    if (!options_.landmarks.known_association) GateDetections(z, predictions, &problem, &min_d2, &gated);
   }
   association::AssociationResult association;
   {
     StageTimer timer(&times_, "associate");
     if (options_.landmarks.known_association) {
-      // The pairing the true ids give; an unseen id starts a landmark (below).
-      association.landmark_of_detection.assign(m, -1);
-      for (int j = 0; j < m; ++j) {
-        const int i = known_landmark[j];
-        if (i == kDropped) ++counters_.known_ignored;
-        if (i < 0) continue;
-        const Prediction& pr = predictions[prediction_of_landmark[i]];
-        const Eigen::Vector2d nu = models::RangeBearingModel::Difference(z[j], pr.z);
-        const std::optional<double> d2 = models::MahalanobisSquared2(nu, pr.S);
-        if (!d2.has_value()) {  // S not positive definite: this detection is not used
-          ++counters_.numerical_failures;
-          association.landmark_of_detection[j] = -1;
-          gated[i] = true;  // not a new landmark either
-          continue;
-        }
-        problem.candidates[j].push_back({i, *d2, nu});
-        association.landmark_of_detection[j] = i;
-        gated[i] = true;
-      }
+      association = AssociateByTruth(z, known_landmark, predictions, prediction_of_landmark, &problem, &gated);
     } else if (options_.association == association::AssociationMethod::kJointCompatibility) {
       problem.covariance_block = [&](int, int a, int, int b) -> Eigen::Matrix2d {
         const Prediction& pa = predictions[prediction_of_landmark[a]];

@@ -161,13 +161,7 @@ void FastSlam::SetPose(Particle* p, const Pose2& pose) {
   p->sin_theta = std::sin(pose.theta);
 }
 
-void FastSlam::Update(const Scan& scan) {
-  if (resample_pending_) {
-    StageTimer timer(&times_, "resample");
-    Resample();
-  }
-  ++counters_.scans;
-  genealogy_.AddScan();
+int FastSlam::TakeUsableDetections(const Scan& scan) {
   const models::RangeBearingConfig& rb = sensor_.config();
   z_.clear();
   signature_.clear();
@@ -185,7 +179,26 @@ void FastSlam::Update(const Scan& scan) {
     }
     detection_index_.push_back(static_cast<int>(k));
   }
-  const int m = static_cast<int>(z_.size());
+  return static_cast<int>(z_.size());
+}
+
+void FastSlam::RecordParticleHealth() {
+  last_ess_ratio_ = EffectiveSampleSizeRatio();
+  counters_.min_ess_ratio = std::min(counters_.min_ess_ratio, last_ess_ratio_);
+  if (last_ess_ratio_ < options_.depletion_ess_ratio) ++counters_.depleted_updates;
+  const bool collapsed = num_particles() > 1 && LineageDiversity() * num_particles() < 1.5;
+  if (collapsed && !lineage_collapsed_) ++counters_.lineage_collapses;
+  lineage_collapsed_ = collapsed;
+}
+
+void FastSlam::Update(const Scan& scan) {
+  if (resample_pending_) {
+    StageTimer timer(&times_, "resample");
+    Resample();
+  }
+  ++counters_.scans;
+  genealogy_.AddScan();
+  const int m = TakeUsableDetections(scan);
   const int P = num_particles();
   counters_.detections += m;
   if (particles_[0].lineage < 0) {
@@ -245,12 +258,7 @@ void FastSlam::Update(const Scan& scan) {
     motion_since_scan_ = Pose2();  // every particle now holds its sampled pose
     motion_covariance_.setZero();
     Normalise();
-    last_ess_ratio_ = EffectiveSampleSizeRatio();
-    counters_.min_ess_ratio = std::min(counters_.min_ess_ratio, last_ess_ratio_);
-    if (last_ess_ratio_ < options_.depletion_ess_ratio) ++counters_.depleted_updates;
-    const bool collapsed = num_particles() > 1 && LineageDiversity() * num_particles() < 1.5;
-    if (collapsed && !lineage_collapsed_) ++counters_.lineage_collapses;
-    lineage_collapsed_ = collapsed;
+    RecordParticleHealth();
     Vote(m);
     std::vector<int> per_detection(scan.detections.size(), -1);
     for (int j = 0; j < m; ++j) per_detection[detection_index_[j]] = scan_features_[j];

@@ -133,6 +133,17 @@ class EkfSlam final : public OnlineEstimator {
   static constexpr int kDropped = -2;
   std::vector<int> KnownLandmarks(const Scan& scan, const std::vector<int>& detection_index,
                                   std::vector<int>* truth_of_detection) const;
+  // Individual compatibility of every detection with every predicted landmark: the
+  // candidates inside the gate (sorted by d²), each detection's smallest d², and which
+  // landmarks some detection falls near enough not to start a new one.
+  void GateDetections(const std::vector<Eigen::Vector2d>& z, const std::vector<Prediction>& predictions,
+                      association::AssociationProblem* problem, std::vector<double>* min_d2, std::vector<bool>* gated);
+  // Known association: the pairing the true ids give (an unseen id starts a landmark later).
+  association::AssociationResult AssociateByTruth(const std::vector<Eigen::Vector2d>& z,
+                                                  const std::vector<int>& known_landmark,
+                                                  const std::vector<Prediction>& predictions,
+                                                  const std::vector<int>& prediction_of_landmark,
+                                                  association::AssociationProblem* problem, std::vector<bool>* gated);
   // The batch EKF update with every (detection, landmark) pairing of a scan.
   void UpdateWithPairings(const std::vector<std::pair<int, const association::AssociationCandidate*>>& pairs,
                           const std::vector<Prediction>& predictions, const std::vector<int>& prediction_of_landmark,

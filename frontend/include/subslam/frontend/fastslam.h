@@ -316,6 +316,12 @@ class FastSlam final : public OnlineEstimator {
   void ApplyDecisions(Particle* particle, const std::vector<Eigen::Vector2d>& z, const std::vector<double>& signature,
                       const int* decisions, Scratch* scratch) const;
   void Vote(int m);
+  // The scan's detections within the sensor's range into z_, signature_, truth_ (known
+  // association: -1 for a false alarm or an id already in the scan) and
+  // detection_index_; returns how many.
+  int TakeUsableDetections(const Scan& scan);
+  // After the weights of a scan: the effective sample size and lineage collapse counters.
+  void RecordParticleHealth();
   void Normalise();
   void Resample();
   void UpdateExistence(LandmarkRecord* record, bool detected) const;
