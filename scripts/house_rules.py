@@ -29,7 +29,6 @@ DOCUMENT_LIMITS = {"README.md": 200, "bench/RESULTS.md": 400}
 # Over the limits today: path (or path:function) -> its present size, the most it may have.
 FILES_OVER = {
     "backend/src/eif_joiner.cc": 632,
-    "backend/src/submap_association.cc": 1135,
     "tests/backend/eif_joiner_test.cc": 604,
     "tests/backend/sparse_cholesky_test.cc": 603,
     "tests/pipeline/submap_pipeline_test.cc": 610,
@@ -38,7 +37,6 @@ FUNCTIONS_OVER = {
     "backend/src/eif_information_matrix.cc:EifJoiner::BuildLambdaPattern": 114,
     "backend/src/eif_information_matrix.cc:EifJoiner::Rebuild": 118,
     "backend/src/eif_joiner.cc:EifJoiner::JoinWith": 124,
-    "backend/src/submap_association.cc:FitRecentRotation": 122,
 }
 DOCUMENTS_OVER = {
     "bench/RESULTS.md": 1212,
