@@ -28,7 +28,6 @@ DOCUMENT_LIMITS = {"README.md": 200, "bench/RESULTS.md": 400}
 
 # Over the limits today: path (or path:function) -> its present size, the most it may have.
 FILES_OVER = {
-    "backend/src/eif_joiner.cc": 632,
     "tests/backend/eif_joiner_test.cc": 604,
     "tests/backend/sparse_cholesky_test.cc": 603,
     "tests/pipeline/submap_pipeline_test.cc": 610,
@@ -36,7 +35,6 @@ FILES_OVER = {
 FUNCTIONS_OVER = {
     "backend/src/eif_information_matrix.cc:EifJoiner::BuildLambdaPattern": 114,
     "backend/src/eif_information_matrix.cc:EifJoiner::Rebuild": 118,
-    "backend/src/eif_joiner.cc:EifJoiner::JoinWith": 124,
 }
 DOCUMENTS_OVER = {
     "bench/RESULTS.md": 1212,

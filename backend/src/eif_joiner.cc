@@ -1,5 +1,5 @@
-// EifJoiner: options, joining a local map (association, the factor, loop-closure
-// confirmation), the end of the run, copies and whole-map (tree) joins.
+// EifJoiner: options, joining a local map (association, the factor), the end of the run,
+// copies and whole-map (tree) joins. The loop-closure gate is eif_loop_closure.cc.
 
 #include "subslam/backend/eif_joiner.h"
 
@@ -168,167 +168,6 @@ absl::Status EifJoiner::JoinLocalMap(const LocalSubmap& s) {
   return CheckPendingLoopClosure();
 }
 
-EifJoiner::Snapshot EifJoiner::TakeSnapshot() const {
-  return Snapshot{graph_,   anchor_offset_, landmark_offset_, anchor_theta_,   dim_,
-                  factors_, eta_,           associator_,      marginal_bound_, counters_};
-}
-
-void EifJoiner::Restore(Snapshot before) {
-  graph_ = std::move(before.graph);
-  anchor_offset_ = std::move(before.anchor_offset);
-  landmark_offset_ = std::move(before.landmark_offset);
-  anchor_theta_ = std::move(before.anchor_theta);
-  dim_ = before.dim;
-  factors_ = std::move(before.factors);
-  lambda_factors_ = 0;  // Λ is assembled again from the kept factors when needed
-  eta_ = std::move(before.eta);
-  associator_ = std::move(before.associator);
-  marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
-  solver_->stale = true;                               // it absorbed the undone factors
-  factors_of_row_valid_ = false;
-  owner_of_row_valid_ = false;
-  changed_all_ = true;
-  estimate_exact_ = false;  // the snapshot's estimate may be a partial one
-  converged_ = false;
-  changed_rows_.clear();
-  drift_.clear();
-  counters_ = before.counters;
-  touched_.assign(graph_.num_landmarks(), 1);
-}
-
-absl::Status EifJoiner::JoinOne(const LocalSubmap& s) {
-  if (!options_.validate_joins) return JoinWith(s, /*associate=*/true);
-  // Validated join: keep what a rejected join would have to undo.
-  Snapshot before = TakeSnapshot();
-  const long associated_before = counters_.associated;
-  if (absl::Status st = JoinWith(s, /*associate=*/true); !st.ok()) return st;
-  const int matched = static_cast<int>(counters_.associated - associated_before);
-  if (matched == 0) return absl::OkStatus();
-  // The new factor's normalised residual at the new estimate, against χ² with 2 dof per
-  // matched feature (the end pose and new landmarks fit exactly).
-  const double d2 = NormalisedResidual(factors_.back());
-  const double bound = models::ChiSquareQuantile(options_.validation_probability, 2 * matched);
-  if (d2 <= bound) return absl::OkStatus();
-  // Rejected: undo, and join the local map again without associations (its odometry
-  // still links the chain; its features become new landmarks).
-  if (pending_loop_ && pending_loop_->factor >= static_cast<int>(graph_.factors().size()) - 1) {
-    pending_loop_.reset();  // the closure was this join's, now undone
-  }
-  Restore(std::move(before));
-  ++counters_.rejected_joins;
-  rejected_.push_back(s.id);
-  return JoinWith(s, /*associate=*/false);
-}
-
-void EifJoiner::AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covariance) const {
-  const PendingLoopClosure& pending = *pending_loop_;
-  *pose = pending.before.graph.anchors().back();  // the closing map's start anchor
-  if (covariance != nullptr) *covariance = pending.association.start_anchor_covariance;
-  for (int f = pending.factor; f < static_cast<int>(graph_.factors().size()); ++f) {
-    const LocalSubmap& m = graph_.factors()[f].submap;
-    *pose = covariance != nullptr ? ComposeWithCovariance(*pose, *covariance, m.end_pose(),
-                                                          m.covariance.topLeftCorner<3, 3>(), covariance)
-                                  : Compose(*pose, m.end_pose());
-  }
-}
-
-Pose2 EifJoiner::LastAnchor() const {
-  if (!pending_loop_) return MapJoiner::LastAnchor();
-  Pose2 p;
-  AnchorWithoutPendingClosure(&p, nullptr);
-  return p;
-}
-
-Eigen::Matrix3d EifJoiner::LastAnchorCovariance() const {
-  if (!pending_loop_) return MapJoiner::LastAnchorCovariance();
-  Pose2 p;
-  Eigen::Matrix3d c;
-  AnchorWithoutPendingClosure(&p, &c);
-  return c;
-}
-
-absl::Status EifJoiner::CheckPendingLoopClosure() {
-  if (!pending_loop_) return absl::OkStatus();
-  const int last = static_cast<int>(graph_.factors().size()) - 1;
-  const int closing = pending_loop_->factor;
-  if (last <= closing) return absl::OkStatus();  // the closing map itself was just joined
-  // Old landmarks the closure did not use: they existed before the closing map, the
-  // recent maps before it did not see them, and no map since has seen them.
-  const int old_landmarks = pending_loop_->before.graph.num_landmarks();
-  std::vector<char> used(old_landmarks, 0);
-  const int first = std::max(0, closing - options_.association.recent_maps);
-  for (int f = first; f < last; ++f) {
-    for (int j : graph_.factors()[f].landmark_of_feature) {
-      if (j < old_landmarks) used[j] = 1;
-    }
-  }
-  for (int j : graph_.factors()[last].landmark_of_feature) {
-    if (j < old_landmarks && !used[j]) {
-      used[j] = 1;  // counted once
-      ++pending_loop_->confirmations;
-    }
-  }
-  if (pending_loop_->confirmations >= pending_loop_->needed) {
-    pending_loop_.reset();
-    ++counters_.loop_closures_confirmed;
-    return absl::OkStatus();
-  }
-  if (last - closing < options_.association.loop_confirmation_maps) return absl::OkStatus();
-  return UndoPendingLoopClosure();
-}
-
-absl::Status EifJoiner::UndoPendingLoopClosure() {
-  const int last = static_cast<int>(graph_.factors().size()) - 1;
-  const int closing = pending_loop_->factor;
-  // Unconfirmed: back to the joiner before the closing map, whose work stays counted,
-  // and the maps since joined again, the closing one without loop pairings.
-  PendingLoopClosure pending = std::move(*pending_loop_);
-  pending_loop_.reset();
-  std::vector<LocalSubmap> maps;
-  for (int f = closing; f <= last; ++f) maps.push_back(graph_.factors()[f].submap);
-  const JoinerCounters work = counters_;
-  Restore(std::move(pending.before));
-  rejected_.resize(pending.rejected);
-  // Decisions (thin, ambiguous, truncated) count those of the joins that stand; work and
-  // confirmations count everything done.
-  counters_.relinearizations = work.relinearizations;
-  counters_.relinearizations_diverged = work.relinearizations_diverged;
-  counters_.relinearizations_predicted_converged = work.relinearizations_predicted_converged;
-  counters_.relinearized_on_heading = work.relinearized_on_heading;
-  counters_.relinearized_on_linearization_error = work.relinearized_on_linearization_error;
-  counters_.loop_closures_confirmed = work.loop_closures_confirmed;
-  counters_.loop_closures_unconfirmed = work.loop_closures_unconfirmed + 1;
-  counters_.associations_replayed = work.associations_replayed;
-  counters_.incremental_updates = work.incremental_updates;
-  counters_.full_factorizations = work.full_factorizations;
-  counters_.nested_dissection_factorizations = work.nested_dissection_factorizations;
-  counters_.reused_analyses = work.reused_analyses;
-  counters_.failed_updates = work.failed_updates;
-  counters_.candidates = work.candidates;
-  counters_.candidates_bounded_out = work.candidates_bounded_out;
-  counters_.covariance_columns = work.covariance_columns;
-  counters_.covariance_reach = work.covariance_reach;
-  // The closing map is associated again before any join refactorises: the factor must be
-  // the restored Λ's (the restored estimate is already its solution). Counted on top of
-  // the work above.
-  if (absl::Status st = FullFactorization(); !st.ok()) return st;
-  solver_->stale = false;
-  for (size_t m = 0; m < maps.size(); ++m) {
-    suppress_loop_closure_ = m == 0;
-    if (m == 0) replayed_association_ = std::move(pending.association);
-    const absl::Status st = JoinOne(maps[m]);
-    suppress_loop_closure_ = false;
-    replayed_association_.reset();
-    if (!st.ok()) return st;
-    // A closure made again by a later map waits for its own confirmation; its window
-    // cannot end within these maps.
-    if (m > 0) {
-      if (absl::Status c = CheckPendingLoopClosure(); !c.ok()) return c;
-    }
-  }
-  return absl::OkStatus();
-}
-
 void EifJoiner::CountDecisions(const SubmapAssociation& a) {
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
   if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
@@ -368,6 +207,52 @@ SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start,
   counters_.covariance_columns += solver_->factor.columns_solved() - columns_before;
   counters_.covariance_reach += solver_->factor.reach_solved() - reach_before;
   return a;
+}
+
+int EifJoiner::AddEndAnchorAndLandmarks(const LocalSubmap& m, int start, const Eigen::Matrix3d& start_covariance,
+                                        std::vector<int>* assoc) {
+  // Initialise the end anchor and the new landmarks through the start anchor.
+  const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
+  const Pose2 end_local = m.end_pose();
+  const Pose2 end = Compose(P_s, end_local);
+  const int end_anchor = graph_.AddAnchor(Pose2(end.x, end.y, WrapAngle(end.theta)));
+  anchor_theta_.push_back(anchor_theta_[start] + end_local.theta);
+  anchor_offset_.push_back(dim_);
+  dim_ += 3;
+  for (int i = 0; i < m.num_landmarks(); ++i) {
+    if ((*assoc)[i] >= 0) {
+      ++counters_.associated;
+    } else {
+      Matrix23d J_frame;
+      Eigen::Matrix2d J_point;
+      (*assoc)[i] = graph_.AddLandmark(TransformFrom(P_s, m.landmark(i), &J_frame, &J_point));
+      landmark_offset_.push_back(dim_);
+      dim_ += 2;
+      ++counters_.new_landmarks;
+      // Its marginal given the data before this join and its own feature alone — the
+      // start anchor's marginal carried through the feature — bounds its marginal given
+      // everything (in the linearised model, more data never widens a marginal).
+      const Eigen::Matrix2d Q = m.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
+      marginal_bound_.push_back(J_frame * start_covariance * J_frame.transpose() + J_point * Q * J_point.transpose());
+    }
+  }
+  return end_anchor;
+}
+
+bool EifJoiner::RelinearizationDue() {
+  bool relinearize = false;
+  if (options_.relinearize_every > 0 && counters_.joins % options_.relinearize_every == 0) {
+    relinearize = true;
+  } else if (options_.relinearize_heading_change > 0 && MaxHeadingDrift() > options_.relinearize_heading_change) {
+    ++counters_.relinearized_on_heading;
+    relinearize = true;
+  } else if (options_.relinearize_linearization_chi2 > 0) {
+    StageTimer timer(&times_, "linearization_check");
+    relinearize = LinearizationErrorAbove(options_.relinearize_linearization_chi2);
+    MarkLinearizationTested();
+    if (relinearize) ++counters_.relinearized_on_linearization_error;
+  }
+  return relinearize;
 }
 
 absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
@@ -434,31 +319,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
     associator_.RecordRotationFit(m);
   }
   const int first_new_landmark = graph_.num_landmarks();
-  // Initialise the end anchor and the new landmarks through the start anchor.
-  const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
-  const Pose2 end_local = m.end_pose();
-  const Pose2 end = Compose(P_s, end_local);
-  const int end_anchor = graph_.AddAnchor(Pose2(end.x, end.y, WrapAngle(end.theta)));
-  anchor_theta_.push_back(anchor_theta_[start] + end_local.theta);
-  anchor_offset_.push_back(dim_);
-  dim_ += 3;
-  for (int i = 0; i < m.num_landmarks(); ++i) {
-    if (assoc[i] >= 0) {
-      ++counters_.associated;
-    } else {
-      Matrix23d J_frame;
-      Eigen::Matrix2d J_point;
-      assoc[i] = graph_.AddLandmark(TransformFrom(P_s, m.landmark(i), &J_frame, &J_point));
-      landmark_offset_.push_back(dim_);
-      dim_ += 2;
-      ++counters_.new_landmarks;
-      // Its marginal given the data before this join and its own feature alone — the
-      // start anchor's marginal carried through the feature — bounds its marginal given
-      // everything (in the linearised model, more data never widens a marginal).
-      const Eigen::Matrix2d Q = m.covariance.block<2, 2>(3 + 2 * i, 3 + 2 * i);
-      marginal_bound_.push_back(J_frame * start_covariance * J_frame.transpose() + J_point * Q * J_point.transpose());
-    }
-  }
+  const int end_anchor = AddEndAnchorAndLandmarks(m, start, start_covariance, &assoc);
   // A rejected map joined again (associate false) must not redefine its landmarks.
   associator_.Record(m, assoc, first_new_landmark, /*define_truth=*/associate);
   touched_.resize(graph_.num_landmarks(), 1);
@@ -474,18 +335,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   last_t_end_ = s.t_end;
   ++counters_.joins;
   if (absl::Status st = Rebuild(/*only_last_factor=*/true); !st.ok()) return st;
-  bool relinearize = false;
-  if (options_.relinearize_every > 0 && counters_.joins % options_.relinearize_every == 0) {
-    relinearize = true;
-  } else if (options_.relinearize_heading_change > 0 && MaxHeadingDrift() > options_.relinearize_heading_change) {
-    ++counters_.relinearized_on_heading;
-    relinearize = true;
-  } else if (options_.relinearize_linearization_chi2 > 0) {
-    StageTimer timer(&times_, "linearization_check");
-    relinearize = LinearizationErrorAbove(options_.relinearize_linearization_chi2);
-    MarkLinearizationTested();
-    if (relinearize) ++counters_.relinearized_on_linearization_error;
-  }
+  const bool relinearize = RelinearizationDue();
   if (relinearize) {
     if (absl::Status st = Relinearize(); !st.ok()) return st;
   }

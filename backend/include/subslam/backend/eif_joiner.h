@@ -403,6 +403,13 @@ class EifJoiner final : public MapJoiner {
   Pose2 AnchorPose(int k) const;
   std::vector<Eigen::Vector2d> FactorLandmarks(const SubmapFactor& record) const;
   absl::Status JoinWith(const LocalSubmap& submap, bool associate);
+  // Adds the end anchor of map `m` (returned) and its new landmarks (features `assoc`
+  // leaves at −1, which it sets), initialised through the start anchor, with each new
+  // landmark's marginal bound from the start anchor's marginal before the join (NaN: none).
+  int AddEndAnchorAndLandmarks(const LocalSubmap& m, int start, const Eigen::Matrix3d& start_covariance,
+                               std::vector<int>* assoc);
+  // Whether the join just made calls for relinearisation (EifJoinerOptions::relinearize_*).
+  bool RelinearizationDue();
   // Applies splits (landmarks appended) then merges (in `drop` descending order) to the
   // graph, the associator and the state layout, relinearises every factor at the
   // current estimate and solves again (to convergence where the joiner relinearises).
