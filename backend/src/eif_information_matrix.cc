@@ -18,6 +18,72 @@
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
+namespace {
+
+// The variable blocks of Λ by their first row, from the factors that link them: each block's
+// size, the sorted first rows of the blocks it shares a factor with (itself included), all
+// lists in one flat array (block o's from first[o], unique ones first, length unique[o]);
+// below[first[o] + k]: the rows of the neighbours after o that come before neighbour k (k
+// after o) in each of o's columns; later_rows[o]: the rows of the neighbours after o; count:
+// the factors' Jacobian entries.
+struct BlockNeighbours {
+  std::vector<int> size_of, first, unique, neighbour, below, later_rows;
+  size_t count = 0;
+};
+
+template <typename Factors>
+BlockNeighbours BlockNeighboursOf(const Factors& factors, int dim) {
+  // Each variable block by its first row: its size and the sorted first rows of the
+  // blocks it shares a factor with (itself included), all lists in one flat array
+  // (block o's from first[o], unique ones first, length unique[o]).
+  BlockNeighbours nb;
+  nb.size_of.assign(dim, 0);
+  nb.first.assign(dim + 1, 0);
+  nb.unique.assign(dim, 0);
+  std::vector<int>& size_of = nb.size_of;
+  std::vector<int>& first = nb.first;
+  std::vector<int>& unique = nb.unique;
+  size_t& count = nb.count;
+  for (const auto& f : factors) {
+    count += static_cast<size_t>(f.H.size());
+    for (size_t b = 0; b < f.offsets.size(); ++b) {
+      size_of[f.offsets[b]] = f.sizes[b];
+      first[f.offsets[b] + 1] += static_cast<int>(f.offsets.size());
+    }
+  }
+  for (int o = 0; o < dim; ++o) first[o + 1] += first[o];
+  nb.neighbour.assign(static_cast<size_t>(first[dim]), 0);
+  std::vector<int>& neighbour = nb.neighbour;
+  std::vector<int> fill(first.begin(), first.end() - 1);
+  for (const auto& f : factors) {
+    for (int b : f.offsets) {
+      for (int a : f.offsets) neighbour[fill[b]++] = a;
+    }
+  }
+  // The lower triangle: column j of block o holds rows j … of block o itself, then every
+  // row of the neighbours after o. below[first[o] + k]: the rows of the neighbours after o
+  // that come before neighbour k (k after o) in each of o's columns.
+  nb.below.assign(neighbour.size(), 0);
+  nb.later_rows.assign(dim, 0);
+  std::vector<int>& below = nb.below;
+  std::vector<int>& later_rows = nb.later_rows;
+  for (int o = 0; o < dim; ++o) {
+    if (size_of[o] == 0) continue;
+    int* begin = neighbour.data() + first[o];
+    std::sort(begin, neighbour.data() + first[o + 1]);
+    unique[o] = static_cast<int>(std::unique(begin, neighbour.data() + first[o + 1]) - begin);
+    int rows = 0;
+    for (int k = 0; k < unique[o]; ++k) {
+      if (begin[k] <= o) continue;
+      below[first[o] + k] = rows;
+      rows += size_of[begin[k]];
+    }
+    later_rows[o] = rows;
+  }
+  return nb;
+}
+
+}  // namespace
 
 template <typename Visit>
 void EifJoiner::ForEachEntry(const Factor& f, Visit visit) {
@@ -101,60 +167,23 @@ const SparseLowerTriangle& EifJoiner::LowerInformation() const {
 }
 
 void EifJoiner::BuildLambdaPattern() const {
-  // Each variable block by its first row: its size and the sorted first rows of the
-  // blocks it shares a factor with (itself included), all lists in one flat array
-  // (block o's from first[o], unique ones first, length unique[o]).
-  std::vector<int> size_of(dim_, 0), first(dim_ + 1, 0), unique(dim_, 0);
-  size_t count = 0;
-  for (const Factor& f : factors_) {
-    count += static_cast<size_t>(f.H.size());
-    for (size_t b = 0; b < f.offsets.size(); ++b) {
-      size_of[f.offsets[b]] = f.sizes[b];
-      first[f.offsets[b] + 1] += static_cast<int>(f.offsets.size());
-    }
-  }
-  for (int o = 0; o < dim_; ++o) first[o + 1] += first[o];
-  std::vector<int> neighbour(static_cast<size_t>(first[dim_]));
-  std::vector<int> fill(first.begin(), first.end() - 1);
-  for (const Factor& f : factors_) {
-    for (int b : f.offsets) {
-      for (int a : f.offsets) neighbour[fill[b]++] = a;
-    }
-  }
-  // The lower triangle: column j of block o holds rows j … of block o itself, then every
-  // row of the neighbours after o. below[first[o] + k]: the rows of the neighbours after o
-  // that come before neighbour k (k after o) in each of o's columns.
-  std::vector<int> below(neighbour.size(), 0);
-  std::vector<int> later_rows(dim_, 0);  // rows of the neighbours after block o
-  for (int o = 0; o < dim_; ++o) {
-    if (size_of[o] == 0) continue;
-    int* begin = neighbour.data() + first[o];
-    std::sort(begin, neighbour.data() + first[o + 1]);
-    unique[o] = static_cast<int>(std::unique(begin, neighbour.data() + first[o + 1]) - begin);
-    int rows = 0;
-    for (int k = 0; k < unique[o]; ++k) {
-      if (begin[k] <= o) continue;
-      below[first[o] + k] = rows;
-      rows += size_of[begin[k]];
-    }
-    later_rows[o] = rows;
-  }
+  const BlockNeighbours nb = BlockNeighboursOf(factors_, dim_);
   SparseLowerTriangle& lower = solver_->lambda_lower;
   lower.n = dim_;
   lower.p.assign(dim_ + 1, 0);
   for (int o = 0; o < dim_; ++o) {
-    for (int j = 0; j < size_of[o]; ++j) lower.p[o + j + 1] = size_of[o] - j + later_rows[o];
+    for (int j = 0; j < nb.size_of[o]; ++j) lower.p[o + j + 1] = nb.size_of[o] - j + nb.later_rows[o];
   }
   for (int c = 0; c < dim_; ++c) lower.p[c + 1] += lower.p[c];
   const int nonzeros = lower.p[dim_];
   lower.i.resize(static_cast<size_t>(nonzeros));
   for (int o = 0; o < dim_; ++o) {
-    for (int j = 0; j < size_of[o]; ++j) {
+    for (int j = 0; j < nb.size_of[o]; ++j) {
       int* row = lower.i.data() + lower.p[o + j];
-      for (int i = j; i < size_of[o]; ++i) *row++ = o + i;
-      for (int k = first[o]; k < first[o] + unique[o]; ++k) {
-        if (neighbour[k] <= o) continue;
-        for (int i = 0; i < size_of[neighbour[k]]; ++i) *row++ = neighbour[k] + i;
+      for (int i = j; i < nb.size_of[o]; ++i) *row++ = o + i;
+      for (int k = nb.first[o]; k < nb.first[o] + nb.unique[o]; ++k) {
+        if (nb.neighbour[k] <= o) continue;
+        for (int i = 0; i < nb.size_of[nb.neighbour[k]]; ++i) *row++ = nb.neighbour[k] + i;
       }
       SUBSLAM_CHECK(row == lower.i.data() + lower.p[o + j + 1]) << "Λ's pattern, column " << o + j;
     }
@@ -179,13 +208,13 @@ void EifJoiner::BuildLambdaPattern() const {
       touching[touching_fill[factors_[k].offsets[v]]++] = {static_cast<int>(k), static_cast<int>(v)};
     }
   }
-  lambda_slots_.resize(count);
+  lambda_slots_.resize(nb.count);
   std::vector<int> where(dim_, -1), block_start;
   for (int o = 0; o < dim_; ++o) {
-    if (size_of[o] == 0) continue;
-    const int size_o = size_of[o];
-    for (int k = first[o]; k < first[o] + unique[o]; ++k) {
-      if (neighbour[k] > o) where[neighbour[k]] = below[k];
+    if (nb.size_of[o] == 0) continue;
+    const int size_o = nb.size_of[o];
+    for (int k = nb.first[o]; k < nb.first[o] + nb.unique[o]; ++k) {
+      if (nb.neighbour[k] > o) where[nb.neighbour[k]] = nb.below[k];
     }
     for (int t = touching_count[o]; t < touching_count[o + 1]; ++t) {
       const Factor& f = factors_[touching[t].first];
@@ -210,8 +239,8 @@ void EifJoiner::BuildLambdaPattern() const {
         }
       }
     }
-    for (int k = first[o]; k < first[o] + unique[o]; ++k) {
-      if (neighbour[k] > o) where[neighbour[k]] = -1;
+    for (int k = nb.first[o]; k < nb.first[o] + nb.unique[o]; ++k) {
+      if (nb.neighbour[k] > o) where[nb.neighbour[k]] = -1;
     }
   }
   lambda_slot_offsets_ = FactorOffsets();
@@ -242,6 +271,40 @@ absl::Status EifJoiner::FactorizeLambda() {
   // then walk short paths (a chain's last anchor elsewhere in the order would fill a
   // column per variable on its path with every update).
   return solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering, LastAnchorVariables());
+}
+
+absl::Status EifJoiner::RecoverAcrossNewestFactor(Eigen::Index old_dim) {
+  // Carry the estimate over the new factor: Λ'Δx = η' − Λ'x with x the estimate before
+  // (the new variables at 0, their spare slots' solution), non-zero on its rows only.
+  StageTimer timer(&times_, "recovery");
+  Eigen::VectorXd x = StateVector();
+  x.tail(dim_ - old_dim).setZero();
+  const Factor& f = factors_.back();
+  std::vector<int> rows;
+  Eigen::VectorXd x_local(f.H.rows());
+  for (size_t v = 0, row = 0; v < f.offsets.size(); row += f.sizes[v], ++v) {
+    for (int i = 0; i < f.sizes[v]; ++i) rows.push_back(f.offsets[v] + i);
+    x_local.segment(static_cast<Eigen::Index>(row), f.sizes[v]) = x.segment(f.offsets[v], f.sizes[v]);
+  }
+  const Eigen::VectorXd r = f.b - f.H * x_local;
+  std::vector<int> moved;
+  std::vector<double> change;
+  solver_->factor.SolveChange(rows, r, options_.recovery_change_threshold, &x, &moved, &change);
+  if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
+  SetStateRows(x, moved);
+  estimate_exact_ = false;
+  if (options_.relinearize_linearization_chi2 > 0 && !changed_all_) {
+    drift_.resize(dim_, 0.0);
+    for (size_t k = 0; k < moved.size(); ++k) {
+      double& drift = drift_[moved[k]];
+      drift += std::abs(change[k]);
+      if (drift > kLinearizationRecheckDrift) {
+        changed_rows_.push_back(moved[k]);
+        drift = 0.0;
+      }
+    }
+  }
+  return absl::OkStatus();
 }
 
 absl::Status EifJoiner::Rebuild(bool only_last_factor) {
@@ -302,37 +365,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   const bool guarded = incremental && (update_number & (update_number - 1)) == 0;
   Eigen::VectorXd x;
   if (incremental && !guarded && options_.recovery_change_threshold > 0) {
-    // Carry the estimate over the new factor: Λ'Δx = η' − Λ'x with x the estimate before
-    // (the new variables at 0, their spare slots' solution), non-zero on its rows only.
-    StageTimer timer(&times_, "recovery");
-    x = StateVector();
-    x.tail(dim_ - old_dim).setZero();
-    const Factor& f = factors_.back();
-    std::vector<int> rows;
-    Eigen::VectorXd x_local(f.H.rows());
-    for (size_t v = 0, row = 0; v < f.offsets.size(); row += f.sizes[v], ++v) {
-      for (int i = 0; i < f.sizes[v]; ++i) rows.push_back(f.offsets[v] + i);
-      x_local.segment(static_cast<Eigen::Index>(row), f.sizes[v]) = x.segment(f.offsets[v], f.sizes[v]);
-    }
-    const Eigen::VectorXd r = f.b - f.H * x_local;
-    std::vector<int> moved;
-    std::vector<double> change;
-    solver_->factor.SolveChange(rows, r, options_.recovery_change_threshold, &x, &moved, &change);
-    if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
-    SetStateRows(x, moved);
-    estimate_exact_ = false;
-    if (options_.relinearize_linearization_chi2 > 0 && !changed_all_) {
-      drift_.resize(dim_, 0.0);
-      for (size_t k = 0; k < moved.size(); ++k) {
-        double& drift = drift_[moved[k]];
-        drift += std::abs(change[k]);
-        if (drift > kLinearizationRecheckDrift) {
-          changed_rows_.push_back(moved[k]);
-          drift = 0.0;
-        }
-      }
-    }
-    return absl::OkStatus();
+    return RecoverAcrossNewestFactor(old_dim);
   } else {
     {
       StageTimer timer(&times_, "recovery");

@@ -356,6 +356,10 @@ class EifJoiner final : public MapJoiner {
   // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
   // solve; write the estimate back.
   absl::Status Rebuild(bool only_last_factor);
+  // After an incremental update of the factor: the estimate carried over the newest factor
+  // by a partial solve (the rows it moves by more than recovery_change_threshold), the
+  // variables added since `old_dim` starting at 0.
+  absl::Status RecoverAcrossNewestFactor(Eigen::Index old_dim);
   // Factorises Λ afresh (the symbolic analysis reused while Λ's pattern is unchanged),
   // with spare slots for the next joins' new variables; counted.
   absl::Status FullFactorization();
