@@ -478,20 +478,6 @@ TEST(SparseCholesky, AutomaticOrderingTakesNestedDissectionWhereAmdsFactorIsCost
 
 // The ordering's names (flag --eif_ordering) round-trip; anything else is rejected with
 // the accepted names.
-TEST(FillReducingOrdering, NamesRoundTripAndOthersAreRejected) {
-  for (FillReducingOrdering o : {FillReducingOrdering::kAmd, FillReducingOrdering::kNestedDissection,
-                                 FillReducingOrdering::kAmdOrNestedDissection}) {
-    absl::StatusOr<FillReducingOrdering> parsed = FillReducingOrderingFromString(ToString(o));
-    ASSERT_TRUE(parsed.ok());
-    EXPECT_EQ(*parsed, o);
-  }
-  for (const char* bad : {"", "AMD", "metis", "auto "}) {
-    const absl::StatusOr<FillReducingOrdering> parsed = FillReducingOrderingFromString(bad);
-    ASSERT_FALSE(parsed.ok()) << bad;
-    EXPECT_NE(parsed.status().message().find("expected amd, nested_dissection or auto"), std::string_view::npos);
-  }
-}
-
 // A refactorisation with A's pattern reuses the symbolic analysis — also after rank
 // updates have grown the factor's pattern — and equals a fresh factorisation; a
 // different pattern (an entry more, or more spare slots) is analysed again.
