@@ -21,8 +21,6 @@ PlacedMap Place(const LocalSubmap& s, const Pose2& P_s, const Eigen::Matrix3d& S
   return m;
 }
 
-// Step 1: the landmarks near some feature, among those of local maps with an anchor
-// within `anchor_radius` (+ 3σ) of the start anchor (all of them without the prefilter).
 std::vector<int> NearbyLandmarks(const SubmapGraph& graph, const PlacedMap& m, bool anchor_prefilter,
                                  double anchor_radius) {
   std::vector<char> is_candidate(graph.num_landmarks(), anchor_prefilter ? 0 : 1);
@@ -47,11 +45,6 @@ std::vector<int> NearbyLandmarks(const SubmapGraph& graph, const PlacedMap& m, b
   return candidates;
 }
 
-// Step 2: the candidates that could pass the gate with some feature under the joiner's
-// upper bound on their marginal (a candidate without a bound is kept); and those that
-// `keep_if_near` flags near a feature of the map placed as `wide` (the rotation test's
-// recent landmarks: few, and no linearised gate holds for a map rotated by tenths of a
-// radian).
 std::vector<int> PossiblyCompatible(const std::vector<int>& candidates,
                                     const std::vector<std::optional<Matrix5d>>& bounds, const PlacedMap& m,
                                     const SubmapGraph& graph, const LocalSubmap& s, const GateTest& gate,
@@ -103,9 +96,6 @@ LoopFlags FlagLoopLandmarks(const SubmapAssociationOptions& o, const SubmapGraph
   return flags;
 }
 
-// The marginal of [P_s, L_c] for each candidate — from the joiner's pairwise blocks when
-// it has them (no cross-covariances between candidates are formed), else from the joint
-// covariance of all candidates — and each candidate's prediction from P_s.
 CandidateGeometry Geometry(int start_anchor, const std::vector<int>& candidates, const Pose2& P_s,
                            const SubmapGraph& graph, const SubmapAssociator::PairCovarianceFn& pair_covariance,
                            const TimedCovariance& timed_covariance, double* covariance_seconds) {
@@ -134,8 +124,6 @@ CandidateGeometry Geometry(int start_anchor, const std::vector<int>& candidates,
   return g;
 }
 
-// Step 3: individual compatibility of each (feature, candidate) pair; each feature's
-// compatible candidates by increasing score.
 association::AssociationProblem IndividualCompatibility(const LocalSubmap& s, const std::vector<int>& candidates,
                                                         const PlacedMap& m, const SubmapGraph& graph,
                                                         const CandidateGeometry& geometry, const GateTest& gate) {

@@ -195,11 +195,6 @@ class GroupedAssociation {
 
 }  // namespace
 
-// Step 4: JCBB over the individually compatible pairings, with the joint covariance of P_s
-// and those candidates only; then the loop-closure ambiguity test: with the hypothesis'
-// loop pairings struck out, does another jointly compatible hypothesis still pair as many
-// features with old landmarks? Then the corridor offers two explanations and the loop
-// closure waits (its uncertain pairings are dropped).
 association::AssociationResult JointlyCompatible(const SubmapAssociationOptions& o, const LocalSubmap& s,
                                                  int start_anchor, const std::vector<int>& candidates,
                                                  const CandidateGeometry& geometry, const LoopFlags& loop,
@@ -250,10 +245,6 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
   return result;
 }
 
-// A loop closure — pairings with landmarks no recent local map saw — is accepted only
-// with at least min_loop_pairings of them, when the start anchor is uncertain (3σ at
-// least loop_test_min_sigma_radius_m): after a long drift the gates are wide and a
-// hypothesis with one or two old landmarks is easily compatible by chance.
 void ApplyLoopPairingTest(const SubmapAssociationOptions& o, const LoopFlags& flags, SubmapAssociation* out) {
   if (!flags.regime) return;
   int loop_pairings = 0;

@@ -9,7 +9,6 @@
 
 namespace subslam::backend::submap_matching {
 
-// Flags, by landmark, those the last `maps` local maps of the graph saw.
 std::vector<char> RecentLandmarks(const SubmapGraph& graph, int maps) {
   std::vector<char> recent(graph.num_landmarks(), 0);
   const int num_factors = static_cast<int>(graph.factors().size());
@@ -19,8 +18,6 @@ std::vector<char> RecentLandmarks(const SubmapGraph& graph, int maps) {
   return recent;
 }
 
-// Adds to the (ascending) candidates the recent landmarks near a feature of the map placed
-// as `m` that are not among them yet.
 void AddRecentCandidates(const SubmapGraph& graph, const PlacedMap& m, const std::vector<char>& recent,
                          std::vector<int>* candidates) {
   const auto before = static_cast<std::ptrdiff_t>(candidates->size());
