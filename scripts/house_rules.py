@@ -8,14 +8,16 @@
   boundaries       no file includes another module's internal/ header, and no public
                    header includes an internal/ one; the back-end neither includes nor
                    links the front-end;
-  documents        README.md under 200 lines, bench/RESULTS.md under 400.
+  documents        README.md under 200 lines, bench/RESULTS.md under 400;
+  spelling         identifiers spell -ize, as Eigen's and Ceres's do (Linearize, Factorize,
+                   Normalize); prose in comments and documents keeps its own.
 
 What is over a limit today is listed below with its present size: it may not grow, an
 entry that shrank is lowered to its new size, and one that has come within its limit is
 removed — so the lists only get shorter. Exits 1 naming every breach.
 
     scripts/house_rules.py [ROOT]      the rules on a checkout (default: this one)
-    scripts/house_rules.py --self-test the function finder on examples
+    scripts/house_rules.py --self-test the function finder and the spelling check on examples
 """
 import os
 import re
@@ -34,6 +36,16 @@ DOCUMENTS_OVER = {
 }
 
 NOT_A_FUNCTION = re.compile(r"^(namespace|class|struct|enum|union|extern|using|typedef|template\s*<[^>]*>\s*(class|struct))\b")
+
+
+BRITISH_IDENTIFIER = re.compile(
+    r"\b\w*(Summaris|Normalis|Linearis|Initialis|Regularis|Factoris|Marginalis|Optimis|Minimis|Maximis)\w*\b")
+
+
+def code_part(line):
+    """The line without its // comment and string literals (roughly: enough for identifiers)."""
+    line = re.sub(r'"(\\.|[^"\\])*"', '""', line)
+    return line.split("//", 1)[0]
 
 
 def tracked(root, *patterns):
@@ -93,7 +105,7 @@ def check_limits(kind, measured, limit, over):
 
 
 def self_test():
-    """The function finder on the layouts clang-format gives."""
+    """The function finder on the layouts clang-format gives, and the spelling check."""
     example = """namespace subslam {
 namespace {
 
@@ -129,6 +141,12 @@ Widget::Widget(int a)
     expected = [("Short", 4, 1), ("Wrapped", 10, 4), ("Widget::Widget", 27, 1)]
     if found != expected:
         print(f"house_rules: self-test: found {found}, expected {expected}")
+        return 1
+    spelled = {line: bool(BRITISH_IDENTIFIER.search(code_part(line)))
+               for line in ["  void Normalise();", "  // Normalise the weights", '  Log("Factorisation failed");',
+                            "int LinearisedCost = 0;", "  void Normalize();"]}
+    if list(spelled.values()) != [True, False, False, True, False]:
+        print(f"house_rules: self-test: spelling check {spelled}")
         return 1
     print("house_rules: self-test passed")
     return 0
@@ -166,6 +184,11 @@ def main():
             for number, line in enumerate(lines_of(root, path), 1):
                 if line.startswith('#include "subslam/frontend/'):
                     problems.append(f"boundary {path}:{number}: the back-end includes the front-end")
+    for path in sources:
+        for number, line in enumerate(lines_of(root, path), 1):
+            m = BRITISH_IDENTIFIER.search(code_part(line))
+            if m:
+                problems.append(f"spelling {path}:{number}: identifier {m.group(0)} (identifiers spell -ize)")
     backend_cmake = "\n".join(lines_of(root, "backend/CMakeLists.txt"))
     if re.search(r"subslam::frontend|subslam_frontend", backend_cmake):
         problems.append("boundary backend/CMakeLists.txt: the back-end links the front-end")

@@ -275,7 +275,7 @@ std::vector<Eigen::Vector2d> EifJoiner::FactorLandmarks(const SubmapFactor& reco
   return landmarks;
 }
 
-double EifJoiner::NormalisedResidual(const Factor& f) const {
+double EifJoiner::NormalizedResidual(const Factor& f) const {
   const SubmapFactor& record = graph_.factors()[f.index];
   Eigen::VectorXd r = SubmapResidual(record.submap, AnchorPose(record.start_anchor), AnchorPose(record.end_anchor),
                                      FactorLandmarks(record));
@@ -285,7 +285,7 @@ double EifJoiner::NormalisedResidual(const Factor& f) const {
 
 double EifJoiner::Cost() const {
   double cost = 0.0;
-  for (const Factor& f : factors_) cost += NormalisedResidual(f);
+  for (const Factor& f : factors_) cost += NormalizedResidual(f);
   return cost;
 }
 

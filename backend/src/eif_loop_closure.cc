@@ -52,7 +52,7 @@ absl::Status EifJoiner::JoinOne(const LocalSubmap& s) {
   if (matched == 0) return absl::OkStatus();
   // The new factor's normalised residual at the new estimate, against χ² with 2 dof per
   // matched feature (the end pose and new landmarks fit exactly).
-  const double d2 = NormalisedResidual(factors_.back());
+  const double d2 = NormalizedResidual(factors_.back());
   const double bound = models::ChiSquareQuantile(options_.validation_probability, 2 * matched);
   if (d2 <= bound) return absl::OkStatus();
   // Rejected: undo, and join the local map again without associations (its odometry

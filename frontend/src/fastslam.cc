@@ -257,7 +257,7 @@ void FastSlam::Update(const Scan& scan) {
     pose_cache_valid_ = moments_valid_ = false;
     motion_since_scan_ = Pose2();  // every particle now holds its sampled pose
     motion_covariance_.setZero();
-    Normalise();
+    Normalize();
     RecordParticleHealth();
     Vote(m);
     std::vector<int> per_detection(scan.detections.size(), -1);
@@ -290,7 +290,7 @@ void FastSlam::Update(const Scan& scan) {
 
 int FastSlam::threads() const { return pool_->threads(); }
 
-void FastSlam::Normalise() {
+void FastSlam::Normalize() {
   double max_log = -INFINITY;
   for (Particle& p : particles_) {
     if (std::isnan(p.log_weight)) p.log_weight = -INFINITY;  // no weight

@@ -184,7 +184,7 @@ class HybridSlamStudy final : public Study {
             {"methods", methods}};
   }
 
-  absl::StatusOr<json> Summarise(const RunTable& runs, const RunTable& /*series*/) const override {
+  absl::StatusOr<json> Summarize(const RunTable& runs, const RunTable& /*series*/) const override {
     json rows = json::array();
     for (size_t s = 0; s < kSettings.size(); ++s) {
       const auto [alpha, beta] = kSettings[s];

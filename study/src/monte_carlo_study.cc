@@ -202,7 +202,7 @@ class MonteCarloStudy final : public Study {
     return config;
   }
 
-  absl::StatusOr<json> Summarise(const RunTable& runs, const RunTable& series) const override {
+  absl::StatusOr<json> Summarize(const RunTable& runs, const RunTable& series) const override {
     json rows = json::array();
     for (const std::vector<double>& setting : Combinations(spec_.settings)) {
       for (const StudyMethod& method : spec_.methods) {
@@ -210,7 +210,7 @@ class MonteCarloStudy final : public Study {
         for (size_t s = 0; s < setting.size(); ++s) key.push_back({spec_.setting_names[s], FormatNumber(setting[s])});
         const std::vector<int> group = RowsWhere(runs, key);
         if (group.empty()) continue;
-        absl::StatusOr<json> row = SummariseGroup(runs, series, group, method.name, setting);
+        absl::StatusOr<json> row = SummarizeGroup(runs, series, group, method.name, setting);
         if (!row.ok()) return row.status();
         rows.push_back(*std::move(row));
       }
@@ -311,7 +311,7 @@ class MonteCarloStudy final : public Study {
     return cells;
   }
 
-  absl::StatusOr<json> SummariseGroup(const RunTable& runs, const RunTable& series, const std::vector<int>& group,
+  absl::StatusOr<json> SummarizeGroup(const RunTable& runs, const RunTable& series, const std::vector<int>& group,
                                       const std::string& method, const std::vector<double>& setting) const {
     std::map<std::string, std::vector<double>> v;
     for (const char* column : {"rms_online_m", "rms_final_m", "rms_x_m", "rms_y_m", "rms_heading_rad", "map_rms_m",

@@ -153,7 +153,7 @@ std::string TimingsMarkdown(const Study& study, const RunTable& runs, const RunT
 }
 
 // Writes the summary of a complete study in `dir` (from its files as read back).
-absl::Status Summarise(const Study& study, const std::string& dir) {
+absl::Status Summarize(const Study& study, const std::string& dir) {
   absl::StatusOr<RunTable> runs = RunTable::Read(dir + "/runs.csv");
   if (!runs.ok()) return runs.status();
   RunTable series({});
@@ -164,7 +164,7 @@ absl::Status Summarise(const Study& study, const std::string& dir) {
   }
   absl::StatusOr<RunTable> timings = RunTable::Read(dir + "/timings.csv");
   if (!timings.ok()) return timings.status();
-  absl::StatusOr<json> summary = study.Summarise(*runs, series);
+  absl::StatusOr<json> summary = study.Summarize(*runs, series);
   if (!summary.ok()) return summary.status();
   if (absl::Status s = WriteText(dir + "/summary.json", summary->dump(2) + "\n"); !s.ok()) return s;
   if (absl::Status s = WriteText(dir + "/summary.md", study.SummaryMarkdown(*summary)); !s.ok()) return s;
@@ -334,7 +334,7 @@ absl::Status RunStudy(const Study& study, const StudyOptions& options) {
                                      options.out_dir, "/runs.csv)"));
   }
   if (options.shard.count > 1) return absl::OkStatus();
-  return Summarise(study, options.out_dir);
+  return Summarize(study, options.out_dir);
 }
 
 namespace {
@@ -469,7 +469,7 @@ absl::Status MergeStudy(const std::vector<std::string>& shard_dirs, const std::s
   if (absl::Status s = WriteMerged(*study, *reference, *runs, *timings, *series, join_times, out_dir); !s.ok()) {
     return s;
   }
-  return Summarise(*study, out_dir);
+  return Summarize(*study, out_dir);
 }
 
 }  // namespace subslam::study

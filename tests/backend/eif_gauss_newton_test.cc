@@ -39,7 +39,7 @@ void ExpectAnchorsAtGaussNewtonsSolution(const EifJoiner& joiner, int map_id) {
 // threshold no move reaches, the joiner never relinearises and equals the single
 // linearisation; with a zero-width one it relinearises (to convergence) after every join,
 // so after every join it is the batch Gauss-Newton solution of the graph so far.
-TEST(EifJoiner, RelinearisesWhenAHeadingHasMovedFromItsLinearisation) {
+TEST(EifJoiner, RelinearizesWhenAHeadingHasMovedFromItsLinearization) {
   const SyntheticRun run = MakeRun(7, 12, 3.0);
   const auto options = [](double heading_change) {
     EifJoinerOptions o = ConvergingKnownAssociation();
@@ -140,7 +140,7 @@ TEST(EifJoiner, MaxLinearizationErrorIsTheWhitenedErrorOfTheLinearModels) {
 // estimate is that linearisation's solution. Two iterations at most, from the single
 // linearisation's estimate x: the first relinearises every factor at x and steps to x₁;
 // the second's predicted step stops it, so the linear models are x's, evaluated at x₁.
-TEST(EifJoiner, LinearizationErrorAfterAPredictedStopIsThePreviousLinearisations) {
+TEST(EifJoiner, LinearizationErrorAfterAPredictedStopIsThePreviousLinearizations) {
   const SyntheticRun run = MakeRun(7, 12, 3.0);
   bool seen = false;
   for (double tolerance : {1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4}) {
@@ -242,7 +242,7 @@ TEST(EifJoiner, RelinearisationStopsAtItsBestIterateAfterTooManyCostRises) {
 // last iterate for its cost, and then the linearisation that iterate solves must be the
 // one the factors keep, as without the watch — a copy assembles Λ from the factors again,
 // and the joins after it build on them.
-TEST(EifJoiner, RelinearisationCutShortKeepsTheLinearisationItsEstimateSolves) {
+TEST(EifJoiner, RelinearizationCutShortKeepsTheLinearizationItsEstimateSolves) {
   SyntheticRun run = MakeRun(4, 24);
   for (int k = 5; k < 24; k += 6) run.submaps[k].mean[2] += (k % 12 == 5 ? 0.8 : -0.8);
   const auto joined = [&](int rises, int limit) {
@@ -315,7 +315,7 @@ TEST(EifJoiner, GaussNewtonStopsWhenTheStepIsSmallInTheInformationMetric) {
 // a quarter of the χ² bound, leaves the estimate as close to the converged one as the step
 // test does, with fewer factorisations; the previous linearisation is kept, whose solution
 // the estimate is, so the joins that follow still update the factor incrementally.
-TEST(EifJoiner, GaussNewtonStopsOnThePredictedStepWithoutAnotherFactorisation) {
+TEST(EifJoiner, GaussNewtonStopsOnThePredictedStepWithoutAnotherFactorization) {
   const SyntheticRun run = MakeRun(8, 12, 3.0);
   constexpr double kStepChi2 = 1e-3;
   EifJoinerOptions converged_options = ConvergingKnownAssociation();

@@ -99,7 +99,7 @@ TEST(LocalMapper, DoesNotExportAFeatureWiderThanOneDetectionAtMaximumRange) {
 // A map over almost no motion (one 0.1 s step of a vehicle barely moving: 1.1e-15 m² along
 // its path) is nearly rigid: the mapper closes it regularised by the documented rule and
 // counts the repair, instead of failing the export.
-TEST(LocalMapper, RegularisesANearlyRigidMapItCloses) {
+TEST(LocalMapper, RegularizesANearlyRigidMapItCloses) {
   models::RangeBearingConfig sensor;
   FixedGaussianMapper mapper(SubmapPolicyOptions{}, sensor);
   MomentMatchedGaussian rigid;

@@ -93,7 +93,7 @@ TEST(MomentMatch, SharedAncestryScalesTheSpreadOnly) {
 }
 
 // Unnormalised weights give the same Gaussian; a single particle gives its own.
-TEST(MomentMatch, NormalisesWeightsAndReducesToOneParticle) {
+TEST(MomentMatch, NormalizesWeightsAndReducesToOneParticle) {
   ParticleHypothesis a;
   a.weight = 3.0;
   a.pose = Pose2(1.0, 2.0, 0.3);

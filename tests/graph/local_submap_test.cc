@@ -48,7 +48,7 @@ TEST(LocalSubmap, RejectsANumericallySingularCovariance) {
 // A map over almost no motion (one 0.1 s step of a vehicle barely moving: 1.1e-15 m² along
 // its path) is well conditioned in itself but nearly rigid: its information would swamp Λ.
 // Validate() rejects it; the regularisation rule makes it valid in one round and counts it.
-TEST(LocalSubmap, RejectsANearlyRigidCovarianceAndTheRuleRegularisesIt) {
+TEST(LocalSubmap, RejectsANearlyRigidCovarianceAndTheRuleRegularizesIt) {
   LocalSubmap s;
   s.id = 111;
   s.t_start = 429.1;

@@ -62,7 +62,7 @@ TEST(SubmapsJsonl, RoundTripIsBitIdentical) {
 
 // Local maps as other tools write them: no times (absent or null), and a degenerate
 // covariance (zero: the robot stood still) regularised by the documented rule and counted.
-TEST(SubmapsJsonl, AcceptsMissingTimesAndRegularisesADegenerateCovariance) {
+TEST(SubmapsJsonl, AcceptsMissingTimesAndRegularizesADegenerateCovariance) {
   const std::string text =
       R"({"id":0,"t_start":0,"t_end":2.5,"state":[1,2,0.1],"cov":[1,0,0,0,1,0,0,0,1],"landmarks":[]})"
       "\n"

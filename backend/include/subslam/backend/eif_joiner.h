@@ -400,7 +400,7 @@ class EifJoiner final : public MapJoiner {
   // is below the stopping thresholds (see predict_convergence).
   bool PredictedStepConverged(const Eigen::VectorXd& x);
   // One factor's term of Cost().
-  double NormalisedResidual(const Factor& f) const;
+  double NormalizedResidual(const Factor& f) const;
   // max over factors of |heading now − heading at the factor's linearisation| of its anchors.
   double MaxHeadingDrift() const;
   // Anchor k with its continuous (unwrapped) heading; a factor's landmarks, in its order.

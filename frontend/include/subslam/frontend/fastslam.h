@@ -322,7 +322,7 @@ class FastSlam final : public OnlineEstimator {
   int TakeUsableDetections(const Scan& scan);
   // After the weights of a scan: the effective sample size and lineage collapse counters.
   void RecordParticleHealth();
-  void Normalise();
+  void Normalize();
   void Resample();
   void UpdateExistence(LandmarkRecord* record, bool detected) const;
   static LandmarkGaussian* Mutable(LandmarkRecord* record, Scratch* scratch);

@@ -71,7 +71,7 @@ class Study {
   // The study's table from the per-run table and the series (a table with no columns
   // when the study has none): summary.json (a list "rows", one object per method and
   // setting) and its Markdown rendering (summary.md).
-  virtual absl::StatusOr<nlohmann::json> Summarise(const RunTable& runs, const RunTable& series) const = 0;
+  virtual absl::StatusOr<nlohmann::json> Summarize(const RunTable& runs, const RunTable& series) const = 0;
   virtual std::string SummaryMarkdown(const nlohmann::json& summary) const = 0;
 };
 
