@@ -6,7 +6,7 @@ import subprocess
 import pytest
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def tool():
     """Runs the `subslam` tool of the same build; returns its completed process."""
     path = os.environ.get("SUBSLAM_TOOL", "")
@@ -25,12 +25,12 @@ def data_dir(variable):
     return path
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def victoria_park():
     return data_dir("SUBSLAM_VICTORIA_PARK_DIR")
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def graphs():
     return data_dir("SUBSLAM_GRAPHS_DIR")
 
