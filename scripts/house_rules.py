@@ -31,9 +31,7 @@ DOCUMENT_LIMITS = {"README.md": 200, "bench/RESULTS.md": 400}
 # Over the limits today: path (or path:function) -> its present size, the most it may have.
 FILES_OVER = {}
 FUNCTIONS_OVER = {}
-DOCUMENTS_OVER = {
-    "bench/RESULTS.md": 1212,
-}
+DOCUMENTS_OVER = {}
 
 NOT_A_FUNCTION = re.compile(r"^(namespace|class|struct|enum|union|extern|using|typedef|template\s*<[^>]*>\s*(class|struct))\b")
 
