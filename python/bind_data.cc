@@ -6,7 +6,9 @@
 #include <string>
 #include <utility>
 
+#include "absl/strings/str_cat.h"
 #include "bindings.h"
+#include "command_flags.h"
 #include "convert.h"
 #include "flag_kwargs.h"
 #include "subslam/io/calibration_fragment.h"
@@ -89,20 +91,30 @@ py::dict ModelInfo(const io::Dataset& d) {
   return out;
 }
 
-}  // namespace
-
-std::shared_ptr<const io::Dataset> Simulate(const std::string& scenario, const py::kwargs& kwargs) {
+// A simulated data set: the scenario's options as `subslam simulate`'s keywords. The data set
+// is returned, not written (Dataset.write writes it).
+std::shared_ptr<io::Dataset> Simulate(const std::string& scenario, const py::kwargs& kwargs) {
+  for (const char* name : {"out", "quiet", "progress"}) {
+    if (kwargs.contains(name)) {
+      throw py::type_error(absl::StrCat("simulate() got an unexpected keyword argument '", name,
+                                        "' (it returns the data set; Dataset.write writes it)"));
+    }
+  }
   py::kwargs all;
   for (const auto& [key, value] : kwargs) all[key] = value;
   all["scenario"] = scenario;
   tool::InputRequest input;
   {
     FlagScope flags("simulate", all);
+    ThrowIfError(cli::CheckFlagsRead(
+        {.command = "simulate", .frontend = std::nullopt, .backend = std::nullopt, .scenario = true}));
     input = ValueOrThrow(tool::InputRequestFromFlags("simulate", /*required=*/true));
   }
   py::gil_scoped_release unlocked;
-  return std::make_shared<const io::Dataset>(ValueOrThrow(tool::ReadInput(input)));
+  return std::make_shared<io::Dataset>(ValueOrThrow(tool::ReadInput(input)));
 }
+
+}  // namespace
 
 void BindData(py::module_& m) {
   py::class_<io::Dataset, std::shared_ptr<io::Dataset>>(m, "Dataset", R"doc(
@@ -150,14 +162,9 @@ control u (the data set's control scale and offset applied), then updates with s
       py::arg("directory"), py::arg("calibration") = "",
       "Reads a data-set directory (dataset.json and its files); `calibration`: a calibration.json "
       "whose values replace the manifest's (subslam calibrate).");
-  m.def(
-      "simulate",
-      [](const std::string& scenario, const py::kwargs& kwargs) {
-        return std::const_pointer_cast<io::Dataset>(Simulate(scenario, kwargs));
-      },
-      py::arg("scenario"),
-      "Simulates a scenario (scenarios() lists them) with the options of `subslam simulate` as "
-      "keywords: seed=1, alpha=…, beta=…, duration=…, landmarks=…, …");
+  m.def("simulate", &Simulate, py::arg("scenario"),
+        "Simulates a scenario (scenarios() lists them) with the options of `subslam simulate` as "
+        "keywords: seed=1, alpha=…, beta=…, duration=…, landmarks=…, …");
   m.def("scenarios", &sim::ScenarioNames, "The simulated scenarios' names.");
 }
 

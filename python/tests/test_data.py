@@ -36,6 +36,8 @@ def test_bad_data_arguments_raise():
         subslam.simulate("hybrid-120m", particles=3)
     with pytest.raises(ValueError, match="no-such"):
         subslam.simulate("no-such")
+    with pytest.raises(TypeError, match="Dataset.write"):
+        subslam.simulate("hybrid-120m", out="/tmp/x")
     dataset = subslam.simulate("hybrid-120m", seed=1, duration=10)
     with pytest.raises(IndexError):
         dataset.scan(dataset.num_scans)
