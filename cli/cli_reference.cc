@@ -106,7 +106,7 @@ const std::vector<FlagGroup>& FlagGroups() {
         "path_length", "lattice_spacing", "noise_scale", "signature"}},
       {"Front-end: association and existence",
        "Shared by EKF-SLAM, SEIF/ISEIF and the particle filters.",
-       {"frontend", "association", "gate", "new_landmark_gate", "existence_*", "innovation_test_window"}},
+       {"frontend", "association", "gate", "new_landmark_gate", "existence_*", "innovation_test_window", "odometry_*"}},
       {"Particle filter (`fastslam`, `rbpf`)",
        "",
        {"particles", "filter_seed", "threads", "sample_association", "landmark_iterations", "resample_ess",

@@ -115,6 +115,13 @@ ABSL_FLAG(double, sensor_yaw_sigma, FastSlamDefaults().sensor_yaw_sigma,
           "and adds to every bearing, so that the maps of an uncalibrated sensor carry its yaw's uncertainty "
           "(0: off; docs/limits.md)");
 
+ABSL_FLAG(double, odometry_scale_sigma, EkfDefaults().odometry.scale_prior_sigma,
+          "ekfslam, ekf, fastslam, rbpf: learn the odometry's scale on each control channel, and with "
+          "--odometry_offset_sigma an offset on channel 1, as part of the filter's state: sigma of the prior "
+          "on each scale around 1 (0: off; frontend/odometry_calibration.h)");
+ABSL_FLAG(
+    double, odometry_offset_sigma, EkfDefaults().odometry.offset_prior_sigma,
+    "ekfslam, ekf, fastslam, rbpf: sigma of the prior on the offset of control channel 1 [rad/s or rad] (0: none)");
 ABSL_FLAG(int, innovation_test_window, EkfDefaults().innovation_test.window_scans,
           "ekfslam / ekf: scans per window of the normalised innovation test for divergence (0: off)");
 ABSL_FLAG(double, depletion_ess, FastSlamDefaults().depletion_ess_ratio,
@@ -161,6 +168,9 @@ absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options) {
   options->fastslam.resample_ess_ratio = absl::GetFlag(FLAGS_resample_ess);
   options->fastslam.depletion_ess_ratio = absl::GetFlag(FLAGS_depletion_ess);
   options->ekf.innovation_test.window_scans = absl::GetFlag(FLAGS_innovation_test_window);
+  options->ekf.odometry.scale_prior_sigma = absl::GetFlag(FLAGS_odometry_scale_sigma);
+  options->ekf.odometry.offset_prior_sigma = absl::GetFlag(FLAGS_odometry_offset_sigma);
+  options->fastslam.odometry = options->ekf.odometry;
   options->inputs.control_spike_sigmas = absl::GetFlag(FLAGS_control_spike_sigmas);
   options->inputs.time_gap_factor = absl::GetFlag(FLAGS_time_gap_factor);
   options->fastslam.landmark_update_iterations = absl::GetFlag(FLAGS_landmark_iterations);

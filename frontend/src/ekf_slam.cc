@@ -16,6 +16,7 @@ namespace subslam::frontend {
 absl::Status EkfSlamOptions::Validate() const {
   if (jcbb_max_nodes < 1) return absl::InvalidArgumentError("jcbb_max_nodes must be >= 1");
   if (absl::Status s = innovation_test.Validate(); !s.ok()) return s;
+  if (absl::Status s = odometry.Validate(); !s.ok()) return s;
   return landmarks.Validate();
 }
 
@@ -26,10 +27,15 @@ EkfSlam::EkfSlam(std::unique_ptr<models::MotionModel> motion, const models::Rang
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   gate_d2_ = models::ChiSquareQuantile(options_.landmarks.gate_probability, 2);
   new_landmark_d2_ = models::ChiSquareQuantile(options_.landmarks.new_landmark_probability, 2);
-  x_.setZero(3 + 2 * 64);
-  P_.setZero(3 + 2 * 64, 3 + 2 * 64);
+  vehicle_dim_ = dim_ = options_.odometry.enabled() ? 6 : 3;
+  x_.setZero(vehicle_dim_ + 2 * 64);
+  P_.setZero(vehicle_dim_ + 2 * 64, vehicle_dim_ + 2 * 64);
   x_.head<3>() = initial_pose.vector();
   P_.topLeftCorner<3, 3>() = 0.5 * (initial_pose_covariance + initial_pose_covariance.transpose());
+  if (options_.odometry.enabled()) {
+    x_.segment<3>(3) = options_.odometry.PriorMean();
+    P_.block<3, 3>(3, 3) = options_.odometry.PriorCovariance();
+  }
   for (const char* stage : {"predict", "associate", "update", "map_management"}) times_[stage] = 0;
 }
 
@@ -51,6 +57,10 @@ Eigen::Matrix3d EkfSlam::pose_covariance() const { return P_.topLeftCorner<3, 3>
 void EkfSlam::Predict(const Eigen::Vector2d& u, double dt) {
   if (dt <= 0.0) return;
   StageTimer timer(&times_, "predict");
+  if (options_.odometry.enabled()) {
+    PredictCalibrated(u, dt);
+    return;
+  }
   Eigen::Matrix3d F;
   Matrix32d G;
   const Pose2 next = motion_->Predict(pose(), u, dt, &F, &G);
@@ -63,6 +73,38 @@ void EkfSlam::Predict(const Eigen::Vector2d& u, double dt) {
     P_.block(0, 3, 3, n) = cross;
     P_.block(3, 0, n, 3) = cross.transpose();
   }
+}
+
+void EkfSlam::PredictCalibrated(const Eigen::Vector2d& u, double dt) {
+  // Vehicle v = [pose, c], c = (s0, s1, b): pose' = f(pose, u'(c)), c' = c, so
+  // F_v = [F, G·∂u'/∂c; 0, I] and the control noise enters the pose through G.
+  Eigen::Matrix<double, 2, 3> du_dc;
+  const Eigen::Vector2d u_calibrated = CalibratedControl(u, x_.segment<3>(3), &du_dc);
+  Eigen::Matrix3d F;
+  Matrix32d G;
+  const Pose2 next = motion_->Predict(pose(), u_calibrated, dt, &F, &G);
+  x_.head<3>() = next.vector();
+  Eigen::Matrix<double, 6, 6> Fv = Eigen::Matrix<double, 6, 6>::Identity();
+  Fv.topLeftCorner<3, 3>() = F;
+  Fv.topRightCorner<3, 3>() = G * du_dc;
+  Eigen::Matrix<double, 6, 6> Pvv = P_.topLeftCorner<6, 6>().selfadjointView<Eigen::Lower>();
+  Pvv = (Fv * Pvv * Fv.transpose()).eval();
+  Pvv.topLeftCorner<3, 3>() += G * motion_->noise().Covariance(u_calibrated) * G.transpose();
+  P_.topLeftCorner<6, 6>() = 0.5 * (Pvv + Pvv.transpose());
+  const int n = dim_ - 6;
+  if (n > 0) {
+    const Eigen::Matrix<double, 6, Eigen::Dynamic> cross = Fv * P_.block(0, 6, 6, n);
+    P_.block(0, 6, 6, n) = cross;
+    P_.block(6, 0, n, 6) = cross.transpose();
+  }
+}
+
+OdometryCalibrationEstimate EkfSlam::odometry_calibration() const {
+  OdometryCalibrationEstimate e;
+  if (!options_.odometry.enabled()) return e;
+  e.value = x_.segment<3>(3);
+  e.covariance = P_.block<3, 3>(3, 3).selfadjointView<Eigen::Lower>();
+  return e;
 }
 
 Eigen::Matrix2d EkfSlam::LandmarkCovarianceBlock(int oa, int ob) const {
@@ -86,6 +128,11 @@ void EkfSlam::SyncPoseRows() {
   auto pose_block = P_.topLeftCorner<3, 3>();
   pose_block.triangularView<Eigen::StrictlyUpper>() = pose_block.transpose();
   P_.block(0, 3, 3, dim_ - 3) = P_.block(3, 0, dim_ - 3, 3).transpose();
+  if (vehicle_dim_ == 6) {  // the calibration's rows too
+    auto calibration = P_.block<3, 3>(3, 3);
+    calibration.triangularView<Eigen::StrictlyUpper>() = calibration.transpose();
+    P_.block(3, 6, 3, dim_ - 6) = P_.block(6, 3, dim_ - 6, 3).transpose();
+  }
 }
 
 Eigen::Matrix2d EkfSlam::CrossCovariance(const Prediction& a, const Prediction& b) const {
@@ -367,7 +414,8 @@ void EkfSlam::AddLandmark(const Eigen::Vector2d& z, int truth_id) {
 }
 
 void EkfSlam::RemoveLandmarks(const std::vector<int>& sorted_indices) {
-  std::vector<int> keep = {0, 1, 2};
+  std::vector<int> keep;
+  for (int i = 0; i < vehicle_dim_; ++i) keep.push_back(i);
   std::vector<LandmarkInfo> kept;
   size_t d = 0;
   for (int i = 0; i < num_landmarks(); ++i) {
@@ -390,9 +438,13 @@ void EkfSlam::RemoveLandmarks(const std::vector<int>& sorted_indices) {
 }
 
 void EkfSlam::Reset(const Pose2& start) {
-  dim_ = 3;
+  dim_ = vehicle_dim_;
   x_.head<3>() = start.vector();
   P_.topLeftCorner<3, 3>().setZero();
+  if (vehicle_dim_ == 6) {  // the calibration stays, uncorrelated with the new pose
+    P_.block<3, 3>(3, 0).setZero();
+    P_.block<3, 3>(0, 3).setZero();
+  }
   landmarks_.clear();
   scan_features_.clear();
 }
@@ -457,6 +509,7 @@ std::map<std::string, double> EkfSlam::Counters() const {
                                        {"landmarks_in_state", num_landmarks()},
                                        {"confirmed_landmarks", confirmed}};
   innovation_monitor_.AddCounters(&out);
+  if (options_.odometry.enabled()) odometry_calibration().AddCounters(&out);
   return out;
 }
 

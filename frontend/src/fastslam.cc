@@ -53,6 +53,7 @@ absl::Status FastSlamOptions::Validate() const {
   if (!(sensor_yaw_sigma >= 0.0 && std::isfinite(sensor_yaw_sigma))) {
     return absl::InvalidArgumentError("sensor_yaw_sigma must be finite and >= 0");
   }
+  if (absl::Status s = odometry.Validate(); !s.ok()) return s;
   if (landmarks.known_association && sample_association) {
     return absl::InvalidArgumentError("known_association and sample_association exclude each other");
   }
@@ -98,8 +99,12 @@ void FastSlam::Reset(const Pose2& start) {
     yaw_spread_sum_ += m.spread;
     ++yaw_maps_;
   }
+  if (options_.odometry.enabled()) RecentreCalibration();  // before the particles go
   scans_at_reset_ = counters_.scans;
-  particles_.assign(options_.num_particles, Particle{});
+  Particle fresh;
+  fresh.calibration = calibration_linearized_;  // the carried calibration (ResetCalibration)
+  fresh.calibration_covariance = calibration_spread_;
+  particles_.assign(options_.num_particles, fresh);
   const double log_w = -std::log(static_cast<double>(options_.num_particles));
   for (Particle& p : particles_) {
     SetPose(&p, start);
@@ -135,6 +140,10 @@ void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
   }
   StageTimer timer(&times_, "predict");
   pose_cache_valid_ = false;
+  if (options_.odometry.enabled()) {
+    PredictCalibrated(u, dt);
+    return;
+  }
   // The motion since the last scan, shared by every particle (the models are
   // SE(2)-equivariant: f(a ∘ r, u) = a ∘ f(r, u)), so prediction is O(1), not O(N).
   Eigen::Matrix3d F;
@@ -145,12 +154,19 @@ void FastSlam::Predict(const Eigen::Vector2d& u, double dt) {
 
 Pose2 FastSlam::CurrentPose(const Particle& p, Eigen::Matrix3d* covariance) const {
   // p.pose ∘ r with the particle's cached cos / sin; ∂/∂r = diag(R(θ_p), 1).
-  const Pose2& r = motion_since_scan_;
+  Pose2 r = motion_since_scan_;
+  Eigen::Matrix3d Q = motion_covariance_;
+  if (options_.odometry.enabled()) {  // r̂ + D(m_p − ĉ), Σ_r + D P_p Dᵀ
+    const Eigen::Matrix3d& D = motion_calibration_jacobian_;
+    const Eigen::Vector3d shift = D * (p.calibration - calibration_linearized_);
+    r = Pose2(r.x + shift.x(), r.y + shift.y(), WrapAngle(r.theta + shift.z()));
+    Q += D * p.calibration_covariance * D.transpose();
+  }
   const double c = p.cos_theta, s = p.sin_theta;
   if (covariance != nullptr) {
     Eigen::Matrix3d J;
     J << c, -s, 0, s, c, 0, 0, 0, 1;
-    *covariance = J * motion_covariance_ * J.transpose();
+    *covariance = J * Q * J.transpose();
   }
   return Pose2(p.pose.x + c * r.x - s * r.y, p.pose.y + s * r.x + c * r.y, WrapAngle(p.pose.theta + r.theta));
 }
@@ -258,6 +274,7 @@ void FastSlam::Update(const Scan& scan) {
     motion_since_scan_ = Pose2();  // every particle now holds its sampled pose
     motion_covariance_.setZero();
     Normalize();
+    if (options_.odometry.enabled()) RecentreCalibration();
     RecordParticleHealth();
     Vote(m);
     std::vector<int> per_detection(scan.detections.size(), -1);
@@ -426,7 +443,10 @@ void FastSlam::UpdatePoseCache() const {
   K2(0, 1) = -1.0;
   K2(1, 0) = 1.0;
   K3(2, 2) = 1.0;
-  const Eigen::Matrix3d& Q = motion_covariance_;
+  Eigen::Matrix3d Q = motion_covariance_;
+  if (options_.odometry.enabled()) {
+    Q += motion_calibration_jacobian_ * calibration_spread_ * motion_calibration_jacobian_.transpose();
+  }
   // The particles' spread (corrected for their shared ancestry), then their own
   // covariances J_p Σ_r J_pᵀ.
   cached_pose_covariance_ = m.spread_scale * (second / m.w - mean * mean.transpose());
@@ -535,6 +555,7 @@ std::map<std::string, double> FastSlam::Counters() const {
                                        {"lineage_collapses", counters_.lineage_collapses},
                                        {"weight_collapses", counters_.weight_collapses},
                                        {"mean_landmarks_per_particle", landmarks / num_particles()}};
+  if (options_.odometry.enabled()) odometry_calibration().AddCounters(&out);
   if (options_.sensor_yaw_sigma > 0.0) {
     // Averaged over the particle sets closed by Reset() (local maps); without any, the
     // current particles (a single-map run).

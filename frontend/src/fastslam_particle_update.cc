@@ -284,7 +284,9 @@ class FastSlam::ScanUpdate {
       const Prediction& pr = predictions_[i];
       particle_->landmarks[i].missed = pr.in_reach && !pr.gated && pr.expected;
     }
+    const Pose2 previous = particle_->pose;
     SetPose(particle_, Pose2(x[0], x[1], WrapAngle(x[2])));
+    if (o_.odometry.enabled()) f_.UpdateCalibration(particle_, previous);
     particle_->log_weight += log_w_;
   }
 

@@ -4,7 +4,13 @@
 // mapper (ekf_local_mapper.h).
 //
 // State [pose (3), landmark 1 (2), …] with a dense covariance (conventions.h).
-//  * Predict: the motion model on the pose block only — O(n).
+//  * Predict: the motion model on the vehicle block only — O(n).
+//  * Odometry self-calibration (optional, EkfSlamOptions::odometry; odometry_calibration.h):
+//    the vehicle block also holds c = (s0, s1, b), state [pose (3), c (3), landmark 1 (2),
+//    …]. The parameters are constant (their prediction is the identity; their Jacobian
+//    G·∂u'/∂c links them to the pose), so the filter learns them from what the landmarks
+//    say about the motion. Reset() keeps their estimate and covariance and drops their
+//    correlation with what it forgets.
 //  * Update, per scan: predicted measurements of the landmarks in range; individual
 //    compatibility gating by χ²₂(gate_probability); association by nearest neighbour
 //    or JCBB (data_association.h); one batch EKF update of all pairings,
@@ -34,6 +40,7 @@
 #include "subslam/frontend/innovation_monitor.h"
 #include "subslam/frontend/landmark_options.h"
 #include "subslam/frontend/moment_matching.h"
+#include "subslam/frontend/odometry_calibration.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
 #include "subslam/models/range_bearing_model.h"
@@ -47,6 +54,7 @@ struct EkfSlamOptions {
   // Divergence: the windowed normalised innovation test over the associated detections
   // (innovation_monitor.h), counted in Counters().
   InnovationTestOptions innovation_test;
+  OdometryCalibrationOptions odometry;
 
   absl::Status Validate() const;
 };
@@ -89,7 +97,7 @@ class EkfSlam final : public OnlineEstimator {
   std::map<std::string, double> Counters() const override;
 
   // Starts over at `start` with zero uncertainty and no landmarks (a new local map).
-  // Landmark ids keep increasing across resets.
+  // Landmark ids keep increasing across resets; the odometry calibration carries over.
   void Reset(const Pose2& start);
   // The pose and the landmarks with existence ≥ min_existence as one Gaussian, in the
   // filter's frame: mean [pose, l_1, …], features = landmark ids (increasing), the
@@ -101,6 +109,9 @@ class EkfSlam final : public OnlineEstimator {
   // Confirmed landmarks, and those within sensor range of the current pose.
   int NumConfirmed() const;
   int NumConfirmedWithinRange() const;
+
+  // The odometry calibration now (value (1, 1, 0) and zero covariance when off).
+  OdometryCalibrationEstimate odometry_calibration() const;
 
   // All landmarks in the state, tentative ones included.
   int num_landmarks() const { return static_cast<int>(landmarks_.size()); }
@@ -125,8 +136,10 @@ class EkfSlam final : public OnlineEstimator {
     Eigen::Matrix2d S;
   };
 
-  int Offset(int landmark) const { return 3 + 2 * landmark; }
+  int Offset(int landmark) const { return vehicle_dim_ + 2 * landmark; }
   void Reserve(int dim);
+  // Predict() with the odometry calibration in the state.
+  void PredictCalibrated(const Eigen::Vector2d& u, double dt);
   void AddLandmark(const Eigen::Vector2d& z, int truth_id);
   // Known association: each usable detection's landmark by its true id (−1: none yet, a
   // new one; kDropped: a false alarm or an id already detected in this scan), and the id.
@@ -167,10 +180,11 @@ class EkfSlam final : public OnlineEstimator {
   models::RangeBearingModel sensor_;
   EkfSlamOptions options_;
   double gate_d2_ = 0.0, new_landmark_d2_ = 0.0;
+  int vehicle_dim_ = 3;  // the pose, and the odometry calibration's three when on
   int dim_ = 3;
   Eigen::VectorXd x_;
   // capacity × capacity; the top-left dim_ × dim_ block is live. Storage invariant:
-  // the lower triangle and the pose rows (0-2) are current; the landmark-landmark
+  // the lower triangle and the vehicle rows (0 to vehicle_dim_ − 1) are current; the landmark-landmark
   // part above the diagonal is stale (never read).
   Eigen::MatrixXd P_;
   std::vector<LandmarkInfo> landmarks_;

@@ -38,6 +38,16 @@
 //    `resample_ess_ratio` × N, deferred to the next Predict/Update so that estimates
 //    taken after a scan (pose(), Map(), a local map closed now) use the weighted
 //    particles, not resampled duplicates.
+//  * Odometry self-calibration (optional, FastSlamOptions::odometry; odometry_calibration.h):
+//    each particle holds a Gaussian N(m_p, P_p) over c = (s0, s1, b). The motion since
+//    the last scan is integrated once at ĉ (the particles' weighted mean at that scan),
+//    with its Jacobian D = ∂r/∂c, and a particle's prior for the scan is r̂ + D(m_p − ĉ)
+//    with covariance Σ_r + D P_p Dᵀ; after the scan its sampled pose updates N(m_p, P_p)
+//    by a Kalman step on the motion it implies (c given the particle's path is Gaussian
+//    to first order). pose() and pose_covariance() between scans take the motion at ĉ
+//    and add the particles' calibration spread through D. The mixture's covariance of c
+//    is optimistic: after resampling the particles' paths descend from few ancestors,
+//    and each P_p is conditional on its path (docs/limits.md).
 //  * Storage: a landmark's Gaussian is shared between particles (std::shared_ptr to
 //    const) and copied only when a particle that shares it updates it, so resampling
 //    copies pointers, never whole maps. Existence and the common id live in the
@@ -62,6 +72,7 @@
 #include "subslam/frontend/genealogy.h"
 #include "subslam/frontend/landmark_options.h"
 #include "subslam/frontend/moment_matching.h"
+#include "subslam/frontend/odometry_calibration.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/models/motion_model.h"
 #include "subslam/models/range_bearing_model.h"
@@ -136,6 +147,8 @@ struct FastSlamOptions {
   // close (Reset() after scans), averaged over the maps closed so far; before the first
   // close, the particles' now (a single-map run).
   double sensor_yaw_sigma = 0.0;
+  // The odometry's systematic error learned per particle (see above; off by default).
+  OdometryCalibrationOptions odometry;
 
   absl::Status Validate() const;
 };
@@ -227,6 +240,9 @@ class FastSlam final : public OnlineEstimator {
   double last_scan_disagreement() const { return scan_disagreement_; }
   int num_particles() const { return static_cast<int>(particles_.size()); }
   const FastSlamCounters& counters() const { return counters_; }
+  // The odometry calibration now: the moments of the particles' weighted mixture (the
+  // prior before the first scan; (1, 1, 0) and zero covariance when off).
+  OdometryCalibrationEstimate odometry_calibration() const;
 
  private:
   struct LandmarkGaussian {
@@ -249,6 +265,9 @@ class FastSlam final : public OnlineEstimator {
     double log_weight = 0.0;                  // normalised: Σ exp(log_weight) = 1 after each scan
     int lineage = -1;                         // index of the ancestor at the first scan after Reset()
     double sensor_yaw = 0.0;                  // the sensor yaw [rad] it assumes (sensor_yaw_sigma), from Reset()
+    // Its odometry calibration N(m_p, P_p) (FastSlamOptions::odometry).
+    Eigen::Vector3d calibration = Eigen::Vector3d(1.0, 1.0, 0.0);
+    Eigen::Matrix3d calibration_covariance = Eigen::Matrix3d::Zero();
     std::vector<LandmarkRecord> landmarks;
   };
   struct PairScore {
@@ -282,6 +301,13 @@ class FastSlam final : public OnlineEstimator {
 
   // The particle's pose now, and its covariance (the motion since the last scan).
   Pose2 CurrentPose(const Particle& p, Eigen::Matrix3d* covariance = nullptr) const;
+  // Odometry calibration (fastslam_odometry_calibration.cc): the motion since the scan at
+  // ĉ and its Jacobian; a particle's calibration updated by its pose sampled at this scan
+  // (it was at `previous`); ĉ and the spread set to the particles' mixture (the prior
+  // before any particle), after a scan and, carried into a new local map, at Reset().
+  void PredictCalibrated(const Eigen::Vector2d& u, double dt);
+  void UpdateCalibration(Particle* p, const Pose2& previous) const;
+  void RecentreCalibration();
   static void SetPose(Particle* p, const Pose2& pose);
   // pose() and pose_covariance() after any motion since the last scan, in O(1) from the
   // per-scan particle sums (UpdateMoments).
@@ -367,6 +393,11 @@ class FastSlam final : public OnlineEstimator {
   double last_ess_ratio_ = 1.0;
   Pose2 motion_since_scan_;  // shared by all particles (see above)
   Eigen::Matrix3d motion_covariance_ = Eigen::Matrix3d::Zero();
+  // Odometry calibration: ĉ, D = ∂r/∂c for the motion since the scan, and the particles'
+  // weighted Σ_p w_p (P_p + (m_p − ĉ)(m_p − ĉ)ᵀ) at the last scan.
+  Eigen::Vector3d calibration_linearized_ = Eigen::Vector3d(1.0, 1.0, 0.0);
+  Eigen::Matrix3d motion_calibration_jacobian_ = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d calibration_spread_ = Eigen::Matrix3d::Zero();
   // pose() / pose_covariance(), computed once per change.
   // Weighted sums over the particles at the last scan, about `origin` (the heaviest):
   // a_p = (x, y, θ) − origin (heading wrapped), c_p, s_p = cos, sin of the heading.
