@@ -112,7 +112,7 @@ const std::vector<FlagScope>& Scopes() {
       {{"sigma_range", "sigma_bearing", "max_range", "sensor_yaw"}, kRun, not_odometry},
       // Front-ends.
       {{"association"}, kRun, Frontends({Frontend::kEkfSlam, Frontend::kEkfLocal, Frontend::kSeif, Frontend::kIseif})},
-      {{"gate", "new_landmark_gate", "existence_*"}, kRun, not_odometry},
+      {{"gate", "new_landmark_gate", "existence_*", "drop_unconfirmed_landmarks"}, kRun, not_odometry},
       {{"innovation_test_window"}, kRun, Frontends({Frontend::kEkfSlam, Frontend::kEkfLocal})},
       {{"odometry_scale_sigma", "odometry_offset_sigma"},
        kRun,

@@ -126,6 +126,9 @@ ABSL_FLAG(int, innovation_test_window, EkfDefaults().innovation_test.window_scan
           "ekfslam / ekf: scans per window of the normalised innovation test for divergence (0: off)");
 ABSL_FLAG(double, depletion_ess, FastSlamDefaults().depletion_ess_ratio,
           "fastslam / rbpf: an update leaving fewer than this fraction of effective particles counts as depleted");
+ABSL_FLAG(bool, drop_unconfirmed_landmarks, subslam::pipeline::MapConfirmationOptions{}.drop_unconfirmed,
+          "leave out of the map the landmarks the run's own scans do not detect more often than chance "
+          "pairings explain (backend/landmark_persistence.h; the test is reported either way)");
 ABSL_FLAG(double, control_spike_sigmas, subslam::io::InputScreeningOptions{}.control_spike_sigmas,
           "a control departing from its neighbours' median by more than this many sigmas (the noise's or the "
           "neighbours' spread, the larger) is a spike, replaced");
@@ -172,6 +175,7 @@ absl::Status SetFrontendOptionsFromFlags(pipeline::RunOptions* options) {
   options->ekf.odometry.offset_prior_sigma = absl::GetFlag(FLAGS_odometry_offset_sigma);
   options->fastslam.odometry = options->ekf.odometry;
   options->inputs.control_spike_sigmas = absl::GetFlag(FLAGS_control_spike_sigmas);
+  options->map_confirmation.drop_unconfirmed = absl::GetFlag(FLAGS_drop_unconfirmed_landmarks);
   options->inputs.time_gap_factor = absl::GetFlag(FLAGS_time_gap_factor);
   options->fastslam.landmark_update_iterations = absl::GetFlag(FLAGS_landmark_iterations);
   options->fastslam.sigma_signature = absl::GetFlag(FLAGS_sigma_signature);

@@ -428,12 +428,32 @@ absl::StatusOr<Frontend> FrontendFromString(const std::string& name) {
   return ParseEnum(kFrontendNames, name, "front-end");
 }
 
+namespace {
+
+// The final map against the run's scans (MapConfirmationOptions), and the unconfirmed
+// landmarks dropped when asked.
+void ConfirmMap(const io::Dataset& dataset, const MapConfirmationOptions& options, RunResult* r) {
+  if (!options.enabled || r->landmarks.empty() || dataset.scans.empty()) return;
+  r->map_confirmation = backend::AssessLandmarkPersistence(r->landmarks, r->final_trajectory, dataset.scans,
+                                                           dataset.sensor.range_bearing, options.test);
+  if (!options.drop_unconfirmed) return;
+  std::vector<LandmarkEstimate> kept;
+  for (size_t i = 0; i < r->landmarks.size(); ++i) {
+    if (r->map_confirmation->confirmed[i]) kept.push_back(r->landmarks[i]);
+  }
+  r->unconfirmed_dropped = static_cast<int>(r->landmarks.size() - kept.size());
+  r->landmarks = std::move(kept);
+}
+
+}  // namespace
+
 absl::Status RunOptions::Validate() const {
   if (absl::Status s = ekf.Validate(); !s.ok()) return s;
   if (absl::Status s = fastslam.Validate(); !s.ok()) return s;
   if (absl::Status s = policy.Validate(); !s.ok()) return s;
   if (absl::Status s = backend.Validate(); !s.ok()) return s;
   if (absl::Status s = SeifOptionsOf(*this).Validate(); !s.ok()) return s;
+  if (absl::Status s = map_confirmation.Validate(); !s.ok()) return s;
   return inputs.Validate();
 }
 
@@ -515,6 +535,7 @@ absl::StatusOr<RunResult> RunPipeline(io::Dataset dataset, const RunOptions& opt
                   [](const LandmarkEstimate& l) { return !l.position.allFinite() || !l.covariance.allFinite(); });
     r.non_finite_landmarks = static_cast<int>(before - r.landmarks.size());
   }
+  ConfirmMap(dataset, options.map_confirmation, &r);
   if (chain != nullptr) {  // the local maps move into the result (held once)
     for (frontend::ClosedLocalMap& c : chain->TakeLocalMaps()) {
       r.impure_features += truth_votes.Label(&c.submap);

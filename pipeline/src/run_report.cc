@@ -66,6 +66,25 @@ json Health(const RunResult& r, const std::map<std::string, double>& counters) {
                   {"features_split", count("join_features_split")}};
   }
   h["non_finite_landmarks_dropped"] = r.non_finite_landmarks;
+  if (r.map_confirmation) {
+    const backend::LandmarkPersistence& c = *r.map_confirmation;
+    json curve = json::array();
+    for (const backend::DetectionRate& d : c.detection_probability) {
+      if (d.expected == 0) continue;
+      curve.push_back({{"range_min_m", d.range_min_m},
+                       {"range_max_m", d.range_max_m},
+                       {"expected", d.expected},
+                       {"detected", d.detected},
+                       {"probability", d.probability}});
+    }
+    h["map_confirmation"] = {{"landmarks", c.confirmed.size()},
+                             {"confirmed", c.num_confirmed},
+                             {"unconfirmed_dropped", r.unconfirmed_dropped},
+                             {"chance_pairing_probability", c.chance_pairing_probability},
+                             {"chance_pairing_density", c.chance_pairing_density},
+                             {"scans", c.scans_used},
+                             {"detection_probability_by_range", curve}};
+  }
   return h;
 }
 

@@ -131,6 +131,24 @@ void AddHealthRows(const nlohmann::json& h, Rows* rows) {
                               m["diverged"].get<bool>() ? "DIVERGED" : "consistent", m["d2_per_dof"].get<double>(),
                               n(m["dof"]), n(m["windows_failed"]), n(m["windows_tested"])));
   }
+  if (h.contains("map_confirmation")) {
+    const nlohmann::json& c = h["map_confirmation"];
+    std::string curve;
+    for (const nlohmann::json& d : c["detection_probability_by_range"]) {
+      if (curve.empty()) {
+        curve = absl::StrFormat("from %.3g m by %.3g m:", d["range_min_m"].get<double>(),
+                                d["range_max_m"].get<double>() - d["range_min_m"].get<double>());
+      }
+      absl::StrAppend(&curve, absl::StrFormat(" %.2f", d["probability"].get<double>()));
+    }
+    rows->Add(
+        "map confirmed by the scans",
+        absl::StrFormat("%d of %d landmarks (chance %.3f per sighting)%s; P_D by range %s", n(c["confirmed"]),
+                        n(c["landmarks"]), c["chance_pairing_probability"].get<double>(),
+                        n(c["unconfirmed_dropped"]) > 0 ? absl::StrFormat(", %d dropped", n(c["unconfirmed_dropped"]))
+                                                        : std::string(),
+                        curve));
+  }
   const nlohmann::json& nf = h["numerical_failures"];
   if (n(nf["filter"]) > 0 || n(nf["factor_updates_refactorised"]) > 0) {
     rows->Add("numerical failures", absl::StrFormat("%d in the filter (update skipped), %d factor updates refactorised",

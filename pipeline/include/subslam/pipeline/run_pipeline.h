@@ -19,6 +19,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
+#include "subslam/backend/landmark_persistence.h"
 #include "subslam/backend/map_joiner.h"
 #include "subslam/eval/gps_alignment.h"
 #include "subslam/eval/labelled_map_errors.h"
@@ -59,6 +60,18 @@ struct NoiseOverrides {
   absl::Status ApplyTo(io::Dataset* dataset) const;
 };
 
+// The final map against the run's own scans along the final trajectory
+// (backend/landmark_persistence.h): which landmarks are detected more often than chance
+// pairings explain, and P_D by range; reported in report.json's health, and with
+// drop_unconfirmed the unconfirmed landmarks leave the map (landmarks.csv, the metrics).
+struct MapConfirmationOptions {
+  bool enabled = true;
+  bool drop_unconfirmed = false;
+  backend::LandmarkPersistenceOptions test;
+
+  absl::Status Validate() const { return test.Validate(); }
+};
+
 struct RunOptions {
   Frontend frontend = Frontend::kEkfSlam;
   frontend::EkfSlamOptions ekf;
@@ -69,9 +82,10 @@ struct RunOptions {
   BackendOptions backend;                // rbpf, ekf: how local maps are joined
   NoiseOverrides noise;
   io::InputScreeningOptions inputs;  // implausible inputs: the rules of io/input_screening.h
-  std::string out_dir;               // empty: write nothing
-  bool progress = false;             // progress line on stderr (when it is a terminal)
-  std::string source;                // what was run, for the report ("scenario hybrid-120m seed 1")
+  MapConfirmationOptions map_confirmation;
+  std::string out_dir;    // empty: write nothing
+  bool progress = false;  // progress line on stderr (when it is a terminal)
+  std::string source;     // what was run, for the report ("scenario hybrid-120m seed 1")
   // How the run was invoked, recorded as report.json's "invocation" (the tool: its command
   // line and every flag's value, so that `subslam run --config report.json` repeats it).
   nlohmann::json invocation;
@@ -146,6 +160,10 @@ struct RunResult {
   std::optional<RunStop> stop;
   bool join_failed = false;      // a join (or the joiner's Finish) failed: the back-end estimate is not used
   int non_finite_landmarks = 0;  // dropped from the map (a stopped run's broken estimate)
+  // The map against the scans (RunOptions::map_confirmation; unset when off or when there
+  // is no map or no scan), for the map before any unconfirmed landmark was dropped.
+  std::optional<backend::LandmarkPersistence> map_confirmation;
+  int unconfirmed_dropped = 0;
   nlohmann::json report;
 };
 
