@@ -434,8 +434,10 @@ namespace {
 // landmarks dropped when asked.
 void ConfirmMap(const io::Dataset& dataset, const MapConfirmationOptions& options, RunResult* r) {
   if (!options.enabled || r->landmarks.empty() || dataset.scans.empty()) return;
+  const absl::Time start = absl::Now();
   r->map_confirmation = backend::AssessLandmarkPersistence(r->landmarks, r->final_trajectory, dataset.scans,
                                                            dataset.sensor.range_bearing, options.test);
+  r->map_confirmation_seconds = absl::ToDoubleSeconds(absl::Now() - start);
   if (!options.drop_unconfirmed) return;
   std::vector<LandmarkEstimate> kept;
   for (size_t i = 0; i < r->landmarks.size(); ++i) {

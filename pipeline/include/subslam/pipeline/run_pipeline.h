@@ -164,6 +164,7 @@ struct RunResult {
   // is no map or no scan), for the map before any unconfirmed landmark was dropped.
   std::optional<backend::LandmarkPersistence> map_confirmation;
   int unconfirmed_dropped = 0;
+  double map_confirmation_seconds = 0.0;  // after the run (not in wall_seconds)
   nlohmann::json report;
 };
 
