@@ -23,9 +23,8 @@ struct EifJoinerOptions {
   // residual rᵀQ⁻¹r at the new estimate is tested against χ²_{2m}(validation_probability),
   // m the features matched to existing landmarks; a join that fails is undone and the
   // local map joined again without associations (its odometry still links the chain),
-  // counted and its id reported. Off by default: on hybrid-120m it also rejected 1-2
-  // correct loop-closing joins per run (the single-linearisation residual after a large
-  // correction).
+  // counted and its id reported. Off by default: the residual of a single linearisation
+  // after a large correction also rejects correct loop-closing joins.
   bool validate_joins = false;
   double validation_probability = 0.999;
   // Loop-closure confirmation: association.loop_confirmation_maps and confirm_thin_loops
@@ -34,8 +33,8 @@ struct EifJoinerOptions {
   // whole-map join stands, a thin one is undone). Confirmation needs the estimate after
   // the closure to be right, so it runs only while the joiner relinearises after joins
   // (RelinearizesAfterJoins()): with a single linearisation the estimate after a
-  // correction of a hundred metres is too far off for the next maps to find the old map
-  // (combined-2km's correct closures were all undone). While a closure waits, the online
+  // correction of a hundred metres is too far off for the next maps to find the old map,
+  // and correct closures would be undone. While a closure waits, the online
   // anchor (LastAnchor) does not carry it: a decision not yet taken must not move the pose
   // a navigation stack reads, nor shrink its covariance (a thin closure by a chance fit
   // would put it metres off with centimetres of σ).
@@ -43,10 +42,9 @@ struct EifJoinerOptions {
   int relinearize_every = 0;  // every K joins (0: not on a schedule)
   // At Finish(): Gauss-Newton to convergence, so that the final anchors and map are the
   // optimum for the associations made. Between relinearisations the factors stay
-  // linearised where each join left them: with the heading trigger alone, on a random
-  // 16 km world (807 joins, no heading moving 0.05 rad) the final anchors' mean NEES was
-  // 102.7 without it and 4.7 with it, for three Gauss-Newton iterations (`subslam join`,
-  // bench/RESULTS.md). The Ceres back-end turns it off (Ceres solves there).
+  // linearised where each join left them, and over a long run the final anchors are
+  // over-confident without it, for a few Gauss-Newton iterations with it
+  // (docs/design/eif.md). The Ceres back-end turns it off (Ceres solves there).
   bool relinearize_at_end = true;
   // A relinearisation's Gauss-Newton iterations stop when the last step Δx is small
   // either way: max |Δx| below `relinearize_tolerance` (m, rad), or ΔxᵀΛΔx below
@@ -54,9 +52,8 @@ struct EifJoinerOptions {
   // step — its length in units of the estimate's own uncertainty (χ² units; it is the
   // decrease of Cost() that the step predicts). The second test is ISEIF's adaptive stop
   // (ISEIF §2.3) with the Mahalanobis distance between iterates: Gauss-Newton
-  // converges linearly here (each step ≈ 0.1-0.15 of the last on combined-2km), and
-  // millimetre steps of landmarks known to a metre took two more iterations for nothing
-  // (bench/RESULTS.md).
+  // converges linearly here (each step a fixed fraction of the last), and millimetre
+  // steps of landmarks known to a metre are not worth another iteration.
   double relinearize_tolerance = 1e-3;
   double relinearize_step_chi2 = 1e-3;
   int max_relinearizations = 20;
@@ -67,9 +64,9 @@ struct EifJoinerOptions {
   // `relinearize_tolerance` or a quarter of `relinearize_step_chi2` (the steps still to
   // come sum to less than twice it), Gauss-Newton stops there and keeps the previous
   // linearisation, whose solution the estimate is; counter
-  // relinearizations_predicted_converged. It saves the last, confirming iteration's
-  // factorisation (1 of 3 on combined-2km) for one solve and two passes over the factors
-  // per iteration; a prediction that does not stop costs only those.
+  // relinearizations_predicted_converged. It trades the last, confirming iteration's
+  // factorisation for one solve and two passes over the factors per iteration; a
+  // prediction that does not stop costs only those.
   bool predict_convergence = true;
   // Relinearise after a join when some factor's linear model is off, at the current
   // estimate, by more than its own noise: ‖L_Q⁻¹ (h(x) − h(x₀) − J(x₀)(x − x₀))‖² above
@@ -77,21 +74,14 @@ struct EifJoinerOptions {
   // covariance; MaxLinearizationError()); 0: off. After a relinearisation stopped at its
   // best iterate or at max_relinearizations (or on a predicted step) the error can stay
   // above the threshold, and the next joins relinearise again, which carries
-  // Gauss-Newton on. It is the default rather than the heading trigger below: a small
-  // turn under long levers can leave a linear model far off — on a
-  // 16 km random world a loop closure turned no heading by 0.05 rad but put one
-  // factor's linear model 148 χ² units off, and the online estimate ended at NEES 58
-  // without a relinearisation there, 3.6 with it. On combined-2km's recorded maps,
-  // seeds 1-20, it spends 560 / 704 Gauss-Newton iterations (EKF / RBPF maps) against
-  // the heading trigger's 635 / 803, merging as many loop re-observations or more with
-  // fewer duplicates and the same wrong merges (bench/RESULTS.md).
+  // Gauss-Newton on. It is the default rather than the heading trigger below: it measures
+  // what matters — how far the linear model is off, in the factor's own noise — where a
+  // small turn under long levers can leave a linear model far off without any heading
+  // moving much (docs/design/eif.md).
   double relinearize_linearization_chi2 = 1.0;
   // Also relinearise after a join when an anchor's heading has moved this far [rad] from
   // where one of its factors was linearised (the submap factor is nonlinear in the
   // headings only); 0: off (by default the linearisation-error trigger above covers it).
-  // At 0.05 (≈ 3°) combined-2km's loop closes with unknown association on ten seeds of
-  // ten (at 0.1, six; bench/RESULTS.md) — as it does with the linearisation-error
-  // trigger alone.
   double relinearize_heading_change = 0.0;
   // Gauss-Newton may raise the cost once on its way to a lower minimum, but this many
   // rises in a row end a relinearisation at its best iterate (counter
@@ -125,7 +115,7 @@ struct EifJoinerOptions {
   // The fill-reducing ordering of a full factorisation (fill_reducing_ordering.h). The
   // default takes METIS nested dissection where AMD's factor is costly: on maps revisited
   // at random its balanced elimination tree makes the factor sparser and the joins'
-  // updates cheaper; on combined-2km AMD's factor is cheap and stays.
+  // updates cheaper; where AMD's factor is cheap (a long loop) it stays.
   FillReducingOrdering ordering = FillReducingOrdering::kAmdOrNestedDissection;
   // Association's covariance recovery: drop the candidates that fail individual
   // compatibility even under an upper bound on their [start anchor, landmark] marginal,

@@ -14,8 +14,8 @@ namespace subslam::backend {
 //    update from an old variable walks a path holding half of L.
 //  - kNestedDissection ("nested_dissection"): METIS nested dissection, through CHOLMOD
 //    (cholmod_metis, the elimination tree postordered). About three times AMD's time to
-//    compute, but its tree is balanced: on the 16 km random world L has 40 % fewer
-//    entries and an update's path 60 % fewer (bench/RESULTS.md).
+//    compute, but its tree is balanced: on a map revisited at random L has fewer entries
+//    and an update's path is much shorter (docs/design/eif.md).
 //    subslam builds against a CHOLMOD with its Partition module (Debian's libcholmod3);
 //    where that CHOLMOD reports METIS not installed, AMD is used instead. (cholmod_metis
 //    returns the identity for a nearly dense matrix, which the EIF's Λ is not.)

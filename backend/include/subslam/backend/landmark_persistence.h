@@ -8,8 +8,8 @@
 // the landmark's covariances on purpose: they are marginals in the world frame, which
 // grow with the drift of a long run, while the map and the trajectory of one estimate
 // drift together (their cross-covariances, not kept, cancel most of it); with them the
-// gates of a 2 km run widen until chance explains every landmark (combined-2km seed 1:
-// 90 of 469 confirmed, against 466 with the sensor's noise alone). A feature that is not a
+// gates of a long run widen until chance explains every landmark (docs/limits.md). A
+// feature that is not a
 // landmark — an object that has moved on, a false alarm — is still detected now and then
 // by chance: some other detection falls inside its gate, which for detections scattered
 // at density λ over measurement space (range × bearing, the clutter model of

@@ -62,8 +62,8 @@ struct LandmarkRevisionOptions {
   // below the same gate, Q̃ each landmark's typical feature covariance (the median by
   // trace of its features', in the world frame). A landmark fixed by many local maps has
   // a marginal far tighter than any one map's feature, and the maps' small shared errors
-  // then separate two estimates of one point statistically (on hybrid-120m, pairs 3-9 cm
-  // apart at d² 12-42) although no sensor sweep ever resolved two points there. The
+  // then separate two estimates of one point statistically (pairs centimetres apart at
+  // d² well beyond the gate) although no sensor sweep ever resolved two points there. The
   // other conditions of a merge hold as for the first test.
   bool merge_unresolved = true;
   // Also merge a pair that the χ² test holds apart but that lies inside the outer gate
@@ -72,31 +72,27 @@ struct LandmarkRevisionOptions {
   // ρ̂ = k / (π r²), k the landmarks within r = density_radius_m of the pair's midpoint
   // other than one of the pair (so at least 1). The likelihood ratio of "one point"
   // against "another landmark of the neighbourhood", at even prior odds. Local maps
-  // over-confident by a few σ leave copies of one point 3–4σ apart (hybrid-120m: 0.7–0.9 m
-  // apart, their difference known to σ 0.2–0.3 m); where landmarks stand that densely
+  // over-confident by a few σ leave copies of one point 3–4σ apart; where landmarks stand that densely
   // (a lattice, a row of trees) or the difference is uncertain, two points are the
   // likelier explanation and the pair stays apart. The other conditions of a merge hold
   // as for the first test, and a pair this test accepts is a partner like one the first
   // accepts (for "best partner" and "unambiguous"). The outer gate bounds how far off a
   // copy may be: merged, a feature of a local map over-confident beyond it bends the
-  // estimate to fit (at χ²₂(0.9999) on hybrid-120m α = 1 seed 94, a copy 0.23 m off with
-  // σ 0.06 m, d² 16.5, and the loop at the next local map was missed: 0.34 → 9.72 m;
-  // bench/RESULTS.md).
+  // estimate to fit, and a loop closed by the next local maps can be missed
+  // (docs/design/association.md).
   bool merge_by_density = true;
   double density_gate_probability = 0.999;  // in (0, 1); at or below merge_probability: no effect
   double density_radius_m = 10.0;           // as the association's candidate radius (TH2)
-  // Off by default: on hybrid-120m, combined-2km and Victoria Park it changed no figure
-  // while a pass per split doubled Victoria Park's time (bench/RESULTS.md); the wrong
-  // merges seen there are joint loop-closure decisions that the estimate bends to fit,
-  // below a per-feature test.
+  // Off by default: the wrong merges it is for are mostly joint loop-closure decisions
+  // that the estimate bends to fit, below a per-feature test, while a pass per split is
+  // costly (docs/design/association.md).
   bool split = false;
   double split_probability = 0.99;  // family-wise, over the features tested in a pass
   // A revision pass runs after every relinearisation that follows a join, at the end,
   // after a whole-map (tree) join, and every `every_joins` joins (0: not on a schedule).
-  // Passes during the run keep the online estimate tied where copies appear; every 10
-  // joins keeps hybrid-120m's duplicates at 1.5 % (α = 1; 2.2 % at 20, 4.8 % at 0); with
-  // the Gauss-Newton after each applied merge, Victoria Park's command takes 1.5× as
-  // long as without merges (bench/RESULTS.md).
+  // Passes during the run keep the online estimate tied where copies appear; each applied
+  // merge is followed by a Gauss-Newton, which is what the passes cost
+  // (docs/design/association.md).
   int every_joins = 10;
   bool merge_loops = true;
 

@@ -21,12 +21,11 @@
 // τ̂ = 0 and maps are joined as built.
 //
 // What the estimate carries. τ̂² is the second moment of the maps' rotation errors beyond
-// their covariances, the tail included, carried as a Gaussian on every map. On Victoria
-// Park those errors are heavy-tailed: 21 of 326 fitted maps lie beyond the bound at 0.99
-// (hybrid-120m: 5 of 296), and without them the rest sit within their covariances
-// (Σ δ̂²/v = 252 over 305); with them τ̂ ≈ 0.005 rad. Widening every map by that moment
-// lowers the aligned error from 2.49 to about 1.85 m, and the simulated worlds are joined
-// as before (bench/RESULTS.md). Fits of maps joined widened are recorded without their own
+// their covariances, the tail included, carried as a Gaussian on every map: where those
+// errors are heavy-tailed (a few maps far beyond the bound, the rest within their
+// covariances) a Gaussian of that moment widens every map a little rather than the few
+// a lot, which is what the joins can use (the measurements: docs/design/association.md).
+// Fits of maps joined widened are recorded without their own
 // widening: for the linear fit, widening the features by σ along the fitted rotation
 // leaves δ̂ as it is and adds σ² to its variance, which Add takes off again. The recent
 // landmarks a map is fitted against were built from widened maps too, which Add cannot take

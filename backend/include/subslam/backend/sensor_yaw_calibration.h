@@ -25,8 +25,8 @@
 //
 // Which maps are turned: the error of a map joined with the wrong turn is not undone by
 // the maps after it — joined with the true correction from the first map on, a simulated
-// 1° misalignment gives the aligned sensor's error; from the sixth map on, five times that
-// (bench/RESULTS.md). So the run starts with a warm-up: its maps are joined as built, and
+// 1° misalignment gives the aligned sensor's error; from the sixth map on, several times
+// that (docs/design/association.md). So the run starts with a warm-up: its maps are joined as built, and
 // if the estimate comes to differ from zero at `significance` (δ̂²/σ² above the χ²₁
 // quantile) before it is known to `settled_sigma_rad` or `warm_up_maps` maps have passed,
 // every map of the warm-up is handed on again, turned by that estimate, to be joined into
@@ -34,16 +34,13 @@
 // turned by the estimate of its time if that differs from zero at `significance`, and as
 // built otherwise. A map's covariance is not widened by the estimate's uncertainty: that
 // error is one and the same for every map, where a widening would treat it as independent
-// per map and take from each the heading information its features carry (measured: the
-// aligned runs' error grew by half).
+// per map and take from each the heading information its features carry.
 //
 // On data without a misalignment the estimate stays within its uncertainty of zero and
-// the maps are joined as built; a misalignment of about a degree is recovered to within a
-// tenth (simulated), and Victoria Park's maps join as well as offline-calibrated ones
-// (bench/RESULTS.md). What δ̂ estimates is the rotation of this model, which absorbs more
-// than the bearing offset (the vehicle's path within a map was also estimated from biased
-// bearings): on Victoria Park it is about −0.012 rad where the offline calibration of the
-// bearings says −0.0182, and maps built with that calibration still show −0.003.
+// the maps are joined as built. What δ̂ estimates is the rotation of this model, which
+// absorbs more than the bearing offset (the vehicle's path within a map was also
+// estimated from biased bearings), so it need not equal an offline calibration of the
+// bearings (the measurements: docs/design/association.md).
 // Not thread-safe.
 #ifndef SUBSLAM_BACKEND_SENSOR_YAW_CALIBRATION_H_
 #define SUBSLAM_BACKEND_SENSOR_YAW_CALIBRATION_H_

@@ -64,23 +64,20 @@ struct SubmapAssociationOptions {
   // but see keep_certain_loop_pairings),
   // when 3σ of the start anchor's position is at least `loop_test_min_sigma_radius_m`
   // (the drift is large against the landmark spacing, and a hypothesis with one or two
-  // old landmarks fits by chance). Defaults chosen on combined-2km seeds 1-10 and checked
-  // on seeds 11-20 (wrong merges not caused by the front-end 32 → 4, loop re-observations
-  // merged 1 → 233 of 618); hybrid-120m and Victoria Park are unchanged (bench/RESULTS.md).
+  // old landmarks fits by chance). The defaults' evidence: docs/design/association.md,
+  // "Why the defaults".
   int min_loop_pairings = 4;
   // With JCBB, in the same regime: a loop closure is also dropped when, with its loop
   // pairings struck out, another jointly compatible hypothesis still has at least
   // min_loop_pairings of them (two explanations of the same features; "local
-  // uniqueness"). On combined-2km, seeds 1-10, RBPF maps: loop re-observations merged
-  // 323 → 365 of 600, seed 10's loop closed (anchor RMS 121 → 12 m); EKF maps: 395 → 376
-  // of 594, seed 10 closes later (10 → 30 m); Victoria Park unchanged (bench/RESULTS.md).
+  // uniqueness"): where two hypotheses explain the same features, neither is evidence.
   bool loop_ambiguity_test = true;
   // When either test drops a loop closure's pairings, keep those whose landmark's
   // position relative to the start anchor is known to 3σ < loop_test_min_sigma_radius_m
   // (through the [anchor, landmark] marginal): a landmark seen a few maps ago is still
   // tightly correlated with the anchor, and no chance fit. They still count towards
-  // min_loop_pairings. On combined-2km, seeds 1-20: duplicate landmarks 606 → 367 (EKF
-  // maps) and 738 → 477 (RBPF), wrong merges 38 → 38 and 83 → 82 (bench/RESULTS.md).
+  // min_loop_pairings. Without them a loop's well-known landmarks would be duplicated
+  // whenever its few uncertain ones are dropped.
   bool keep_certain_loop_pairings = true;
   int recent_maps = 2;
   double loop_test_min_sigma_radius_m = 5.0;
@@ -104,11 +101,9 @@ struct SubmapAssociationOptions {
   //    imply (an iterated Kalman update of the anchor alone), not about the prior's: a
   //    whole map hundreds of metres long, under a heading off by tenths of a radian,
   //    otherwise puts its far features metres off through the linearisation, and no
-  //    correct closure is confirmed (combined-2km seed 20's tree joins, bench/RESULTS.md).
+  //    correct closure is confirmed.
   //  - Scope: it rides on the loop regime (min_loop_pairings > 1). 0 maps: off.
-  //  - Evidence: on combined-2km's known-association local maps, seeds 1-10, the one
-  //    wrong closure (RBPF maps, seed 7) found no such landmark in its next three maps;
-  //    every correct first closure found one within three (bench/RESULTS.md).
+  //  - Evidence: docs/design/association.md, "Why the defaults".
   int loop_confirmation_maps = 3;
   double loop_confirmation_min_sigma_radius_m = 60.0;
   // Thin closures wait for confirmation (beyond the papers; the sequential EIF).
@@ -116,8 +111,9 @@ struct SubmapAssociationOptions {
   //    under an uncertain start anchor (the thin-closure test above), but not a lost one
   //    (3σ below loop_confirmation_min_sigma_radius_m: relocalisation needs its pairings
   //    in one map), and no other hypothesis pairs as many once its loop pairings are
-  //    struck out. Maps of few features (2–6 on hybrid-120m at α = 1, 0–3 at α = 0.1)
-  //    can never bring min_loop_pairings in one map, and a loop missed there stays missed.
+  //    struck out. Maps of few features (a sensor that detects seldom, or a sparse
+  //    world) can never bring min_loop_pairings in one map, and a loop missed there stays
+  //    missed.
   //  - Rule: the closure is held, and stands once the next `loop_confirmation_maps` local
   //    maps (each associated given it) have paired at least min_loop_pairings old
   //    landmarks it did not use, as one map would have had to; otherwise it is undone as
@@ -142,8 +138,8 @@ struct SubmapAssociationOptions {
   //  - Why: a particle filter's local map over a sharp turn can be wrong in its heading
   //    after the turn beyond its covariance (sample impoverishment); its features then miss
   //    the previous map's landmarks (duplicates), and its stiff factor bends the trajectory
-  //    so that a later loop is not found. On hybrid-120m, seeds 1-100, such maps were off
-  //    by 0.1-0.15 rad (bench/RESULTS.md); σ = 0.3 rad lets the vote reach 0.9 rad.
+  //    so that a later loop is not found. σ = 0.3 rad lets the vote reach 0.9 rad, several
+  //    times the rotations such maps were measured to carry (docs/design/association.md).
   double map_rotation_sigma_rad = 0.3;
   double map_rotation_probability = 0.99;
   // The spread of the maps' own rotation (map_rotation_spread.h): the count of the rotation

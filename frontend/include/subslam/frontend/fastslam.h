@@ -138,8 +138,8 @@ struct FastSlamOptions {
   int num_threads = 1;
   // The sensor's yaw on the vehicle as an uncertain parameter of each local map: at
   // Reset() every particle draws a yaw ψ ~ N(0, σ²) [rad] and adds it to every bearing it
-  // sees (local maps stay independent). A local map identifies ψ only weakly (about
-  // ±0.015 rad on Victoria Park); mostly the spread makes the exported covariance carry a
+  // sees (local maps stay independent). A local map identifies ψ only weakly; mostly the
+  // spread makes the exported covariance carry a
   // rotation of the map's bearings, so that local maps of an uncalibrated sensor still
   // agree with each other. 0: bearings taken as calibrated. Opt-in: where they are, the
   // spread costs accuracy (docs/limits.md). The counters sensor_yaw_mean and
@@ -226,9 +226,8 @@ class FastSlam final : public OnlineEstimator {
   // The argument `shared_ancestry` of MomentMatch(). The derivation takes the weights as
   // independent of the particles' deviations, which importance weights are not; when the
   // weights are degenerate (N_eff near 1) the spread carries little information either
-  // way and the corrected one can be large. Measured at the closes of hybrid-120m,
-  // combined-2km and Victoria Park local maps: median R 0.02-0.04, 99 % quantile
-  // 0.22-0.81 (maps whose particles all descend from one late ancestor).
+  // way and the corrected one can be large (a map whose particles all descend from one
+  // late ancestor; its distribution over local maps: docs/design/filters.md).
   double SharedAncestry() const;
   // N_eff / N after the last scan's weight update, before any resampling.
   double last_scan_ess_ratio() const { return last_ess_ratio_; }

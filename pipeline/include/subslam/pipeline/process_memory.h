@@ -8,8 +8,7 @@
 // zero-filled pages. The joiners allocate and free blocks of that size on every join
 // (the dense EKF its n × n covariance as it grows, the EIF its sparse factor at every
 // full factorisation). On a virtual machine where a page fault costs microseconds this
-// dominated the dense EKF joiner (combined-2km seed 1: 4.4-5.9 s and 325,000 page
-// faults, against 0.35-0.45 s and 19,000 faults with these settings; bench/RESULTS.md).
+// can dominate a joiner's time (the dense EKF joiner's, ten times over: bench/RESULTS.md).
 // Blocks above 32 MiB are still mmapped.
 #ifndef SUBSLAM_PIPELINE_PROCESS_MEMORY_H_
 #define SUBSLAM_PIPELINE_PROCESS_MEMORY_H_
@@ -19,8 +18,7 @@ namespace subslam::pipeline {
 // Keeps freed memory in the process for reuse: blocks up to 32 MiB (glibc's largest
 // mmap threshold on 64-bit) come from the heap, and the heap's top is given back to the
 // kernel only beyond 512 MiB free. What the process holds between peaks stays near its
-// peak, and the peak itself grows a little (Victoria Park, RBPF + EIF: 90-94 → 96-99 MB
-// maximum resident). Returns false where the allocator is not glibc's or refused a
+// peak, and the peak itself grows a little. Returns false where the allocator is not glibc's or refused a
 // setting (nothing is then changed for that setting).
 bool KeepFreedMemoryInProcess();
 

@@ -39,8 +39,7 @@ struct SubmapRouteOptions {
   // Join the local maps pairwise in a binary tree (TreeJoiner over EIF nodes) rather
   // than in order into one map. The tree's joins cost in proportion to their own size, so
   // the whole route costs O(n log n); in order, each relinearisation is of the whole map
-  // joined so far (Victoria Park, 349 maps of 20 poses: 0.14–0.32 s against 0.49–0.75 s,
-  // the same minimum after the polish; bench/RESULTS.md).
+  // joined so far. Both reach the same minimum after the polish.
   bool tree = true;
 
   absl::Status Validate() const;
