@@ -18,8 +18,9 @@ const subslam::backend::EifJoinerOptions& EifDefaults() {
 }
 }  // namespace
 
-ABSL_FLAG(std::string, backend, "none",
-          "rbpf / ekf: how local maps are joined: none (chained end to start) | eif | ceres "
+ABSL_FLAG(std::string, backend, "eif",
+          "rbpf / ekf: how local maps are joined: eif (the incremental EIF) | none (chained end to start, "
+          "not joined) | ceres "
           "(EIF association, then a Ceres solve of the whole graph at the end) | ekf (dense "
           "EKF map joining, the baseline) | tree-ekf | tree-eif (binary-tree joining) | tree-ceres "
           "(binary-tree EIF joins, then the Ceres solve)");

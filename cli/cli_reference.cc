@@ -20,7 +20,7 @@ constexpr std::array<CliCommand, 11> kCommands = {{
      "each detection's true id for evaluation."},
     {"run",
      "subslam run (--dataset DIR | --scenario NAME [--seed S]) --frontend "
-     "odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf [--backend none|eif|ceres|ekf|tree-ekf|tree-eif|tree-ceres] "
+     "odometry|ekfslam|fastslam|seif|iseif|rbpf|ekf [--backend eif|none|ceres|ekf|tree-ekf|tree-eif|tree-ceres] "
      "[--config DIR/report.json] --out DIR",
      "Runs one estimator over a data set or a simulated scenario, prints a summary table and "
      "writes the run outputs (docs/formats.md, \"Run outputs\"): the online and final "

@@ -69,7 +69,9 @@ const char* ToString(Backend backend);  // none, eif, ceres, ekf, tree-ekf, tree
 absl::StatusOr<Backend> BackendFromString(const std::string& name);
 
 struct BackendOptions {
-  Backend kind = Backend::kNone;
+  // The incremental EIF by default: local maps chained without joining (kNone) drift
+  // and duplicate every landmark seen twice, which only a study of the front-end wants.
+  Backend kind = Backend::kEif;
   backend::EifJoinerOptions eif;     // eif, ceres, tree-eif
   backend::EkfJoinerOptions ekf;     // ekf, tree-ekf (tree-ekf keeps every anchor)
   backend::TreeJoinerOptions tree;   // tree-ekf, tree-eif
