@@ -44,26 +44,41 @@ double Genealogy::SharedAncestry(std::span<const double> weights) const {
   }
   // R = (1/T) Σ over scans t of Σ_g W_g², the groups g those of the particles with one
   // ancestor at scan t and W_g their weight. The groups change only at resamplings: walk
-  // them back from the newest.
-  ancestor_.resize(n);
-  group_weight_.resize(n);
+  // them back from the newest, carrying each group's weight to its parent slot. Groups
+  // only merge going back (a few ancestors stand behind many particles), so a walk costs
+  // the number of distinct ancestors at each resampling, not the particles'.
+  groups_.clear();
   double sum_sq = 0.0;  // after the newest resampling every particle is a group of one
   for (int p = 0; p < n; ++p) {
-    ancestor_[p] = p;
+    groups_.push_back({p, weights[p]});
     sum_sq += weights[p] * weights[p];
   }
+  group_weight_.assign(n, 0.0);
+  ancestor_.assign(n, 0);  // 1: the slot is reached at this resampling
   double shared = 0.0;
   long later = scans_;
   for (size_t r = resamplings_.size(); r-- > 0;) {
     shared += static_cast<double>(later - resamplings_[r].scans) * sum_sq;
     later = resamplings_[r].scans;
-    std::fill(group_weight_.begin(), group_weight_.end(), 0.0);
-    for (int p = 0; p < n; ++p) {
-      ancestor_[p] = resamplings_[r].parent[ancestor_[p]];
-      group_weight_[ancestor_[p]] += weights[p];
+    reached_.clear();
+    for (const auto& [slot, weight] : groups_) {
+      const int a = resamplings_[r].parent[slot];
+      if (!ancestor_[a]) {
+        ancestor_[a] = 1;
+        reached_.push_back(a);
+      }
+      group_weight_[a] += weight;
     }
+    std::sort(reached_.begin(), reached_.end());
+    next_groups_.clear();
     sum_sq = 0.0;
-    for (double W : group_weight_) sum_sq += W * W;
+    for (int a : reached_) {
+      next_groups_.push_back({a, group_weight_[a]});
+      sum_sq += group_weight_[a] * group_weight_[a];
+      group_weight_[a] = 0.0;
+      ancestor_[a] = 0;
+    }
+    groups_.swap(next_groups_);
   }
   // Before the oldest kept resampling its groups hold, and before the coalescence one
   // group holds every particle.

@@ -21,6 +21,7 @@
 #define SUBSLAM_FRONTEND_GENEALOGY_H_
 
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace subslam::frontend {
@@ -50,7 +51,11 @@ class Genealogy {
   long scans_ = 0;
   long coalesced_scans_ = 0;                  // scans whose draws every particle shares
   mutable std::vector<int> ancestor_;         // scratch
-  mutable std::vector<double> group_weight_;  // scratch
+  mutable std::vector<double> group_weight_;  // scratch, zero between uses
+  // Scratch of SharedAncestry: the distinct ancestors at the resampling being walked and
+  // their weights, in slot order, and which slots the next one reaches.
+  mutable std::vector<std::pair<int, double>> groups_, next_groups_;
+  mutable std::vector<int> reached_;
 };
 
 }  // namespace subslam::frontend
