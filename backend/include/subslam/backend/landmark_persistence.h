@@ -4,22 +4,24 @@
 // Along the final trajectory each scan is compared with the map. A landmark is *expected*
 // when it lies inside the sensor's range and field of view (by the margins below), and
 // *detected* when one of the scan's detections pairs with it (χ²₂ gate on the innovation
-// with the sensor's noise; one to one, nearest first). The gate leaves out the pose's and
-// the landmark's covariances on purpose: they are marginals in the world frame, which
-// grow with the drift of a long run, while the map and the trajectory of one estimate
-// drift together (their cross-covariances, not kept, cancel most of it); with them the
-// gates of a long run widen until chance explains every landmark (docs/limits.md). A
-// feature that is not a
-// landmark — an object that has moved on, a false alarm — is still detected now and then
-// by chance: some other detection falls inside its gate, which for detections scattered
-// at density λ over measurement space (range × bearing, the clutter model of
-// probabilistic data association) happens with probability q = 1 − exp(−λ V) for a gate
-// of area V. Over a landmark's n sightings the chance pairings number about Poisson(μ),
-// μ = q n; the landmark is *confirmed* when its k detections are more than chance
-// explains: P(K ≥ k | μ) < 1 − confirm_probability.
-// λ is the density of the detections that no confirmed landmark explains, over the
-// scans' measurement area; confirmation and λ are iterated to a fixed point (from every
-// landmark confirmed). A landmark never expected is confirmed (nothing speaks against it).
+// with the sensor's noise; one to one, nearest first). A feature that is not a landmark —
+// an object that has moved on, a false alarm — is still detected now and then by chance:
+// some other detection falls inside its gate, which for detections scattered at density
+// λ over measurement space (range × bearing, the clutter model of probabilistic data
+// association) happens with probability q = 1 − exp(−λ V) for a gate of area V. Over a
+// landmark's n sightings the chance pairings number about Poisson(μ), μ = q n; the
+// landmark is *confirmed* when its k detections are more than chance explains:
+// P(K ≥ k | μ) < 1 − confirm_probability. λ is the density of the detections that no
+// confirmed landmark explains, over the scans' measurement area; confirmation and λ are
+// iterated to a fixed point (from every landmark confirmed). A landmark never expected is
+// confirmed (nothing speaks against it).
+//
+// The gate leaves out the pose's and the landmark's covariances on purpose: they are
+// marginals in the world frame, which grow with the drift of a long run, while the map and
+// the trajectory of one estimate drift together (their cross-covariances, not kept,
+// cancel most of it); with them the gates of a long run widen until chance explains every
+// landmark (docs/limits.md). A run whose map and trajectory disagree locally — one gone
+// wrong — has fewer landmarks confirmed, which is what the report shows.
 //
 // The test asks for presence, not for a detection rate: a landmark seen one time in five
 // (occluded, or read only from some sides) is confirmed as long as that is well above
