@@ -118,6 +118,49 @@ TEST(RunHealth, LocalMapsAgainstTheMapFlagAnUncalibratedOdometryScale) {
       << SummaryTable(biased);
 }
 
+// The map against its own scans: on a world without clutter every landmark of a good run
+// is confirmed, and the detection curve reads near the simulator's certain detection; on
+// the camera robot, whose moving robots leave features where nothing stands, some are not,
+// and --drop_unconfirmed_landmarks takes exactly those out of the map (and the report says
+// how many).
+TEST(RunHealth, TheMapIsConfirmedAgainstItsOwnScans) {
+  const io::Dataset clean = Simulate(1, "hybrid-120m", 60.0);
+  RunOptions options;
+  options.frontend = Frontend::kRbpf;
+  options.backend.kind = Backend::kEif;
+  absl::StatusOr<RunResult> good = RunPipeline(clean, options);
+  ASSERT_TRUE(good.ok()) << good.status();
+  const nlohmann::json& g = good->report["health"]["map_confirmation"];
+  EXPECT_EQ(g["confirmed"].get<int>(), static_cast<int>(good->landmarks.size())) << g.dump();
+  ASSERT_FALSE(g["detection_probability_by_range"].empty());
+  EXPECT_GT(g["detection_probability_by_range"][0]["probability"].get<double>(), 0.9);
+  EXPECT_NE(SummaryTable(*good).find("map confirmed by the scans"), std::string::npos);
+
+  sim::ScenarioOptions o;
+  o.seed = 2;
+  o.duration_s = 300.0;
+  absl::StatusOr<sim::ScenarioConfig> config = sim::MakeScenario("camera-robot", o);
+  ASSERT_TRUE(config.ok()) << config.status();
+  absl::StatusOr<io::Dataset> movers = sim::Simulate(*config, o.seed);
+  ASSERT_TRUE(movers.ok()) << movers.status();
+  absl::StatusOr<RunResult> kept = RunPipeline(*movers, options);
+  ASSERT_TRUE(kept.ok()) << kept.status();
+  const backend::LandmarkPersistence& c = *kept->map_confirmation;
+  ASSERT_LT(c.num_confirmed, static_cast<int>(kept->landmarks.size()));
+  options.map_confirmation.drop_unconfirmed = true;
+  absl::StatusOr<RunResult> dropped = RunPipeline(*movers, options);
+  ASSERT_TRUE(dropped.ok()) << dropped.status();
+  EXPECT_EQ(dropped->landmarks.size(), static_cast<size_t>(c.num_confirmed));
+  EXPECT_EQ(dropped->unconfirmed_dropped, static_cast<int>(kept->landmarks.size()) - c.num_confirmed);
+  EXPECT_EQ(dropped->report["health"]["map_confirmation"]["unconfirmed_dropped"].get<int>(),
+            dropped->unconfirmed_dropped);
+  for (size_t i = 0, k = 0; i < kept->landmarks.size(); ++i) {
+    if (!c.confirmed[i]) continue;
+    EXPECT_EQ(dropped->landmarks[k].position, kept->landmarks[i].position) << i;
+    ++k;
+  }
+}
+
 // Particle depletion: with an over-confident sensor model a few particles take the
 // weight at every scan (ESS collapses, lineages die out); the particle filter's counters
 // say so, and a well-matched model shows far less.
