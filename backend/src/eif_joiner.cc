@@ -377,7 +377,7 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       dim_(other.dim_),
       factors_(other.factors_),
       eta_(other.eta_),
-      solver_(std::make_unique<Solver>()),
+      solver_(std::make_unique<Solver>(*other.solver_)),
       associator_(other.associator_),
       marginal_bound_(other.marginal_bound_),
       last_association_(other.last_association_),
@@ -386,14 +386,7 @@ EifJoiner::EifJoiner(const EifJoiner& other)
       pending_loop_(other.pending_loop_),
       times_(other.times_),
       counters_(other.counters_),
-      last_t_end_(other.last_t_end_) {
-  // The copy's factor is the original's ordering choice refactorised (an automatic
-  // ordering that has switched to nested dissection stays switched).
-  solver_->factor.AdoptOrderingChoice(other.solver_->factor);
-  if (other.solver_->factor.ready()) {
-    SUBSLAM_CHECK(FactorizeLambda().ok()) << "refactorising a copy failed";
-  }
-}
+      last_t_end_(other.last_t_end_) {}
 
 std::unique_ptr<MapJoiner> EifJoiner::NewEmpty(const Pose2& initial_pose) const {
   return std::make_unique<EifJoiner>(initial_pose, options_);

@@ -63,6 +63,46 @@ SparseCholesky::SparseCholesky() : common_(new cholmod_common) {
   common_->print = 0;
 }
 
+SparseCholesky::SparseCholesky(const SparseCholesky& other) : SparseCholesky() {
+  if (other.factor_ != nullptr) factor_ = cholmod_copy_factor(other.factor_, common_);
+  if (other.symbolic_ != nullptr) symbolic_ = cholmod_copy_factor(other.symbolic_, common_);
+  SUBSLAM_CHECK((other.factor_ == nullptr) == (factor_ == nullptr) &&
+                (other.symbolic_ == nullptr) == (symbolic_ == nullptr))
+      << "CHOLMOD: out of memory";
+  analysed_n_ = other.analysed_n_;
+  analysed_ordering_ = other.analysed_ordering_;
+  analysed_with_ = other.analysed_with_;
+  symbolic_flops_ = other.symbolic_flops_;
+  automatic_chose_nested_ = other.automatic_chose_nested_;
+  analysed_p_ = other.analysed_p_;
+  analysed_i_ = other.analysed_i_;
+  analysed_last_ = other.analysed_last_;
+  nested_dissection_unavailable_ = other.nested_dissection_unavailable_;
+  lower_p_ = other.lower_p_;
+  lower_i_ = other.lower_i_;
+  lower_x_ = other.lower_x_;
+  symbolic_reuses_ = other.symbolic_reuses_;
+  selected_ = other.selected_;
+  position_ = other.position_;
+  scatter_ = other.scatter_;
+  column_cache_ = other.column_cache_;
+  forward_workspace_ = other.forward_workspace_;
+  forward_stamp_ = other.forward_stamp_;
+  path_index_ = other.path_index_;
+  change_workspace_ = other.change_workspace_;
+  change_live_ = other.change_live_;
+  change_touched_ = other.change_touched_;
+  parent_ = other.parent_;
+  back_stamp_ = other.back_stamp_;
+  back_walks_ = other.back_walks_;
+  walks_ = other.walks_;
+  dim_ = other.dim_;
+  capacity_ = other.capacity_;
+  nonzeros_after_factorize_ = other.nonzeros_after_factorize_;
+  columns_solved_ = other.columns_solved_;
+  reach_solved_ = other.reach_solved_;
+}
+
 SparseCholesky::~SparseCholesky() {
   if (factor_ != nullptr) cholmod_free_factor(&factor_, common_);
   if (symbolic_ != nullptr) cholmod_free_factor(&symbolic_, common_);

@@ -466,13 +466,19 @@ TEST(SparseCholesky, AutomaticOrderingTakesNestedDissectionWhereAmdsFactorIsCost
   EXPECT_EQ(automatic.ordering(), FillReducingOrdering::kNestedDissection);
   const Eigen::VectorXd b = Eigen::VectorXd::Random(chain.rows());
   EXPECT_LT((chain * automatic.Solve(b) - b).norm(), 1e-10 * b.norm());
-  // A fresh factor that adopts the switch (as a copied EIF's does) orders the chain by
-  // nested dissection too; one that does not, by AMD.
-  SparseCholesky adopted, fresh;
-  adopted.AdoptOrderingChoice(automatic);
-  ASSERT_TRUE(adopted.Factorize(chain, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
+  // A copy (as a cloned EIF's) is exact — its solves equal the original's bit for bit,
+  // also after the same rank update on both — and keeps the switch: refactorised, it
+  // orders the chain by nested dissection too, where a fresh factor takes AMD.
+  SparseCholesky copy(automatic), fresh;
+  EXPECT_EQ(copy.Solve(b), automatic.Solve(b));
+  const std::vector<int> rows = {3, 17};
+  const Eigen::MatrixXd W = Eigen::MatrixXd::Random(2, 1);
+  ASSERT_TRUE(copy.Update(copy.dim(), rows, W).ok());
+  ASSERT_TRUE(automatic.Update(automatic.dim(), rows, W).ok());
+  EXPECT_EQ(copy.Solve(b), automatic.Solve(b));
+  ASSERT_TRUE(copy.Factorize(chain, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
   ASSERT_TRUE(fresh.Factorize(chain, 4, FillReducingOrdering::kAmdOrNestedDissection).ok());
-  EXPECT_EQ(adopted.ordering(), FillReducingOrdering::kNestedDissection);
+  EXPECT_EQ(copy.ordering(), FillReducingOrdering::kNestedDissection);
   EXPECT_EQ(fresh.ordering(), FillReducingOrdering::kAmd);
 }
 

@@ -173,7 +173,7 @@ class EifJoiner final : public MapJoiner {
     std::shared_ptr<const Eigen::MatrixXd> information;
   };
 
-  EifJoiner(const EifJoiner& other);  // deep copy (refactorises), for Clone()
+  EifJoiner(const EifJoiner& other);  // an exact deep copy (the factor copied), for Clone()
   friend class CeresJoiner;           // whose copies copy their EIF
   // The factor record of graph factor `index`: its variables' offsets and sizes.
   Factor MakeFactor(int index) const;

@@ -42,7 +42,9 @@ class SparseCholesky {
  public:
   SparseCholesky();
   ~SparseCholesky();
-  SparseCholesky(const SparseCholesky&) = delete;
+  // An exact copy: the factor and the symbolic analysis (cholmod_copy_factor, with the
+  // columns' slack for later updates), and what was computed from them.
+  SparseCholesky(const SparseCholesky& other);
   SparseCholesky& operator=(const SparseCholesky&) = delete;
 
   // Factorises A (n × n, symmetric; both triangles stored or the lower one) with the
@@ -128,13 +130,6 @@ class SparseCholesky {
   // included).
   FillReducingOrdering ordering() const { return analysed_with_; }
   double factorization_flops() const { return symbolic_flops_; }
-  // Takes over another factor's automatic-ordering state (whether kAmdOrNestedDissection
-  // has switched, whether METIS is missing), so that a copy refactorised from scratch
-  // orders as the original would.
-  void AdoptOrderingChoice(const SparseCholesky& other) {
-    automatic_chose_nested_ = other.automatic_chose_nested_;
-    nested_dissection_unavailable_ = other.nested_dissection_unavailable_;
-  }
   // kAmdOrNestedDissection switches to nested dissection from this many flops per entry
   // of A's lower triangle (factorization_flops() over the entries stored, explicit zeros
   // included). METIS's ordering takes about as long as 20-120 flops of numeric
