@@ -31,6 +31,9 @@ ABSL_FLAG(std::string, ekf_fusion, "zero-noise",
 ABSL_FLAG(bool, tree_batch, false,
           "tree-ekf / tree-eif / tree-ceres: keep the leaves and build the tree level by level at the end "
           "(default: running, a binary counter that joins pairs as they complete)");
+ABSL_FLAG(bool, tree_online_fold, false,
+          "tree-ekf / tree-eif / tree-ceres: the online pose from the whole map folded after every local map "
+          "(as the sequential joiner's) instead of the tree's nodes chained; costs a fold per local map");
 ABSL_FLAG(bool, ekf_keep_anchors, true,
           "ekf back-end: keep every anchor in the state (false: marginalise each start "
           "anchor once joined, as the papers' baseline)");
@@ -260,6 +263,7 @@ absl::StatusOr<pipeline::BackendOptions> BackendOptionsFromFlags(bool sensor_yaw
   if (!ekf.ok()) return ekf.status();
   o.ekf = *ekf;
   o.tree.running = !absl::GetFlag(FLAGS_tree_batch);
+  o.tree.online_anchor_from_whole_map = absl::GetFlag(FLAGS_tree_online_fold);
   auto ceres = CeresOptionsFromFlags();
   if (!ceres.ok()) return ceres.status();
   o.ceres = *ceres;

@@ -146,7 +146,10 @@ const std::vector<FlagScope>& Scopes() {
       {{"ceres_method", "ceres_loss", "ceres_loss_scale"}, kSolve},
       {{"ekf_*"}, kRun, local_mappers, Backends({Backend::kEkf, Backend::kTreeEkf})},
       {{"ekf_*"}, kJoin, 0, Backends({Backend::kEkf, Backend::kTreeEkf})},
-      {{"tree_batch"}, kRun, local_mappers, Backends({Backend::kTreeEkf, Backend::kTreeEif, Backend::kTreeCeres})},
+      {{"tree_batch", "tree_online_fold"},
+       kRun,
+       local_mappers,
+       Backends({Backend::kTreeEkf, Backend::kTreeEif, Backend::kTreeCeres})},
       {{"tree_batch"}, kJoin, 0, Backends({Backend::kTreeEkf, Backend::kTreeEif, Backend::kTreeCeres})},
       // Graphs and studies.
       {{"graph", "format", "noise", "initial", "poses_per_map", "tree_joining", "write_local_maps", "max_iterations"},

@@ -139,12 +139,14 @@ void TreeJoiner::Chain(Pose2* pose, Eigen::Matrix3d* covariance) const {
 }
 
 Pose2 TreeJoiner::LastAnchor() const {
+  if (options_.online_anchor_from_whole_map && nodes_.size() > 1) return Whole().LastAnchor();
   Pose2 p;
   Chain(&p, nullptr);
   return p;
 }
 
 Eigen::Matrix3d TreeJoiner::LastAnchorCovariance() const {
+  if (options_.online_anchor_from_whole_map && nodes_.size() > 1) return Whole().LastAnchorCovariance();
   Pose2 p;
   Eigen::Matrix3d c;
   Chain(&p, &c);

@@ -27,7 +27,7 @@
 //    always up to date with O(log n) nodes; the whole map is available at any time by
 //    folding the stack right to left (on demand, cached until the next local map), and
 //    the online anchor is the stack's nodes chained end to start (exact until a loop
-//    between two nodes is closed by their join);
+//    between two nodes is closed by their join), or the folded map's (an option);
 //  * batch: leaves are kept, and Finish() joins them level by level (pairs (0,1), (2,3),
 //    …; an odd node is carried up).
 // For n = 2^k local maps both build the same tree.
@@ -52,6 +52,13 @@ namespace subslam::backend {
 
 struct TreeJoinerOptions {
   bool running = true;  // false: batch (the tree is built at Finish())
+  // The online anchor (LastAnchor) from the whole map folded on demand instead of the
+  // stack's nodes chained end to start. Chained, the anchor cannot use the landmarks of
+  // the older nodes until their join, and in a small world revisited all the time (a
+  // room) it drifts like dead reckoning between joins; folded, it is the sequential
+  // joiner's, at the price of folding the stack after every local map (docs/limits.md:
+  // about twice the back-end's time on a room, ten times on a park).
+  bool online_anchor_from_whole_map = false;
 };
 
 class TreeJoiner final : public MapJoiner {
@@ -73,7 +80,7 @@ class TreeJoiner final : public MapJoiner {
   std::vector<Eigen::Matrix2d> LandmarkCovariances() const override { return Whole().LandmarkCovariances(); }
   const std::vector<int>& last_association() const override { return Whole().last_association(); }
   const SubmapAssociator& associator() const override { return Whole().associator(); }
-  // Chained over the nodes (no fold).
+  // Chained over the nodes (no fold), or the folded map's (online_anchor_from_whole_map).
   Pose2 LastAnchor() const override;
   Eigen::Matrix3d LastAnchorCovariance() const override;
   // Summed over the nodes (each holds its subtree's), plus "fold" for on-demand folds and
