@@ -78,7 +78,7 @@ EifJoinerOptions EifJoinerOptions::ForTreeNode() const {
 }
 
 EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
-    : options_(options), graph_(initial_pose), solver_(std::make_unique<Solver>()), associator_(options.association) {
+    : options_(options), graph_(initial_pose), associator_(options.association) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   anchor_offset_.push_back(-1);  // P0 is fixed
   anchor_theta_.push_back(initial_pose.theta);
@@ -368,25 +368,11 @@ absl::Status EifJoiner::Finish() {
   return ReviseUntilSettled(*this);
 }
 
-EifJoiner::EifJoiner(const EifJoiner& other)
-    : options_(other.options_),
-      graph_(other.graph_),
-      anchor_offset_(other.anchor_offset_),
-      landmark_offset_(other.landmark_offset_),
-      anchor_theta_(other.anchor_theta_),
-      dim_(other.dim_),
-      factors_(other.factors_),
-      eta_(other.eta_),
-      solver_(std::make_unique<Solver>(*other.solver_)),
-      associator_(other.associator_),
-      marginal_bound_(other.marginal_bound_),
-      last_association_(other.last_association_),
-      touched_(other.touched_),
-      rejected_(other.rejected_),
-      pending_loop_(other.pending_loop_),
-      times_(other.times_),
-      counters_(other.counters_),
-      last_t_end_(other.last_t_end_) {}
+EifJoiner::SolverHolder::SolverHolder() : solver_(std::make_unique<Solver>()) {}
+EifJoiner::SolverHolder::SolverHolder(const SolverHolder& other) : solver_(std::make_unique<Solver>(*other)) {}
+EifJoiner::SolverHolder::~SolverHolder() = default;
+
+EifJoiner::EifJoiner(const EifJoiner& other) = default;
 
 std::unique_ptr<MapJoiner> EifJoiner::NewEmpty(const Pose2& initial_pose) const {
   return std::make_unique<EifJoiner>(initial_pose, options_);

@@ -54,7 +54,7 @@ double Genealogy::SharedAncestry(std::span<const double> weights) const {
     sum_sq += weights[p] * weights[p];
   }
   group_weight_.assign(n, 0.0);
-  ancestor_.assign(n, 0);  // 1: the slot is reached at this resampling
+  slot_reached_.assign(n, 0);
   double shared = 0.0;
   long later = scans_;
   for (size_t r = resamplings_.size(); r-- > 0;) {
@@ -63,8 +63,8 @@ double Genealogy::SharedAncestry(std::span<const double> weights) const {
     reached_.clear();
     for (const auto& [slot, weight] : groups_) {
       const int a = resamplings_[r].parent[slot];
-      if (!ancestor_[a]) {
-        ancestor_[a] = 1;
+      if (!slot_reached_[a]) {
+        slot_reached_[a] = 1;
         reached_.push_back(a);
       }
       group_weight_[a] += weight;
@@ -76,7 +76,7 @@ double Genealogy::SharedAncestry(std::span<const double> weights) const {
       next_groups_.push_back({a, group_weight_[a]});
       sum_sq += group_weight_[a] * group_weight_[a];
       group_weight_[a] = 0.0;
-      ancestor_[a] = 0;
+      slot_reached_[a] = 0;
     }
     groups_.swap(next_groups_);
   }

@@ -173,7 +173,7 @@ class EifJoiner final : public MapJoiner {
     std::shared_ptr<const Eigen::MatrixXd> information;
   };
 
-  EifJoiner(const EifJoiner& other);  // an exact deep copy (the factor copied), for Clone()
+  EifJoiner(const EifJoiner& other);  // every member copied (the factor too), for Clone()
   friend class CeresJoiner;           // whose copies copy their EIF
   // The factor record of graph factor `index`: its variables' offsets and sizes.
   Factor MakeFactor(int index) const;
@@ -338,7 +338,21 @@ class EifJoiner final : public MapJoiner {
   void MarkLinearizationTested();
   long updates_since_factorization_ = 0;
   struct Solver;
-  std::unique_ptr<Solver> solver_;
+  // Owns the Solver (backend/src/eif_solver.h) and copies it deeply, so that a copied
+  // joiner is every member copied (Clone()).
+  class SolverHolder {
+   public:
+    SolverHolder();
+    SolverHolder(const SolverHolder& other);
+    SolverHolder& operator=(const SolverHolder&) = delete;
+    ~SolverHolder();
+    Solver* operator->() const { return solver_.get(); }
+    Solver& operator*() const { return *solver_; }
+
+   private:
+    std::unique_ptr<Solver> solver_;
+  };
+  SolverHolder solver_;
   SubmapAssociator associator_;
   // Per landmark, an upper bound on its marginal covariance (NaN: none); see
   // bound_candidate_marginals.

@@ -53,9 +53,11 @@ class Genealogy {
   mutable std::vector<int> ancestor_;         // scratch
   mutable std::vector<double> group_weight_;  // scratch, zero between uses
   // Scratch of SharedAncestry: the distinct ancestors at the resampling being walked and
-  // their weights, in slot order, and which slots the next one reaches.
+  // their weights, in slot order, and the slots the next one reaches (listed, and flagged
+  // per slot; all 0 between uses).
   mutable std::vector<std::pair<int, double>> groups_, next_groups_;
   mutable std::vector<int> reached_;
+  mutable std::vector<char> slot_reached_;
 };
 
 }  // namespace subslam::frontend
