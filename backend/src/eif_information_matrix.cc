@@ -329,6 +329,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
       // Every factor may have been relinearised: Λ need not have grown, so the marginal
       // bounds are forgotten.
       marginal_bound_.assign(graph_.num_landmarks(), Eigen::Matrix2d::Constant(NAN));
+      relative_bounds_.Clear();
       eta_ = Eigen::VectorXd::Zero(dim_);
       for (const Factor& f : factors_) AddToEta(f, &eta_);
       lambda_factors_ = 0;

@@ -30,6 +30,7 @@ void EifJoiner::Restore(Snapshot before) {
   eta_ = std::move(before.eta);
   associator_ = std::move(before.associator);
   marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
+  relative_bounds_.Clear();                            // computed for a larger Λ
   solver_->stale = true;                               // it absorbed the undone factors
   factors_of_row_valid_ = false;
   owner_of_row_valid_ = false;

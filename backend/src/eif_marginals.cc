@@ -42,6 +42,22 @@ Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors, cons
   return 0.5 * (out + out.transpose());
 }
 
+Eigen::Matrix4d EifJoiner::LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const {
+  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+  const auto rows = [this](int j) { return std::vector<int>{landmark_offset_[j], landmark_offset_[j] + 1}; };
+  const auto own_block = [&](int j) -> const Eigen::Matrix2d& {
+    Eigen::Matrix2d& block = (*own)[j];
+    if (!block.allFinite()) block = solver_->factor.InverseBlock(rows(j));
+    return block;
+  };
+  Eigen::Matrix4d S;
+  S.topLeftCorner<2, 2>() = own_block(a);
+  S.bottomRightCorner<2, 2>() = own_block(b);
+  S.topRightCorner<2, 2>() = solver_->factor.CrossBlock(rows(a), rows(b));
+  S.bottomLeftCorner<2, 2>() = S.topRightCorner<2, 2>().transpose();
+  return S;
+}
+
 std::vector<Eigen::Matrix3d> EifJoiner::AnchorCovariances() const {
   std::vector<Eigen::Matrix3d> out(graph_.num_anchors(), Eigen::Matrix3d::Zero());  // P0 fixed: zero
   std::vector<int> free;

@@ -53,14 +53,13 @@ absl::Status EifJoiner::ReviseAssociation(bool full) {
     if (options_.bound_candidate_marginals) marginal_bound_ = marginals;
   }
   touched_.resize(graph_.num_landmarks(), 1);
+  std::vector<Eigen::Matrix2d> own(graph_.num_landmarks(), Eigen::Matrix2d::Constant(NAN));  // Λ is fixed in the pass
   std::vector<LandmarkMerge> merges = FindLandmarkMerges(
-      graph_, marginals,
-      [this](int a, int b) -> Eigen::Matrix4d {
-        return JointCovariance({}, {a, b});
-      },
-      options_.revision, options_.association.loop_test_min_sigma_radius_m, all_pairs ? std::vector<char>() : touched_,
+      graph_, marginals, [this, &own](int a, int b) { return LandmarkPairCovariance(a, b, &own); }, options_.revision,
+      options_.association.loop_test_min_sigma_radius_m, all_pairs ? std::vector<char>() : touched_,
       LoopMergeTests{options_.association.min_loop_pairings, options_.association.loop_confirmation_min_sigma_radius_m,
-                     [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }});
+                     [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }},
+      &relative_bounds_);
   touched_.assign(graph_.num_landmarks(), 0);
   // A landmark a split leaves is not merged in the same pass (its estimate will move).
   std::vector<char> split_from(graph_.num_landmarks(), 0);

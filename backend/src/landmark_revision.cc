@@ -181,10 +181,34 @@ std::vector<LandmarkMerge> MutualBestPairs(const std::vector<LandmarkMerge>& pas
 
 }  // namespace
 
+namespace {
+
+// Whether a lower bound on Δᵀ Cov(l_a − l_b)⁻¹ Δ is beyond `skip_d2`: from
+// Cov(l_a − l_b) ⪯ 2(Σ_a + Σ_b) (Cov(l_a + l_b) ⪰ 0), Σ the marginals or upper bounds
+// on them, and from a bound kept since an earlier pass. A relative slack keeps a pair
+// that the bound and the exact test would put on either side of the gate through
+// rounding alone.
+bool OutsideGateByBound(const Eigen::Vector2d& delta, const Eigen::Matrix2d& marginal_a,
+                        const Eigen::Matrix2d& marginal_b, const RelativeCovarianceBounds* kept, int a, int b,
+                        double skip_d2) {
+  const double limit = skip_d2 * (1.0 + 1e-9);
+  if (marginal_a.allFinite() && marginal_b.allFinite()) {
+    const Eigen::LLT<Eigen::Matrix2d> sum(2.0 * (marginal_a + marginal_b));
+    if (sum.info() == Eigen::Success && delta.dot(sum.solve(delta)) > limit) return true;
+  }
+  const Eigen::Matrix2d* bound = kept == nullptr ? nullptr : kept->Find(a, b);
+  if (bound == nullptr) return false;
+  const Eigen::LLT<Eigen::Matrix2d> llt(*bound);
+  return llt.info() == Eigen::Success && delta.dot(llt.solve(delta)) > limit;
+}
+
+}  // namespace
+
 std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const std::vector<Eigen::Matrix2d>& marginals,
                                               const LandmarkPairCovarianceFn& pair_covariance,
                                               const LandmarkRevisionOptions& options, double loop_sigma_radius_m,
-                                              const std::vector<char>& touched, const LoopMergeTests& loop_merges) {
+                                              const std::vector<char>& touched, const LoopMergeTests& loop_merges,
+                                              RelativeCovarianceBounds* relative_bounds) {
   const int n = graph.num_landmarks();
   std::vector<LandmarkMerge> out;
   if (!options.merge || n < 2) return out;
@@ -192,6 +216,8 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const st
   const bool density = options.merge_by_density;
   const double outer_gate = density ? models::ChiSquareQuantile(options.density_gate_probability, 2) : gate;
   const double root_gate = std::sqrt(std::max(gate, outer_gate));
+  // A pair whose d² is at least this passes neither test (nor the loop merges' gate).
+  const double skip_d2 = std::max(gate, outer_gate);
   const std::vector<std::vector<int>> factors_of = FactorsOfLandmarks(graph);
   const std::vector<Eigen::Matrix2d> typical = TypicalFeatureCovariances(graph);
   const bool resolution = options.merge_unresolved;
@@ -231,17 +257,21 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const st
       if (delta.norm() > root_gate * (sigma[a] + sigma[b])) continue;
       if (!touched.empty() && !touched[a] && !touched[b]) continue;
       if (Intersect(factors_of[a], factors_of[b])) continue;
-      const Eigen::Matrix4d S = pair_covariance(a, b);
-      const Eigen::Matrix2d C =
-          S.topLeftCorner<2, 2>() + S.bottomRightCorner<2, 2>() - S.topRightCorner<2, 2>() - S.bottomLeftCorner<2, 2>();
-      const Eigen::LLT<Eigen::Matrix2d> llt(C);
-      if (llt.info() != Eigen::Success) continue;
-      const double d2 = delta.dot(llt.solve(delta));
       double d2_res = INFINITY;
       if (resolution) {
         const Eigen::LLT<Eigen::Matrix2d> single(typical[a] + typical[b]);
         if (single.info() == Eigen::Success) d2_res = delta.dot(single.solve(delta));
       }
+      if (!(d2_res < gate) && OutsideGateByBound(delta, marginals[a], marginals[b], relative_bounds, a, b, skip_d2)) {
+        continue;
+      }
+      const Eigen::Matrix4d S = pair_covariance(a, b);
+      const Eigen::Matrix2d C =
+          S.topLeftCorner<2, 2>() + S.bottomRightCorner<2, 2>() - S.topRightCorner<2, 2>() - S.bottomLeftCorner<2, 2>();
+      if (relative_bounds != nullptr) relative_bounds->Insert(a, b, C);
+      const Eigen::LLT<Eigen::Matrix2d> llt(C);
+      if (llt.info() != Eigen::Success) continue;
+      const double d2 = delta.dot(llt.solve(delta));
       if (!(d2 < gate) && !(d2_res < gate)) {
         // Held apart by the χ² test: merged only where one point is the likelier explanation.
         if (!density || !(d2 < outer_gate)) continue;

@@ -54,6 +54,19 @@ Eigen::MatrixXd SparseCholesky::InverseBlock(const std::vector<int>& variables) 
   return out;
 }
 
+Eigen::MatrixXd SparseCholesky::CrossBlock(const std::vector<int>& left, const std::vector<int>& right) const {
+  std::vector<int> all = left;
+  all.insert(all.end(), right.begin(), right.end());
+  SolveColumns(all);
+  std::vector<const SparseColumn*> R;
+  R.reserve(right.size());
+  for (int v : right) R.push_back(&ForwardColumn(v));
+  Eigen::MatrixXd out(right.size(), left.size());  // filled by columns: one scatter of each left column
+  for (size_t a = 0; a < left.size(); ++a)
+    Dots(ForwardColumn(left[a]), R, 0, out.col(static_cast<Eigen::Index>(a)).data());
+  return out.transpose();
+}
+
 std::vector<Eigen::MatrixXd> SparseCholesky::InverseStarBlocks(const std::vector<int>& hub,
                                                                const std::vector<std::vector<int>>& groups) const {
   std::vector<int> all = hub;

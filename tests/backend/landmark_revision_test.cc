@@ -390,6 +390,49 @@ TEST(LandmarkRevision, CopiesOfALoopMergeTogetherWhenEnoughAgree) {
   EXPECT_TRUE(LoopCopies(6, 2.0, 4, offset).Merges(4).empty());
 }
 
+// Two landmarks 3 m apart, each known only to σ 5 m but their difference to σ 0.1 m (d²
+// 900): the pre-filters from the marginals keep the pair, so its joint marginal is asked
+// for once; kept as a bound, it leaves the pair out of the next pass without asking again,
+// and the merges are those without the bound. A bound that claims the difference known
+// better than it is (a caller that did not clear the bounds when Λ lost information)
+// would hold apart a pair that merges: the bounds are the caller's to keep valid.
+TEST(LandmarkRevision, KeptRelativeBoundsSkipPairsOutsideTheGate) {
+  SubmapGraph graph{Pose2(0, 0, 0)};
+  graph.AddAnchor(Pose2(10, 0, 0));
+  graph.AddLandmark(Eigen::Vector2d(0, 8));
+  graph.AddLandmark(Eigen::Vector2d(3, 8));
+  LocalSubmap one;
+  one.mean = Eigen::VectorXd::Zero(5);
+  one.covariance = 1e-4 * Eigen::MatrixXd::Identity(5, 5);  // resolves the pair
+  graph.AddFactor({one, 0, 1, {0}});
+  graph.AddFactor({one, 0, 1, {1}});
+  Eigen::Matrix4d Sigma = Eigen::Matrix4d::Zero();
+  const double big = 25.0, cross = 25.0 - 0.005;  // Cov(Δ) = 2(big − cross) = 0.01 I
+  Sigma << big, 0, cross, 0, 0, big, 0, cross, cross, 0, big, 0, 0, cross, 0, big;
+  const std::vector<Eigen::Matrix2d> marginals(2, big * Eigen::Matrix2d::Identity());
+  int asked = 0;
+  const auto pair = [&](int a, int b) -> Eigen::Matrix4d {
+    ++asked;
+    EXPECT_EQ(std::min(a, b), 0);
+    return Sigma;
+  };
+  const LandmarkRevisionOptions options;
+  RelativeCovarianceBounds bounds;
+  EXPECT_TRUE(FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
+  EXPECT_EQ(asked, 1);
+  ASSERT_NE(bounds.Find(1, 0), nullptr);
+  EXPECT_TRUE(bounds.Find(0, 1)->isApprox(0.01 * Eigen::Matrix2d::Identity()));
+  EXPECT_TRUE(FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
+  EXPECT_EQ(asked, 1);
+  // The same pair 0.1 m apart merges (d² 1), with or without a valid bound.
+  graph.landmark(1) = Eigen::Vector2d(0.1, 8);
+  EXPECT_EQ(FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).size(), 1u);
+  EXPECT_EQ(asked, 2);
+  bounds.Insert(0, 1, 1e-4 * Eigen::Matrix2d::Identity());
+  EXPECT_TRUE(FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
+  EXPECT_EQ(asked, 2);
+}
+
 // Two landmarks `distance` m apart, their difference known to σ `sigma` m (each only to
 // σ/2, the two anti-correlated, so that the pre-filter's bound √gate · (σ_a + σ_b) is
 // tight), each held by a local map of its own, and `neighbours` more landmarks `ring` m

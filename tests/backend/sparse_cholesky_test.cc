@@ -66,6 +66,10 @@ TEST(SparseCholesky, FactorizeSolvesAndRecoversInverseBlocks) {
   EXPECT_TRUE(MatricesNear(inverse({5, 6, 7, 8}, {5, 6, 7, 8}), star[0], 1e-10));
   EXPECT_TRUE(MatricesNear(inverse({5, 6, 20}, {5, 6, 20}), star[1], 1e-10));
   EXPECT_TRUE(MatricesNear(inverse({5, 6}, {5, 6}), star[2], 1e-10));
+  // A cross block: InverseBlock's off-diagonal with the left variables first, to the bit.
+  const Eigen::MatrixXd joint = L.InverseBlock({12, 13, 25, 2});
+  EXPECT_TRUE(L.CrossBlock({12, 13}, {25, 2}) == joint.topRightCorner(2, 2));
+  EXPECT_TRUE(MatricesNear(inverse({12, 13}, {25, 2}), L.CrossBlock({12, 13}, {25, 2}), 1e-10));
 }
 
 // A chain of `chain` variables (each linked to the next) and, apart, a second chain of

@@ -57,6 +57,7 @@
 #include "subslam/backend/eif_joiner_options.h"
 #include "subslam/backend/landmark_revision.h"
 #include "subslam/backend/map_joiner.h"
+#include "subslam/backend/relative_covariance_bounds.h"
 #include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
@@ -112,6 +113,10 @@ class EifJoiner final : public MapJoiner {
   // For each landmark, the 5 × 5 marginal of [anchor, landmark] (what individual
   // compatibility needs), without the landmarks' cross-covariances.
   std::vector<Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;
+  // The joint marginal of landmarks a and b (a's rows first), entry by entry as
+  // JointCovariance({}, {a, b}) gives it, each landmark's own block taken from `own` (NaN:
+  // recovered now and kept there), so that a merge pass pays each pair's cross terms only.
+  Eigen::Matrix4d LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const;
   // For each landmark, an upper bound on that 5 × 5 marginal: the exact anchor block and
   // cross-covariance (one solve for the anchor's columns) with the landmark's block
   // replaced by its marginal bound (see bound_candidate_marginals); nullopt for a
@@ -357,6 +362,9 @@ class EifJoiner final : public MapJoiner {
   // Per landmark, an upper bound on its marginal covariance (NaN: none); see
   // bound_candidate_marginals.
   std::vector<Eigen::Matrix2d> marginal_bound_;
+  // Bounds on pairs' Cov(l_a − l_b) for the merge passes, cleared with marginal_bound_
+  // and whenever a revision renumbers the landmarks.
+  RelativeCovarianceBounds relative_bounds_;
   std::vector<int> last_association_;
   // Per landmark: a join gave it a feature since the last revision pass (or it is new).
   std::vector<char> touched_;

@@ -51,6 +51,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "subslam/backend/relative_covariance_bounds.h"
 #include "subslam/graph/submap_graph.h"
 
 namespace subslam::backend {
@@ -128,6 +129,11 @@ using AnchorLandmarkCovarianceFn =
 // deviation, cannot pass). With `touched` (one flag per landmark) only pairs with a
 // touched landmark are tested: those whose own evidence changed since the last pass.
 // Loop merges need `joint_covariance` and the association's loop tests (`loop_merges`).
+// A pair is asked for its joint marginal only if it may pass: besides the scalar
+// pre-filter, Cov(l_a − l_b) ⪯ 2(Σ_a + Σ_b) and the bounds kept in `relative_bounds`
+// (relative_covariance_bounds.h; filled with every pair recovered) bound its d² from
+// below, and a pair whose bound is beyond every gate is skipped; the merges found are
+// those without the bounds.
 struct LoopMergeTests {
   int min_pairings = 0;             // min_loop_pairings (< 1: no loop merges)
   double max_sigma_radius_m = 0.0;  // loop_confirmation_min_sigma_radius_m
@@ -137,7 +143,8 @@ std::vector<LandmarkMerge> FindLandmarkMerges(const SubmapGraph& graph, const st
                                               const LandmarkPairCovarianceFn& pair_covariance,
                                               const LandmarkRevisionOptions& options, double loop_sigma_radius_m,
                                               const std::vector<char>& touched = {},
-                                              const LoopMergeTests& loop_merges = {});
+                                              const LoopMergeTests& loop_merges = {},
+                                              RelativeCovarianceBounds* relative_bounds = nullptr);
 
 // The worst feature whose residual fails the outlier test (empty: none fails), of a
 // landmark that keeps at least one other feature.

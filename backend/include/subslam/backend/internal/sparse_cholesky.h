@@ -89,6 +89,10 @@ class SparseCholesky {
   // path from the variable to the root, short for the recent variables association asks
   // about.
   Eigen::MatrixXd InverseBlock(const std::vector<int>& variables) const;
+  // The off-diagonal block (A⁻¹)_{left, right}, entry by entry the value InverseBlock
+  // gives for it when `left` is listed before `right` (the same dot products): with the
+  // diagonal blocks kept, a pair's joint block costs its cross terms only.
+  Eigen::MatrixXd CrossBlock(const std::vector<int>& left, const std::vector<int>& right) const;
   // For each group, the block of A⁻¹ on [hub, group] — the hub's and the group's own
   // entries and their cross terms, never two groups' cross terms: each column solved
   // once, dot products only where needed.
