@@ -48,7 +48,9 @@ ABSL_FLAG(std::optional<bool>, sensor_yaw_calibration, std::nullopt,
           "a run given --sensor_yaw, whose yaw is taken as calibrated");
 ABSL_FLAG(double, sensor_yaw_prior_sigma, subslam::backend::SensorYawCalibrationOptions{}.prior_sigma_rad,
           "the online yaw calibration's prior sigma [rad] (zero mean)");
-ABSL_FLAG(bool, join_in_background, subslam::pipeline::BackendOptions{}.background,
+// On in the tool, which runs where a second core is there to take the joins; a library
+// caller asks for it (BackendOptions::background is off by default).
+ABSL_FLAG(bool, join_in_background, true,
           "run: join each closed local map on a thread of its own while the front-end builds the "
           "next (the online pose one join behind; while a join runs, rbpf leaves it a core; the "
           "final trajectory and map are unchanged); false: join inside the scan that closed the "

@@ -29,12 +29,13 @@ int main(int argc, char** argv) {
   if (steps.empty()) return 1;
 
   // Local maps: 100 particles; a map closes when its particles' lineage collapses or after
-  // 10 s (SubmapPolicyOptions). Back-end: the EIF, joining each map on a thread of its own.
+  // 10 s (SubmapPolicyOptions). Back-end: the EIF (the default), joining each closed map
+  // inside the Update() that closed it; `backend.background = true` joins on a thread of its
+  // own instead, the online pose then one join behind.
   auto mapper = std::make_unique<subslam::frontend::RbpfLocalMapper>(
       dataset->motion.MakeModel(), dataset->sensor.range_bearing, subslam::frontend::FastSlamOptions{},
       subslam::frontend::SubmapPolicyOptions{}, /*t_start=*/steps.front().t);
   subslam::pipeline::BackendOptions backend;
-  backend.kind = subslam::pipeline::Backend::kEif;
   subslam::pipeline::SubmapSlam slam(std::move(mapper), dataset->initial_pose, backend);
 
   double next_print = steps.front().t;

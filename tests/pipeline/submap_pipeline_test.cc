@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <boost/math/distributions/binomial.hpp>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <optional>
 
@@ -53,6 +54,38 @@ TEST(SubmapPipeline, EkfLocalMapsJoinedByEifBeatChaining) {
   }
 }
 
+// The threads of this process (Linux: its tasks).
+int ThreadsOfThisProcess() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) ++n;
+  return n;
+}
+
+// A library caller's SubmapSlam at the default options starts no thread of its own: the
+// RBPF updates its particles on the calling thread and each closed map is joined inside
+// the Update() that closed it; asked for background joins, it starts one joining thread.
+TEST(SubmapPipeline, ALibraryCallerGetsNoThreadUnlessItAsks) {
+  const io::Dataset d = Simulate(2, "hybrid-120m", 20.0);
+  RunOptions options;
+  options.frontend = Frontend::kRbpf;
+  ASSERT_EQ(options.backend.kind, Backend::kEif);
+  for (bool background : {false, true}) {
+    options.backend.background = background;
+    const int before = ThreadsOfThisProcess();
+    absl::StatusOr<std::unique_ptr<frontend::OnlineEstimator>> slam = MakeOnlineEstimator(d, options);
+    ASSERT_TRUE(slam.ok()) << slam.status();
+    for (const io::Step& step : io::BuildSteps(d)) {
+      (*slam)->Predict(step.control, step.dt);
+      if (step.scan_index >= 0) (*slam)->Update(d.scans[step.scan_index]);
+    }
+    auto* chain = dynamic_cast<SubmapSlam*>(slam->get());
+    ASSERT_NE(chain, nullptr);
+    EXPECT_GE(chain->local_maps().size(), 2u);
+    EXPECT_EQ(ThreadsOfThisProcess(), before + (background ? 1 : 0)) << "background " << background;
+    EXPECT_TRUE(chain->Finish().ok());
+  }
+}
+
 // Background joins (BackendOptions::background): the final trajectory and the map are
 // those of the synchronous run, to the bit; the online pose is one join behind — the
 // same while maps 0 and 1 are built (map 0's join changes nothing before map 1 closes),
@@ -67,7 +100,7 @@ TEST(SubmapPipeline, BackgroundJoinsGiveTheSynchronousEstimatesWithTheOnlinePose
   options.backend.background = false;
   absl::StatusOr<RunResult> synchronous = RunPipeline(d, options);
   ASSERT_TRUE(synchronous.ok()) << synchronous.status();
-  options.backend.background = true;  // the default
+  options.backend.background = true;  // the tool's default
   absl::StatusOr<RunResult> background = RunPipeline(d, options);
   ASSERT_TRUE(background.ok()) << background.status();
   options.fastslam.num_threads = 1;

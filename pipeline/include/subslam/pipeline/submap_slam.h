@@ -26,7 +26,7 @@
 // ignored). The start anchor is the joiner's MapJoiner::LastAnchor(), which leaves out a
 // loop closure still waiting for confirmation (eif, ceres).
 //
-// Background joins (BackendOptions::background, the default): each closed local map is
+// Background joins (BackendOptions::background; the tool's default): each closed local map is
 // joined on a thread of its own while the front-end goes on with the next map, and while
 // a join runs the local mapper leaves it a core (LocalMapper::SetSpareCores). The front-end waits
 // only when a join outlasts the next map: map k's join must be done before map k + 1
@@ -83,9 +83,10 @@ struct BackendOptions {
   // join` calibrates them the same way.
   backend::SensorYawCalibrationOptions sensor_yaw;
   // Join on a background thread, the online pose one join behind (see SubmapSlam);
-  // false: each closed map is joined inside the Update() that closed it, and the online
-  // pose uses its joined anchor at once.
-  bool background = true;
+  // false (the default: a library starts no thread unless asked): each closed map is
+  // joined inside the Update() that closed it, and the online pose uses its joined
+  // anchor at once. The tool asks for it (`--join_in_background`, default true).
+  bool background = false;
   // The local maps against the map (the run's health): each join's pairings' joint d²
   // (backend::JoinSummary::association_d2) is χ² with their dof for consistent maps. The
   // run is taken to diverge when the sum over all joins exceeds the χ² quantile of the
