@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <boost/math/distributions/binomial.hpp>
 #include <cmath>
-#include <filesystem>
 #include <fstream>
 #include <optional>
 
@@ -51,38 +50,6 @@ TEST(SubmapPipeline, EkfLocalMapsJoinedByEifBeatChaining) {
     EXPECT_EQ(joined->map_errors->spurious, 0) << seed;
     EXPECT_LT(joined->map_errors->duplicates, chained->map_errors->duplicates) << seed;  // merged
     EXPECT_EQ(joined->final_trajectory.size(), joined->online.size());
-  }
-}
-
-// The threads of this process (Linux: its tasks).
-int ThreadsOfThisProcess() {
-  int n = 0;
-  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator("/proc/self/task")) ++n;
-  return n;
-}
-
-// A library caller's SubmapSlam at the default options starts no thread of its own: the
-// RBPF updates its particles on the calling thread and each closed map is joined inside
-// the Update() that closed it; asked for background joins, it starts one joining thread.
-TEST(SubmapPipeline, ALibraryCallerGetsNoThreadUnlessItAsks) {
-  const io::Dataset d = Simulate(2, "hybrid-120m", 20.0);
-  RunOptions options;
-  options.frontend = Frontend::kRbpf;
-  ASSERT_EQ(options.backend.kind, Backend::kEif);
-  for (bool background : {false, true}) {
-    options.backend.background = background;
-    const int before = ThreadsOfThisProcess();
-    absl::StatusOr<std::unique_ptr<frontend::OnlineEstimator>> slam = MakeOnlineEstimator(d, options);
-    ASSERT_TRUE(slam.ok()) << slam.status();
-    for (const io::Step& step : io::BuildSteps(d)) {
-      (*slam)->Predict(step.control, step.dt);
-      if (step.scan_index >= 0) (*slam)->Update(d.scans[step.scan_index]);
-    }
-    auto* chain = dynamic_cast<SubmapSlam*>(slam->get());
-    ASSERT_NE(chain, nullptr);
-    EXPECT_GE(chain->local_maps().size(), 2u);
-    EXPECT_EQ(ThreadsOfThisProcess(), before + (background ? 1 : 0)) << "background " << background;
-    EXPECT_TRUE(chain->Finish().ok());
   }
 }
 
