@@ -2,6 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "subslam/io/control_screen.h"
+
 namespace subslam::io {
 namespace {
 
@@ -51,6 +57,80 @@ TEST(ScreenInputs, CountsTimeGapsRepeatedTimesAndDetectionsOutOfRange) {
   EXPECT_NEAR(s.median_interval_s, 0.1, 1e-9);
   EXPECT_EQ(s.duplicate_control_times, 2);
   EXPECT_EQ(s.detections_out_of_range, 2);
+}
+
+// A caller streaming its controls: each record comes out kSpikeWindow pushes later, a spike
+// already replaced (it needs the records after it), and Flush() gives the rest unjudged.
+TEST(ControlScreen, StreamsTheRecordsWithAFixedLagAndReplacesASpike) {
+  Dataset d = Steady(10);
+  d.controls[4].u[0] = 1.0 + 11 * 0.1;
+  ControlScreen screen(d.motion.noise, InputScreeningOptions{});
+  const int w = InputScreeningOptions::kSpikeWindow;
+  std::vector<ControlRecord> out;
+  for (int k = 0; k < 10; ++k) {
+    const std::optional<ControlRecord> r = screen.Push(d.controls[k]);
+    ASSERT_EQ(r.has_value(), k >= w) << k;
+    if (!r) continue;
+    EXPECT_EQ(r->t, d.controls[k - w].t);
+    out.push_back(*r);
+  }
+  EXPECT_EQ(screen.control_spikes(), 1);
+  EXPECT_DOUBLE_EQ(out[4].u[0], 1.0);
+  const std::vector<ControlRecord> rest = screen.Flush();
+  ASSERT_EQ(rest.size(), static_cast<size_t>(w));
+  EXPECT_EQ(rest.front().t, d.controls[10 - w].t);
+  // Fewer records than a window: nothing judged, all back in order.
+  for (int k = 0; k < 2 * w; ++k) EXPECT_EQ(screen.Push(d.controls[k]).has_value(), k >= w);
+  const std::vector<ControlRecord> short_rest = screen.Flush();
+  ASSERT_EQ(short_rest.size(), static_cast<size_t>(w));
+  EXPECT_EQ(short_rest.front().t, d.controls[w].t);
+  EXPECT_TRUE(screen.Flush().empty());
+}
+
+// The rule written out directly (median of the 2w neighbours as read, the larger of the
+// noise σ at it and 1.4826 × their median absolute deviation) against the screen, on a
+// noisy stream with spikes and steps: the same records to the bit.
+TEST(ControlScreen, AppliesTheSpikeRuleAsWrittenToEveryInnerRecord) {
+  Dataset d = Steady(400);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> normal;
+  for (int k = 0; k < 400; ++k) {
+    d.controls[k].u += Eigen::Vector2d(0.1 * normal(rng), 0.01 * normal(rng));
+    if (k >= 200) d.controls[k].u[1] += 0.5;                               // a step
+    if (k % 37 == 5) d.controls[k].u[k % 2] += (k % 3 == 0 ? 2.0 : -0.3);  // spikes
+  }
+  const int w = InputScreeningOptions::kSpikeWindow;
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+  };
+  std::vector<ControlRecord> expected = d.controls;
+  int spikes = 0;
+  for (int k = w; k + w < 400; ++k) {
+    bool spike = false;
+    for (int c = 0; c < 2; ++c) {
+      std::vector<double> around, deviations;
+      for (int i = k - w; i <= k + w; ++i) {
+        if (i != k) around.push_back(d.controls[i].u[c]);
+      }
+      const double m = median(around);
+      for (double a : around) deviations.push_back(std::abs(a - m));
+      const double sigma = c == 0 ? d.motion.noise.sigma_u0 : d.motion.noise.sigma_u1;
+      if (std::abs(d.controls[k].u[c] - m) > 10.0 * std::max(sigma, 1.4826 * median(deviations))) {
+        spike = true;
+        expected[k].u[c] = m;
+      }
+    }
+    spikes += spike ? 1 : 0;
+  }
+  ASSERT_GT(spikes, 3);
+  const InputScreening s = ScreenInputs(InputScreeningOptions{}, &d);
+  EXPECT_EQ(s.control_spikes, spikes);
+  ASSERT_EQ(d.controls.size(), expected.size());
+  for (size_t k = 0; k < expected.size(); ++k) {
+    EXPECT_EQ(d.controls[k].t, expected[k].t) << k;
+    EXPECT_EQ(d.controls[k].u, expected[k].u) << k;
+  }
 }
 
 TEST(InputScreeningOptions, RejectsNonsense) {

@@ -23,7 +23,7 @@ int ThreadsOfThisProcess() {
 // A library caller's SubmapSlam at the default options starts no thread of its own: the
 // RBPF updates its particles on the calling thread and each closed map is joined inside
 // the Update() that closed it; asked for background joins, it starts one joining thread.
-TEST(SubmapPipeline, ALibraryCallerGetsNoThreadUnlessItAsks) {
+TEST(LibraryContract, NoThreadUnlessAsked) {
   const io::Dataset d = Simulate(2, "hybrid-120m", 20.0);
   RunOptions options;
   options.frontend = Frontend::kRbpf;
