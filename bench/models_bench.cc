@@ -2,6 +2,8 @@
 //   build/bench/models_bench [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
 
+#include <cstdlib>
+
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/graph/pose2.h"
 #include "subslam/io/steps.h"
@@ -69,7 +71,7 @@ void BM_EkfSlamRandomWorld(benchmark::State& state) {
     frontend::EkfSlam ekf(d.motion.MakeModel(), d.sensor.range_bearing, d.initial_pose, {});
     for (const io::Step& s : steps) {
       ekf.Predict(s.control, s.dt);
-      if (s.scan_index >= 0) ekf.Update(d.scans[s.scan_index]);
+      if (s.scan_index >= 0 && !ekf.Update(d.scans[s.scan_index]).ok()) std::abort();
     }
     landmarks = ekf.num_landmarks();
   }

@@ -8,6 +8,7 @@
 // scans build the map; timed steps continue the same run (seeded noise).
 #include <benchmark/benchmark.h>
 
+#include <cstdlib>
 #include <random>
 
 #include "subslam/frontend/fastslam.h"
@@ -70,7 +71,7 @@ void BM_RbpfStep(benchmark::State& state) {
                             options);
   for (int k = 0; k < 100; ++k) {
     filter.Predict(world.control(), RingWorld::kDt);
-    filter.Update(world.Step());
+    if (!filter.Update(world.Step()).ok()) std::abort();
   }
   long detections = 0;
   for (auto _ : state) {
@@ -79,7 +80,7 @@ void BM_RbpfStep(benchmark::State& state) {
     detections += static_cast<long>(scan.detections.size());
     state.ResumeTiming();
     filter.Predict(world.control(), RingWorld::kDt);
-    filter.Update(scan);
+    if (!filter.Update(scan).ok()) std::abort();
     benchmark::DoNotOptimize(filter.pose());
   }
   state.counters["detections_per_scan"] = benchmark::Counter(static_cast<double>(detections) / state.iterations());

@@ -28,7 +28,12 @@ int main(int argc, char** argv) {
   subslam::Trajectory trajectory;
   for (const subslam::io::Step& step : subslam::io::BuildSteps(*dataset)) {
     ekf.Predict(step.control, step.dt);  // the control held over dt [s]
-    if (step.scan_index >= 0) ekf.Update(dataset->scans[step.scan_index]);
+    if (step.scan_index >= 0) {
+      if (absl::Status updated = ekf.Update(dataset->scans[step.scan_index]); !updated.ok()) {
+        std::fprintf(stderr, "%s\n", std::string(updated.message()).c_str());  // a malformed scan
+        return 1;
+      }
+    }
     trajectory.push_back({step.t, ekf.pose(), ekf.pose_covariance()});
   }
   const subslam::Pose2 pose = ekf.pose();  // world frame: x, y [m], θ [rad]

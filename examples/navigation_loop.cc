@@ -41,7 +41,12 @@ int main(int argc, char** argv) {
   double next_print = steps.front().t;
   for (const subslam::io::Step& step : steps) {
     slam.Predict(step.control, step.dt);
-    if (step.scan_index >= 0) slam.Update(dataset->scans[step.scan_index]);
+    if (step.scan_index >= 0) {
+      if (absl::Status updated = slam.Update(dataset->scans[step.scan_index]); !updated.ok()) {
+        std::fprintf(stderr, "%s\n", std::string(updated.message()).c_str());  // a malformed scan, a failed join
+        return 1;
+      }
+    }
     slam.RecordStep(step.t);                                    // kept for the final, smoothed trajectory
     const subslam::Pose2 pose = slam.pose();                    // world frame, (x, y, θ)
     const Eigen::Matrix3d covariance = slam.pose_covariance();  // of (x, y, θ)

@@ -89,9 +89,6 @@ class OnlineSlam {
     for (long i = 0; i < n; ++i) {
       scan.detections[i].range_m = r.at(i);
       scan.detections[i].bearing_rad = sensor_yaw_ ? WrapAngle(b.at(i) + *sensor_yaw_) : b.at(i);
-      if (!(std::isfinite(r.at(i)) && r.at(i) >= 0.0 && std::isfinite(b.at(i)))) {
-        throw py::value_error(absl::StrCat("update: detection ", i, ": range must be finite and >= 0, bearing finite"));
-      }
     }
     if (!signatures.is_none()) {
       const py::array_t<double> s = CheckedArray(signatures, {n}, "signatures");
@@ -101,8 +98,12 @@ class OnlineSlam {
       const py::array_t<double> ids = CheckedArray(truth_ids, {n}, "truth_ids");
       for (long i = 0; i < n; ++i) scan.detections[i].truth_id = static_cast<int>(ids.at(i));
     }
-    py::gil_scoped_release unlocked;
-    estimator_->Update(scan);
+    absl::Status updated;
+    {
+      py::gil_scoped_release unlocked;
+      updated = estimator_->Update(scan);
+    }
+    ThrowIfError(updated);
   }
 
   void RecordStep(double t) {

@@ -198,7 +198,8 @@ association::AssociationResult EkfSlam::AssociateByTruth(const std::vector<Eigen
   return association;
 }
 
-void EkfSlam::Update(const Scan& scan) {
+absl::Status EkfSlam::Update(const Scan& scan) {
+  if (absl::Status st = CheckScan(scan); !st.ok()) return st;
   ++counters_.scans;
   const Pose2 p = pose();
   const models::RangeBearingConfig& rb = sensor_.config();
@@ -278,6 +279,7 @@ void EkfSlam::Update(const Scan& scan) {
   // 3. Existence, new landmarks, deletion of false alarms.
   ManageLandmarks(z, detection_index, pairs, predictions, gated, association.landmark_of_detection, known_landmark,
                   truth_of_detection, min_d2);
+  return absl::OkStatus();
 }
 
 std::vector<int> EkfSlam::KnownLandmarks(const Scan& scan, const std::vector<int>& detection_index,

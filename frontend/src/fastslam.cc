@@ -207,7 +207,8 @@ void FastSlam::RecordParticleHealth() {
   lineage_collapsed_ = collapsed;
 }
 
-void FastSlam::Update(const Scan& scan) {
+absl::Status FastSlam::Update(const Scan& scan) {
+  if (absl::Status st = CheckScan(scan); !st.ok()) return st;
   if (resample_pending_) {
     StageTimer timer(&times_, "resample");
     Resample();
@@ -303,6 +304,7 @@ void FastSlam::Update(const Scan& scan) {
   // Resampling is deferred to the next Predict or Update, so that pose(), Map() and a
   // local map closed now see the weighted particles rather than resampled duplicates.
   resample_pending_ = last_ess_ratio_ < options_.resample_ess_ratio;
+  return absl::OkStatus();
 }
 
 int FastSlam::threads() const { return pool_->threads(); }

@@ -48,9 +48,10 @@ void LocalMapper::Predict(const Eigen::Vector2d& u, double dt) {
   FilterPredict(u, dt);
 }
 
-void LocalMapper::Update(const Scan& scan) {
+absl::Status LocalMapper::Update(const Scan& scan) {
+  if (absl::Status st = CheckScan(scan); !st.ok()) return st;
   t_ = scan.t;
-  FilterUpdate(scan);
+  if (absl::Status st = FilterUpdate(scan); !st.ok()) return st;
   ++scans_in_map_;
   if (moving_test_.enabled()) {
     std::vector<Eigen::Vector2d> z;
@@ -63,6 +64,7 @@ void LocalMapper::Update(const Scan& scan) {
   const SubmapDecision decision = policy_.Decide(status);
   if (decision.delayed && delayed_since_ < 0) delayed_since_ = t_;
   if (decision.reason != CloseReason::kKeepOpen) Close(decision.reason);
+  return absl::OkStatus();
 }
 
 void LocalMapper::Finish() {

@@ -239,7 +239,8 @@ std::vector<int> SeifSlam::ManageLandmarks(const Scan& scan, const std::vector<i
   return created;
 }
 
-void SeifSlam::Update(const Scan& scan) {
+absl::Status SeifSlam::Update(const Scan& scan) {
+  if (absl::Status st = CheckScan(scan); !st.ok()) return st;
   FlushMotion();
   ++counters_.scans;
   Invalidate();
@@ -302,6 +303,7 @@ void SeifSlam::Update(const Scan& scan) {
     const Eigen::Matrix3d sigma = Covariance({}, true).sigma;
     exact_pose_cov_ = 0.5 * (sigma + sigma.transpose());
   }
+  return absl::OkStatus();
 }
 
 }  // namespace subslam::frontend

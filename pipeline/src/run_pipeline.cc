@@ -20,6 +20,7 @@
 #include "subslam/eval/local_map_errors.h"
 #include "subslam/frontend/dead_reckoning.h"
 #include "subslam/frontend/ekf_local_mapper.h"
+#include "subslam/graph/check.h"
 #include "subslam/graph/enum_names.h"
 #include "subslam/io/output_directory.h"
 #include "subslam/io/run_output_writer.h"
@@ -204,7 +205,9 @@ void Drive(frontend::OnlineEstimator& estimator, SubmapSlam* chain, const io::Da
     estimator.Predict(step.control, step.dt);
     if (step.scan_index >= 0) {
       const Scan& scan = dataset.scans[step.scan_index];
-      estimator.Update(scan);
+      const absl::Status updated = estimator.Update(scan);
+      // The reader refuses malformed scans; a chain's failed join or export is taken below.
+      SUBSLAM_CHECK(updated.ok() || chain != nullptr) << updated;
       if (chain != nullptr) truth_votes->Add(chain->last_scan_map_id(), chain->last_scan_features(), scan);
     }
     // A failed join or export leaves the online pose without its anchor: stop before it.

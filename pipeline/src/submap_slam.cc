@@ -144,12 +144,18 @@ std::string SubmapSlam::Name() const {
   return backend_name_.empty() ? mapper_->Name() : absl::StrCat(mapper_->Name(), "+", backend_name_);
 }
 
-void SubmapSlam::Update(const Scan& scan) {
+absl::Status SubmapSlam::Update(const Scan& scan) {
+  if (absl::Status st = CheckScan(scan); !st.ok()) return st;
   // While a join runs, its thread has a core of its own.
   if (background_) mapper_->SetSpareCores(join_busy_.load(std::memory_order_relaxed) ? 1 : 0);
   last_scan_map_id_ = mapper_->current_map_id();
-  mapper_->Update(scan);
+  if (absl::Status st = mapper_->Update(scan); !st.ok()) return st;
   JoinClosed();
+  if (!mapper_->status().ok()) return mapper_->status();
+  // A failed join stops the joining thread before it raises the flag: status_ is then
+  // settled and safe to read here.
+  if (join_failed()) return status_;
+  return absl::OkStatus();
 }
 
 void SubmapSlam::JoinClosed() {

@@ -49,6 +49,8 @@ def test_bad_calls_raise():
         slam.update(np.ones((2, 2)), np.ones((2, 2)))
     with pytest.raises(ValueError, match="range"):
         slam.update([-1.0], [0.1])
+    with pytest.raises(ValueError, match="detection 1"):  # the estimator's own check (CheckScan)
+        slam.update([3.0, 0.0], [0.1, 0.2])
     with pytest.raises(TypeError):
         slam.predict([1.0, 2.0, 3.0], 0.1)
     with pytest.raises(ValueError, match="dt"):

@@ -30,7 +30,7 @@ RunOutput RunEstimator(OnlineEstimator* estimator, io::Dataset dataset) {
   RunOutput out;
   for (const io::Step& step : io::BuildSteps(dataset)) {
     estimator->Predict(step.control, step.dt);
-    if (step.scan_index >= 0) estimator->Update(dataset.scans[step.scan_index]);
+    if (step.scan_index >= 0) EXPECT_TRUE(estimator->Update(dataset.scans[step.scan_index]).ok());
     out.trajectory.push_back({step.t, estimator->pose(), estimator->pose_covariance()});
   }
   out.map = estimator->Map();
@@ -233,7 +233,7 @@ TEST(EkfSlam, BatchUpdateEqualsDenseTextbookUpdate) {
     }
     return scan;
   };
-  ekf.Update(scan_from(ekf.pose(), 0.0));  // four new landmarks, correlated through the pose
+  EXPECT_TRUE(ekf.Update(scan_from(ekf.pose(), 0.0)).ok());  // four new landmarks, correlated through the pose
   ASSERT_EQ(ekf.num_landmarks(), 4);
   for (int k = 0; k < 3; ++k) {
     ekf.Predict({1.0, 0.1}, 0.5);
@@ -261,7 +261,7 @@ TEST(EkfSlam, BatchUpdateEqualsDenseTextbookUpdate) {
     const Eigen::VectorXd x_expected = x + K * nu;
     const Eigen::MatrixXd P_expected = (Eigen::MatrixXd::Identity(n, n) - K * H) * P;
 
-    ekf.Update(scan);
+    EXPECT_TRUE(ekf.Update(scan).ok());
     ASSERT_EQ(ekf.num_landmarks(), 4) << "every detection must associate";
     EXPECT_TRUE(testing::MatricesNear(ekf.mean(), x_expected, 1e-6)) << "scan " << k;
     EXPECT_TRUE(testing::MatricesNear(ekf.covariance(), P_expected, 1e-6)) << "scan " << k;

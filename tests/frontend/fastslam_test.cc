@@ -27,7 +27,7 @@ Trajectory RunFilter(OnlineEstimator* estimator, const io::Dataset& d) {
   Trajectory out;
   for (const io::Step& step : io::BuildSteps(d)) {
     estimator->Predict(step.control, step.dt);
-    if (step.scan_index >= 0) estimator->Update(d.scans[step.scan_index]);
+    if (step.scan_index >= 0) EXPECT_TRUE(estimator->Update(d.scans[step.scan_index]).ok());
     out.push_back({step.t, estimator->pose(), estimator->pose_covariance()});
   }
   return out;
@@ -112,7 +112,7 @@ TEST(FastSlam, ThreadLimitChangesNothingButTheThreadsUsed) {
       const int limit = static_cast<int>(scans++ % 4);  // 0 (all), 1, 2, 3 (all)
       expected_limited += limit == 1 || limit == 2 ? 1 : 0;
       limited.set_thread_limit(limit);
-      limited.Update(d.scans[step.scan_index]);
+      EXPECT_TRUE(limited.Update(d.scans[step.scan_index]).ok());
     }
     tl.push_back({step.t, limited.pose(), limited.pose_covariance()});
   }
@@ -149,7 +149,7 @@ TEST_P(PoseMoments, EqualTheParticlesMoments) {
   }
   for (const io::Step& step : steps) {
     f.Predict(step.control, step.dt);
-    if (step.scan_index >= 0) f.Update(d.scans[step.scan_index]);
+    if (step.scan_index >= 0) EXPECT_TRUE(f.Update(d.scans[step.scan_index]).ok());
     const std::vector<ParticleHypothesis> h = f.Hypotheses();
     size_t heaviest = 0;
     for (size_t p = 1; p < h.size(); ++p) {
@@ -212,7 +212,7 @@ TEST(FastSlam, SharedAncestryWithoutResamplingIsTheSumOfSquaredWeights) {
   for (const io::Step& step : io::BuildSteps(d)) {
     f.Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
-    f.Update(d.scans[step.scan_index]);
+    EXPECT_TRUE(f.Update(d.scans[step.scan_index]).ok());
     ++scans;
     double sum_sq = 0.0;
     for (const ParticleHypothesis& p : f.Hypotheses()) sum_sq += p.weight * p.weight;
@@ -340,12 +340,12 @@ TEST(FastSlam, SignatureCueResolvesGeometricAmbiguity) {
     FastSlam f(std::make_unique<models::UnicycleModel>(models::ControlNoise{}), sensor, Pose2(), options);
     Scan first;
     first.detections = {detection(A, 0.2), detection(B, 0.5)};
-    f.Update(first);
+    EXPECT_TRUE(f.Update(first).ok());
     const int feature_a = f.last_scan_features()[0], feature_b = f.last_scan_features()[1];
     ASSERT_NE(feature_a, feature_b);
     Scan second;
     second.detections = {detection(A + Eigen::Vector2d(0.0, 0.4), 0.5)};
-    f.Update(second);
+    EXPECT_TRUE(f.Update(second).ok());
     EXPECT_EQ(f.last_scan_features()[0], sigma_signature > 0 ? feature_b : feature_a)
         << "sigma_signature " << sigma_signature;
   }

@@ -39,7 +39,7 @@ std::map<int, int> CheckFeaturesFollowTrueIds(Filter* filter, const io::Dataset&
     filter->Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
     const Scan& scan = d.scans[step.scan_index];
-    filter->Update(scan);
+    EXPECT_TRUE(filter->Update(scan).ok());
     const std::vector<int>& features = filter->last_scan_features();
     EXPECT_EQ(features.size(), scan.detections.size());
     for (size_t k = 0; k < features.size(); ++k) {
@@ -136,8 +136,8 @@ TEST(KnownAssociation, MissedDetectionsKeepEveryLandmarkInTheMap) {
     particles.Predict(step.control, step.dt);
     single.Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
-    particles.Update(d->scans[step.scan_index]);
-    single.Update(d->scans[step.scan_index]);
+    EXPECT_TRUE(particles.Update(d->scans[step.scan_index]).ok());
+    EXPECT_TRUE(single.Update(d->scans[step.scan_index]).ok());
   }
   EXPECT_EQ(particles.Map().size(), seen.size());
   EXPECT_EQ(single.Map().size(), seen.size());
@@ -164,10 +164,10 @@ TEST(KnownAssociation, UnknownAssociationNeverReadsTrueIds) {
       f->Predict(step.control, step.dt);
     }
     if (step.scan_index < 0) continue;
-    a.Update(d.scans[step.scan_index]);
-    b.Update(scrambled.scans[step.scan_index]);
-    c.Update(d.scans[step.scan_index]);
-    e.Update(scrambled.scans[step.scan_index]);
+    EXPECT_TRUE(a.Update(d.scans[step.scan_index]).ok());
+    EXPECT_TRUE(b.Update(scrambled.scans[step.scan_index]).ok());
+    EXPECT_TRUE(c.Update(d.scans[step.scan_index]).ok());
+    EXPECT_TRUE(e.Update(scrambled.scans[step.scan_index]).ok());
   }
   EXPECT_EQ(a.pose().vector(), b.pose().vector());
   EXPECT_EQ(c.pose().vector(), e.pose().vector());

@@ -42,7 +42,7 @@ class FixedGaussianMapper final : public LocalMapper {
 
  private:
   void FilterPredict(const Eigen::Vector2d&, double) override {}
-  void FilterUpdate(const Scan&) override {}
+  absl::Status FilterUpdate(const Scan&) override { return absl::OkStatus(); }
   void FilterReset() override {}
   SubmapStatus FilterStatus() const override { return {}; }
   Pose2 FilterPose() const override { return Pose2(); }
@@ -71,7 +71,7 @@ TEST(LocalMapper, DoesNotExportAFeatureWiderThanOneDetectionAtMaximumRange) {
     FixedGaussianMapper mapper(policy, sensor);
     Scan scan;
     scan.t = 0.5;
-    mapper.Update(scan);
+    EXPECT_TRUE(mapper.Update(scan).ok());
     mapper.Finish();
     const std::vector<ClosedLocalMap> closed = mapper.TakeClosed();
     ASSERT_EQ(closed.size(), 1u);
@@ -108,7 +108,7 @@ TEST(LocalMapper, RegularizesANearlyRigidMapItCloses) {
   mapper.set_gaussian(rigid);
   Scan scan;
   scan.t = 0.1;
-  mapper.Update(scan);
+  EXPECT_TRUE(mapper.Update(scan).ok());
   mapper.Finish();
   ASSERT_TRUE(mapper.status().ok()) << mapper.status();
   const std::vector<ClosedLocalMap> closed = mapper.TakeClosed();

@@ -200,7 +200,7 @@ TEST(MovingFeatureTest, TheLocalMapperDoesNotExportAMovingObject) {
         const Eigen::Vector2d z = model.Observe(truth, p);
         scan.detections.push_back({z[0] + sensor.sigma_range_m * n01(rng), z[1] + sensor.sigma_bearing_rad * n01(rng)});
       }
-      mapper.Update(scan);
+      EXPECT_TRUE(mapper.Update(scan).ok());
     }
     mapper.Finish();
     const std::vector<ClosedLocalMap> closed = mapper.TakeClosed();

@@ -82,7 +82,7 @@ CalibratedRun RunCameraRobot(const Eigen::Vector2d& scale, const OdometryCalibra
     }
     filter.Predict(steps[k].control, steps[k].dt);
     if (steps[k].scan_index < 0) continue;
-    filter.Update(d->scans[steps[k].scan_index]);
+    EXPECT_TRUE(filter.Update(d->scans[steps[k].scan_index]).ok());
     squared_error += (filter.pose().translation() - truth.at(steps[k].t).translation()).squaredNorm();
     ++scans;
   }

@@ -43,7 +43,7 @@ void Drive(SeifSlam* seif, const io::Dataset& d, const std::function<void(const 
   for (const io::Step& step : io::BuildSteps(d)) {
     seif->Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
-    seif->Update(d.scans[step.scan_index]);
+    EXPECT_TRUE(seif->Update(d.scans[step.scan_index]).ok());
     if (after_scan) after_scan(d.scans[step.scan_index]);
   }
 }
@@ -72,8 +72,8 @@ TEST(SeifSlam, EqualsEkfSlamWithoutSparsificationAndWithExactRecovery) {
     ekf.Predict(step.control, step.dt);
     seif.Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
-    ekf.Update(d.scans[step.scan_index]);
-    seif.Update(d.scans[step.scan_index]);
+    EXPECT_TRUE(ekf.Update(d.scans[step.scan_index]).ok());
+    EXPECT_TRUE(seif.Update(d.scans[step.scan_index]).ok());
     ++scans;
     ASSERT_EQ(seif.last_scan_features(), ekf.last_scan_features()) << "scan " << scans;
     ASSERT_EQ(seif.num_landmarks(), ekf.num_landmarks()) << "scan " << scans;
@@ -114,8 +114,8 @@ TEST(SeifSlam, JcbbEqualsEkfSlamToo) {
     ekf.Predict(step.control, step.dt);
     seif.Predict(step.control, step.dt);
     if (step.scan_index < 0) continue;
-    ekf.Update(d.scans[step.scan_index]);
-    seif.Update(d.scans[step.scan_index]);
+    EXPECT_TRUE(ekf.Update(d.scans[step.scan_index]).ok());
+    EXPECT_TRUE(seif.Update(d.scans[step.scan_index]).ok());
     ASSERT_EQ(seif.last_scan_features(), ekf.last_scan_features());
   }
   Eigen::VectorXd diff = seif.DenseMean() - ekf.mean();
@@ -135,7 +135,7 @@ SeifRun RunSeif(const io::Dataset& d, const SeifOptions& options,
   for (const io::Step& step : io::BuildSteps(d)) {
     seif.Predict(step.control, step.dt);
     if (step.scan_index >= 0) {
-      seif.Update(d.scans[step.scan_index]);
+      EXPECT_TRUE(seif.Update(d.scans[step.scan_index]).ok());
       if (after_scan) after_scan(seif);
     }
     run.poses.push_back(seif.pose());
@@ -321,7 +321,7 @@ TEST(Iseif, IteratedUpdateReachesTheStepsMapEstimate) {
       const Eigen::MatrixXd omega = seif.DenseInformation();
       const Eigen::VectorXd mu = seif.DenseMean();
       const long created = seif.counters().new_landmarks, deleted = seif.counters().deleted_landmarks;
-      seif.Update(d.scans[step.scan_index]);
+      EXPECT_TRUE(seif.Update(d.scans[step.scan_index]).ok());
       if (seif.counters().new_landmarks != created || seif.counters().deleted_landmarks != deleted) continue;
       worst = std::max(worst, RelativeMapGradient(omega, mu, seif.DenseMean(), live, d.scans[step.scan_index],
                                                   seif.last_scan_features(), sensor));

@@ -27,7 +27,7 @@ int main(int argc, char** argv) {
                                  subslam::frontend::EkfSlamOptions{});
   for (const subslam::io::Step& step : subslam::io::BuildSteps(*dataset)) {
     ekf.Predict(step.control, step.dt);
-    if (step.scan_index >= 0) ekf.Update(dataset->scans[step.scan_index]);
+    if (step.scan_index >= 0 && !ekf.Update(dataset->scans[step.scan_index]).ok()) return 1;
   }
   const std::vector<subslam::LandmarkEstimate> ekf_map = ekf.Map();
   const Eigen::Matrix3d ekf_covariance = ekf.pose_covariance();
@@ -62,7 +62,7 @@ int main(int argc, char** argv) {
   };
   for (const subslam::io::Step& step : subslam::io::BuildSteps(*dataset)) {
     mapper.Predict(step.control, step.dt);
-    if (step.scan_index >= 0) mapper.Update(dataset->scans[step.scan_index]);
+    if (step.scan_index >= 0 && !mapper.Update(dataset->scans[step.scan_index]).ok()) return 1;
     if (!join_closed()) return 1;
   }
   mapper.Finish();

@@ -10,6 +10,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "absl/strings/match.h"
 #include "simulated_dataset.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/frontend/ekf_local_mapper.h"
@@ -261,7 +262,13 @@ std::unique_ptr<SubmapSlam> DriveWithFailingJoiner(const io::Dataset& d, bool fa
                                            std::make_unique<FailingJoiner>(d.initial_pose, fail_at_finish), background);
   for (const io::Step& step : io::BuildSteps(d)) {
     slam->Predict(step.control, step.dt);
-    if (step.scan_index >= 0) slam->Update(d.scans[step.scan_index]);
+    if (step.scan_index >= 0) {
+      // Update reports the failed join once it is known (at once when joining in it).
+      const absl::Status updated = slam->Update(d.scans[step.scan_index]);
+      if (!updated.ok()) EXPECT_TRUE(slam->join_failed()) << updated;
+      if (!background) EXPECT_EQ(updated.ok(), !slam->join_failed());
+      if (!updated.ok()) EXPECT_TRUE(absl::StrContains(updated.message(), "local map")) << updated;
+    }
     slam->RecordStep(step.t);
     on_step(*slam);
   }

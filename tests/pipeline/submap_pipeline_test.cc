@@ -175,10 +175,10 @@ TEST(SubmapSlam, BackgroundOnlinePoseIsTheLastJoinedAnchorThroughTheClosedMapsEn
     const Scan& scan = d.scans[step.scan_index];
     const Pose2 last_joined = slam->joiner()->LastAnchor();  // waits for the pending join
     const size_t maps = slam->local_maps().size();
-    slam->Update(scan);
+    EXPECT_TRUE(slam->Update(scan).ok());
     if (abandoned) {
       const size_t abandoned_maps = abandoned->local_maps().size();
-      abandoned->Update(scan);
+      EXPECT_TRUE(abandoned->Update(scan).ok());
       if (abandoned->local_maps().size() > abandoned_maps && abandoned_maps >= 2) abandoned.reset();  // mid-join
     }
     if (slam->local_maps().size() == maps) continue;

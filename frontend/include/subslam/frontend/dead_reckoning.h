@@ -16,7 +16,7 @@ class DeadReckoning final : public OnlineEstimator {
 
   std::string Name() const override { return "odometry"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;
-  void Update(const Scan&) override {}
+  absl::Status Update(const Scan& scan) override { return CheckScan(scan); }  // the scan is not used
   Pose2 pose() const override { return pose_; }
   Eigen::Matrix3d pose_covariance() const override { return covariance_; }
   std::vector<LandmarkEstimate> Map() const override { return {}; }

@@ -25,7 +25,7 @@ class EkfLocalMapper final : public LocalMapper {
 
  private:
   void FilterPredict(const Eigen::Vector2d& u, double dt) override { filter_.Predict(u, dt); }
-  void FilterUpdate(const Scan& scan) override { filter_.Update(scan); }
+  absl::Status FilterUpdate(const Scan& scan) override { return filter_.Update(scan); }
   void FilterReset() override { filter_.Reset(Pose2()); }
   SubmapStatus FilterStatus() const override;
   Pose2 FilterPose() const override { return filter_.pose(); }

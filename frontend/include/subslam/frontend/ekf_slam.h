@@ -89,7 +89,7 @@ class EkfSlam final : public OnlineEstimator {
 
   std::string Name() const override { return "ekfslam"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;
-  void Update(const Scan& scan) override;
+  absl::Status Update(const Scan& scan) override;
   Pose2 pose() const override;
   Eigen::Matrix3d pose_covariance() const override;
   std::vector<LandmarkEstimate> Map() const override;

@@ -183,7 +183,7 @@ class FastSlam final : public OnlineEstimator {
 
   std::string Name() const override { return "fastslam"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;
-  void Update(const Scan& scan) override;
+  absl::Status Update(const Scan& scan) override;
   // Moment-matched pose and covariance (Eqs. 6-7 over the pose block).
   Pose2 pose() const override;
   Eigen::Matrix3d pose_covariance() const override;

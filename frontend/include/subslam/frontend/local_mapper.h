@@ -39,8 +39,9 @@ class LocalMapper {
   virtual std::string Name() const = 0;
 
   void Predict(const Eigen::Vector2d& u, double dt);
-  // Processes a scan taken at scan.t, then asks the policy whether to close the map.
-  void Update(const Scan& scan);
+  // Processes a scan taken at scan.t, then asks the policy whether to close the map. A
+  // malformed scan (CheckScan) is not used: its error is returned, and nothing changes.
+  absl::Status Update(const Scan& scan);
   // Closes the open local map (reason kEndOfRun) if it has processed any scan.
   void Finish();
   // Local maps closed since the last call, in order.
@@ -66,7 +67,7 @@ class LocalMapper {
   LocalMapper(const SubmapPolicyOptions& policy, const models::RangeBearingConfig& sensor, double t_start);
 
   virtual void FilterPredict(const Eigen::Vector2d& u, double dt) = 0;
-  virtual void FilterUpdate(const Scan& scan) = 0;
+  virtual absl::Status FilterUpdate(const Scan& scan) = 0;
   virtual void FilterReset() = 0;                 // new map: identity pose, no uncertainty, no landmarks
   virtual SubmapStatus FilterStatus() const = 0;  // elapsed_s and delayed_for_s filled by the caller
   virtual Pose2 FilterPose() const = 0;
@@ -115,7 +116,7 @@ class RbpfLocalMapper final : public LocalMapper {
 
  private:
   void FilterPredict(const Eigen::Vector2d& u, double dt) override { filter_.Predict(u, dt); }
-  void FilterUpdate(const Scan& scan) override { filter_.Update(scan); }
+  absl::Status FilterUpdate(const Scan& scan) override { return filter_.Update(scan); }
   void FilterReset() override { filter_.Reset(Pose2()); }
   SubmapStatus FilterStatus() const override;
   Pose2 FilterPose() const override { return filter_.pose(); }

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/status/status.h"
 #include "subslam/graph/estimates.h"
 #include "subslam/graph/stage_timer.h"
 #include "subslam/models/scan.h"
@@ -23,8 +24,11 @@ class OnlineEstimator {
   virtual std::string Name() const = 0;
   // Predicts over dt ≥ 0 seconds with control u held constant.
   virtual void Predict(const Eigen::Vector2d& u, double dt) = 0;
-  // Incorporates one scan of detections taken at the current time.
-  virtual void Update(const Scan& scan) = 0;
+  // Incorporates one scan of detections taken at the current time. An error says what
+  // went wrong: a malformed scan (CheckScan; it is not used, the estimate is unchanged),
+  // or, for the submap pipeline, a local map that could not be exported or joined (the
+  // run cannot go on; every later Update returns the same error).
+  virtual absl::Status Update(const Scan& scan) = 0;
   // Current vehicle pose and its marginal covariance.
   virtual Pose2 pose() const = 0;
   virtual Eigen::Matrix3d pose_covariance() const = 0;

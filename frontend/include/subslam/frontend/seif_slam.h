@@ -149,7 +149,7 @@ class SeifSlam final : public OnlineEstimator {
   std::string Name() const override { return options_.iterated.enabled ? "iseif" : "seif"; }
   void Predict(const Eigen::Vector2d& u, double dt) override;
   // Known association reads detections' truth_id; without it truth ids are never read.
-  void Update(const Scan& scan) override;
+  absl::Status Update(const Scan& scan) override;
   Pose2 pose() const override;
   // Exact or Markov-blanket marginal (options.pose_covariance).
   Eigen::Matrix3d pose_covariance() const override;

@@ -8,6 +8,8 @@
 #include <limits>
 #include <vector>
 
+#include "absl/status/status.h"
+
 namespace subslam {
 
 inline constexpr int kFalseAlarmId = -1;    // truth id of a false alarm
@@ -28,6 +30,13 @@ struct Scan {
   double t = 0.0;
   std::vector<Detection> detections;
 };
+
+// OK, or InvalidArgument naming the scan's time and the first detection whose range is not
+// finite and positive or whose bearing is not finite. The data-set reader refuses such
+// lines in a file (with file, line and field); the estimators check a caller's scans here
+// and leave a bad one unused. A finite range outside the sensor's limits is no error: the
+// estimators leave that detection out.
+absl::Status CheckScan(const Scan& scan);
 
 }  // namespace subslam
 

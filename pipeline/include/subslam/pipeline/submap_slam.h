@@ -123,7 +123,7 @@ class SubmapSlam final : public frontend::OnlineEstimator {
 
   std::string Name() const override;
   void Predict(const Eigen::Vector2d& u, double dt) override { mapper_->Predict(u, dt); }
-  void Update(const Scan& scan) override;
+  absl::Status Update(const Scan& scan) override;
   Pose2 pose() const override;
   Eigen::Matrix3d pose_covariance() const override;
   std::vector<LandmarkEstimate> Map() const override;
