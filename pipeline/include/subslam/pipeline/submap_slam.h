@@ -39,6 +39,12 @@
 // After Finish(), FinalTrajectory() re-expresses every recorded step with the final
 // anchors, and Map() is the global map (kNone: every local map's features through its
 // anchor, id = map · 10⁶ + feature, duplicates included).
+//
+// Threads: call every method from one thread (the one that calls Update). The background
+// join thread is the object's own: pose() and pose_covariance() never wait for it (they
+// read the anchor cached when the last join was handed over), join_failed() may be read
+// from any thread, and the joiner-backed accessors wait for the join in progress. A
+// caller that reads the pose on another thread while Update runs must lock around both.
 #ifndef SUBSLAM_PIPELINE_SUBMAP_SLAM_H_
 #define SUBSLAM_PIPELINE_SUBMAP_SLAM_H_
 
