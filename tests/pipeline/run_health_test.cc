@@ -92,19 +92,11 @@ TEST(RunHealth, InnovationTestPassesAConsistentFilterAndFlagsADivergingOne) {
 // flagged as diverged; the same robot with true odometry is not.
 TEST(RunHealth, LocalMapsAgainstTheMapFlagAnUncalibratedOdometryScale) {
   const auto run = [](double odometry_scale) {
-    sim::ScenarioOptions o;
-    o.seed = 2;
-    o.moving_objects = 0;
-    o.duration_s = 300.0;
-    absl::StatusOr<sim::ScenarioConfig> config = sim::MakeScenario("camera-robot", o);
-    EXPECT_TRUE(config.ok()) << config.status();
-    config->odometry_scale = Eigen::Vector2d::Constant(odometry_scale);
-    absl::StatusOr<io::Dataset> d = sim::Simulate(*config, o.seed);
-    EXPECT_TRUE(d.ok()) << d.status();
+    const io::Dataset d = SimulateCameraRobot(2, /*moving_objects=*/0, odometry_scale);
     RunOptions options;
     options.frontend = Frontend::kRbpf;
     options.backend.kind = Backend::kEif;
-    absl::StatusOr<RunResult> r = RunPipeline(*d, options);
+    absl::StatusOr<RunResult> r = RunPipeline(d, options);
     EXPECT_TRUE(r.ok()) << r.status();
     return *std::move(r);
   };
@@ -137,19 +129,13 @@ TEST(RunHealth, TheMapIsConfirmedAgainstItsOwnScans) {
   EXPECT_GT(g["detection_probability_by_range"][0]["probability"].get<double>(), 0.9);
   EXPECT_NE(SummaryTable(*good).find("map confirmed by the scans"), std::string::npos);
 
-  sim::ScenarioOptions o;
-  o.seed = 2;
-  o.duration_s = 300.0;
-  absl::StatusOr<sim::ScenarioConfig> config = sim::MakeScenario("camera-robot", o);
-  ASSERT_TRUE(config.ok()) << config.status();
-  absl::StatusOr<io::Dataset> movers = sim::Simulate(*config, o.seed);
-  ASSERT_TRUE(movers.ok()) << movers.status();
-  absl::StatusOr<RunResult> kept = RunPipeline(*movers, options);
+  const io::Dataset movers = SimulateCameraRobot(2);
+  absl::StatusOr<RunResult> kept = RunPipeline(movers, options);
   ASSERT_TRUE(kept.ok()) << kept.status();
   const backend::LandmarkPersistence& c = *kept->map_confirmation;
   ASSERT_LT(c.num_confirmed, static_cast<int>(kept->landmarks.size()));
   options.map_confirmation.drop_unconfirmed = true;
-  absl::StatusOr<RunResult> dropped = RunPipeline(*movers, options);
+  absl::StatusOr<RunResult> dropped = RunPipeline(movers, options);
   ASSERT_TRUE(dropped.ok()) << dropped.status();
   EXPECT_EQ(dropped->landmarks.size(), static_cast<size_t>(c.num_confirmed));
   EXPECT_EQ(dropped->unconfirmed_dropped, static_cast<int>(kept->landmarks.size()) - c.num_confirmed);

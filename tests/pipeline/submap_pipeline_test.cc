@@ -478,28 +478,18 @@ TEST(SubmapPipeline, Combined2kmKnownAssociationClosesTheLoop) {
       << chained->errors->final_position_error_m << " m";
 }
 
-// Back-end names round-trip; a bad name, a bad option or a join without a back-end or
-// without local maps is an error, not a crash.
 // In a room revisited all the time (the camera robot, true ids), the running tree's
 // online pose chained over its nodes drifts between their joins; taken from the folded
 // whole map it is the sequential EIF's (within 5 %), and well below the chain's.
 TEST(SubmapPipeline, TheTreesOnlinePoseFromTheFoldedMapIsTheSequentialJoinersInARoom) {
-  sim::ScenarioOptions o;
-  o.seed = 1;
-  o.moving_objects = 0;
-  o.duration_s = 300.0;
-  absl::StatusOr<sim::ScenarioConfig> config = sim::MakeScenario("camera-robot", o);
-  ASSERT_TRUE(config.ok()) << config.status();
-  config->odometry_scale = Eigen::Vector2d::Ones();
-  absl::StatusOr<io::Dataset> d = sim::Simulate(*config, o.seed);
-  ASSERT_TRUE(d.ok()) << d.status();
+  const io::Dataset d = SimulateCameraRobot(1, /*moving_objects=*/0, /*odometry_scale=*/1.0);
   const auto online_rms = [&](Backend kind, bool fold) {
     RunOptions options;
     options.frontend = Frontend::kRbpf;
     options.ekf.landmarks.known_association = options.fastslam.landmarks.known_association = true;
     options.backend.kind = kind;
     options.backend.tree.online_anchor_from_whole_map = fold;
-    absl::StatusOr<RunResult> r = RunPipeline(*d, options);
+    absl::StatusOr<RunResult> r = RunPipeline(d, options);
     EXPECT_TRUE(r.ok()) << r.status();
     return r->errors_online->rms_position_m;
   };
@@ -510,6 +500,8 @@ TEST(SubmapPipeline, TheTreesOnlinePoseFromTheFoldedMapIsTheSequentialJoinersInA
   EXPECT_LT(folded, 0.5 * chained) << "chained " << chained;
 }
 
+// Back-end names round-trip; a bad name, a bad option or a join without a back-end or
+// without local maps is an error, not a crash.
 TEST(BackendOptions, RejectsBadInput) {
   for (Backend b : {Backend::kNone, Backend::kEif, Backend::kCeres, Backend::kEkf, Backend::kTreeEkf, Backend::kTreeEif,
                     Backend::kTreeCeres}) {
