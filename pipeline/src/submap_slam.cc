@@ -145,11 +145,12 @@ std::string SubmapSlam::Name() const {
 }
 
 absl::Status SubmapSlam::Update(const Scan& scan) {
-  if (absl::Status st = CheckScan(scan); !st.ok()) return st;
   // While a join runs, its thread has a core of its own.
   if (background_) mapper_->SetSpareCores(join_busy_.load(std::memory_order_relaxed) ? 1 : 0);
-  last_scan_map_id_ = mapper_->current_map_id();
+  const int map_id = mapper_->current_map_id();  // the map the scan goes into
+  // The mapper refuses a malformed scan (CheckScan) before it changes anything.
   if (absl::Status st = mapper_->Update(scan); !st.ok()) return st;
+  last_scan_map_id_ = map_id;
   JoinClosed();
   if (!mapper_->status().ok()) return mapper_->status();
   // A failed join stops the joining thread before it raises the flag: status_ is then
