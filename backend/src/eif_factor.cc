@@ -9,7 +9,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "eif_solver.h"
+#include "eif_joiner_impl.h"
 #include "state_blocks.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
@@ -23,7 +23,7 @@ namespace {
 double Square(double v) { return v * v; }
 }  // namespace
 
-EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
+EifJoiner::Impl::Factor EifJoiner::Impl::MakeFactor(int index) const {
   const SubmapFactor& record = graph_.factors()[index];
   Factor f;
   f.index = index;
@@ -40,7 +40,7 @@ EifJoiner::Factor EifJoiner::MakeFactor(int index) const {
   return f;
 }
 
-void EifJoiner::SetLayout(Factor* f) const {
+void EifJoiner::Impl::SetLayout(Factor* f) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   f->offsets.clear();
   f->sizes.clear();
@@ -56,7 +56,7 @@ void EifJoiner::SetLayout(Factor* f) const {
   }
 }
 
-void EifJoiner::RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const {
+void EifJoiner::Impl::RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   f->start_theta = start.theta;
   f->end_theta = end.theta;
@@ -68,7 +68,7 @@ void EifJoiner::RecordLinearizationPoint(Factor* f, const Pose2& start, const Po
   }
 }
 
-void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
+void EifJoiner::Impl::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
   if (whitened_jacobian == nullptr) {
     LinearizeStructured(f);
     return;
@@ -122,7 +122,7 @@ void EifJoiner::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
 //   b_a = J_aᵀ w,  b_i = R_iᵀ w_i,
 // O(n² · 6) in fixed-size blocks instead of the O(m³) triangular solve and product
 // (m = 3 + 2n). A fixed start anchor (P0) has no columns: its J_s and J_frame are zero.
-void EifJoiner::LinearizeStructured(Factor* f) const {
+void EifJoiner::Impl::LinearizeStructured(Factor* f) const {
   const SubmapFactor& record = graph_.factors()[f->index];
   const LocalSubmap& s = record.submap;
   const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
@@ -225,7 +225,7 @@ void EifJoiner::LinearizeStructured(Factor* f) const {
   }
 }
 
-void EifJoiner::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
+void EifJoiner::Impl::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
   Eigen::VectorXd local(f.H.rows());
   int row = 0;
   for (size_t a = 0; a < f.offsets.size(); ++a) {
@@ -240,13 +240,13 @@ void EifJoiner::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, E
   }
 }
 
-double EifJoiner::InformationNorm(const Eigen::VectorXd& x) const {
+double EifJoiner::Impl::InformationNorm(const Eigen::VectorXd& x) const {
   Eigen::VectorXd Lambda_x = Eigen::VectorXd::Zero(x.size());
   for (const Factor& f : factors_) AddInformationTimes(f, x, &Lambda_x);
   return x.dot(Lambda_x);
 }
 
-void EifJoiner::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
+void EifJoiner::Impl::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
   int row = 0;
   for (size_t a = 0; a < f.offsets.size(); ++a) {
     eta->segment(f.offsets[a], f.sizes[a]) += f.b.segment(row, f.sizes[a]);
@@ -254,7 +254,7 @@ void EifJoiner::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
   }
 }
 
-std::vector<int> EifJoiner::FactorOffsets() const {
+std::vector<int> EifJoiner::Impl::FactorOffsets() const {
   std::vector<int> offsets;
   for (const Factor& f : factors_) {
     offsets.push_back(static_cast<int>(f.offsets.size()));
@@ -263,19 +263,19 @@ std::vector<int> EifJoiner::FactorOffsets() const {
   return offsets;
 }
 
-Pose2 EifJoiner::AnchorPose(int k) const {
+Pose2 EifJoiner::Impl::AnchorPose(int k) const {
   const Pose2& p = graph_.anchors()[k];
   return Pose2(p.x, p.y, anchor_theta_[k]);
 }
 
-std::vector<Eigen::Vector2d> EifJoiner::FactorLandmarks(const SubmapFactor& record) const {
+std::vector<Eigen::Vector2d> EifJoiner::Impl::FactorLandmarks(const SubmapFactor& record) const {
   std::vector<Eigen::Vector2d> landmarks;
   landmarks.reserve(record.landmark_of_feature.size());
   for (int j : record.landmark_of_feature) landmarks.push_back(graph_.landmarks()[j]);
   return landmarks;
 }
 
-double EifJoiner::NormalizedResidual(const Factor& f) const {
+double EifJoiner::Impl::NormalizedResidual(const Factor& f) const {
   const SubmapFactor& record = graph_.factors()[f.index];
   Eigen::VectorXd r = SubmapResidual(record.submap, AnchorPose(record.start_anchor), AnchorPose(record.end_anchor),
                                      FactorLandmarks(record));
@@ -283,13 +283,13 @@ double EifJoiner::NormalizedResidual(const Factor& f) const {
   return r.squaredNorm();
 }
 
-double EifJoiner::Cost() const {
+double EifJoiner::Impl::Cost() const {
   double cost = 0.0;
   for (const Factor& f : factors_) cost += NormalizedResidual(f);
   return cost;
 }
 
-void EifJoiner::SwapLinearization(Factor* f, Linearization* l) {
+void EifJoiner::Impl::SwapLinearization(Factor* f, Linearization* l) {
   f->H.swap(l->H);
   f->b.swap(l->b);
   std::swap(f->start_theta, l->start_theta);
@@ -298,7 +298,7 @@ void EifJoiner::SwapLinearization(Factor* f, Linearization* l) {
   std::swap(f->cost, l->cost);
 }
 
-void EifJoiner::UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const {
+void EifJoiner::Impl::UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const {
   // The factor is nonlinear only through the start heading θ: each position row is
   // Rᵀ(θ) v, v the lever from the start anchor to the end anchor or a landmark. Its linear
   // model at (θ₀, v₀) is Rᵀ(θ₀) v + Ṙᵀ(θ₀) v₀ (θ − θ₀), so the error is
@@ -323,20 +323,20 @@ void EifJoiner::UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e
   }
 }
 
-double EifJoiner::LinearizationError(const Factor& f) const {
+double EifJoiner::Impl::LinearizationError(const Factor& f) const {
   Eigen::VectorXd e;
   UnwhitenedLinearizationError(f, &e);
   f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);
   return e.squaredNorm();
 }
 
-double EifJoiner::MaxLinearizationError() const {
+double EifJoiner::Impl::MaxLinearizationError() const {
   double worst = 0.0;
   for (const Factor& f : factors_) worst = std::max(worst, LinearizationError(f));
   return worst;
 }
 
-bool EifJoiner::LinearizationErrorAbove(double chi2) const {
+bool EifJoiner::Impl::LinearizationErrorAbove(double chi2) const {
   // After a partial recovery only the factors on moved variables can have changed.
   std::vector<int> candidates;
   if (!changed_all_) {
@@ -383,7 +383,7 @@ bool EifJoiner::LinearizationErrorAbove(double chi2) const {
   return false;
 }
 
-double EifJoiner::MaxHeadingDrift() const {
+double EifJoiner::Impl::MaxHeadingDrift() const {
   double drift = 0.0;
   for (const Factor& f : factors_) {
     const SubmapFactor& record = graph_.factors()[f.index];

@@ -8,7 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "eif_solver.h"
+#include "eif_joiner_impl.h"
 #include "state_blocks.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
@@ -19,7 +19,7 @@
 
 namespace subslam::backend {
 
-bool EifJoiner::PredictedStepConverged(const Eigen::VectorXd& x) {
+bool EifJoiner::Impl::PredictedStepConverged(const Eigen::VectorXd& x) {
   // The factors are linearised at x: Σ_f (H_f x_f − b_f) = Σ_f J_fᵀ Q_f⁻¹ r_f(x) is the
   // gradient g of Cost()/2 at x, and the Gauss-Newton step is −Λ(x)⁻¹ g. The factor at
   // hand is of Λ at the previous linearisation point, a step away, whose headings differ
@@ -33,7 +33,7 @@ bool EifJoiner::PredictedStepConverged(const Eigen::VectorXd& x) {
   Eigen::VectorXd step;
   {
     StageTimer timer(&times_, "recovery");
-    step = -solver_->factor.Solve(g);
+    step = -solver_.factor.Solve(g);
   }
   if (!step.allFinite()) return false;
   // With each step at most half the last (linear convergence), the steps still to come sum
@@ -44,7 +44,7 @@ bool EifJoiner::PredictedStepConverged(const Eigen::VectorXd& x) {
   return options_.relinearize_step_chi2 > 0.0 && -g.dot(step) < 0.25 * options_.relinearize_step_chi2;
 }
 
-absl::Status EifJoiner::Relinearize() {
+absl::Status EifJoiner::Impl::Relinearize() {
   if (absl::Status st = GaussNewton(); !st.ok()) return st;
   // Every factor moved, so the landmarks' marginal bounds were forgotten: today's exact
   // marginals, all at once from the sparse inverse, bound every later one until the next
@@ -57,7 +57,7 @@ absl::Status EifJoiner::Relinearize() {
   return absl::OkStatus();
 }
 
-absl::Status EifJoiner::GaussNewton() {
+absl::Status EifJoiner::Impl::GaussNewton() {
   // Gauss-Newton need not lower the cost at every iteration (a first step often raises
   // it a little on the way to a lower minimum), but `divergence_rises` rises in a row
   // mean divergence (seen with wrong associations): then the best iterate is restored —
@@ -145,7 +145,7 @@ absl::Status EifJoiner::GaussNewton() {
   return absl::OkStatus();
 }
 
-absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) {
+absl::Status EifJoiner::Impl::AdoptEstimate(const SubmapGraph& solved) {
   if (solved.num_anchors() != graph_.num_anchors() || solved.num_landmarks() != graph_.num_landmarks()) {
     return absl::InvalidArgumentError("AdoptEstimate: not the joiner's graph");
   }

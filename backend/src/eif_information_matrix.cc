@@ -8,7 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "eif_solver.h"
+#include "eif_joiner_impl.h"
 #include "state_blocks.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
@@ -86,7 +86,7 @@ BlockNeighbours BlockNeighboursOf(const Factors& factors, int dim) {
 }  // namespace
 
 template <typename Visit>
-void EifJoiner::ForEachEntry(const Factor& f, Visit visit) {
+void EifJoiner::Impl::ForEachEntry(const Factor& f, Visit visit) {
   int row = 0;
   for (size_t a = 0; a < f.offsets.size(); ++a) {
     int col = 0;
@@ -100,7 +100,7 @@ void EifJoiner::ForEachEntry(const Factor& f, Visit visit) {
   }
 }
 
-const Eigen::SparseMatrix<double>& EifJoiner::information() const {
+const Eigen::SparseMatrix<double>& EifJoiner::Impl::information() const {
   const SparseLowerTriangle& lower = LowerInformation();
   if (lambda_full_valid_ && Lambda_.rows() == dim_) return Lambda_;
   // Both triangles from the lower one.
@@ -111,8 +111,8 @@ const Eigen::SparseMatrix<double>& EifJoiner::information() const {
   return Lambda_;
 }
 
-void EifJoiner::FillLambdaValues(size_t first_factor, std::vector<double>* values) const {
-  values->assign(solver_->lambda_lower.i.size(), 0.0);
+void EifJoiner::Impl::FillLambdaValues(size_t first_factor, std::vector<double>* values) const {
+  values->assign(solver_.lambda_lower.i.size(), 0.0);
   double* x = values->data();
   size_t entries = 0;
   for (size_t k = 0; k < first_factor; ++k) entries += static_cast<size_t>(factors_[k].H.size());
@@ -125,50 +125,50 @@ void EifJoiner::FillLambdaValues(size_t first_factor, std::vector<double>* value
   }
 }
 
-const SparseLowerTriangle& EifJoiner::LowerInformation() const {
-  if (lambda_factors_ == factors_.size() && solver_->lambda_lower.n == dim_) return solver_->lambda_lower;
+const SparseLowerTriangle& EifJoiner::Impl::LowerInformation() const {
+  if (lambda_factors_ == factors_.size() && solver_.lambda_lower.n == dim_) return solver_.lambda_lower;
   lambda_full_valid_ = false;
-  if (lambda_factors_ == 0 && solver_->lambda_lower.n == dim_ && !lambda_slots_.empty() &&
+  if (lambda_factors_ == 0 && solver_.lambda_lower.n == dim_ && !lambda_slots_.empty() &&
       FactorOffsets() == lambda_slot_offsets_) {
     // The same factors over the same variables (relinearised): refill Λ's values.
-    FillLambdaValues(0, &solver_->lambda_lower.x);
+    FillLambdaValues(0, &solver_.lambda_lower.x);
     lambda_factors_ = factors_.size();
-    return solver_->lambda_lower;
+    return solver_.lambda_lower;
   }
-  if (lambda_factors_ > 0 && solver_->lambda_lower.n <= dim_) {
+  if (lambda_factors_ > 0 && solver_.lambda_lower.n <= dim_) {
     // Joins since the last assembly, the older factors unchanged: the new pattern, the
     // old sums carried over and the new factors' sum added to them (Λ_old + ΔΛ, as
     // assembling ΔΛ on its own and adding it would).
-    const SparseLowerTriangle old = std::move(solver_->lambda_lower);
+    const SparseLowerTriangle old = std::move(solver_.lambda_lower);
     BuildLambdaPattern();
     std::vector<double> added;
     FillLambdaValues(lambda_factors_, &added);
-    std::vector<double>& x = solver_->lambda_lower.x;
-    x.assign(solver_->lambda_lower.i.size(), 0.0);
+    std::vector<double>& x = solver_.lambda_lower.x;
+    x.assign(solver_.lambda_lower.i.size(), 0.0);
     for (int c = 0; c < old.n; ++c) {  // the old pattern lies within the new one, columns sorted
-      int k = solver_->lambda_lower.p[c];
+      int k = solver_.lambda_lower.p[c];
       for (int q = old.p[c]; q < old.p[c + 1]; ++q) {
-        while (k < solver_->lambda_lower.p[c + 1] && solver_->lambda_lower.i[k] != old.i[q]) ++k;
-        SUBSLAM_CHECK(k < solver_->lambda_lower.p[c + 1]) << "Λ's old pattern is not within the new one, column " << c;
+        while (k < solver_.lambda_lower.p[c + 1] && solver_.lambda_lower.i[k] != old.i[q]) ++k;
+        SUBSLAM_CHECK(k < solver_.lambda_lower.p[c + 1]) << "Λ's old pattern is not within the new one, column " << c;
         x[k] = old.x[q];
       }
     }
     for (size_t k = 0; k < x.size(); ++k) x[k] += added[k];
     lambda_factors_ = factors_.size();
-    return solver_->lambda_lower;
+    return solver_.lambda_lower;
   }
   // Relinearised factors over a new pattern: Λ's structure is built from the factors'
   // variable blocks, and each H entry's place in Λ's values is recorded for the refill
   // above and the next ones.
   BuildLambdaPattern();
-  FillLambdaValues(0, &solver_->lambda_lower.x);
+  FillLambdaValues(0, &solver_.lambda_lower.x);
   lambda_factors_ = factors_.size();
-  return solver_->lambda_lower;
+  return solver_.lambda_lower;
 }
 
-void EifJoiner::BuildLambdaPattern() const {
+void EifJoiner::Impl::BuildLambdaPattern() const {
   const BlockNeighbours nb = BlockNeighboursOf(factors_, dim_);
-  SparseLowerTriangle& lower = solver_->lambda_lower;
+  SparseLowerTriangle& lower = solver_.lambda_lower;
   lower.n = dim_;
   lower.p.assign(dim_ + 1, 0);
   for (int o = 0; o < dim_; ++o) {
@@ -246,13 +246,13 @@ void EifJoiner::BuildLambdaPattern() const {
   lambda_slot_offsets_ = FactorOffsets();
 }
 
-long EifJoiner::factor_nonzeros() const { return solver_->factor.nonzeros(); }
+long EifJoiner::Impl::factor_nonzeros() const { return solver_.factor.nonzeros(); }
 
-FillReducingOrdering EifJoiner::factor_ordering() const { return solver_->factor.ordering(); }
+FillReducingOrdering EifJoiner::Impl::factor_ordering() const { return solver_.factor.ordering(); }
 
-absl::Status EifJoiner::FullFactorization() {
+absl::Status EifJoiner::Impl::FullFactorization() {
   StageTimer full(&times_, "full_factorization");
-  SparseCholesky& L = solver_->factor;
+  SparseCholesky& L = solver_.factor;
   const long reuses = L.symbolic_reuses();
   if (absl::Status st = FactorizeLambda(); !st.ok()) return absl::InternalError(absl::StrCat("EIF: ", st.message()));
   ++counters_.full_factorizations;
@@ -261,19 +261,19 @@ absl::Status EifJoiner::FullFactorization() {
   return absl::OkStatus();
 }
 
-absl::Status EifJoiner::FactorizeLambda() {
+absl::Status EifJoiner::Impl::FactorizeLambda() {
   if (!options_.incremental_factorization) {
     // No rank updates will follow: neither spare slots nor a constrained ordering.
-    return solver_->factor.Factorize(LowerInformation(), /*spare=*/0, options_.ordering);
+    return solver_.factor.Factorize(LowerInformation(), /*spare=*/0, options_.ordering);
   }
   // Spare slots for the next joins' new variables (about 15 % of the state).
   // The last anchor, where the next join starts, is ordered last: the next joins' updates
   // then walk short paths (a chain's last anchor elsewhere in the order would fill a
   // column per variable on its path with every update).
-  return solver_->factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering, LastAnchorVariables());
+  return solver_.factor.Factorize(LowerInformation(), 64 + dim_ / 6, options_.ordering, LastAnchorVariables());
 }
 
-absl::Status EifJoiner::RecoverAcrossNewestFactor(Eigen::Index old_dim) {
+absl::Status EifJoiner::Impl::RecoverAcrossNewestFactor(Eigen::Index old_dim) {
   // Carry the estimate over the new factor: Λ'Δx = η' − Λ'x with x the estimate before
   // (the new variables at 0, their spare slots' solution), non-zero on its rows only.
   StageTimer timer(&times_, "recovery");
@@ -289,7 +289,7 @@ absl::Status EifJoiner::RecoverAcrossNewestFactor(Eigen::Index old_dim) {
   const Eigen::VectorXd r = f.b - f.H * x_local;
   std::vector<int> moved;
   std::vector<double> change;
-  solver_->factor.SolveChange(rows, r, options_.recovery_change_threshold, &x, &moved, &change);
+  solver_.factor.SolveChange(rows, r, options_.recovery_change_threshold, &x, &moved, &change);
   if (!x.allFinite()) return absl::InternalError("EIF: state recovery produced a non-finite value");
   SetStateRows(x, moved);
   estimate_exact_ = false;
@@ -307,7 +307,7 @@ absl::Status EifJoiner::RecoverAcrossNewestFactor(Eigen::Index old_dim) {
   return absl::OkStatus();
 }
 
-absl::Status EifJoiner::Rebuild(bool only_last_factor) {
+absl::Status EifJoiner::Impl::Rebuild(bool only_last_factor) {
   converged_ = false;
   const Eigen::Index old_dim = eta_.size();
   {
@@ -340,22 +340,21 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   bool incremental = false;
   {
     StageTimer timer(&times_, "factorization");
-    SparseCholesky& L = solver_->factor;
+    SparseCholesky& L = solver_.factor;
     // The newest factor as a rank update of the existing factor, while there are spare
     // slots and the fill has not doubled since the last ordering.
-    if (only_last_factor && options_.incremental_factorization && L.ready() && !solver_->stale &&
-        dim_ <= L.capacity() &&
+    if (only_last_factor && options_.incremental_factorization && L.ready() && !solver_.stale && dim_ <= L.capacity() &&
         L.nonzeros() <= options_.refactorize_fill_ratio * static_cast<double>(L.nonzeros_after_factorize())) {
       const Factor& f = factors_.back();
       std::vector<int> rows;
       for (size_t v = 0; v < f.offsets.size(); ++v) {
         for (int i = 0; i < f.sizes[v]; ++i) rows.push_back(f.offsets[v] + i);
       }
-      incremental = L.Update(dim_, rows, solver_->last_whitened_jacobian.transpose()).ok();
+      incremental = L.Update(dim_, rows, solver_.last_whitened_jacobian.transpose()).ok();
       ++(incremental ? counters_.incremental_updates : counters_.failed_updates);
     }
-    solver_->last_whitened_jacobian.resize(0, 0);
-    solver_->stale = false;
+    solver_.last_whitened_jacobian.resize(0, 0);
+    solver_.stale = false;
     if (!incremental) {
       if (absl::Status st = FullFactorization(); !st.ok()) return st;
       updates_since_factorization_ = 0;
@@ -370,7 +369,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   } else {
     {
       StageTimer timer(&times_, "recovery");
-      x = solver_->factor.Solve(eta_);
+      x = solver_.factor.Solve(eta_);
     }
     if (incremental) {
       // Guard on the updated factor: Λx must give back η, or refactorise. Λx = Σ H_f x_f
@@ -384,7 +383,7 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
         --counters_.incremental_updates;
         if (absl::Status st = FullFactorization(); !st.ok()) return st;
         updates_since_factorization_ = 0;
-        x = solver_->factor.Solve(eta_);
+        x = solver_.factor.Solve(eta_);
       }
     }
   }
@@ -399,19 +398,19 @@ absl::Status EifJoiner::Rebuild(bool only_last_factor) {
   return absl::OkStatus();
 }
 
-void EifJoiner::MarkLinearizationTested() {
+void EifJoiner::Impl::MarkLinearizationTested() {
   changed_rows_.clear();
   if (changed_all_) drift_.assign(dim_, 0.0);
   changed_all_ = false;
 }
 
-std::vector<int> EifJoiner::LastAnchorVariables() const {
+std::vector<int> EifJoiner::Impl::LastAnchorVariables() const {
   if (graph_.num_anchors() < 2) return {};
   const int offset = anchor_offset_[graph_.num_anchors() - 1];
   return {offset, offset + 1, offset + 2};
 }
 
-void EifJoiner::EnsureFactorsOfRow() const {
+void EifJoiner::Impl::EnsureFactorsOfRow() const {
   if (factors_of_row_valid_) return;
   factors_of_row_.assign(dim_, {});
   for (size_t k = 0; k < factors_.size(); ++k) {

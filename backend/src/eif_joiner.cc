@@ -10,7 +10,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "eif_solver.h"
+#include "eif_joiner_impl.h"
 #include "state_blocks.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
@@ -77,7 +77,7 @@ EifJoinerOptions EifJoinerOptions::ForTreeNode() const {
   return o;
 }
 
-EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
+EifJoiner::Impl::Impl(const Pose2& initial_pose, const EifJoinerOptions& options)
     : options_(options), graph_(initial_pose), associator_(options.association) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
   anchor_offset_.push_back(-1);  // P0 is fixed
@@ -87,9 +87,7 @@ EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
   }
 }
 
-EifJoiner::~EifJoiner() = default;
-
-Eigen::VectorXd EifJoiner::StateVector() const {
+Eigen::VectorXd EifJoiner::Impl::StateVector() const {
   Eigen::VectorXd x(dim_);
   for (int k = 1; k < graph_.num_anchors(); ++k) {
     const Pose2& p = graph_.anchors()[k];
@@ -101,7 +99,7 @@ Eigen::VectorXd EifJoiner::StateVector() const {
   return x;
 }
 
-void EifJoiner::SetState(const Eigen::VectorXd& x) {
+void EifJoiner::Impl::SetState(const Eigen::VectorXd& x) {
   for (int k = 1; k < graph_.num_anchors(); ++k) {
     const Eigen::Vector3d v = x.segment<3>(anchor_offset_[k]);
     anchor_theta_[k] = v[2];
@@ -112,7 +110,7 @@ void EifJoiner::SetState(const Eigen::VectorXd& x) {
   }
 }
 
-void EifJoiner::SetStateRows(const Eigen::VectorXd& x, const std::vector<int>& rows) {
+void EifJoiner::Impl::SetStateRows(const Eigen::VectorXd& x, const std::vector<int>& rows) {
   EnsureOwnerOfRow();
   for (int row : rows) {
     const int owner = owner_of_row_[row];
@@ -132,7 +130,7 @@ void EifJoiner::SetStateRows(const Eigen::VectorXd& x, const std::vector<int>& r
   }
 }
 
-void EifJoiner::EnsureOwnerOfRow() const {
+void EifJoiner::Impl::EnsureOwnerOfRow() const {
   if (!owner_of_row_valid_) {
     owner_of_row_.assign(dim_, 0);
     for (int k = 1; k < graph_.num_anchors(); ++k) {
@@ -156,7 +154,7 @@ void EifJoiner::EnsureOwnerOfRow() const {
   }
 }
 
-absl::Status EifJoiner::JoinLocalMap(const LocalSubmap& s) {
+absl::Status EifJoiner::Impl::JoinLocalMap(const LocalSubmap& s) {
   if (absl::Status v = s.Validate(); !v.ok()) return v;
   if (s.t_start < last_t_end_ - 1e-9) {
     return absl::InvalidArgumentError(absl::StrCat("local map ", s.id, " starts at ", s.t_start,
@@ -168,7 +166,7 @@ absl::Status EifJoiner::JoinLocalMap(const LocalSubmap& s) {
   return CheckPendingLoopClosure();
 }
 
-void EifJoiner::CountDecisions(const SubmapAssociation& a) {
+void EifJoiner::Impl::CountDecisions(const SubmapAssociation& a) {
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
   if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
   if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
@@ -177,10 +175,10 @@ void EifJoiner::CountDecisions(const SubmapAssociation& a) {
   if (a.map_rotated) ++counters_.maps_widened;
 }
 
-SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start,
-                                         const std::vector<std::vector<int>>* whole_map_groups) {
+SubmapAssociation EifJoiner::Impl::AssociateAt(const LocalSubmap& s, int start,
+                                               const std::vector<std::vector<int>>* whole_map_groups) {
   StageTimer timer(&times_, "association");
-  const long columns_before = solver_->factor.columns_solved(), reach_before = solver_->factor.reach_solved();
+  const long columns_before = solver_.factor.columns_solved(), reach_before = solver_.factor.reach_solved();
   // Each recovered landmark marginal is today's, so it bounds every later one (Λ grows).
   const auto pair_covariance = [this](int anchor, const std::vector<int>& landmarks) {
     std::vector<Matrix5d> blocks = AnchorLandmarkCovariances(anchor, landmarks);
@@ -200,17 +198,18 @@ SubmapAssociation EifJoiner::AssociateAt(const LocalSubmap& s, int start,
       /*anchor_prefilter=*/whole_map_groups == nullptr, pair_covariance,
       options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr, whole_map_groups);
   times_["covariance_recovery"] += a.covariance_seconds;
-  RecordAssociationInnovation(a.pairings_d2, a.pairings_dof);
+  innovation_d2_ += a.pairings_d2;
+  innovation_dof_ += a.pairings_dof;
   CountDecisions(a);
   counters_.candidates += a.candidates;
   counters_.candidates_bounded_out += a.candidates_bounded_out;
-  counters_.covariance_columns += solver_->factor.columns_solved() - columns_before;
-  counters_.covariance_reach += solver_->factor.reach_solved() - reach_before;
+  counters_.covariance_columns += solver_.factor.columns_solved() - columns_before;
+  counters_.covariance_reach += solver_.factor.reach_solved() - reach_before;
   return a;
 }
 
-int EifJoiner::AddEndAnchorAndLandmarks(const LocalSubmap& m, int start, const Eigen::Matrix3d& start_covariance,
-                                        std::vector<int>* assoc) {
+int EifJoiner::Impl::AddEndAnchorAndLandmarks(const LocalSubmap& m, int start, const Eigen::Matrix3d& start_covariance,
+                                              std::vector<int>* assoc) {
   // Initialise the end anchor and the new landmarks through the start anchor.
   const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
   const Pose2 end_local = m.end_pose();
@@ -239,7 +238,7 @@ int EifJoiner::AddEndAnchorAndLandmarks(const LocalSubmap& m, int start, const E
   return end_anchor;
 }
 
-bool EifJoiner::RelinearizationDue() {
+bool EifJoiner::Impl::RelinearizationDue() {
   bool relinearize = false;
   if (options_.relinearize_every > 0 && counters_.joins % options_.relinearize_every == 0) {
     relinearize = true;
@@ -255,7 +254,7 @@ bool EifJoiner::RelinearizationDue() {
   return relinearize;
 }
 
-absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
+absl::Status EifJoiner::Impl::JoinWith(const LocalSubmap& s, bool associate) {
   const int start = graph_.num_anchors() - 1;
   std::vector<int> assoc(s.num_landmarks(), -1);
   // The start anchor's marginal before this join (NaN without one: no bounds then).
@@ -328,7 +327,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   Factor f = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
   {
     StageTimer timer(&times_, "update");
-    Linearize(&f, &solver_->last_whitened_jacobian);
+    Linearize(&f, &solver_.last_whitened_jacobian);
   }
   factors_.push_back(std::move(f));
   last_association_ = assoc;
@@ -347,7 +346,7 @@ absl::Status EifJoiner::JoinWith(const LocalSubmap& s, bool associate) {
   return absl::OkStatus();
 }
 
-absl::Status EifJoiner::Finish() {
+absl::Status EifJoiner::Impl::Finish() {
   // A closure under a lost anchor still waiting at the end stands (no more maps to ask);
   // a thin one has not brought the pairings it lacks and is undone.
   while (pending_loop_ && pending_loop_->thin) {  // (a map joined again may hold a later one)
@@ -364,33 +363,18 @@ absl::Status EifJoiner::Finish() {
   if (options_.relinearize_at_end && !factors_.empty() && !converged_) {
     if (absl::Status st = GaussNewton(); !st.ok()) return st;
   }
-  // Revise at the converged estimate (each pass that changes something solves again).
-  return ReviseUntilSettled(*this);
+  return absl::OkStatus();
 }
 
-EifJoiner::SolverHolder::SolverHolder() : solver_(std::make_unique<Solver>()) {}
-EifJoiner::SolverHolder::SolverHolder(const SolverHolder& other) : solver_(std::make_unique<Solver>(*other)) {}
-EifJoiner::SolverHolder::~SolverHolder() = default;
-
-EifJoiner::EifJoiner(const EifJoiner& other) = default;
-
-std::unique_ptr<MapJoiner> EifJoiner::NewEmpty(const Pose2& initial_pose) const {
-  return std::make_unique<EifJoiner>(initial_pose, options_);
-}
-
-std::unique_ptr<MapJoiner> EifJoiner::Clone() const { return std::unique_ptr<MapJoiner>(new EifJoiner(*this)); }
-
-absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
-  const auto* right_ptr = dynamic_cast<const EifJoiner*>(&right_base);
-  if (right_ptr == nullptr) return absl::InvalidArgumentError("EIF JoinMap: the right map is not an EIF map");
-  const EifJoiner& right = *right_ptr;
+absl::Status EifJoiner::Impl::JoinMap(const EifJoiner& right_joiner) {
+  const Impl& right = *right_joiner.impl_;
   if (right.graph_.factors().empty()) return absl::OkStatus();
   // A loop closure still waiting for confirmation stands: once whole maps are joined the
   // maps after it are no longer a sequence to replay (and right's own is right's).
   pending_loop_.reset();
   // Association by truth ids reads no covariance: the joint marginal is not recovered.
   absl::StatusOr<LocalSubmap> summary =
-      SummarizeForJoin(right, last_t_end_, /*with_covariance=*/!options_.association.known_association);
+      SummarizeForJoin(right_joiner, last_t_end_, /*with_covariance=*/!options_.association.known_association);
   if (!summary.ok()) return summary.status();
   const int start = graph_.num_anchors() - 1;
   const int n = right.graph_.num_landmarks();
@@ -457,5 +441,83 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right_base) {
   if (absl::Status st = Relinearize(); !st.ok()) return st;
   return ReviseAssociation(/*full=*/true);
 }
+
+// The public interface: each call handed to the implementation (eif_joiner_impl.h).
+
+EifJoiner::EifJoiner(const Pose2& initial_pose, const EifJoinerOptions& options)
+    : impl_(std::make_unique<Impl>(initial_pose, options)) {}
+EifJoiner::~EifJoiner() = default;
+EifJoiner::EifJoiner(const EifJoiner& other) = default;
+
+EifJoiner::ImplHolder::ImplHolder(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+EifJoiner::ImplHolder::ImplHolder(const ImplHolder& other) : impl_(std::make_unique<Impl>(*other)) {}
+EifJoiner::ImplHolder::~ImplHolder() = default;
+
+void EifJoiner::RecordInnovation() {
+  RecordAssociationInnovation(impl_->innovation_d2_, impl_->innovation_dof_);
+  impl_->innovation_d2_ = 0.0;
+  impl_->innovation_dof_ = 0;
+}
+
+absl::Status EifJoiner::JoinLocalMap(const LocalSubmap& submap) {
+  const absl::Status status = impl_->JoinLocalMap(submap);
+  RecordInnovation();
+  return status;
+}
+
+absl::Status EifJoiner::JoinMap(const MapJoiner& right) {
+  const auto* eif = dynamic_cast<const EifJoiner*>(&right);
+  if (eif == nullptr) return absl::InvalidArgumentError("EIF JoinMap: the right map is not an EIF map");
+  const absl::Status status = impl_->JoinMap(*eif);
+  RecordInnovation();
+  return status;
+}
+
+absl::Status EifJoiner::Finish() {
+  if (absl::Status st = impl_->Finish(); !st.ok()) return st;
+  // Revise at the converged estimate (each pass that changes something solves again).
+  return ReviseUntilSettled(*this);
+}
+
+std::unique_ptr<MapJoiner> EifJoiner::NewEmpty(const Pose2& initial_pose) const {
+  return std::make_unique<EifJoiner>(initial_pose, impl_->options_);
+}
+std::unique_ptr<MapJoiner> EifJoiner::Clone() const { return std::unique_ptr<MapJoiner>(new EifJoiner(*this)); }
+
+absl::Status EifJoiner::AdoptEstimate(const SubmapGraph& solved) { return impl_->AdoptEstimate(solved); }
+absl::Status EifJoiner::ReviseAssociation(bool full) { return impl_->ReviseAssociation(full); }
+absl::Status EifJoiner::MergeLandmarks(int keep, int drop) { return impl_->MergeLandmarks(keep, drop); }
+absl::Status EifJoiner::SplitFeature(int factor, int feature) { return impl_->SplitFeature(factor, feature); }
+double EifJoiner::MaxLinearizationError() const { return impl_->MaxLinearizationError(); }
+double EifJoiner::Cost() const { return impl_->Cost(); }
+const SubmapGraph& EifJoiner::graph() const { return impl_->graph_; }
+Pose2 EifJoiner::LastAnchor() const { return impl_->LastAnchor(); }
+Eigen::Matrix3d EifJoiner::LastAnchorCovariance() const { return impl_->LastAnchorCovariance(); }
+Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const {
+  return impl_->JointCovariance(anchors, landmarks);
+}
+std::vector<Eigen::Matrix3d> EifJoiner::AnchorCovariances() const { return impl_->AnchorCovariances(); }
+std::vector<Eigen::Matrix2d> EifJoiner::LandmarkCovariances() const { return impl_->LandmarkCovariances(); }
+std::vector<Matrix5d> EifJoiner::AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const {
+  return impl_->AnchorLandmarkCovariances(anchor, landmarks);
+}
+Eigen::Matrix4d EifJoiner::LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const {
+  return impl_->LandmarkPairCovariance(a, b, own);
+}
+std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
+                                                                     const std::vector<int>& landmarks) const {
+  return impl_->AnchorLandmarkBounds(anchor, landmarks);
+}
+const std::vector<int>& EifJoiner::last_association() const { return impl_->last_association_; }
+const std::vector<int>& EifJoiner::rejected() const { return impl_->rejected_; }
+const Eigen::SparseMatrix<double>& EifJoiner::information() const { return impl_->information(); }
+int EifJoiner::state_dimension() const { return impl_->dim_; }
+long EifJoiner::factor_nonzeros() const { return impl_->factor_nonzeros(); }
+FillReducingOrdering EifJoiner::factor_ordering() const { return impl_->factor_ordering(); }
+int EifJoiner::anchor_offset(int k) const { return impl_->anchor_offset_[k]; }
+int EifJoiner::landmark_offset(int j) const { return impl_->landmark_offset_[j]; }
+std::map<std::string, double> EifJoiner::stage_times() const { return impl_->times_; }
+const JoinerCounters& EifJoiner::counters() const { return impl_->counters_; }
+const SubmapAssociator& EifJoiner::associator() const { return impl_->associator_; }
 
 }  // namespace subslam::backend

@@ -8,18 +8,18 @@
 #include <utility>
 #include <vector>
 
-#include "eif_solver.h"
+#include "eif_joiner_impl.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {
 
-EifJoiner::Snapshot EifJoiner::TakeSnapshot() const {
+EifJoiner::Impl::Snapshot EifJoiner::Impl::TakeSnapshot() const {
   return Snapshot{graph_,   anchor_offset_, landmark_offset_, anchor_theta_,   dim_,
                   factors_, eta_,           associator_,      marginal_bound_, counters_};
 }
 
-void EifJoiner::Restore(Snapshot before) {
+void EifJoiner::Impl::Restore(Snapshot before) {
   graph_ = std::move(before.graph);
   anchor_offset_ = std::move(before.anchor_offset);
   landmark_offset_ = std::move(before.landmark_offset);
@@ -31,7 +31,7 @@ void EifJoiner::Restore(Snapshot before) {
   associator_ = std::move(before.associator);
   marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
   relative_bounds_.Clear();                            // computed for a larger Λ
-  solver_->stale = true;                               // it absorbed the undone factors
+  solver_.stale = true;                                // it absorbed the undone factors
   factors_of_row_valid_ = false;
   owner_of_row_valid_ = false;
   changed_all_ = true;
@@ -43,7 +43,7 @@ void EifJoiner::Restore(Snapshot before) {
   touched_.assign(graph_.num_landmarks(), 1);
 }
 
-absl::Status EifJoiner::JoinOne(const LocalSubmap& s) {
+absl::Status EifJoiner::Impl::JoinOne(const LocalSubmap& s) {
   if (!options_.validate_joins) return JoinWith(s, /*associate=*/true);
   // Validated join: keep what a rejected join would have to undo.
   Snapshot before = TakeSnapshot();
@@ -67,7 +67,7 @@ absl::Status EifJoiner::JoinOne(const LocalSubmap& s) {
   return JoinWith(s, /*associate=*/false);
 }
 
-void EifJoiner::AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covariance) const {
+void EifJoiner::Impl::AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covariance) const {
   const PendingLoopClosure& pending = *pending_loop_;
   *pose = pending.before.graph.anchors().back();  // the closing map's start anchor
   if (covariance != nullptr) *covariance = pending.association.start_anchor_covariance;
@@ -79,22 +79,22 @@ void EifJoiner::AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covari
   }
 }
 
-Pose2 EifJoiner::LastAnchor() const {
-  if (!pending_loop_) return MapJoiner::LastAnchor();
+Pose2 EifJoiner::Impl::LastAnchor() const {
+  if (!pending_loop_) return graph_.anchors().back();
   Pose2 p;
   AnchorWithoutPendingClosure(&p, nullptr);
   return p;
 }
 
-Eigen::Matrix3d EifJoiner::LastAnchorCovariance() const {
-  if (!pending_loop_) return MapJoiner::LastAnchorCovariance();
+Eigen::Matrix3d EifJoiner::Impl::LastAnchorCovariance() const {
+  if (!pending_loop_) return JointCovariance({graph_.num_anchors() - 1}, {});
   Pose2 p;
   Eigen::Matrix3d c;
   AnchorWithoutPendingClosure(&p, &c);
   return c;
 }
 
-absl::Status EifJoiner::CheckPendingLoopClosure() {
+absl::Status EifJoiner::Impl::CheckPendingLoopClosure() {
   if (!pending_loop_) return absl::OkStatus();
   const int last = static_cast<int>(graph_.factors().size()) - 1;
   const int closing = pending_loop_->factor;
@@ -124,7 +124,7 @@ absl::Status EifJoiner::CheckPendingLoopClosure() {
   return UndoPendingLoopClosure();
 }
 
-absl::Status EifJoiner::UndoPendingLoopClosure() {
+absl::Status EifJoiner::Impl::UndoPendingLoopClosure() {
   const int last = static_cast<int>(graph_.factors().size()) - 1;
   const int closing = pending_loop_->factor;
   // Unconfirmed: back to the joiner before the closing map, whose work stays counted,
@@ -159,7 +159,7 @@ absl::Status EifJoiner::UndoPendingLoopClosure() {
   // the restored Λ's (the restored estimate is already its solution). Counted on top of
   // the work above.
   if (absl::Status st = FullFactorization(); !st.ok()) return st;
-  solver_->stale = false;
+  solver_.stale = false;
   for (size_t m = 0; m < maps.size(); ++m) {
     suppress_loop_closure_ = m == 0;
     if (m == 0) replayed_association_ = std::move(pending.association);

@@ -8,7 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "eif_solver.h"
+#include "eif_joiner_impl.h"
 #include "state_blocks.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
@@ -19,13 +19,14 @@
 
 namespace subslam::backend {
 
-Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const {
+Eigen::MatrixXd EifJoiner::Impl::JointCovariance(const std::vector<int>& anchors,
+                                                 const std::vector<int>& landmarks) const {
   const StateBlocks blocks = SelectBlocks(anchors, landmarks, anchor_offset_, landmark_offset_);
   const std::vector<int>& offsets = blocks.offsets;
   const std::vector<int>& sizes = blocks.sizes;
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(blocks.total, blocks.total);
   if (dim_ == 0) return out;
-  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+  SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   // The block of Λ⁻¹ on the free variables' rows (fixed P0: zero rows and columns), by
   // forward solves limited to each unit right-hand side's reach in the factor.
   std::vector<int> state_rows, out_rows;
@@ -37,28 +38,28 @@ Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors, cons
     }
     row += sizes[v];
   }
-  const Eigen::MatrixXd block = solver_->factor.InverseBlock(state_rows);
+  const Eigen::MatrixXd block = solver_.factor.InverseBlock(state_rows);
   out(out_rows, out_rows) = block;
   return 0.5 * (out + out.transpose());
 }
 
-Eigen::Matrix4d EifJoiner::LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const {
-  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+Eigen::Matrix4d EifJoiner::Impl::LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const {
+  SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   const auto rows = [this](int j) { return std::vector<int>{landmark_offset_[j], landmark_offset_[j] + 1}; };
   const auto own_block = [&](int j) -> const Eigen::Matrix2d& {
     Eigen::Matrix2d& block = (*own)[j];
-    if (!block.allFinite()) block = solver_->factor.InverseBlock(rows(j));
+    if (!block.allFinite()) block = solver_.factor.InverseBlock(rows(j));
     return block;
   };
   Eigen::Matrix4d S;
   S.topLeftCorner<2, 2>() = own_block(a);
   S.bottomRightCorner<2, 2>() = own_block(b);
-  S.topRightCorner<2, 2>() = solver_->factor.CrossBlock(rows(a), rows(b));
+  S.topRightCorner<2, 2>() = solver_.factor.CrossBlock(rows(a), rows(b));
   S.bottomLeftCorner<2, 2>() = S.topRightCorner<2, 2>().transpose();
   return S;
 }
 
-std::vector<Eigen::Matrix3d> EifJoiner::AnchorCovariances() const {
+std::vector<Eigen::Matrix3d> EifJoiner::Impl::AnchorCovariances() const {
   std::vector<Eigen::Matrix3d> out(graph_.num_anchors(), Eigen::Matrix3d::Zero());  // P0 fixed: zero
   std::vector<int> free;
   std::vector<std::vector<int>> groups;
@@ -69,41 +70,41 @@ std::vector<Eigen::Matrix3d> EifJoiner::AnchorCovariances() const {
     groups.push_back({o, o + 1, o + 2});
   }
   if (groups.empty()) return out;
-  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
-  const std::vector<Eigen::MatrixXd> blocks = solver_->factor.DiagonalInverseBlocks(groups);
+  SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
+  const std::vector<Eigen::MatrixXd> blocks = solver_.factor.DiagonalInverseBlocks(groups);
   for (size_t g = 0; g < free.size(); ++g) out[free[g]] = blocks[g];
   return out;
 }
 
-std::vector<Eigen::Matrix2d> EifJoiner::LandmarkCovariances() const {
+std::vector<Eigen::Matrix2d> EifJoiner::Impl::LandmarkCovariances() const {
   std::vector<std::vector<int>> groups;
   for (int j = 0; j < graph_.num_landmarks(); ++j) groups.push_back({landmark_offset_[j], landmark_offset_[j] + 1});
   std::vector<Eigen::Matrix2d> out;
   if (groups.empty()) return out;
-  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
-  for (const Eigen::MatrixXd& b : solver_->factor.DiagonalInverseBlocks(groups)) out.push_back(b);
+  SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
+  for (const Eigen::MatrixXd& b : solver_.factor.DiagonalInverseBlocks(groups)) out.push_back(b);
   return out;
 }
 
-std::vector<Matrix5d> EifJoiner::AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const {
+std::vector<Matrix5d> EifJoiner::Impl::AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const {
   std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());
   if (dim_ == 0) return out;
-  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+  SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   std::vector<int> hub;
   for (int i = 0; i < 3 && anchor_offset_[anchor] >= 0; ++i) hub.push_back(anchor_offset_[anchor] + i);
   std::vector<std::vector<int>> groups;
   for (int j : landmarks) groups.push_back({landmark_offset_[j], landmark_offset_[j] + 1});
-  const std::vector<Eigen::MatrixXd> blocks = solver_->factor.InverseStarBlocks(hub, groups);
+  const std::vector<Eigen::MatrixXd> blocks = solver_.factor.InverseStarBlocks(hub, groups);
   const int h = static_cast<int>(hub.size());  // 0 for the fixed P0: zero rows and columns
   for (size_t c = 0; c < landmarks.size(); ++c) out[c].bottomRightCorner(2 + h, 2 + h) = blocks[c];
   return out;
 }
 
-std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
-                                                                     const std::vector<int>& landmarks) const {
+std::vector<std::optional<Matrix5d>> EifJoiner::Impl::AnchorLandmarkBounds(int anchor,
+                                                                           const std::vector<int>& landmarks) const {
   std::vector<std::optional<Matrix5d>> out(landmarks.size());
   if (dim_ == 0) return out;
-  SUBSLAM_CHECK(solver_->factor.ready()) << "no factorisation to recover covariances from";
+  SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   // The anchor's columns of Λ⁻¹ on its own rows and the bounded landmarks' (a back
   // substitution over their paths to the root only): its marginal and its exact
   // cross-covariance with each landmark (zero for the fixed P0).
@@ -119,7 +120,7 @@ std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
   Eigen::MatrixXd columns = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(rows.size()) + 3, 3);
   if (o >= 0) {
     rows.insert(rows.end(), {o, o + 1, o + 2});
-    columns = solver_->factor.InverseColumnsAt({o, o + 1, o + 2}, rows);
+    columns = solver_.factor.InverseColumnsAt({o, o + 1, o + 2}, rows);
   }
   const Eigen::Matrix3d anchor_block = columns.bottomRows<3>();
   for (size_t b = 0; b < bounded.size(); ++b) {
@@ -136,7 +137,7 @@ std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
   return out;
 }
 
-std::vector<Matrix5d> EifJoiner::FactorMarginals(int anchor, const std::vector<int>& landmarks) const {
+std::vector<Matrix5d> EifJoiner::Impl::FactorMarginals(int anchor, const std::vector<int>& landmarks) const {
   // [anchor, landmark] is coupled in Λ by the factor that holds both, so its block lies on
   // L's pattern: all of them from one sparse-inverse recursion per factorisation.
   std::vector<std::vector<int>> groups;
@@ -150,7 +151,7 @@ std::vector<Matrix5d> EifJoiner::FactorMarginals(int anchor, const std::vector<i
   }
   std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());
   if (groups.empty()) return out;
-  const std::vector<Eigen::MatrixXd> blocks = solver_->factor.DiagonalInverseBlocks(groups);
+  const std::vector<Eigen::MatrixXd> blocks = solver_.factor.DiagonalInverseBlocks(groups);
   const int h = o >= 0 ? 3 : 0;  // the fixed P0: zero rows and columns
   for (size_t c = 0; c < landmarks.size(); ++c) out[c].bottomRightCorner(2 + h, 2 + h) = blocks[c];
   return out;

@@ -8,7 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "eif_solver.h"
+#include "eif_joiner_impl.h"
 #include "state_blocks.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
@@ -19,7 +19,7 @@
 
 namespace subslam::backend {
 
-absl::Status EifJoiner::ReviseAssociation(bool full) {
+absl::Status EifJoiner::Impl::ReviseAssociation(bool full) {
   // In-run passes test the pairs a join touched (and the splits after a relinearisation);
   // a full pass every pair.
   const bool with_splits = full || relinearized_since_revision_;
@@ -70,18 +70,18 @@ absl::Status EifJoiner::ReviseAssociation(bool full) {
   return ApplyRevisions(splits, merges);
 }
 
-absl::Status EifJoiner::MergeLandmarks(int keep, int drop) {
+absl::Status EifJoiner::Impl::MergeLandmarks(int keep, int drop) {
   if (absl::Status st = graph_.ValidateMerge(keep, drop); !st.ok()) return st;
   return ApplyRevisions({}, {LandmarkMerge{std::min(keep, drop), std::max(keep, drop), NAN}});
 }
 
-absl::Status EifJoiner::SplitFeature(int factor, int feature) {
+absl::Status EifJoiner::Impl::SplitFeature(int factor, int feature) {
   if (absl::Status st = graph_.ValidateSplit(factor, feature); !st.ok()) return st;
   return ApplyRevisions({FeatureSplit{factor, feature, NAN}}, {});
 }
 
-absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
-                                       const std::vector<LandmarkMerge>& merges) {
+absl::Status EifJoiner::Impl::ApplyRevisions(const std::vector<FeatureSplit>& splits,
+                                             const std::vector<LandmarkMerge>& merges) {
   for (const FeatureSplit& sp : splits) {
     const SubmapFactor& record = graph_.factors()[sp.factor];
     const int from = record.landmark_of_feature[sp.feature];
@@ -117,7 +117,7 @@ absl::Status EifJoiner::ApplyRevisions(const std::vector<FeatureSplit>& splits,
   for (Factor& f : factors_) SetLayout(&f);
   lambda_factors_ = 0;
   lambda_full_valid_ = false;
-  solver_->stale = true;
+  solver_.stale = true;
   if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;
   if (options_.RelinearizesAfterJoins() || options_.relinearize_at_end) return GaussNewton();
   return absl::OkStatus();

@@ -1,18 +1,17 @@
-// The EIF joiner's factorisation state, shared by the files that implement EifJoiner
-// (private to the back-end): the sparse LDLᵀ factor of Λ and Λ's lower triangle.
+// The EIF joiner's factorisation state (private to the back-end): the sparse LDLᵀ factor
+// of Λ and Λ's lower triangle.
 #ifndef SUBSLAM_BACKEND_SRC_EIF_SOLVER_H_
 #define SUBSLAM_BACKEND_SRC_EIF_SOLVER_H_
 
 #include <Eigen/Core>
 
-#include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
 
 namespace subslam::backend {
 
-struct EifJoiner::Solver {
+struct EifSolver {
   SparseCholesky factor;
-  SparseLowerTriangle lambda_lower;        // Λ's lower triangle (see lambda_factors_)
+  SparseLowerTriangle lambda_lower;        // Λ's lower triangle (see EifJoiner::Impl::lambda_factors_)
   Eigen::MatrixXd last_whitened_jacobian;  // of the newest factor, for the incremental update
   bool stale = false;                      // the factor no longer matches Λ (a rejected join was undone)
 };

@@ -1,0 +1,316 @@
+// EifJoiner's implementation (private to the back-end): the state and the steps behind
+// the public interface of subslam/backend/eif_joiner.h, whose comments say what each
+// public function does. The files that implement it:
+//   eif_joiner.cc             joining a local map (association, the factor), the end of
+//                             the run, whole-map (tree) joins
+//   eif_factor.cc             one local map's factor: linearisation, its error, its cost
+//   eif_information_matrix.cc Λ (pattern, values) and its factorisation, full or updated
+//   eif_marginals.cc          marginal covariances from the factor
+//   eif_gauss_newton.cc       relinearisation (Gauss-Newton over the submap graph)
+//   eif_loop_closure.cc       the loop-closure gate (snapshot, pending closure, undo)
+//   eif_revision.cc           revisable association (merge and split passes)
+#ifndef SUBSLAM_BACKEND_SRC_EIF_JOINER_IMPL_H_
+#define SUBSLAM_BACKEND_SRC_EIF_JOINER_IMPL_H_
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "eif_solver.h"
+#include "subslam/backend/eif_joiner.h"
+#include "subslam/backend/eif_joiner_options.h"
+#include "subslam/backend/landmark_revision.h"
+#include "subslam/backend/relative_covariance_bounds.h"
+#include "subslam/backend/submap_association.h"
+#include "subslam/graph/local_submap.h"
+#include "subslam/graph/submap_graph.h"
+
+namespace subslam::backend {
+
+class EifJoiner::Impl {
+ public:
+  Impl(const Pose2& initial_pose, const EifJoinerOptions& options);
+
+  // What EifJoiner's functions of the same names do (eif_joiner.h). Finish() leaves the
+  // revision passes until the association settles to EifJoiner; JoinLocalMap and JoinMap
+  // leave recording the association's innovation to it (innovation_d2_, innovation_dof_).
+  absl::Status JoinLocalMap(const LocalSubmap& submap);
+  absl::Status JoinMap(const EifJoiner& right);
+  absl::Status Finish();
+  absl::Status AdoptEstimate(const SubmapGraph& solved);
+  absl::Status ReviseAssociation(bool full);
+  absl::Status MergeLandmarks(int keep, int drop);
+  absl::Status SplitFeature(int factor, int feature);
+  double MaxLinearizationError() const;
+  double Cost() const;
+  Pose2 LastAnchor() const;
+  Eigen::Matrix3d LastAnchorCovariance() const;
+  Eigen::MatrixXd JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const;
+  Eigen::Matrix2d LandmarkCovariance(int j) const { return JointCovariance({}, {j}); }
+  std::vector<Eigen::Matrix3d> AnchorCovariances() const;
+  std::vector<Eigen::Matrix2d> LandmarkCovariances() const;
+  std::vector<Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;
+  Eigen::Matrix4d LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const;
+  std::vector<std::optional<Matrix5d>> AnchorLandmarkBounds(int anchor, const std::vector<int>& landmarks) const;
+  const Eigen::SparseMatrix<double>& information() const;
+  long factor_nonzeros() const;
+  FillReducingOrdering factor_ordering() const;
+
+  // The association innovation (d², dof) recorded since EifJoiner last took it.
+  double innovation_d2_ = 0.0;
+  long innovation_dof_ = 0;
+
+  struct Factor {
+    int index = 0;                              // into graph_.factors()
+    std::vector<int> offsets;                   // state offset of each variable block (−1: fixed P0)
+    std::vector<int> sizes;                     // 3 or 2
+    Eigen::MatrixXd H;                          // Jᵀ Q⁻¹ J over the stacked variable blocks
+    Eigen::VectorXd b;                          // Jᵀ Q⁻¹ (J x̂ − r)
+    double start_theta = 0.0, end_theta = 0.0;  // the anchors' headings at the linearisation
+    // The levers from the start anchor to the end anchor and to each landmark at the
+    // linearisation (what LinearizationError needs).
+    std::vector<Eigen::Vector2d> levers;
+    // rᵀ Q⁻¹ r at the linearisation point (the factor's term of Cost() there).
+    double cost = 0.0;
+    double covariance_min_eigenvalue = 0.0;  // of Q (set while relinearize_linearization_chi2 > 0)
+    // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
+    // factor; computed once, shared by copies.
+    std::shared_ptr<const Eigen::MatrixXd> covariance_sqrt;
+    // Q⁻¹, computed on the factor's first relinearisation (copies made before that compute
+    // their own).
+    std::shared_ptr<const Eigen::MatrixXd> information;
+  };
+
+  // The factor record of graph factor `index`: its variables' offsets and sizes.
+  Factor MakeFactor(int index) const;
+  // Its variables' offsets and sizes, from the graph's factor record.
+  void SetLayout(Factor* f) const;
+  // The factor's linearisation error at the current estimate, whitened (see
+  // MaxLinearizationError).
+  double LinearizationError(const Factor& f) const;
+  // Its error before whitening, e (3 + 2n; the heading row 0).
+  void UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const;
+  // Whether some factor's is above chi2 (most factors settled by a bound, without it):
+  // every factor after an exact solve, else the factors on the variables the last
+  // partial recovery moved.
+  bool LinearizationErrorAbove(double chi2) const;
+  // The last anchor's state rows, which a full factorisation orders last (the next join
+  // starts there); none before the first join.
+  std::vector<int> LastAnchorVariables() const;
+  // factors_of_row_ from every factor, when not valid.
+  void EnsureFactorsOfRow() const;
+  // The headings and levers of the factor's linearisation at (start, end) and the
+  // current landmarks.
+  void RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const;
+  // H and b of the factor at the current estimate, and (if asked) its whitened Jacobian
+  // L_Q⁻¹ J, the newest factor's rank update of the incremental factor.
+  void Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian = nullptr) const;
+  // The same H and b from the Jacobian's block structure and Q⁻¹ (no whitening).
+  void LinearizeStructured(Factor* f) const;
+  // visit(row, col, value) for each entry of the factor's H, at its place in the state.
+  template <typename Visit>
+  static void ForEachEntry(const Factor& f, Visit visit);
+  // Adds a factor's b to η, or H_f x_f to y.
+  void AddToEta(const Factor& f, Eigen::VectorXd* eta) const;
+  void AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
+  // xᵀΛx over the factors' current H (Λ need not be assembled).
+  double InformationNorm(const Eigen::VectorXd& x) const;
+  // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
+  // solve; write the estimate back.
+  absl::Status Rebuild(bool only_last_factor);
+  // After an incremental update of the factor: the estimate carried over the newest factor
+  // by a partial solve (the rows it moves by more than recovery_change_threshold), the
+  // variables added since `old_dim` starting at 0.
+  absl::Status RecoverAcrossNewestFactor(Eigen::Index old_dim);
+  // Factorises Λ afresh (the symbolic analysis reused while Λ's pattern is unchanged),
+  // with spare slots for the next joins' new variables; counted.
+  absl::Status FullFactorization();
+  // The factorisation itself: with incremental_factorization, spare slots and the last
+  // anchor ordered last (for the rank updates of the next joins); without, neither.
+  absl::Status FactorizeLambda();
+  // Λ's lower triangle (its pattern, values left unset) and lambda_slots_ from the
+  // factors' variable blocks.
+  void BuildLambdaPattern() const;
+  // Λ's lower triangle, assembled from the factors as needed (what a full factorisation
+  // takes).
+  const SparseLowerTriangle& LowerInformation() const;
+  // values = Σ over factors from first_factor on of their H entries in the lower
+  // triangle, at their slots (lambda_slots_ must be this pattern's).
+  void FillLambdaValues(size_t first_factor, std::vector<double>* values) const;
+  // The variable offsets of every factor, concatenated (what Λ's pattern depends on).
+  std::vector<int> FactorOffsets() const;
+  // Gauss-Newton over every factor from the current estimate, until a step (taken, or
+  // predicted with predict_convergence) is below relinearize_tolerance or
+  // relinearize_step_chi2, or max_relinearizations; stopped at the best iterate after
+  // divergence_rises cost rises in a row.
+  // Gauss-Newton to convergence (GaussNewton), then the marginal bounds from the new
+  // factor for the joins that follow.
+  absl::Status Relinearize();
+  absl::Status GaussNewton();
+  // A factor's linearisation (H, b, the headings and levers it was taken at: every
+  // Factor field Linearize sets), set aside while Gauss-Newton tries the next one.
+  struct Linearization {
+    Eigen::MatrixXd H;
+    Eigen::VectorXd b;
+    double start_theta = 0.0, end_theta = 0.0;
+    std::vector<Eigen::Vector2d> levers;
+    double cost = 0.0;
+  };
+  static void SwapLinearization(Factor* f, Linearization* l);
+  // With the factors linearised at the estimate x, and the factor (and x) still of the
+  // previous linearisation: whether the Gauss-Newton step from x, solved with that factor,
+  // is below the stopping thresholds (see predict_convergence).
+  bool PredictedStepConverged(const Eigen::VectorXd& x);
+  // One factor's term of Cost().
+  double NormalizedResidual(const Factor& f) const;
+  // max over factors of |heading now − heading at the factor's linearisation| of its anchors.
+  double MaxHeadingDrift() const;
+  // Anchor k with its continuous (unwrapped) heading; a factor's landmarks, in its order.
+  Pose2 AnchorPose(int k) const;
+  std::vector<Eigen::Vector2d> FactorLandmarks(const SubmapFactor& record) const;
+  absl::Status JoinWith(const LocalSubmap& submap, bool associate);
+  // Adds the end anchor of map `m` (returned) and its new landmarks (features `assoc`
+  // leaves at −1, which it sets), initialised through the start anchor, with each new
+  // landmark's marginal bound from the start anchor's marginal before the join (NaN: none).
+  int AddEndAnchorAndLandmarks(const LocalSubmap& m, int start, const Eigen::Matrix3d& start_covariance,
+                               std::vector<int>* assoc);
+  // Whether the join just made calls for relinearisation (EifJoinerOptions::relinearize_*).
+  bool RelinearizationDue();
+  // Applies splits (landmarks appended) then merges (in `drop` descending order) to the
+  // graph, the associator and the state layout, relinearises every factor at the
+  // current estimate and solves again (to convergence where the joiner relinearises).
+  absl::Status ApplyRevisions(const std::vector<FeatureSplit>& splits, const std::vector<LandmarkMerge>& merges);
+  // For each landmark, the 5 × 5 marginal of [anchor, landmark] where a factor couples
+  // the two (read off the sparse inverse on the factor's pattern).
+  std::vector<Matrix5d> FactorMarginals(int anchor, const std::vector<int>& landmarks) const;
+  // Association of `s` (starting at anchor `start`) with the map, timed and counted: a
+  // local map, or with `whole_map_groups` a whole map's summary (SubmapAssociator::Associate).
+  SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
+                                const std::vector<std::vector<int>>* whole_map_groups = nullptr);
+  Eigen::VectorXd StateVector() const;
+  void SetState(const Eigen::VectorXd& x);
+  // The same for the listed state rows only (the rest already hold x).
+  void SetStateRows(const Eigen::VectorXd& x, const std::vector<int>& rows);
+
+  EifJoinerOptions options_;
+  SubmapGraph graph_;
+  std::vector<int> anchor_offset_;  // −1 for P0
+  std::vector<int> landmark_offset_;
+  std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
+  int dim_ = 0;
+  std::vector<Factor> factors_;
+  // Λ's lower triangle (Solver::lambda_lower) as the sum of the first `lambda_factors_`
+  // factors' H (0: none, or relinearised since): LowerInformation() adds the newer
+  // factors, or refills or assembles it again. Lambda_: both triangles, built from it
+  // for information().
+  mutable size_t lambda_factors_ = 0;
+  mutable Eigen::SparseMatrix<double> Lambda_;
+  mutable bool lambda_full_valid_ = false;
+  // Where each factor's H entries (in ForEachEntry's order, factors in order) sit in the
+  // lower triangle's values (−1: above the diagonal), and the factors' variable offsets
+  // they were found for: while those are the same, a relinearised Λ is only refilled
+  // (same pattern), not assembled again.
+  mutable std::vector<int> lambda_slots_;
+  mutable std::vector<int> lambda_slot_offsets_;
+  Eigen::VectorXd eta_;
+  // Per state row, the factors on it (valid while factors_of_row_valid_); the rows whose
+  // factors the relinearisation trigger must test next: those that have moved by more than
+  // kLinearizationRecheckDrift since their factors were last tested (drift_ accumulates
+  // each row's changes since; changed_all_: an exact solve since the last test — test every
+  // factor); incremental updates since the last full factorisation (the guard's schedule).
+  // A factor's linearisation error moves by a negligible amount when its variables move
+  // by less than this [m, rad] (levers of 100 m and headings 0.1 rad off their
+  // linearisation change it by 10⁻⁵ m against local-map noise of centimetres and more).
+  static constexpr double kLinearizationRecheckDrift = 1e-6;
+  std::vector<double> drift_;
+  // Per state row, its anchor k (≥ 1) or landmark j (as −j − 1); valid while
+  // owner_of_row_valid_, extended as variables are added.
+  mutable std::vector<int> owner_of_row_;
+  mutable bool owner_of_row_valid_ = false;
+  void EnsureOwnerOfRow() const;
+  mutable std::vector<std::vector<int>> factors_of_row_;
+  mutable bool factors_of_row_valid_ = false;
+  mutable std::vector<int> candidate_stamp_;  // LinearizationErrorAbove()'s factors seen, by walk
+  mutable int candidate_walks_ = 0;
+  std::vector<int> changed_rows_;
+  bool changed_all_ = true;
+  // Whether the estimate is Λ⁻¹η exactly (no partial recovery since the last exact solve).
+  bool estimate_exact_ = true;
+  // Whether the estimate is a converged Gauss-Newton's (set where GaussNewton() stops on
+  // its tolerances, cleared by every rebuild of Λ): Finish() then has nothing to iterate.
+  bool converged_ = false;
+  // After the trigger's test: the rows it covered are tested (and, after a test of every
+  // factor, every row's drift starts again).
+  void MarkLinearizationTested();
+  long updates_since_factorization_ = 0;
+  // The factor of Λ and Λ's lower triangle (eif_solver.h); mutable as the caches above:
+  // const queries assemble Λ and keep the factor's solved columns.
+  mutable EifSolver solver_;
+  SubmapAssociator associator_;
+  // Per landmark, an upper bound on its marginal covariance (NaN: none); see
+  // bound_candidate_marginals.
+  std::vector<Eigen::Matrix2d> marginal_bound_;
+  // Bounds on pairs' Cov(l_a − l_b) for the merge passes, cleared with marginal_bound_
+  // and whenever a revision renumbers the landmarks.
+  RelativeCovarianceBounds relative_bounds_;
+  std::vector<int> last_association_;
+  // Per landmark: a join gave it a feature since the last revision pass (or it is new).
+  std::vector<char> touched_;
+  bool relinearized_since_revision_ = false;
+  std::vector<int> rejected_;
+  struct Snapshot {  // what a rejected join undoes
+    SubmapGraph graph;
+    std::vector<int> anchor_offset, landmark_offset;
+    std::vector<double> anchor_theta;
+    int dim;
+    std::vector<Factor> factors;
+    Eigen::VectorXd eta;
+    SubmapAssociator associator;
+    std::vector<Eigen::Matrix2d> marginal_bound;
+    JoinerCounters counters;
+  };
+  // A loop closure waiting for confirmation: the joiner before its map was joined (taken
+  // after that map's association, with the counters from before it), the index of its
+  // map's factor, the rejected_ entries then, and that map's association.
+  // `needed`: distinct old landmarks it did not use that the later maps must pair for it
+  // to stand (1 for a closure under a lost anchor, min_loop_pairings for a thin one).
+  struct PendingLoopClosure {
+    Snapshot before;
+    int factor = 0;
+    size_t rejected = 0;
+    SubmapAssociation association;
+    int needed = 1;
+    int confirmations = 0;
+    bool thin = false;
+  };
+  std::optional<PendingLoopClosure> pending_loop_;
+  // LastAnchor() and LastAnchorCovariance() while a closure waits (`covariance` may be null).
+  void AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covariance) const;
+  bool suppress_loop_closure_ = false;  // while joining again a map whose closure was undone
+  // Set while that map is joined again: its association, reused (the joiner is restored to
+  // the state it was found in).
+  std::optional<SubmapAssociation> replayed_association_;
+  // The decision counters of an association (truncated, thin, ambiguous).
+  void CountDecisions(const SubmapAssociation& a);
+  // Join() without the confirmation check (validated if validate_joins).
+  absl::Status JoinOne(const LocalSubmap& s);
+  Snapshot TakeSnapshot() const;
+  void Restore(Snapshot snapshot);
+  // After a join: confirm the pending loop closure, or undo it once its window is over.
+  absl::Status CheckPendingLoopClosure();
+  // Undoes the pending loop closure: back to the joiner before its map, and the maps
+  // since joined again, that map without its loop pairings.
+  absl::Status UndoPendingLoopClosure();
+  std::map<std::string, double> times_;
+  JoinerCounters counters_;
+  double last_t_end_ = -1e300;
+};
+
+}  // namespace subslam::backend
+
+#endif  // SUBSLAM_BACKEND_SRC_EIF_JOINER_IMPL_H_
