@@ -1,6 +1,8 @@
-// EifJoiner: one local map's factor — its linearisation at the current estimate, its
+// EifFactor: one local map's factor — its linearisation at the current estimate, its
 // information blocks, and how far its linear model is from the estimate (the
 // relinearisation triggers).
+
+#include "eif_factor.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -9,7 +11,6 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "eif_joiner_impl.h"
 #include "state_blocks.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
@@ -23,62 +24,62 @@ namespace {
 double Square(double v) { return v * v; }
 }  // namespace
 
-EifJoiner::Impl::Factor EifJoiner::Impl::MakeFactor(int index) const {
-  const SubmapFactor& record = graph_.factors()[index];
-  Factor f;
+EifFactor EifFactor::Make(const EifEstimate& estimate, int index, bool screened) {
+  const SubmapFactor& record = estimate.graph.factors()[index];
+  EifFactor f;
   f.index = index;
   const Eigen::LLT<Eigen::MatrixXd> llt(record.submap.covariance);
   SUBSLAM_CHECK(llt.info() == Eigen::Success) << "local map covariance not positive definite";
-  f.covariance_sqrt = std::make_shared<const Eigen::MatrixXd>(llt.matrixL());
-  if (options_.relinearize_linearization_chi2 > 0) {  // LinearizationErrorAbove's screen
-    f.covariance_min_eigenvalue =
+  f.covariance_sqrt_ = std::make_shared<const Eigen::MatrixXd>(llt.matrixL());
+  if (screened) {  // LinearizationErrorAbove's screen
+    f.covariance_min_eigenvalue_ =
         Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(record.submap.covariance, Eigen::EigenvaluesOnly)
             .eigenvalues()
             .minCoeff();
   }
-  SetLayout(&f);
+  f.SetLayout(estimate);
   return f;
 }
 
-void EifJoiner::Impl::SetLayout(Factor* f) const {
-  const SubmapFactor& record = graph_.factors()[f->index];
-  f->offsets.clear();
-  f->sizes.clear();
+void EifFactor::SetLayout(const EifEstimate& estimate) {
+  const SubmapFactor& record = estimate.graph.factors()[index];
+  offsets.clear();
+  sizes.clear();
   if (record.start_anchor != 0) {
-    f->offsets.push_back(anchor_offset_[record.start_anchor]);
-    f->sizes.push_back(3);
+    offsets.push_back(estimate.anchor_offset[record.start_anchor]);
+    sizes.push_back(3);
   }
-  f->offsets.push_back(anchor_offset_[record.end_anchor]);
-  f->sizes.push_back(3);
+  offsets.push_back(estimate.anchor_offset[record.end_anchor]);
+  sizes.push_back(3);
   for (int j : record.landmark_of_feature) {
-    f->offsets.push_back(landmark_offset_[j]);
-    f->sizes.push_back(2);
+    offsets.push_back(estimate.landmark_offset[j]);
+    sizes.push_back(2);
   }
 }
 
-void EifJoiner::Impl::RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const {
-  const SubmapFactor& record = graph_.factors()[f->index];
-  f->start_theta = start.theta;
-  f->end_theta = end.theta;
+void EifFactor::RecordLinearizationPoint(const EifEstimate& estimate, const Pose2& start, const Pose2& end) {
+  const SubmapFactor& record = estimate.graph.factors()[index];
+  start_theta = start.theta;
+  end_theta = end.theta;
   const Eigen::Vector2d p_s(start.x, start.y);
-  f->levers.resize(record.landmark_of_feature.size() + 1);
-  f->levers[0] = Eigen::Vector2d(end.x, end.y) - p_s;
+  levers_.resize(record.landmark_of_feature.size() + 1);
+  levers_[0] = Eigen::Vector2d(end.x, end.y) - p_s;
   for (size_t i = 0; i < record.landmark_of_feature.size(); ++i) {
-    f->levers[i + 1] = graph_.landmarks()[record.landmark_of_feature[i]] - p_s;
+    levers_[i + 1] = estimate.graph.landmarks()[record.landmark_of_feature[i]] - p_s;
   }
 }
 
-void EifJoiner::Impl::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) const {
+void EifFactor::Linearize(const EifEstimate& estimate, Eigen::MatrixXd* whitened_jacobian) {
   if (whitened_jacobian == nullptr) {
-    LinearizeStructured(f);
+    LinearizeStructured(estimate);
     return;
   }
-  const SubmapFactor& record = graph_.factors()[f->index];
+  const SubmapFactor& record = estimate.graph.factors()[index];
   const LocalSubmap& s = record.submap;
-  const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
-  const std::vector<Eigen::Vector2d> landmarks = FactorLandmarks(record);
+  const Pose2 start = estimate.AnchorPose(record.start_anchor), end = estimate.AnchorPose(record.end_anchor);
+  const std::vector<Eigen::Vector2d> landmarks = estimate.FactorLandmarks(record);
   const SubmapFactorLinearization lin = LinearizeSubmapFactor(s, start, end, landmarks);
-  RecordLinearizationPoint(f, start, end);
+  RecordLinearizationPoint(estimate, start, end);
 
   // Stack the Jacobian over the variable blocks (P0, fixed, has none) and x̂.
   const bool start_fixed = record.start_anchor == 0;
@@ -99,16 +100,16 @@ void EifJoiner::Impl::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) c
   for (int i = 0; i < s.num_landmarks(); ++i) x.segment<2>(c + 2 * i) = landmarks[i];
 
   // Whiten with Q = L Lᵀ: A = L⁻¹ J, e = L⁻¹ (J x̂ − r).
-  const auto L = f->covariance_sqrt->triangularView<Eigen::Lower>();
+  const auto L = covariance_sqrt_->triangularView<Eigen::Lower>();
   Eigen::MatrixXd A = J;
   L.solveInPlace(A);
   Eigen::VectorXd e = J * x - lin.residual;
   L.solveInPlace(e);
-  f->H = A.transpose() * A;
-  f->b = A.transpose() * e;
+  H = A.transpose() * A;
+  b = A.transpose() * e;
   Eigen::VectorXd whitened_residual = lin.residual;
   L.solveInPlace(whitened_residual);
-  f->cost = whitened_residual.squaredNorm();
+  cost = whitened_residual.squaredNorm();
   *whitened_jacobian = std::move(A);
 }
 
@@ -122,11 +123,11 @@ void EifJoiner::Impl::Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian) c
 //   b_a = J_aᵀ w,  b_i = R_iᵀ w_i,
 // O(n² · 6) in fixed-size blocks instead of the O(m³) triangular solve and product
 // (m = 3 + 2n). A fixed start anchor (P0) has no columns: its J_s and J_frame are zero.
-void EifJoiner::Impl::LinearizeStructured(Factor* f) const {
-  const SubmapFactor& record = graph_.factors()[f->index];
+void EifFactor::LinearizeStructured(const EifEstimate& estimate) {
+  const SubmapFactor& record = estimate.graph.factors()[index];
   const LocalSubmap& s = record.submap;
-  const Pose2 start = AnchorPose(record.start_anchor), end = AnchorPose(record.end_anchor);
-  RecordLinearizationPoint(f, start, end);
+  const Pose2 start = estimate.AnchorPose(record.start_anchor), end = estimate.AnchorPose(record.end_anchor);
+  RecordLinearizationPoint(estimate, start, end);
   const int n = s.num_landmarks();
   const bool start_fixed = record.start_anchor == 0;
   using Matrix26 = Eigen::Matrix<double, 2, 6, Eigen::DontAlign>;
@@ -151,7 +152,7 @@ void EifJoiner::Impl::LinearizeStructured(Factor* f) const {
   const Eigen::Vector3d d0 = A0 * x_a - r0;
   for (int i = 0; i < n; ++i) {
     Feature& fi = features[i];
-    const Eigen::Vector2d landmark = graph_.landmarks()[record.landmark_of_feature[i]];
+    const Eigen::Vector2d landmark = estimate.graph.landmarks()[record.landmark_of_feature[i]];
     Matrix23d J_frame;
     Eigen::Matrix2d R;
     fi.r = TransformTo(start, landmark, &J_frame, &R) - s.landmark(i);
@@ -160,14 +161,14 @@ void EifJoiner::Impl::LinearizeStructured(Factor* f) const {
     fi.R = R;
     fi.d = J_frame * start.vector() + R * landmark - fi.r;
   }
-  if (f->information == nullptr) {  // Q⁻¹ = L⁻ᵀ L⁻¹, once per factor
+  if (information_ == nullptr) {  // Q⁻¹ = L⁻ᵀ L⁻¹, once per factor
     const int m = 3 + 2 * n;
     Eigen::MatrixXd L_inv = Eigen::MatrixXd::Identity(m, m);
-    f->covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(L_inv);
+    covariance_sqrt_->triangularView<Eigen::Lower>().solveInPlace(L_inv);
     Eigen::MatrixXd information = L_inv.transpose() * L_inv;
-    f->information = std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
+    information_ = std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
   }
-  const Eigen::MatrixXd& W = *f->information;
+  const Eigen::MatrixXd& W = *information_;
   // Row block 0 (the relative pose) and each feature's row block of W J_a, W r and w.
   const Eigen::Matrix3d W00 = W.topLeftCorner<3, 3>();
   Eigen::Matrix<double, 3, 6> WJ0 = W00 * A0;
@@ -193,204 +194,154 @@ void EifJoiner::Impl::LinearizeStructured(Factor* f) const {
       fi.w += Wik * fk.d;
     }
   }
-  double cost = r0.dot(Wr0);
+  double total = r0.dot(Wr0);
   Eigen::Matrix<double, 6, 6> H_aa = A0.transpose() * WJ0;
   Eigen::Matrix<double, 6, 1> b_a = A0.transpose() * w0;
   for (int i = 0; i < n; ++i) {
     const Feature& fi = features[i];
-    cost += fi.r.dot(fi.Wr);
+    total += fi.r.dot(fi.Wr);
     H_aa.topRows<3>() += fi.J_frame.transpose() * fi.WJ;
     b_a.head<3>() += fi.J_frame.transpose() * fi.w;
   }
   H_aa = (0.5 * (H_aa + H_aa.transpose())).eval();
-  f->cost = cost;
+  cost = total;
   // The anchor columns kept: both, or the end anchor's alone after a fixed start.
   const int na = start_fixed ? 3 : 6;
   const int cols = na + 2 * n;
-  f->H.resize(cols, cols);
-  f->b.resize(cols);
-  f->H.topLeftCorner(na, na) = H_aa.bottomRightCorner(na, na);
-  f->b.head(na) = b_a.tail(na);
+  H.resize(cols, cols);
+  b.resize(cols);
+  H.topLeftCorner(na, na) = H_aa.bottomRightCorner(na, na);
+  b.head(na) = b_a.tail(na);
   for (int i = 0; i < n; ++i) {
     const Feature& fi = features[i];
     const Eigen::Matrix<double, 6, 2> cross = fi.WJ.transpose() * fi.R;  // H_a,i
-    f->H.block(0, na + 2 * i, na, 2) = cross.bottomRows(na);
-    f->H.block(na + 2 * i, 0, 2, na) = cross.bottomRows(na).transpose();
-    f->b.segment<2>(na + 2 * i) = fi.R.transpose() * fi.w;
+    H.block(0, na + 2 * i, na, 2) = cross.bottomRows(na);
+    H.block(na + 2 * i, 0, 2, na) = cross.bottomRows(na).transpose();
+    b.segment<2>(na + 2 * i) = fi.R.transpose() * fi.w;
     for (int k = 0; k <= i; ++k) {  // H symmetric to the bit
       const Feature& fk = features[k];
-      f->H.block<2, 2>(na + 2 * i, na + 2 * k) = fi.R.transpose() * W.block<2, 2>(3 + 2 * i, 3 + 2 * k) * fk.R;
-      if (k < i) f->H.block<2, 2>(na + 2 * k, na + 2 * i) = f->H.block<2, 2>(na + 2 * i, na + 2 * k).transpose();
+      H.block<2, 2>(na + 2 * i, na + 2 * k) = fi.R.transpose() * W.block<2, 2>(3 + 2 * i, 3 + 2 * k) * fk.R;
+      if (k < i) H.block<2, 2>(na + 2 * k, na + 2 * i) = H.block<2, 2>(na + 2 * i, na + 2 * k).transpose();
     }
   }
 }
 
-void EifJoiner::Impl::AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
-  Eigen::VectorXd local(f.H.rows());
+void EifFactor::AddInformationTimes(const Eigen::VectorXd& x, Eigen::VectorXd* y) const {
+  Eigen::VectorXd local(H.rows());
   int row = 0;
-  for (size_t a = 0; a < f.offsets.size(); ++a) {
-    local.segment(row, f.sizes[a]) = x.segment(f.offsets[a], f.sizes[a]);
-    row += f.sizes[a];
+  for (size_t a = 0; a < offsets.size(); ++a) {
+    local.segment(row, sizes[a]) = x.segment(offsets[a], sizes[a]);
+    row += sizes[a];
   }
-  const Eigen::VectorXd product = f.H * local;
+  const Eigen::VectorXd product = H * local;
   row = 0;
-  for (size_t a = 0; a < f.offsets.size(); ++a) {
-    y->segment(f.offsets[a], f.sizes[a]) += product.segment(row, f.sizes[a]);
-    row += f.sizes[a];
+  for (size_t a = 0; a < offsets.size(); ++a) {
+    y->segment(offsets[a], sizes[a]) += product.segment(row, sizes[a]);
+    row += sizes[a];
   }
 }
 
-double EifJoiner::Impl::InformationNorm(const Eigen::VectorXd& x) const {
-  Eigen::VectorXd Lambda_x = Eigen::VectorXd::Zero(x.size());
-  for (const Factor& f : factors_) AddInformationTimes(f, x, &Lambda_x);
-  return x.dot(Lambda_x);
-}
-
-void EifJoiner::Impl::AddToEta(const Factor& f, Eigen::VectorXd* eta) const {
+void EifFactor::AddToEta(Eigen::VectorXd* eta) const {
   int row = 0;
-  for (size_t a = 0; a < f.offsets.size(); ++a) {
-    eta->segment(f.offsets[a], f.sizes[a]) += f.b.segment(row, f.sizes[a]);
-    row += f.sizes[a];
+  for (size_t a = 0; a < offsets.size(); ++a) {
+    eta->segment(offsets[a], sizes[a]) += b.segment(row, sizes[a]);
+    row += sizes[a];
   }
 }
 
-std::vector<int> EifJoiner::Impl::FactorOffsets() const {
-  std::vector<int> offsets;
-  for (const Factor& f : factors_) {
-    offsets.push_back(static_cast<int>(f.offsets.size()));
-    offsets.insert(offsets.end(), f.offsets.begin(), f.offsets.end());
-  }
-  return offsets;
-}
-
-Pose2 EifJoiner::Impl::AnchorPose(int k) const {
-  const Pose2& p = graph_.anchors()[k];
-  return Pose2(p.x, p.y, anchor_theta_[k]);
-}
-
-std::vector<Eigen::Vector2d> EifJoiner::Impl::FactorLandmarks(const SubmapFactor& record) const {
-  std::vector<Eigen::Vector2d> landmarks;
-  landmarks.reserve(record.landmark_of_feature.size());
-  for (int j : record.landmark_of_feature) landmarks.push_back(graph_.landmarks()[j]);
-  return landmarks;
-}
-
-double EifJoiner::Impl::NormalizedResidual(const Factor& f) const {
-  const SubmapFactor& record = graph_.factors()[f.index];
-  Eigen::VectorXd r = SubmapResidual(record.submap, AnchorPose(record.start_anchor), AnchorPose(record.end_anchor),
-                                     FactorLandmarks(record));
-  f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(r);  // rᵀ Q⁻¹ r = |L⁻¹ r|²
+double EifFactor::NormalizedResidual(const EifEstimate& estimate) const {
+  const SubmapFactor& record = estimate.graph.factors()[index];
+  Eigen::VectorXd r = SubmapResidual(record.submap, estimate.AnchorPose(record.start_anchor),
+                                     estimate.AnchorPose(record.end_anchor), estimate.FactorLandmarks(record));
+  covariance_sqrt_->triangularView<Eigen::Lower>().solveInPlace(r);  // rᵀ Q⁻¹ r = |L⁻¹ r|²
   return r.squaredNorm();
 }
 
-double EifJoiner::Impl::Cost() const {
-  double cost = 0.0;
-  for (const Factor& f : factors_) cost += NormalizedResidual(f);
-  return cost;
+void EifFactor::SwapLinearization(Linearization* l) {
+  H.swap(l->H);
+  b.swap(l->b);
+  std::swap(start_theta, l->start_theta);
+  std::swap(end_theta, l->end_theta);
+  levers_.swap(l->levers);
+  std::swap(cost, l->cost);
 }
 
-void EifJoiner::Impl::SwapLinearization(Factor* f, Linearization* l) {
-  f->H.swap(l->H);
-  f->b.swap(l->b);
-  std::swap(f->start_theta, l->start_theta);
-  std::swap(f->end_theta, l->end_theta);
-  f->levers.swap(l->levers);
-  std::swap(f->cost, l->cost);
-}
-
-void EifJoiner::Impl::UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const {
+void EifFactor::UnwhitenedLinearizationError(const EifEstimate& estimate, Eigen::VectorXd* e) const {
   // The factor is nonlinear only through the start heading θ: each position row is
   // Rᵀ(θ) v, v the lever from the start anchor to the end anchor or a landmark. Its linear
   // model at (θ₀, v₀) is Rᵀ(θ₀) v + Ṙᵀ(θ₀) v₀ (θ − θ₀), so the error is
   // (Rᵀ(θ) − Rᵀ(θ₀)) v − Ṙᵀ(θ₀) v₀ (θ − θ₀); the heading row is linear.
-  const SubmapFactor& record = graph_.factors()[f.index];
-  const double theta = anchor_theta_[record.start_anchor], dtheta = theta - f.start_theta;
-  const Eigen::Vector2d p_s(graph_.anchors()[record.start_anchor].x, graph_.anchors()[record.start_anchor].y);
+  const SubmapFactor& record = estimate.graph.factors()[index];
+  const double theta = estimate.anchor_theta[record.start_anchor], dtheta = theta - start_theta;
+  const Eigen::Vector2d p_s(estimate.graph.anchors()[record.start_anchor].x,
+                            estimate.graph.anchors()[record.start_anchor].y);
   const Eigen::Matrix2d Rt = Pose2(0, 0, theta).rotation().transpose();
-  const Eigen::Matrix2d Rt0 = Pose2(0, 0, f.start_theta).rotation().transpose();
+  const Eigen::Matrix2d Rt0 = Pose2(0, 0, start_theta).rotation().transpose();
   Eigen::Matrix2d dRt0;  // d/dθ Rᵀ(θ) at θ₀
-  const double c = std::cos(f.start_theta), s = std::sin(f.start_theta);
+  const double c = std::cos(start_theta), s = std::sin(start_theta);
   dRt0 << -s, c, -c, -s;
-  const int n = static_cast<int>(f.levers.size()) - 1;
+  const int n = static_cast<int>(levers_.size()) - 1;
   e->setZero(3 + 2 * n);
   const auto error = [&](const Eigen::Vector2d& v, const Eigen::Vector2d& v0) {
     return Eigen::Vector2d((Rt - Rt0) * v - dRt0 * v0 * dtheta);
   };
   e->head<2>() = error(
-      Eigen::Vector2d(graph_.anchors()[record.end_anchor].x, graph_.anchors()[record.end_anchor].y) - p_s, f.levers[0]);
+      Eigen::Vector2d(estimate.graph.anchors()[record.end_anchor].x, estimate.graph.anchors()[record.end_anchor].y) -
+          p_s,
+      levers_[0]);
   for (int i = 0; i < n; ++i) {
-    e->segment<2>(3 + 2 * i) = error(graph_.landmarks()[record.landmark_of_feature[i]] - p_s, f.levers[i + 1]);
+    e->segment<2>(3 + 2 * i) = error(estimate.graph.landmarks()[record.landmark_of_feature[i]] - p_s, levers_[i + 1]);
   }
 }
 
-double EifJoiner::Impl::LinearizationError(const Factor& f) const {
+double EifFactor::LinearizationError(const EifEstimate& estimate) const {
   Eigen::VectorXd e;
-  UnwhitenedLinearizationError(f, &e);
-  f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);
+  UnwhitenedLinearizationError(estimate, &e);
+  covariance_sqrt_->triangularView<Eigen::Lower>().solveInPlace(e);
   return e.squaredNorm();
 }
 
-double EifJoiner::Impl::MaxLinearizationError() const {
-  double worst = 0.0;
-  for (const Factor& f : factors_) worst = std::max(worst, LinearizationError(f));
-  return worst;
+EifFactor EifFactor::WithTermsOf(const EifFactor& other, const EifEstimate& estimate, int index) {
+  EifFactor f;
+  f.index = index;
+  f.covariance_sqrt_ = other.covariance_sqrt_;
+  f.information_ = other.information_;
+  f.covariance_min_eigenvalue_ = other.covariance_min_eigenvalue_;
+  f.SetLayout(estimate);
+  return f;
 }
 
-bool EifJoiner::Impl::LinearizationErrorAbove(double chi2) const {
-  // After a partial recovery only the factors on moved variables can have changed.
-  std::vector<int> candidates;
-  if (!changed_all_) {
-    EnsureFactorsOfRow();
-    if (candidate_stamp_.size() < factors_.size()) candidate_stamp_.resize(factors_.size(), 0);
-    const int walk = ++candidate_walks_;
-    for (int row : changed_rows_) {
-      for (int k : factors_of_row_[row]) {
-        if (candidate_stamp_[k] != walk) {
-          candidate_stamp_[k] = walk;
-          candidates.push_back(k);
-        }
-      }
-    }
+bool EifFactor::LinearizationErrorAbove(const EifEstimate& estimate, double chi2, Eigen::VectorXd* scratch) const {
+  const SubmapFactor& record = estimate.graph.factors()[index];
+  const double dtheta = estimate.anchor_theta[record.start_anchor] - start_theta;
+  if (dtheta == 0.0) return false;  // no error at all
+  // A bound without trigonometry: the error of lever v (v₀ at the linearisation) is
+  // (Rᵀ(θ) − Rᵀ(θ₀) − dRᵀ(θ₀)·Δθ) v + dRᵀ(θ₀)(v − v₀) Δθ, of norm at most
+  // ½Δθ²‖v‖ + |Δθ|‖v − v₀‖ (‖d²Rᵀ/dθ²‖ = ‖dRᵀ/dθ‖ = 1); whitening scales a vector by at
+  // most 1 / √λ_min(Q). Most factors are settled here.
+  const Pose2& start = estimate.graph.anchors()[record.start_anchor];
+  const Eigen::Vector2d p_s(start.x, start.y);
+  const auto lever_bound = [&](const Eigen::Vector2d& v, const Eigen::Vector2d& v0) {
+    return 0.5 * dtheta * dtheta * v.norm() + std::abs(dtheta) * (v - v0).norm();
+  };
+  const Pose2& end = estimate.graph.anchors()[record.end_anchor];
+  double bound = Square(lever_bound(Eigen::Vector2d(end.x, end.y) - p_s, levers_[0]));
+  for (size_t i = 0; i < record.landmark_of_feature.size(); ++i) {
+    bound += Square(lever_bound(estimate.graph.landmarks()[record.landmark_of_feature[i]] - p_s, levers_[i + 1]));
   }
-  const int count = changed_all_ ? static_cast<int>(factors_.size()) : static_cast<int>(candidates.size());
-  Eigen::VectorXd e;
-  for (int c = 0; c < count; ++c) {
-    const Factor& f = factors_[changed_all_ ? c : candidates[c]];
-    const SubmapFactor& record = graph_.factors()[f.index];
-    const double dtheta = anchor_theta_[record.start_anchor] - f.start_theta;
-    if (dtheta == 0.0) continue;  // no error at all
-    // A bound without trigonometry: the error of lever v (v₀ at the linearisation) is
-    // (Rᵀ(θ) − Rᵀ(θ₀) − dRᵀ(θ₀)·Δθ) v + dRᵀ(θ₀)(v − v₀) Δθ, of norm at most
-    // ½Δθ²‖v‖ + |Δθ|‖v − v₀‖ (‖d²Rᵀ/dθ²‖ = ‖dRᵀ/dθ‖ = 1); whitening scales a vector by at
-    // most 1 / √λ_min(Q). Most factors are settled here.
-    const Pose2& start = graph_.anchors()[record.start_anchor];
-    const Eigen::Vector2d p_s(start.x, start.y);
-    const auto lever_bound = [&](const Eigen::Vector2d& v, const Eigen::Vector2d& v0) {
-      return 0.5 * dtheta * dtheta * v.norm() + std::abs(dtheta) * (v - v0).norm();
-    };
-    const Pose2& end = graph_.anchors()[record.end_anchor];
-    double bound = Square(lever_bound(Eigen::Vector2d(end.x, end.y) - p_s, f.levers[0]));
-    for (size_t i = 0; i < record.landmark_of_feature.size(); ++i) {
-      bound += Square(lever_bound(graph_.landmarks()[record.landmark_of_feature[i]] - p_s, f.levers[i + 1]));
-    }
-    if (bound <= chi2 * f.covariance_min_eigenvalue) continue;
-    // Then the unwhitened error (O(n)) before the triangular solve (O(n²)).
-    UnwhitenedLinearizationError(f, &e);
-    if (e.squaredNorm() <= chi2 * f.covariance_min_eigenvalue) continue;
-    f.covariance_sqrt->triangularView<Eigen::Lower>().solveInPlace(e);
-    if (e.squaredNorm() > chi2) return true;
-  }
-  return false;
+  if (bound <= chi2 * covariance_min_eigenvalue_) return false;
+  // Then the unwhitened error (O(n)) before the triangular solve (O(n²)).
+  Eigen::VectorXd& e = *scratch;
+  UnwhitenedLinearizationError(estimate, &e);
+  if (e.squaredNorm() <= chi2 * covariance_min_eigenvalue_) return false;
+  covariance_sqrt_->triangularView<Eigen::Lower>().solveInPlace(e);
+  return e.squaredNorm() > chi2;
 }
 
-double EifJoiner::Impl::MaxHeadingDrift() const {
-  double drift = 0.0;
-  for (const Factor& f : factors_) {
-    const SubmapFactor& record = graph_.factors()[f.index];
-    drift = std::max({drift, std::abs(anchor_theta_[record.start_anchor] - f.start_theta),
-                      std::abs(anchor_theta_[record.end_anchor] - f.end_theta)});
-  }
-  return drift;
+double EifFactor::HeadingDrift(const EifEstimate& estimate) const {
+  const SubmapFactor& record = estimate.graph.factors()[index];
+  return std::max(std::abs(estimate.anchor_theta[record.start_anchor] - start_theta),
+                  std::abs(estimate.anchor_theta[record.end_anchor] - end_theta));
 }
 
 }  // namespace subslam::backend

@@ -24,10 +24,10 @@ bool EifJoiner::Impl::PredictedStepConverged(const Eigen::VectorXd& x) {
   // gradient g of Cost()/2 at x, and the Gauss-Newton step is −Λ(x)⁻¹ g. The factor at
   // hand is of Λ at the previous linearisation point, a step away, whose headings differ
   // by that step's (the factor is nonlinear only through the headings): δ = −Λ_prev⁻¹ g.
-  Eigen::VectorXd g = Eigen::VectorXd::Zero(dim_), eta = Eigen::VectorXd::Zero(dim_);
-  for (const Factor& f : factors_) {
-    AddInformationTimes(f, x, &g);
-    AddToEta(f, &eta);
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(estimate_.dim), eta = Eigen::VectorXd::Zero(estimate_.dim);
+  for (const EifFactor& f : factors_) {
+    f.AddInformationTimes(x, &g);
+    f.AddToEta(&eta);
   }
   g -= eta;
   Eigen::VectorXd step;
@@ -50,7 +50,8 @@ absl::Status EifJoiner::Impl::Relinearize() {
   // marginals, all at once from the sparse inverse, bound every later one until the next
   // relinearisation (Λ only grows), so association can skip candidates at once again
   // (association by truth ids has no candidates).
-  if (options_.bound_candidate_marginals && !options_.association.known_association && graph_.num_landmarks() > 0) {
+  if (options_.bound_candidate_marginals && !options_.association.known_association &&
+      estimate_.graph.num_landmarks() > 0) {
     StageTimer timer(&times_, "covariance_recovery");
     marginal_bound_ = LandmarkCovariances();
   }
@@ -62,7 +63,7 @@ absl::Status EifJoiner::Impl::GaussNewton() {
   // it a little on the way to a lower minimum), but `divergence_rises` rises in a row
   // mean divergence (seen with wrong associations): then the best iterate is restored —
   // the factors' linearisation whose solution it was — and the iterations end. An
-  // iterate's cost comes with the factors' linearisation at it (Factor::cost), at the
+  // iterate's cost comes with the factors' linearisation at it (EifFactor::cost), at the
   // start of the next iteration; a step that ends the iterations as converged is below
   // the tolerances, and its cost is not asked for.
   const int max_rises = options_.divergence_rises;
@@ -72,15 +73,15 @@ absl::Status EifJoiner::Impl::GaussNewton() {
   // Linearisations set aside, swapped, never copied: `previous` holds the one the factor
   // and the estimate belong to while the factors take the next; `best` the one whose
   // solution is the best iterate, once `previous` is needed for a later one.
-  std::vector<Linearization> previous, best;
+  std::vector<EifFactor::Linearization> previous, best;
   bool best_is_previous = false;
-  const auto restore = [this](std::vector<Linearization>* from) {
-    for (size_t k = 0; k < factors_.size(); ++k) SwapLinearization(&factors_[k], &(*from)[k]);
+  const auto restore = [this](std::vector<EifFactor::Linearization>* from) {
+    for (size_t k = 0; k < factors_.size(); ++k) factors_[k].SwapLinearization(&(*from)[k]);
   };
   for (int it = 0; it <= options_.max_relinearizations; ++it) {
     // One more linearisation after the last step, for the watch alone.
     if (it == options_.max_relinearizations && !watch) break;
-    const Eigen::VectorXd before = StateVector();
+    const Eigen::VectorXd before = estimate_.StateVector();
     const bool check = it > 0 && options_.predict_convergence;
     if (watch || check) {
       if (best_is_previous) {
@@ -93,8 +94,8 @@ absl::Status EifJoiner::Impl::GaussNewton() {
     double cost = 0.0;
     {
       StageTimer timer(&times_, "update");
-      for (Factor& f : factors_) {
-        Linearize(&f);
+      for (EifFactor& f : factors_) {
+        f.Linearize(estimate_);
         cost += f.cost;
       }
     }
@@ -128,7 +129,7 @@ absl::Status EifJoiner::Impl::GaussNewton() {
     }
     if (absl::Status s = Rebuild(/*only_last_factor=*/false); !s.ok()) return s;
     ++counters_.relinearizations;
-    const Eigen::VectorXd step = StateVector() - before;
+    const Eigen::VectorXd step = estimate_.StateVector() - before;
     if (step.cwiseAbs().maxCoeff() < options_.relinearize_tolerance) {
       converged_ = true;
       break;
@@ -146,20 +147,51 @@ absl::Status EifJoiner::Impl::GaussNewton() {
 }
 
 absl::Status EifJoiner::Impl::AdoptEstimate(const SubmapGraph& solved) {
-  if (solved.num_anchors() != graph_.num_anchors() || solved.num_landmarks() != graph_.num_landmarks()) {
+  if (solved.num_anchors() != estimate_.graph.num_anchors() ||
+      solved.num_landmarks() != estimate_.graph.num_landmarks()) {
     return absl::InvalidArgumentError("AdoptEstimate: not the joiner's graph");
   }
-  for (int k = 1; k < graph_.num_anchors(); ++k) {
+  for (int k = 1; k < estimate_.graph.num_anchors(); ++k) {
     const Pose2& p = solved.anchors()[k];
-    anchor_theta_[k] += WrapAngle(p.theta - anchor_theta_[k]);  // stay continuous
-    graph_.anchor(k) = Pose2(p.x, p.y, WrapAngle(p.theta));
+    estimate_.anchor_theta[k] += WrapAngle(p.theta - estimate_.anchor_theta[k]);  // stay continuous
+    estimate_.graph.anchor(k) = Pose2(p.x, p.y, WrapAngle(p.theta));
   }
-  for (int j = 0; j < graph_.num_landmarks(); ++j) graph_.landmark(j) = solved.landmarks()[j];
+  for (int j = 0; j < estimate_.graph.num_landmarks(); ++j) estimate_.graph.landmark(j) = solved.landmarks()[j];
   {
     StageTimer timer(&times_, "update");
-    for (Factor& f : factors_) Linearize(&f);
+    for (EifFactor& f : factors_) f.Linearize(estimate_);
   }
   return Rebuild(/*only_last_factor=*/false);
+}
+
+double EifJoiner::Impl::Cost() const {
+  double cost = 0.0;
+  for (const EifFactor& f : factors_) cost += f.NormalizedResidual(estimate_);
+  return cost;
+}
+
+double EifJoiner::Impl::MaxLinearizationError() const {
+  double worst = 0.0;
+  for (const EifFactor& f : factors_) worst = std::max(worst, f.LinearizationError(estimate_));
+  return worst;
+}
+
+bool EifJoiner::Impl::LinearizationErrorAbove(double chi2) {
+  bool all = true;
+  std::vector<int> which;
+  linearization_watch_.FactorsToTest(factors_, estimate_.dim, &all, &which);
+  const int count = all ? static_cast<int>(factors_.size()) : static_cast<int>(which.size());
+  Eigen::VectorXd e;
+  for (int c = 0; c < count; ++c) {
+    if (factors_[all ? c : which[c]].LinearizationErrorAbove(estimate_, chi2, &e)) return true;
+  }
+  return false;
+}
+
+double EifJoiner::Impl::MaxHeadingDrift() const {
+  double drift = 0.0;
+  for (const EifFactor& f : factors_) drift = std::max(drift, f.HeadingDrift(estimate_));
+  return drift;
 }
 
 }  // namespace subslam::backend

@@ -78,79 +78,10 @@ EifJoinerOptions EifJoinerOptions::ForTreeNode() const {
 }
 
 EifJoiner::Impl::Impl(const Pose2& initial_pose, const EifJoinerOptions& options)
-    : options_(options), graph_(initial_pose), associator_(options.association) {
+    : options_(options), estimate_(initial_pose), associator_(options.association) {
   SUBSLAM_CHECK(options_.Validate().ok()) << options_.Validate().message();
-  anchor_offset_.push_back(-1);  // P0 is fixed
-  anchor_theta_.push_back(initial_pose.theta);
   for (const char* stage : {"association", "covariance_recovery", "update", "factorization", "recovery"}) {
     times_[stage] = 0.0;
-  }
-}
-
-Eigen::VectorXd EifJoiner::Impl::StateVector() const {
-  Eigen::VectorXd x(dim_);
-  for (int k = 1; k < graph_.num_anchors(); ++k) {
-    const Pose2& p = graph_.anchors()[k];
-    x.segment<3>(anchor_offset_[k]) << p.x, p.y, anchor_theta_[k];
-  }
-  for (int j = 0; j < graph_.num_landmarks(); ++j) {
-    x.segment<2>(landmark_offset_[j]) = graph_.landmarks()[j];
-  }
-  return x;
-}
-
-void EifJoiner::Impl::SetState(const Eigen::VectorXd& x) {
-  for (int k = 1; k < graph_.num_anchors(); ++k) {
-    const Eigen::Vector3d v = x.segment<3>(anchor_offset_[k]);
-    anchor_theta_[k] = v[2];
-    graph_.anchor(k) = Pose2(v[0], v[1], WrapAngle(v[2]));
-  }
-  for (int j = 0; j < graph_.num_landmarks(); ++j) {
-    graph_.landmark(j) = x.segment<2>(landmark_offset_[j]);
-  }
-}
-
-void EifJoiner::Impl::SetStateRows(const Eigen::VectorXd& x, const std::vector<int>& rows) {
-  EnsureOwnerOfRow();
-  for (int row : rows) {
-    const int owner = owner_of_row_[row];
-    if (owner >= 0) {  // anchor `owner`: one coordinate
-      const int c = row - anchor_offset_[owner];
-      Pose2& p = graph_.anchor(owner);
-      if (c == 0) p.x = x[row];
-      if (c == 1) p.y = x[row];
-      if (c == 2) {
-        anchor_theta_[owner] = x[row];
-        p.theta = WrapAngle(x[row]);
-      }
-    } else {
-      const int j = -owner - 1;
-      graph_.landmark(j)[row - landmark_offset_[j]] = x[row];
-    }
-  }
-}
-
-void EifJoiner::Impl::EnsureOwnerOfRow() const {
-  if (!owner_of_row_valid_) {
-    owner_of_row_.assign(dim_, 0);
-    for (int k = 1; k < graph_.num_anchors(); ++k) {
-      for (int c = 0; c < 3; ++c) owner_of_row_[anchor_offset_[k] + c] = k;
-    }
-    for (int j = 0; j < graph_.num_landmarks(); ++j) {
-      for (int c = 0; c < 2; ++c) owner_of_row_[landmark_offset_[j] + c] = -j - 1;
-    }
-    owner_of_row_valid_ = true;
-    return;
-  }
-  // Rows added since: the newest anchors' and landmarks' (offsets increase).
-  const int known = static_cast<int>(owner_of_row_.size());
-  if (known == dim_) return;
-  owner_of_row_.resize(dim_, 0);
-  for (int k = graph_.num_anchors() - 1; k >= 1 && anchor_offset_[k] >= known; --k) {
-    for (int c = 0; c < 3; ++c) owner_of_row_[anchor_offset_[k] + c] = k;
-  }
-  for (int j = graph_.num_landmarks() - 1; j >= 0 && landmark_offset_[j] >= known; --j) {
-    for (int c = 0; c < 2; ++c) owner_of_row_[landmark_offset_[j] + c] = -j - 1;
   }
 }
 
@@ -191,7 +122,7 @@ SubmapAssociation EifJoiner::Impl::AssociateAt(const LocalSubmap& s, int start,
     return AnchorLandmarkBounds(anchor, landmarks);
   };
   SubmapAssociation a = associator_.Associate(
-      s, start, graph_,
+      s, start, estimate_.graph,
       [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
         return JointCovariance(anchors, landmarks);
       },
@@ -211,22 +142,19 @@ SubmapAssociation EifJoiner::Impl::AssociateAt(const LocalSubmap& s, int start,
 int EifJoiner::Impl::AddEndAnchorAndLandmarks(const LocalSubmap& m, int start, const Eigen::Matrix3d& start_covariance,
                                               std::vector<int>* assoc) {
   // Initialise the end anchor and the new landmarks through the start anchor.
-  const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
+  const Pose2 P_s(estimate_.graph.anchors()[start].x, estimate_.graph.anchors()[start].y,
+                  estimate_.anchor_theta[start]);
   const Pose2 end_local = m.end_pose();
   const Pose2 end = Compose(P_s, end_local);
-  const int end_anchor = graph_.AddAnchor(Pose2(end.x, end.y, WrapAngle(end.theta)));
-  anchor_theta_.push_back(anchor_theta_[start] + end_local.theta);
-  anchor_offset_.push_back(dim_);
-  dim_ += 3;
+  const int end_anchor =
+      estimate_.AddAnchor(Pose2(end.x, end.y, WrapAngle(end.theta)), estimate_.anchor_theta[start] + end_local.theta);
   for (int i = 0; i < m.num_landmarks(); ++i) {
     if ((*assoc)[i] >= 0) {
       ++counters_.associated;
     } else {
       Matrix23d J_frame;
       Eigen::Matrix2d J_point;
-      (*assoc)[i] = graph_.AddLandmark(TransformFrom(P_s, m.landmark(i), &J_frame, &J_point));
-      landmark_offset_.push_back(dim_);
-      dim_ += 2;
+      (*assoc)[i] = estimate_.AddLandmark(TransformFrom(P_s, m.landmark(i), &J_frame, &J_point));
       ++counters_.new_landmarks;
       // Its marginal given the data before this join and its own feature alone — the
       // start anchor's marginal carried through the feature — bounds its marginal given
@@ -248,14 +176,14 @@ bool EifJoiner::Impl::RelinearizationDue() {
   } else if (options_.relinearize_linearization_chi2 > 0) {
     StageTimer timer(&times_, "linearization_check");
     relinearize = LinearizationErrorAbove(options_.relinearize_linearization_chi2);
-    MarkLinearizationTested();
+    linearization_watch_.MarkTested(estimate_.dim);
     if (relinearize) ++counters_.relinearized_on_linearization_error;
   }
   return relinearize;
 }
 
 absl::Status EifJoiner::Impl::JoinWith(const LocalSubmap& s, bool associate) {
-  const int start = graph_.num_anchors() - 1;
+  const int start = estimate_.graph.num_anchors() - 1;
   std::vector<int> assoc(s.num_landmarks(), -1);
   // The start anchor's marginal before this join (NaN without one: no bounds then).
   Eigen::Matrix3d start_covariance = Eigen::Matrix3d::Constant(NAN);
@@ -295,16 +223,20 @@ absl::Status EifJoiner::Impl::JoinWith(const LocalSubmap& s, bool associate) {
       if (!pending_loop_) {
         // It needs a full closure's worth of other old landmarks: the later maps are gated
         // given the held pairings, so those lend them no evidence.
-        pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(),
-                                           std::move(a),   options_.association.min_loop_pairings,    0,
+        pending_loop_ = PendingLoopClosure{TakeSnapshot(),
+                                           static_cast<int>(estimate_.graph.factors().size()),
+                                           rejected_.size(),
+                                           std::move(a),
+                                           options_.association.min_loop_pairings,
+                                           0,
                                            /*thin=*/true};
         pending_loop_->before.counters = counters_before;
       }
     } else if (!a.uncertain_loop_features.empty() && options_.association.loop_confirmation_maps > 0 &&
                options_.RelinearizesAfterJoins() && !pending_loop_ &&
                3.0 * a.start_position_sigma_m >= options_.association.loop_confirmation_min_sigma_radius_m) {
-      pending_loop_ =
-          PendingLoopClosure{TakeSnapshot(), static_cast<int>(graph_.factors().size()), rejected_.size(), std::move(a)};
+      pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(estimate_.graph.factors().size()),
+                                         rejected_.size(), std::move(a)};
       // Its decisions are counted again on an undo (its work is not): not twice.
       pending_loop_->before.counters = counters_before;
     }
@@ -317,17 +249,18 @@ absl::Status EifJoiner::Impl::JoinWith(const LocalSubmap& s, bool associate) {
     StampRotationFit(fit, &m);
     associator_.RecordRotationFit(m);
   }
-  const int first_new_landmark = graph_.num_landmarks();
+  const int first_new_landmark = estimate_.graph.num_landmarks();
   const int end_anchor = AddEndAnchorAndLandmarks(m, start, start_covariance, &assoc);
   // A rejected map joined again (associate false) must not redefine its landmarks.
   associator_.Record(m, assoc, first_new_landmark, /*define_truth=*/associate);
-  touched_.resize(graph_.num_landmarks(), 1);
+  touched_.resize(estimate_.graph.num_landmarks(), 1);
   for (int j : assoc) touched_[j] = 1;
-  graph_.AddFactor({std::move(m), start, end_anchor, assoc});
-  Factor f = MakeFactor(static_cast<int>(graph_.factors().size()) - 1);
+  estimate_.graph.AddFactor({std::move(m), start, end_anchor, assoc});
+  EifFactor f = EifFactor::Make(estimate_, static_cast<int>(estimate_.graph.factors().size()) - 1,
+                                /*screened=*/options_.relinearize_linearization_chi2 > 0);
   {
     StageTimer timer(&times_, "update");
-    Linearize(&f, &solver_.last_whitened_jacobian);
+    f.Linearize(estimate_, &solver_.last_whitened_jacobian);
   }
   factors_.push_back(std::move(f));
   last_association_ = assoc;
@@ -368,7 +301,7 @@ absl::Status EifJoiner::Impl::Finish() {
 
 absl::Status EifJoiner::Impl::JoinMap(const EifJoiner& right_joiner) {
   const Impl& right = *right_joiner.impl_;
-  if (right.graph_.factors().empty()) return absl::OkStatus();
+  if (right.estimate_.graph.factors().empty()) return absl::OkStatus();
   // A loop closure still waiting for confirmation stands: once whole maps are joined the
   // maps after it are no longer a sequence to replay (and right's own is right's).
   pending_loop_.reset();
@@ -376,52 +309,44 @@ absl::Status EifJoiner::Impl::JoinMap(const EifJoiner& right_joiner) {
   absl::StatusOr<LocalSubmap> summary =
       SummarizeForJoin(right_joiner, last_t_end_, /*with_covariance=*/!options_.association.known_association);
   if (!summary.ok()) return summary.status();
-  const int start = graph_.num_anchors() - 1;
-  const int n = right.graph_.num_landmarks();
+  const int start = estimate_.graph.num_anchors() - 1;
+  const int n = right.estimate_.graph.num_landmarks();
   std::vector<int> assoc(n, -1);
-  if (!graph_.factors().empty()) {
-    const std::vector<std::vector<int>> groups = WholeMapGroups(right.graph_);
+  if (!estimate_.graph.factors().empty()) {
+    const std::vector<std::vector<int>> groups = WholeMapGroups(right.estimate_.graph);
     assoc = AssociateAt(*summary, start, &groups).landmark_of_feature;
   }
   // Right's anchors and unmatched landmarks, through the last anchor (headings continuous).
-  const Pose2 P_s(graph_.anchors()[start].x, graph_.anchors()[start].y, anchor_theta_[start]);
+  const Pose2 P_s(estimate_.graph.anchors()[start].x, estimate_.graph.anchors()[start].y,
+                  estimate_.anchor_theta[start]);
   std::vector<int> anchor_map = {start};
-  for (int k = 1; k < right.graph_.num_anchors(); ++k) {
-    const Pose2& a = right.graph_.anchors()[k];
-    const Pose2 local(a.x, a.y, right.anchor_theta_[k]);
+  for (int k = 1; k < right.estimate_.graph.num_anchors(); ++k) {
+    const Pose2& a = right.estimate_.graph.anchors()[k];
+    const Pose2 local(a.x, a.y, right.estimate_.anchor_theta[k]);
     const Pose2 p = Compose(P_s, local);
-    anchor_map.push_back(graph_.AddAnchor(p));
-    anchor_theta_.push_back(P_s.theta + local.theta);
-    anchor_offset_.push_back(dim_);
-    dim_ += 3;
+    anchor_map.push_back(estimate_.AddAnchor(p, P_s.theta + local.theta));
   }
-  const int first_new_landmark = graph_.num_landmarks();
+  const int first_new_landmark = estimate_.graph.num_landmarks();
   long matched = 0;
   for (int l = 0; l < n; ++l) {
     if (assoc[l] >= 0) {
       ++matched;
       continue;
     }
-    assoc[l] = graph_.AddLandmark(TransformFrom(P_s, right.graph_.landmarks()[l]));
-    landmark_offset_.push_back(dim_);
-    dim_ += 2;
+    assoc[l] = estimate_.AddLandmark(TransformFrom(P_s, right.estimate_.graph.landmarks()[l]));
   }
   {
     StageTimer timer(&times_, "update");
-    for (const Factor& right_factor : right.factors_) {
-      const SubmapFactor& f = right.graph_.factors()[right_factor.index];
+    for (const EifFactor& right_factor : right.factors_) {
+      const SubmapFactor& f = right.estimate_.graph.factors()[right_factor.index];
       std::vector<int> landmarks;
       for (int l : f.landmark_of_feature) landmarks.push_back(assoc[l]);
-      graph_.AddFactor({f.submap, anchor_map[f.start_anchor], anchor_map[f.end_anchor], landmarks});
+      estimate_.graph.AddFactor({f.submap, anchor_map[f.start_anchor], anchor_map[f.end_anchor], landmarks});
       // The local map's own terms (its covariance's factor, information and smallest
       // eigenvalue) carry over; the layout and linearisation are this map's.
-      Factor factor;
-      factor.index = static_cast<int>(graph_.factors().size()) - 1;
-      factor.covariance_sqrt = right_factor.covariance_sqrt;
-      factor.information = right_factor.information;
-      factor.covariance_min_eigenvalue = right_factor.covariance_min_eigenvalue;
-      SetLayout(&factor);
-      Linearize(&factor);
+      EifFactor factor =
+          EifFactor::WithTermsOf(right_factor, estimate_, static_cast<int>(estimate_.graph.factors().size()) - 1);
+      factor.Linearize(estimate_);
       factors_.push_back(std::move(factor));
     }
   }
@@ -490,7 +415,7 @@ absl::Status EifJoiner::MergeLandmarks(int keep, int drop) { return impl_->Merge
 absl::Status EifJoiner::SplitFeature(int factor, int feature) { return impl_->SplitFeature(factor, feature); }
 double EifJoiner::MaxLinearizationError() const { return impl_->MaxLinearizationError(); }
 double EifJoiner::Cost() const { return impl_->Cost(); }
-const SubmapGraph& EifJoiner::graph() const { return impl_->graph_; }
+const SubmapGraph& EifJoiner::graph() const { return impl_->estimate_.graph; }
 Pose2 EifJoiner::LastAnchor() const { return impl_->LastAnchor(); }
 Eigen::Matrix3d EifJoiner::LastAnchorCovariance() const { return impl_->LastAnchorCovariance(); }
 Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) const {
@@ -511,11 +436,11 @@ std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
 const std::vector<int>& EifJoiner::last_association() const { return impl_->last_association_; }
 const std::vector<int>& EifJoiner::rejected() const { return impl_->rejected_; }
 const Eigen::SparseMatrix<double>& EifJoiner::information() const { return impl_->information(); }
-int EifJoiner::state_dimension() const { return impl_->dim_; }
+int EifJoiner::state_dimension() const { return impl_->estimate_.dim; }
 long EifJoiner::factor_nonzeros() const { return impl_->factor_nonzeros(); }
 FillReducingOrdering EifJoiner::factor_ordering() const { return impl_->factor_ordering(); }
-int EifJoiner::anchor_offset(int k) const { return impl_->anchor_offset_[k]; }
-int EifJoiner::landmark_offset(int j) const { return impl_->landmark_offset_[j]; }
+int EifJoiner::anchor_offset(int k) const { return impl_->estimate_.anchor_offset[k]; }
+int EifJoiner::landmark_offset(int j) const { return impl_->estimate_.landmark_offset[j]; }
 std::map<std::string, double> EifJoiner::stage_times() const { return impl_->times_; }
 const JoinerCounters& EifJoiner::counters() const { return impl_->counters_; }
 const SubmapAssociator& EifJoiner::associator() const { return impl_->associator_; }

@@ -21,6 +21,10 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "eif_estimate.h"
+#include "eif_factor.h"
+#include "eif_information_matrix.h"
+#include "eif_linearization_watch.h"
 #include "eif_solver.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/eif_joiner_options.h"
@@ -65,59 +69,10 @@ class EifJoiner::Impl {
   double innovation_d2_ = 0.0;
   long innovation_dof_ = 0;
 
-  struct Factor {
-    int index = 0;                              // into graph_.factors()
-    std::vector<int> offsets;                   // state offset of each variable block (−1: fixed P0)
-    std::vector<int> sizes;                     // 3 or 2
-    Eigen::MatrixXd H;                          // Jᵀ Q⁻¹ J over the stacked variable blocks
-    Eigen::VectorXd b;                          // Jᵀ Q⁻¹ (J x̂ − r)
-    double start_theta = 0.0, end_theta = 0.0;  // the anchors' headings at the linearisation
-    // The levers from the start anchor to the end anchor and to each landmark at the
-    // linearisation (what LinearizationError needs).
-    std::vector<Eigen::Vector2d> levers;
-    // rᵀ Q⁻¹ r at the linearisation point (the factor's term of Cost() there).
-    double cost = 0.0;
-    double covariance_min_eigenvalue = 0.0;  // of Q (set while relinearize_linearization_chi2 > 0)
-    // L of the local map's covariance Q = L Lᵀ (lower triangular), which whitens the
-    // factor; computed once, shared by copies.
-    std::shared_ptr<const Eigen::MatrixXd> covariance_sqrt;
-    // Q⁻¹, computed on the factor's first relinearisation (copies made before that compute
-    // their own).
-    std::shared_ptr<const Eigen::MatrixXd> information;
-  };
-
-  // The factor record of graph factor `index`: its variables' offsets and sizes.
-  Factor MakeFactor(int index) const;
-  // Its variables' offsets and sizes, from the graph's factor record.
-  void SetLayout(Factor* f) const;
-  // The factor's linearisation error at the current estimate, whitened (see
-  // MaxLinearizationError).
-  double LinearizationError(const Factor& f) const;
-  // Its error before whitening, e (3 + 2n; the heading row 0).
-  void UnwhitenedLinearizationError(const Factor& f, Eigen::VectorXd* e) const;
   // Whether some factor's is above chi2 (most factors settled by a bound, without it):
   // every factor after an exact solve, else the factors on the variables the last
   // partial recovery moved.
-  bool LinearizationErrorAbove(double chi2) const;
-  // The last anchor's state rows, which a full factorisation orders last (the next join
-  // starts there); none before the first join.
-  std::vector<int> LastAnchorVariables() const;
-  // factors_of_row_ from every factor, when not valid.
-  void EnsureFactorsOfRow() const;
-  // The headings and levers of the factor's linearisation at (start, end) and the
-  // current landmarks.
-  void RecordLinearizationPoint(Factor* f, const Pose2& start, const Pose2& end) const;
-  // H and b of the factor at the current estimate, and (if asked) its whitened Jacobian
-  // L_Q⁻¹ J, the newest factor's rank update of the incremental factor.
-  void Linearize(Factor* f, Eigen::MatrixXd* whitened_jacobian = nullptr) const;
-  // The same H and b from the Jacobian's block structure and Q⁻¹ (no whitening).
-  void LinearizeStructured(Factor* f) const;
-  // visit(row, col, value) for each entry of the factor's H, at its place in the state.
-  template <typename Visit>
-  static void ForEachEntry(const Factor& f, Visit visit);
-  // Adds a factor's b to η, or H_f x_f to y.
-  void AddToEta(const Factor& f, Eigen::VectorXd* eta) const;
-  void AddInformationTimes(const Factor& f, const Eigen::VectorXd& x, Eigen::VectorXd* y) const;
+  bool LinearizationErrorAbove(double chi2);
   // xᵀΛx over the factors' current H (Λ need not be assembled).
   double InformationNorm(const Eigen::VectorXd& x) const;
   // Λ, η from every factor (or only the newest, added to the existing ones); factorise;
@@ -133,17 +88,6 @@ class EifJoiner::Impl {
   // The factorisation itself: with incremental_factorization, spare slots and the last
   // anchor ordered last (for the rank updates of the next joins); without, neither.
   absl::Status FactorizeLambda();
-  // Λ's lower triangle (its pattern, values left unset) and lambda_slots_ from the
-  // factors' variable blocks.
-  void BuildLambdaPattern() const;
-  // Λ's lower triangle, assembled from the factors as needed (what a full factorisation
-  // takes).
-  const SparseLowerTriangle& LowerInformation() const;
-  // values = Σ over factors from first_factor on of their H entries in the lower
-  // triangle, at their slots (lambda_slots_ must be this pattern's).
-  void FillLambdaValues(size_t first_factor, std::vector<double>* values) const;
-  // The variable offsets of every factor, concatenated (what Λ's pattern depends on).
-  std::vector<int> FactorOffsets() const;
   // Gauss-Newton over every factor from the current estimate, until a step (taken, or
   // predicted with predict_convergence) is below relinearize_tolerance or
   // relinearize_step_chi2, or max_relinearizations; stopped at the best iterate after
@@ -152,27 +96,12 @@ class EifJoiner::Impl {
   // factor for the joins that follow.
   absl::Status Relinearize();
   absl::Status GaussNewton();
-  // A factor's linearisation (H, b, the headings and levers it was taken at: every
-  // Factor field Linearize sets), set aside while Gauss-Newton tries the next one.
-  struct Linearization {
-    Eigen::MatrixXd H;
-    Eigen::VectorXd b;
-    double start_theta = 0.0, end_theta = 0.0;
-    std::vector<Eigen::Vector2d> levers;
-    double cost = 0.0;
-  };
-  static void SwapLinearization(Factor* f, Linearization* l);
   // With the factors linearised at the estimate x, and the factor (and x) still of the
   // previous linearisation: whether the Gauss-Newton step from x, solved with that factor,
   // is below the stopping thresholds (see predict_convergence).
   bool PredictedStepConverged(const Eigen::VectorXd& x);
-  // One factor's term of Cost().
-  double NormalizedResidual(const Factor& f) const;
   // max over factors of |heading now − heading at the factor's linearisation| of its anchors.
   double MaxHeadingDrift() const;
-  // Anchor k with its continuous (unwrapped) heading; a factor's landmarks, in its order.
-  Pose2 AnchorPose(int k) const;
-  std::vector<Eigen::Vector2d> FactorLandmarks(const SubmapFactor& record) const;
   absl::Status JoinWith(const LocalSubmap& submap, bool associate);
   // Adds the end anchor of map `m` (returned) and its new landmarks (features `assoc`
   // leaves at −1, which it sets), initialised through the start anchor, with each new
@@ -192,64 +121,23 @@ class EifJoiner::Impl {
   // local map, or with `whole_map_groups` a whole map's summary (SubmapAssociator::Associate).
   SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
                                 const std::vector<std::vector<int>>* whole_map_groups = nullptr);
-  Eigen::VectorXd StateVector() const;
-  void SetState(const Eigen::VectorXd& x);
-  // The same for the listed state rows only (the rest already hold x).
-  void SetStateRows(const Eigen::VectorXd& x, const std::vector<int>& rows);
 
   EifJoinerOptions options_;
-  SubmapGraph graph_;
-  std::vector<int> anchor_offset_;  // −1 for P0
-  std::vector<int> landmark_offset_;
-  std::vector<double> anchor_theta_;  // continuous (unwrapped) headings
-  int dim_ = 0;
-  std::vector<Factor> factors_;
-  // Λ's lower triangle (Solver::lambda_lower) as the sum of the first `lambda_factors_`
-  // factors' H (0: none, or relinearised since): LowerInformation() adds the newer
-  // factors, or refills or assembles it again. Lambda_: both triangles, built from it
-  // for information().
-  mutable size_t lambda_factors_ = 0;
-  mutable Eigen::SparseMatrix<double> Lambda_;
-  mutable bool lambda_full_valid_ = false;
-  // Where each factor's H entries (in ForEachEntry's order, factors in order) sit in the
-  // lower triangle's values (−1: above the diagonal), and the factors' variable offsets
-  // they were found for: while those are the same, a relinearised Λ is only refilled
-  // (same pattern), not assembled again.
-  mutable std::vector<int> lambda_slots_;
-  mutable std::vector<int> lambda_slot_offsets_;
+  EifEstimate estimate_;  // the graph, its rows in the state, the continuous headings
+  std::vector<EifFactor> factors_;
+  // Λ from the factors, assembled when asked for (mutable: a const query may assemble it).
+  mutable EifInformationMatrix information_matrix_;
   Eigen::VectorXd eta_;
-  // Per state row, the factors on it (valid while factors_of_row_valid_); the rows whose
-  // factors the relinearisation trigger must test next: those that have moved by more than
-  // kLinearizationRecheckDrift since their factors were last tested (drift_ accumulates
-  // each row's changes since; changed_all_: an exact solve since the last test — test every
-  // factor); incremental updates since the last full factorisation (the guard's schedule).
-  // A factor's linearisation error moves by a negligible amount when its variables move
-  // by less than this [m, rad] (levers of 100 m and headings 0.1 rad off their
-  // linearisation change it by 10⁻⁵ m against local-map noise of centimetres and more).
-  static constexpr double kLinearizationRecheckDrift = 1e-6;
-  std::vector<double> drift_;
-  // Per state row, its anchor k (≥ 1) or landmark j (as −j − 1); valid while
-  // owner_of_row_valid_, extended as variables are added.
-  mutable std::vector<int> owner_of_row_;
-  mutable bool owner_of_row_valid_ = false;
-  void EnsureOwnerOfRow() const;
-  mutable std::vector<std::vector<int>> factors_of_row_;
-  mutable bool factors_of_row_valid_ = false;
-  mutable std::vector<int> candidate_stamp_;  // LinearizationErrorAbove()'s factors seen, by walk
-  mutable int candidate_walks_ = 0;
-  std::vector<int> changed_rows_;
-  bool changed_all_ = true;
+  // The rows moved since the relinearisation trigger's last test.
+  EifLinearizationWatch linearization_watch_;
   // Whether the estimate is Λ⁻¹η exactly (no partial recovery since the last exact solve).
   bool estimate_exact_ = true;
   // Whether the estimate is a converged Gauss-Newton's (set where GaussNewton() stops on
   // its tolerances, cleared by every rebuild of Λ): Finish() then has nothing to iterate.
   bool converged_ = false;
-  // After the trigger's test: the rows it covered are tested (and, after a test of every
-  // factor, every row's drift starts again).
-  void MarkLinearizationTested();
+  // Incremental updates since the last full factorisation (the guard's schedule).
   long updates_since_factorization_ = 0;
-  // The factor of Λ and Λ's lower triangle (eif_solver.h); mutable as the caches above:
-  // const queries assemble Λ and keep the factor's solved columns.
+  // The factor of Λ (eif_solver.h); mutable: a const query keeps the columns it solved.
   mutable EifSolver solver_;
   SubmapAssociator associator_;
   // Per landmark, an upper bound on its marginal covariance (NaN: none); see
@@ -264,11 +152,8 @@ class EifJoiner::Impl {
   bool relinearized_since_revision_ = false;
   std::vector<int> rejected_;
   struct Snapshot {  // what a rejected join undoes
-    SubmapGraph graph;
-    std::vector<int> anchor_offset, landmark_offset;
-    std::vector<double> anchor_theta;
-    int dim;
-    std::vector<Factor> factors;
+    EifEstimate estimate;
+    std::vector<EifFactor> factors;
     Eigen::VectorXd eta;
     SubmapAssociator associator;
     std::vector<Eigen::Matrix2d> marginal_bound;

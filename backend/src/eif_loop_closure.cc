@@ -15,32 +15,23 @@
 namespace subslam::backend {
 
 EifJoiner::Impl::Snapshot EifJoiner::Impl::TakeSnapshot() const {
-  return Snapshot{graph_,   anchor_offset_, landmark_offset_, anchor_theta_,   dim_,
-                  factors_, eta_,           associator_,      marginal_bound_, counters_};
+  return Snapshot{estimate_, factors_, eta_, associator_, marginal_bound_, counters_};
 }
 
 void EifJoiner::Impl::Restore(Snapshot before) {
-  graph_ = std::move(before.graph);
-  anchor_offset_ = std::move(before.anchor_offset);
-  landmark_offset_ = std::move(before.landmark_offset);
-  anchor_theta_ = std::move(before.anchor_theta);
-  dim_ = before.dim;
+  estimate_ = std::move(before.estimate);
   factors_ = std::move(before.factors);
-  lambda_factors_ = 0;  // Λ is assembled again from the kept factors when needed
+  information_matrix_.Forget();  // Λ is assembled again from the kept factors when needed
   eta_ = std::move(before.eta);
   associator_ = std::move(before.associator);
   marginal_bound_ = std::move(before.marginal_bound);  // bounds for the smaller Λ
   relative_bounds_.Clear();                            // computed for a larger Λ
   solver_.stale = true;                                // it absorbed the undone factors
-  factors_of_row_valid_ = false;
-  owner_of_row_valid_ = false;
-  changed_all_ = true;
+  linearization_watch_.Reset();
   estimate_exact_ = false;  // the snapshot's estimate may be a partial one
   converged_ = false;
-  changed_rows_.clear();
-  drift_.clear();
   counters_ = before.counters;
-  touched_.assign(graph_.num_landmarks(), 1);
+  touched_.assign(estimate_.graph.num_landmarks(), 1);
 }
 
 absl::Status EifJoiner::Impl::JoinOne(const LocalSubmap& s) {
@@ -53,12 +44,12 @@ absl::Status EifJoiner::Impl::JoinOne(const LocalSubmap& s) {
   if (matched == 0) return absl::OkStatus();
   // The new factor's normalised residual at the new estimate, against χ² with 2 dof per
   // matched feature (the end pose and new landmarks fit exactly).
-  const double d2 = NormalizedResidual(factors_.back());
+  const double d2 = factors_.back().NormalizedResidual(estimate_);
   const double bound = models::ChiSquareQuantile(options_.validation_probability, 2 * matched);
   if (d2 <= bound) return absl::OkStatus();
   // Rejected: undo, and join the local map again without associations (its odometry
   // still links the chain; its features become new landmarks).
-  if (pending_loop_ && pending_loop_->factor >= static_cast<int>(graph_.factors().size()) - 1) {
+  if (pending_loop_ && pending_loop_->factor >= static_cast<int>(estimate_.graph.factors().size()) - 1) {
     pending_loop_.reset();  // the closure was this join's, now undone
   }
   Restore(std::move(before));
@@ -69,10 +60,10 @@ absl::Status EifJoiner::Impl::JoinOne(const LocalSubmap& s) {
 
 void EifJoiner::Impl::AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* covariance) const {
   const PendingLoopClosure& pending = *pending_loop_;
-  *pose = pending.before.graph.anchors().back();  // the closing map's start anchor
+  *pose = pending.before.estimate.graph.anchors().back();  // the closing map's start anchor
   if (covariance != nullptr) *covariance = pending.association.start_anchor_covariance;
-  for (int f = pending.factor; f < static_cast<int>(graph_.factors().size()); ++f) {
-    const LocalSubmap& m = graph_.factors()[f].submap;
+  for (int f = pending.factor; f < static_cast<int>(estimate_.graph.factors().size()); ++f) {
+    const LocalSubmap& m = estimate_.graph.factors()[f].submap;
     *pose = covariance != nullptr ? ComposeWithCovariance(*pose, *covariance, m.end_pose(),
                                                           m.covariance.topLeftCorner<3, 3>(), covariance)
                                   : Compose(*pose, m.end_pose());
@@ -80,14 +71,14 @@ void EifJoiner::Impl::AnchorWithoutPendingClosure(Pose2* pose, Eigen::Matrix3d* 
 }
 
 Pose2 EifJoiner::Impl::LastAnchor() const {
-  if (!pending_loop_) return graph_.anchors().back();
+  if (!pending_loop_) return estimate_.graph.anchors().back();
   Pose2 p;
   AnchorWithoutPendingClosure(&p, nullptr);
   return p;
 }
 
 Eigen::Matrix3d EifJoiner::Impl::LastAnchorCovariance() const {
-  if (!pending_loop_) return JointCovariance({graph_.num_anchors() - 1}, {});
+  if (!pending_loop_) return JointCovariance({estimate_.graph.num_anchors() - 1}, {});
   Pose2 p;
   Eigen::Matrix3d c;
   AnchorWithoutPendingClosure(&p, &c);
@@ -96,20 +87,20 @@ Eigen::Matrix3d EifJoiner::Impl::LastAnchorCovariance() const {
 
 absl::Status EifJoiner::Impl::CheckPendingLoopClosure() {
   if (!pending_loop_) return absl::OkStatus();
-  const int last = static_cast<int>(graph_.factors().size()) - 1;
+  const int last = static_cast<int>(estimate_.graph.factors().size()) - 1;
   const int closing = pending_loop_->factor;
   if (last <= closing) return absl::OkStatus();  // the closing map itself was just joined
   // Old landmarks the closure did not use: they existed before the closing map, the
   // recent maps before it did not see them, and no map since has seen them.
-  const int old_landmarks = pending_loop_->before.graph.num_landmarks();
+  const int old_landmarks = pending_loop_->before.estimate.graph.num_landmarks();
   std::vector<char> used(old_landmarks, 0);
   const int first = std::max(0, closing - options_.association.recent_maps);
   for (int f = first; f < last; ++f) {
-    for (int j : graph_.factors()[f].landmark_of_feature) {
+    for (int j : estimate_.graph.factors()[f].landmark_of_feature) {
       if (j < old_landmarks) used[j] = 1;
     }
   }
-  for (int j : graph_.factors()[last].landmark_of_feature) {
+  for (int j : estimate_.graph.factors()[last].landmark_of_feature) {
     if (j < old_landmarks && !used[j]) {
       used[j] = 1;  // counted once
       ++pending_loop_->confirmations;
@@ -125,14 +116,14 @@ absl::Status EifJoiner::Impl::CheckPendingLoopClosure() {
 }
 
 absl::Status EifJoiner::Impl::UndoPendingLoopClosure() {
-  const int last = static_cast<int>(graph_.factors().size()) - 1;
+  const int last = static_cast<int>(estimate_.graph.factors().size()) - 1;
   const int closing = pending_loop_->factor;
   // Unconfirmed: back to the joiner before the closing map, whose work stays counted,
   // and the maps since joined again, the closing one without loop pairings.
   PendingLoopClosure pending = std::move(*pending_loop_);
   pending_loop_.reset();
   std::vector<LocalSubmap> maps;
-  for (int f = closing; f <= last; ++f) maps.push_back(graph_.factors()[f].submap);
+  for (int f = closing; f <= last; ++f) maps.push_back(estimate_.graph.factors()[f].submap);
   const JoinerCounters work = counters_;
   Restore(std::move(pending.before));
   rejected_.resize(pending.rejected);

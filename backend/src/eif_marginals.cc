@@ -21,11 +21,11 @@ namespace subslam::backend {
 
 Eigen::MatrixXd EifJoiner::Impl::JointCovariance(const std::vector<int>& anchors,
                                                  const std::vector<int>& landmarks) const {
-  const StateBlocks blocks = SelectBlocks(anchors, landmarks, anchor_offset_, landmark_offset_);
+  const StateBlocks blocks = SelectBlocks(anchors, landmarks, estimate_.anchor_offset, estimate_.landmark_offset);
   const std::vector<int>& offsets = blocks.offsets;
   const std::vector<int>& sizes = blocks.sizes;
   Eigen::MatrixXd out = Eigen::MatrixXd::Zero(blocks.total, blocks.total);
-  if (dim_ == 0) return out;
+  if (estimate_.dim == 0) return out;
   SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   // The block of Λ⁻¹ on the free variables' rows (fixed P0: zero rows and columns), by
   // forward solves limited to each unit right-hand side's reach in the factor.
@@ -45,7 +45,9 @@ Eigen::MatrixXd EifJoiner::Impl::JointCovariance(const std::vector<int>& anchors
 
 Eigen::Matrix4d EifJoiner::Impl::LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const {
   SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
-  const auto rows = [this](int j) { return std::vector<int>{landmark_offset_[j], landmark_offset_[j] + 1}; };
+  const auto rows = [this](int j) {
+    return std::vector<int>{estimate_.landmark_offset[j], estimate_.landmark_offset[j] + 1};
+  };
   const auto own_block = [&](int j) -> const Eigen::Matrix2d& {
     Eigen::Matrix2d& block = (*own)[j];
     if (!block.allFinite()) block = solver_.factor.InverseBlock(rows(j));
@@ -60,12 +62,12 @@ Eigen::Matrix4d EifJoiner::Impl::LandmarkPairCovariance(int a, int b, std::vecto
 }
 
 std::vector<Eigen::Matrix3d> EifJoiner::Impl::AnchorCovariances() const {
-  std::vector<Eigen::Matrix3d> out(graph_.num_anchors(), Eigen::Matrix3d::Zero());  // P0 fixed: zero
+  std::vector<Eigen::Matrix3d> out(estimate_.graph.num_anchors(), Eigen::Matrix3d::Zero());  // P0 fixed: zero
   std::vector<int> free;
   std::vector<std::vector<int>> groups;
-  for (int k = 0; k < graph_.num_anchors(); ++k) {
-    if (anchor_offset_[k] < 0) continue;
-    const int o = anchor_offset_[k];
+  for (int k = 0; k < estimate_.graph.num_anchors(); ++k) {
+    if (estimate_.anchor_offset[k] < 0) continue;
+    const int o = estimate_.anchor_offset[k];
     free.push_back(k);
     groups.push_back({o, o + 1, o + 2});
   }
@@ -78,7 +80,8 @@ std::vector<Eigen::Matrix3d> EifJoiner::Impl::AnchorCovariances() const {
 
 std::vector<Eigen::Matrix2d> EifJoiner::Impl::LandmarkCovariances() const {
   std::vector<std::vector<int>> groups;
-  for (int j = 0; j < graph_.num_landmarks(); ++j) groups.push_back({landmark_offset_[j], landmark_offset_[j] + 1});
+  for (int j = 0; j < estimate_.graph.num_landmarks(); ++j)
+    groups.push_back({estimate_.landmark_offset[j], estimate_.landmark_offset[j] + 1});
   std::vector<Eigen::Matrix2d> out;
   if (groups.empty()) return out;
   SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
@@ -88,12 +91,13 @@ std::vector<Eigen::Matrix2d> EifJoiner::Impl::LandmarkCovariances() const {
 
 std::vector<Matrix5d> EifJoiner::Impl::AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const {
   std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());
-  if (dim_ == 0) return out;
+  if (estimate_.dim == 0) return out;
   SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   std::vector<int> hub;
-  for (int i = 0; i < 3 && anchor_offset_[anchor] >= 0; ++i) hub.push_back(anchor_offset_[anchor] + i);
+  for (int i = 0; i < 3 && estimate_.anchor_offset[anchor] >= 0; ++i)
+    hub.push_back(estimate_.anchor_offset[anchor] + i);
   std::vector<std::vector<int>> groups;
-  for (int j : landmarks) groups.push_back({landmark_offset_[j], landmark_offset_[j] + 1});
+  for (int j : landmarks) groups.push_back({estimate_.landmark_offset[j], estimate_.landmark_offset[j] + 1});
   const std::vector<Eigen::MatrixXd> blocks = solver_.factor.InverseStarBlocks(hub, groups);
   const int h = static_cast<int>(hub.size());  // 0 for the fixed P0: zero rows and columns
   for (size_t c = 0; c < landmarks.size(); ++c) out[c].bottomRightCorner(2 + h, 2 + h) = blocks[c];
@@ -103,18 +107,18 @@ std::vector<Matrix5d> EifJoiner::Impl::AnchorLandmarkCovariances(int anchor, con
 std::vector<std::optional<Matrix5d>> EifJoiner::Impl::AnchorLandmarkBounds(int anchor,
                                                                            const std::vector<int>& landmarks) const {
   std::vector<std::optional<Matrix5d>> out(landmarks.size());
-  if (dim_ == 0) return out;
+  if (estimate_.dim == 0) return out;
   SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   // The anchor's columns of Λ⁻¹ on its own rows and the bounded landmarks' (a back
   // substitution over their paths to the root only): its marginal and its exact
   // cross-covariance with each landmark (zero for the fixed P0).
-  const int o = anchor_offset_[anchor];
+  const int o = estimate_.anchor_offset[anchor];
   std::vector<int> rows, bounded;
   for (size_t c = 0; c < landmarks.size(); ++c) {
     if (!marginal_bound_[landmarks[c]].allFinite()) continue;
     bounded.push_back(static_cast<int>(c));
-    rows.push_back(landmark_offset_[landmarks[c]]);
-    rows.push_back(landmark_offset_[landmarks[c]] + 1);
+    rows.push_back(estimate_.landmark_offset[landmarks[c]]);
+    rows.push_back(estimate_.landmark_offset[landmarks[c]] + 1);
   }
   if (bounded.empty()) return out;
   Eigen::MatrixXd columns = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(rows.size()) + 3, 3);
@@ -141,12 +145,12 @@ std::vector<Matrix5d> EifJoiner::Impl::FactorMarginals(int anchor, const std::ve
   // [anchor, landmark] is coupled in Λ by the factor that holds both, so its block lies on
   // L's pattern: all of them from one sparse-inverse recursion per factorisation.
   std::vector<std::vector<int>> groups;
-  const int o = anchor_offset_[anchor];
+  const int o = estimate_.anchor_offset[anchor];
   for (int j : landmarks) {
     std::vector<int> g;
     if (o >= 0) g = {o, o + 1, o + 2};
-    g.push_back(landmark_offset_[j]);
-    g.push_back(landmark_offset_[j] + 1);
+    g.push_back(estimate_.landmark_offset[j]);
+    g.push_back(estimate_.landmark_offset[j] + 1);
     groups.push_back(std::move(g));
   }
   std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());

@@ -33,7 +33,8 @@ absl::Status EifJoiner::Impl::ReviseAssociation(bool full) {
   std::vector<FeatureSplit> splits;
   if (with_splits) {
     splits = FindFeatureSplits(
-        graph_, [this](int anchor, const std::vector<int>& landmarks) { return FactorMarginals(anchor, landmarks); },
+        estimate_.graph,
+        [this](int anchor, const std::vector<int>& landmarks) { return FactorMarginals(anchor, landmarks); },
         options_.revision);
   }
   // The pre-filter's marginals: the bounds association keeps (upper bounds keep it exact),
@@ -46,24 +47,26 @@ absl::Status EifJoiner::Impl::ReviseAssociation(bool full) {
     constexpr int kBulkFrom = 16;
     std::vector<Eigen::Matrix2d> exact;
     if (missing >= kBulkFrom) exact = LandmarkCovariances();
-    for (int j = 0; j < graph_.num_landmarks(); ++j) {
+    for (int j = 0; j < estimate_.graph.num_landmarks(); ++j) {
       if (!marginals[j].allFinite()) marginals[j] = exact.empty() ? LandmarkCovariance(j) : exact[j];
     }
     // Today's exact marginals bound every later one until the next relinearisation.
     if (options_.bound_candidate_marginals) marginal_bound_ = marginals;
   }
-  touched_.resize(graph_.num_landmarks(), 1);
-  std::vector<Eigen::Matrix2d> own(graph_.num_landmarks(), Eigen::Matrix2d::Constant(NAN));  // Λ is fixed in the pass
+  touched_.resize(estimate_.graph.num_landmarks(), 1);
+  std::vector<Eigen::Matrix2d> own(estimate_.graph.num_landmarks(),
+                                   Eigen::Matrix2d::Constant(NAN));  // Λ is fixed in the pass
   std::vector<LandmarkMerge> merges = FindLandmarkMerges(
-      graph_, marginals, [this, &own](int a, int b) { return LandmarkPairCovariance(a, b, &own); }, options_.revision,
-      options_.association.loop_test_min_sigma_radius_m, all_pairs ? std::vector<char>() : touched_,
+      estimate_.graph, marginals, [this, &own](int a, int b) { return LandmarkPairCovariance(a, b, &own); },
+      options_.revision, options_.association.loop_test_min_sigma_radius_m, all_pairs ? std::vector<char>() : touched_,
       LoopMergeTests{options_.association.min_loop_pairings, options_.association.loop_confirmation_min_sigma_radius_m,
                      [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }},
       &relative_bounds_);
-  touched_.assign(graph_.num_landmarks(), 0);
+  touched_.assign(estimate_.graph.num_landmarks(), 0);
   // A landmark a split leaves is not merged in the same pass (its estimate will move).
-  std::vector<char> split_from(graph_.num_landmarks(), 0);
-  for (const FeatureSplit& sp : splits) split_from[graph_.factors()[sp.factor].landmark_of_feature[sp.feature]] = 1;
+  std::vector<char> split_from(estimate_.graph.num_landmarks(), 0);
+  for (const FeatureSplit& sp : splits)
+    split_from[estimate_.graph.factors()[sp.factor].landmark_of_feature[sp.feature]] = 1;
   std::erase_if(merges, [&](const LandmarkMerge& m) { return split_from[m.keep] || split_from[m.drop]; });
   if (splits.empty() && merges.empty()) return absl::OkStatus();
   StageTimer solve(&times_, "revision_solve");  // (within "revision")
@@ -71,42 +74,37 @@ absl::Status EifJoiner::Impl::ReviseAssociation(bool full) {
 }
 
 absl::Status EifJoiner::Impl::MergeLandmarks(int keep, int drop) {
-  if (absl::Status st = graph_.ValidateMerge(keep, drop); !st.ok()) return st;
+  if (absl::Status st = estimate_.graph.ValidateMerge(keep, drop); !st.ok()) return st;
   return ApplyRevisions({}, {LandmarkMerge{std::min(keep, drop), std::max(keep, drop), NAN}});
 }
 
 absl::Status EifJoiner::Impl::SplitFeature(int factor, int feature) {
-  if (absl::Status st = graph_.ValidateSplit(factor, feature); !st.ok()) return st;
+  if (absl::Status st = estimate_.graph.ValidateSplit(factor, feature); !st.ok()) return st;
   return ApplyRevisions({FeatureSplit{factor, feature, NAN}}, {});
 }
 
 absl::Status EifJoiner::Impl::ApplyRevisions(const std::vector<FeatureSplit>& splits,
                                              const std::vector<LandmarkMerge>& merges) {
   for (const FeatureSplit& sp : splits) {
-    const SubmapFactor& record = graph_.factors()[sp.factor];
+    const SubmapFactor& record = estimate_.graph.factors()[sp.factor];
     const int from = record.landmark_of_feature[sp.feature];
     const double signature = record.submap.landmarks[sp.feature].signature;
-    absl::StatusOr<int> to = graph_.SplitFeature(sp.factor, sp.feature);
+    absl::StatusOr<int> to = estimate_.graph.SplitFeature(sp.factor, sp.feature);
     if (!to.ok()) return to.status();
     associator_.SplitFeature(from, *to, signature);
-    touched_.resize(graph_.num_landmarks(), 1);
+    touched_.resize(estimate_.graph.num_landmarks(), 1);
     touched_[from] = touched_[*to] = 1;
-    landmark_offset_.push_back(dim_);
-    dim_ += 2;
+    estimate_.AddRowsOfNewestLandmark();
     marginal_bound_.push_back(Eigen::Matrix2d::Constant(NAN));
     ++counters_.features_split;
   }
   for (const LandmarkMerge& m : merges) {
-    if (absl::Status st = graph_.MergeLandmarks(m.keep, m.drop); !st.ok()) return st;
+    if (absl::Status st = estimate_.graph.MergeLandmarks(m.keep, m.drop); !st.ok()) return st;
     associator_.MergeLandmarks(m.keep, m.drop);
     if (m.drop < static_cast<int>(touched_.size())) touched_.erase(touched_.begin() + m.drop);
     if (m.keep < static_cast<int>(touched_.size())) touched_[m.keep] = 1;
-    const int removed = landmark_offset_[m.drop];
-    landmark_offset_.erase(landmark_offset_.begin() + m.drop);
+    estimate_.RemoveRowsOfLandmark(m.drop);
     marginal_bound_.erase(marginal_bound_.begin() + m.drop);
-    for (int& o : anchor_offset_) o -= o > removed ? 2 : 0;
-    for (int& o : landmark_offset_) o -= o > removed ? 2 : 0;
-    dim_ -= 2;
     for (int& j : last_association_) j = SubmapGraph::RenumberAfterMerge(j, m.keep, m.drop);
     ++counters_.landmarks_merged;
   }
@@ -114,9 +112,8 @@ absl::Status EifJoiner::Impl::ApplyRevisions(const std::vector<FeatureSplit>& sp
   // is affine in the landmarks (nonlinear only through the start heading), so re-keying a
   // landmark column is exact, and the re-keyed Λ is the revised problem's at the same
   // linearisation. Then Gauss-Newton from there where the joiner relinearises.
-  for (Factor& f : factors_) SetLayout(&f);
-  lambda_factors_ = 0;
-  lambda_full_valid_ = false;
+  for (EifFactor& f : factors_) f.SetLayout(estimate_);
+  information_matrix_.Forget();
   solver_.stale = true;
   if (absl::Status st = Rebuild(/*only_last_factor=*/false); !st.ok()) return st;
   if (options_.RelinearizesAfterJoins() || options_.relinearize_at_end) return GaussNewton();

@@ -1,5 +1,5 @@
 // The EIF joiner's factorisation state (private to the back-end): the sparse LDLᵀ factor
-// of Λ and Λ's lower triangle.
+// of Λ and what its next incremental update needs.
 #ifndef SUBSLAM_BACKEND_SRC_EIF_SOLVER_H_
 #define SUBSLAM_BACKEND_SRC_EIF_SOLVER_H_
 
@@ -11,7 +11,6 @@ namespace subslam::backend {
 
 struct EifSolver {
   SparseCholesky factor;
-  SparseLowerTriangle lambda_lower;        // Λ's lower triangle (see EifJoiner::Impl::lambda_factors_)
   Eigen::MatrixXd last_whitened_jacobian;  // of the newest factor, for the incremental update
   bool stale = false;                      // the factor no longer matches Λ (a rejected join was undone)
 };
