@@ -5,10 +5,10 @@
 
 #include "absl/flags/flag.h"
 #include "enum_flags.h"
+#include "subslam/association/landmark_revision.h"
 #include "subslam/backend/ceres_solver.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/ekf_joiner.h"
-#include "subslam/backend/landmark_revision.h"
 #include "subslam/frontend/fastslam.h"
 
 namespace {
@@ -177,8 +177,8 @@ ABSL_FLAG(double, sigma_signature, subslam::frontend::FastSlamOptions{}.sigma_si
 namespace subslam::cli {
 namespace {
 
-backend::LandmarkRevisionOptions RevisionOptionsFromFlags() {
-  backend::LandmarkRevisionOptions o;
+association::LandmarkRevisionOptions RevisionOptionsFromFlags() {
+  association::LandmarkRevisionOptions o;
   o.merge = absl::GetFlag(FLAGS_join_merge);
   o.merge_unresolved = absl::GetFlag(FLAGS_join_merge_unresolved);
   o.merge_by_density = absl::GetFlag(FLAGS_join_merge_density);

@@ -118,7 +118,7 @@ const std::vector<FlagGroup>& FlagGroups() {
        {"submap_*"}},
       {"Back-end: joining and association",
        "How local maps are joined into the global map and how their features are associated "
-       "with its landmarks (backend/submap_association.h, backend/landmark_revision.h).",
+       "with its landmarks (association/submap_association.h, association/landmark_revision.h).",
        {"backend", "join_*", "validate_joins", "sensor_yaw_calibration", "sensor_yaw_prior_sigma"}},
       {"Back-end: EIF relinearisation and factorisation",
        "",

@@ -97,7 +97,7 @@ absl::Status EifJoiner::Impl::JoinLocalMap(const LocalSubmap& s) {
   return CheckPendingLoopClosure();
 }
 
-void EifJoiner::Impl::CountDecisions(const SubmapAssociation& a) {
+void EifJoiner::Impl::CountDecisions(const association::SubmapAssociation& a) {
   if (a.jcbb_truncated) ++counters_.jcbb_truncated;
   if (a.loop_pairings_dropped > 0) ++counters_.loop_closures_thin;
   if (a.loop_ambiguous) ++counters_.loop_closures_ambiguous;
@@ -106,13 +106,13 @@ void EifJoiner::Impl::CountDecisions(const SubmapAssociation& a) {
   if (a.map_rotated) ++counters_.maps_widened;
 }
 
-SubmapAssociation EifJoiner::Impl::AssociateAt(const LocalSubmap& s, int start,
-                                               const std::vector<std::vector<int>>* whole_map_groups) {
+association::SubmapAssociation EifJoiner::Impl::AssociateAt(const LocalSubmap& s, int start,
+                                                            const std::vector<std::vector<int>>* whole_map_groups) {
   StageTimer timer(&times_, "association");
   const long columns_before = solver_.factor.columns_solved(), reach_before = solver_.factor.reach_solved();
   // Each recovered landmark marginal is today's, so it bounds every later one (Λ grows).
   const auto pair_covariance = [this](int anchor, const std::vector<int>& landmarks) {
-    std::vector<Matrix5d> blocks = AnchorLandmarkCovariances(anchor, landmarks);
+    std::vector<association::Matrix5d> blocks = AnchorLandmarkCovariances(anchor, landmarks);
     for (size_t c = 0; c < landmarks.size(); ++c) {
       marginal_bound_[landmarks[c]] = blocks[c].bottomRightCorner<2, 2>();
     }
@@ -121,13 +121,14 @@ SubmapAssociation EifJoiner::Impl::AssociateAt(const LocalSubmap& s, int start,
   const auto bound = [this](int anchor, const std::vector<int>& landmarks) {
     return AnchorLandmarkBounds(anchor, landmarks);
   };
-  SubmapAssociation a = associator_.Associate(
+  association::SubmapAssociation a = associator_.Associate(
       s, start, estimate_.graph,
       [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
         return JointCovariance(anchors, landmarks);
       },
       /*anchor_prefilter=*/whole_map_groups == nullptr, pair_covariance,
-      options_.bound_candidate_marginals ? SubmapAssociator::PairBoundFn(bound) : nullptr, whole_map_groups);
+      options_.bound_candidate_marginals ? association::SubmapAssociator::PairBoundFn(bound) : nullptr,
+      whole_map_groups);
   times_["covariance_recovery"] += a.covariance_seconds;
   innovation_d2_ += a.pairings_d2;
   innovation_dof_ += a.pairings_dof;
@@ -188,10 +189,10 @@ absl::Status EifJoiner::Impl::JoinWith(const LocalSubmap& s, bool associate) {
   // The start anchor's marginal before this join (NaN without one: no bounds then).
   Eigen::Matrix3d start_covariance = Eigen::Matrix3d::Constant(NAN);
   std::optional<LocalSubmap> rotated_back;
-  SubmapAssociation fit;  // the rotation test's fit alone (its association may be moved on)
+  association::SubmapAssociation fit;  // the rotation test's fit alone (its association may be moved on)
   if (associate) {
     const JoinerCounters counters_before = counters_;  // a pending closure's snapshot keeps these
-    SubmapAssociation a;
+    association::SubmapAssociation a;
     if (replayed_association_) {
       // Joined again after its loop closure went unconfirmed, from the state it was
       // first associated in: that association, not a second search to the same result.
@@ -206,7 +207,7 @@ absl::Status EifJoiner::Impl::JoinWith(const LocalSubmap& s, bool associate) {
     fit.map_rotation_fit_variance_rad2 = a.map_rotation_fit_variance_rad2;
     assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
-    rotated_back = RotatedBack(s, a);  // a map the rotation test found rotated
+    rotated_back = association::RotatedBack(s, a);  // a map the rotation test found rotated
     if (suppress_loop_closure_) {
       // The closing map of an unconfirmed loop closure: without its loop pairings.
       for (int i : a.uncertain_loop_features) assoc[i] = -1;
@@ -246,7 +247,7 @@ absl::Status EifJoiner::Impl::JoinWith(const LocalSubmap& s, bool associate) {
   // After the snapshot a held loop closure takes, so that its undo and replay record the
   // closing map's fit once.
   if (associate) {
-    StampRotationFit(fit, &m);
+    association::StampRotationFit(fit, &m);
     associator_.RecordRotationFit(m);
   }
   const int first_new_landmark = estimate_.graph.num_landmarks();
@@ -313,7 +314,7 @@ absl::Status EifJoiner::Impl::JoinMap(const EifJoiner& right_joiner) {
   const int n = right.estimate_.graph.num_landmarks();
   std::vector<int> assoc(n, -1);
   if (!estimate_.graph.factors().empty()) {
-    const std::vector<std::vector<int>> groups = WholeMapGroups(right.estimate_.graph);
+    const std::vector<std::vector<int>> groups = association::WholeMapGroups(right.estimate_.graph);
     assoc = AssociateAt(*summary, start, &groups).landmark_of_feature;
   }
   // Right's anchors and unmatched landmarks, through the last anchor (headings continuous).
@@ -423,14 +424,15 @@ Eigen::MatrixXd EifJoiner::JointCovariance(const std::vector<int>& anchors, cons
 }
 std::vector<Eigen::Matrix3d> EifJoiner::AnchorCovariances() const { return impl_->AnchorCovariances(); }
 std::vector<Eigen::Matrix2d> EifJoiner::LandmarkCovariances() const { return impl_->LandmarkCovariances(); }
-std::vector<Matrix5d> EifJoiner::AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const {
+std::vector<association::Matrix5d> EifJoiner::AnchorLandmarkCovariances(int anchor,
+                                                                        const std::vector<int>& landmarks) const {
   return impl_->AnchorLandmarkCovariances(anchor, landmarks);
 }
 Eigen::Matrix4d EifJoiner::LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const {
   return impl_->LandmarkPairCovariance(a, b, own);
 }
-std::vector<std::optional<Matrix5d>> EifJoiner::AnchorLandmarkBounds(int anchor,
-                                                                     const std::vector<int>& landmarks) const {
+std::vector<std::optional<association::Matrix5d>> EifJoiner::AnchorLandmarkBounds(
+    int anchor, const std::vector<int>& landmarks) const {
   return impl_->AnchorLandmarkBounds(anchor, landmarks);
 }
 const std::vector<int>& EifJoiner::last_association() const { return impl_->last_association_; }
@@ -443,6 +445,6 @@ int EifJoiner::anchor_offset(int k) const { return impl_->estimate_.anchor_offse
 int EifJoiner::landmark_offset(int j) const { return impl_->estimate_.landmark_offset[j]; }
 std::map<std::string, double> EifJoiner::stage_times() const { return impl_->times_; }
 const JoinerCounters& EifJoiner::counters() const { return impl_->counters_; }
-const SubmapAssociator& EifJoiner::associator() const { return impl_->associator_; }
+const association::SubmapAssociator& EifJoiner::associator() const { return impl_->associator_; }
 
 }  // namespace subslam::backend

@@ -26,11 +26,11 @@
 #include "eif_information_matrix.h"
 #include "eif_linearization_watch.h"
 #include "eif_solver.h"
+#include "subslam/association/landmark_revision.h"
+#include "subslam/association/relative_covariance_bounds.h"
+#include "subslam/association/submap_association.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/eif_joiner_options.h"
-#include "subslam/backend/landmark_revision.h"
-#include "subslam/backend/relative_covariance_bounds.h"
-#include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 
@@ -58,9 +58,10 @@ class EifJoiner::Impl {
   Eigen::Matrix2d LandmarkCovariance(int j) const { return JointCovariance({}, {j}); }
   std::vector<Eigen::Matrix3d> AnchorCovariances() const;
   std::vector<Eigen::Matrix2d> LandmarkCovariances() const;
-  std::vector<Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;
+  std::vector<association::Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;
   Eigen::Matrix4d LandmarkPairCovariance(int a, int b, std::vector<Eigen::Matrix2d>* own) const;
-  std::vector<std::optional<Matrix5d>> AnchorLandmarkBounds(int anchor, const std::vector<int>& landmarks) const;
+  std::vector<std::optional<association::Matrix5d>> AnchorLandmarkBounds(int anchor,
+                                                                         const std::vector<int>& landmarks) const;
   const Eigen::SparseMatrix<double>& information() const;
   long factor_nonzeros() const;
   FillReducingOrdering factor_ordering() const;
@@ -113,14 +114,15 @@ class EifJoiner::Impl {
   // Applies splits (landmarks appended) then merges (in `drop` descending order) to the
   // graph, the associator and the state layout, relinearises every factor at the
   // current estimate and solves again (to convergence where the joiner relinearises).
-  absl::Status ApplyRevisions(const std::vector<FeatureSplit>& splits, const std::vector<LandmarkMerge>& merges);
+  absl::Status ApplyRevisions(const std::vector<association::FeatureSplit>& splits,
+                              const std::vector<association::LandmarkMerge>& merges);
   // For each landmark, the 5 × 5 marginal of [anchor, landmark] where a factor couples
   // the two (read off the sparse inverse on the factor's pattern).
-  std::vector<Matrix5d> FactorMarginals(int anchor, const std::vector<int>& landmarks) const;
+  std::vector<association::Matrix5d> FactorMarginals(int anchor, const std::vector<int>& landmarks) const;
   // Association of `s` (starting at anchor `start`) with the map, timed and counted: a
-  // local map, or with `whole_map_groups` a whole map's summary (SubmapAssociator::Associate).
-  SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
-                                const std::vector<std::vector<int>>* whole_map_groups = nullptr);
+  // local map, or with `whole_map_groups` a whole map's summary (association::SubmapAssociator::Associate).
+  association::SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
+                                             const std::vector<std::vector<int>>* whole_map_groups = nullptr);
 
   EifJoinerOptions options_;
   EifEstimate estimate_;  // the graph, its rows in the state, the continuous headings
@@ -139,13 +141,13 @@ class EifJoiner::Impl {
   long updates_since_factorization_ = 0;
   // The factor of Λ (eif_solver.h); mutable: a const query keeps the columns it solved.
   mutable EifSolver solver_;
-  SubmapAssociator associator_;
+  association::SubmapAssociator associator_;
   // Per landmark, an upper bound on its marginal covariance (NaN: none); see
   // bound_candidate_marginals.
   std::vector<Eigen::Matrix2d> marginal_bound_;
   // Bounds on pairs' Cov(l_a − l_b) for the merge passes, cleared with marginal_bound_
   // and whenever a revision renumbers the landmarks.
-  RelativeCovarianceBounds relative_bounds_;
+  association::RelativeCovarianceBounds relative_bounds_;
   std::vector<int> last_association_;
   // Per landmark: a join gave it a feature since the last revision pass (or it is new).
   std::vector<char> touched_;
@@ -155,7 +157,7 @@ class EifJoiner::Impl {
     EifEstimate estimate;
     std::vector<EifFactor> factors;
     Eigen::VectorXd eta;
-    SubmapAssociator associator;
+    association::SubmapAssociator associator;
     std::vector<Eigen::Matrix2d> marginal_bound;
     JoinerCounters counters;
   };
@@ -168,7 +170,7 @@ class EifJoiner::Impl {
     Snapshot before;
     int factor = 0;
     size_t rejected = 0;
-    SubmapAssociation association;
+    association::SubmapAssociation association;
     int needed = 1;
     int confirmations = 0;
     bool thin = false;
@@ -179,9 +181,9 @@ class EifJoiner::Impl {
   bool suppress_loop_closure_ = false;  // while joining again a map whose closure was undone
   // Set while that map is joined again: its association, reused (the joiner is restored to
   // the state it was found in).
-  std::optional<SubmapAssociation> replayed_association_;
+  std::optional<association::SubmapAssociation> replayed_association_;
   // The decision counters of an association (truncated, thin, ambiguous).
-  void CountDecisions(const SubmapAssociation& a);
+  void CountDecisions(const association::SubmapAssociation& a);
   // Join() without the confirmation check (validated if validate_joins).
   absl::Status JoinOne(const LocalSubmap& s);
   Snapshot TakeSnapshot() const;

@@ -46,7 +46,7 @@ class EifLinearizationWatch {
   // Each row's change since its factors were last tested, and the rows past kRecheckDrift.
   std::vector<double> drift_;
   std::vector<int> changed_rows_;
-  bool changed_all_ = true;  // an exact solve since the last test
+  bool changed_all_ = true;           // an exact solve since the last test
   std::vector<int> candidate_stamp_;  // FactorsToTest()'s factors seen, by walk
   int candidate_walks_ = 0;
 };

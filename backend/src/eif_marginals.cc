@@ -89,8 +89,9 @@ std::vector<Eigen::Matrix2d> EifJoiner::Impl::LandmarkCovariances() const {
   return out;
 }
 
-std::vector<Matrix5d> EifJoiner::Impl::AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const {
-  std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());
+std::vector<association::Matrix5d> EifJoiner::Impl::AnchorLandmarkCovariances(int anchor,
+                                                                              const std::vector<int>& landmarks) const {
+  std::vector<association::Matrix5d> out(landmarks.size(), association::Matrix5d::Zero());
   if (estimate_.dim == 0) return out;
   SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   std::vector<int> hub;
@@ -104,9 +105,9 @@ std::vector<Matrix5d> EifJoiner::Impl::AnchorLandmarkCovariances(int anchor, con
   return out;
 }
 
-std::vector<std::optional<Matrix5d>> EifJoiner::Impl::AnchorLandmarkBounds(int anchor,
-                                                                           const std::vector<int>& landmarks) const {
-  std::vector<std::optional<Matrix5d>> out(landmarks.size());
+std::vector<std::optional<association::Matrix5d>> EifJoiner::Impl::AnchorLandmarkBounds(
+    int anchor, const std::vector<int>& landmarks) const {
+  std::vector<std::optional<association::Matrix5d>> out(landmarks.size());
   if (estimate_.dim == 0) return out;
   SUBSLAM_CHECK(solver_.factor.ready()) << "no factorisation to recover covariances from";
   // The anchor's columns of Λ⁻¹ on its own rows and the bounded landmarks' (a back
@@ -131,7 +132,7 @@ std::vector<std::optional<Matrix5d>> EifJoiner::Impl::AnchorLandmarkBounds(int a
     const int c = bounded[b];
     const Eigen::Matrix2d& B = marginal_bound_[landmarks[c]];
     // [Σ_PP Σ_PL; Σ_LP B] ⪰ [Σ_PP Σ_PL; Σ_LP Σ_LL] since B ⪰ Σ_LL.
-    Matrix5d m;
+    association::Matrix5d m;
     m.topLeftCorner<3, 3>() = anchor_block;
     m.bottomLeftCorner<2, 3>() = columns.middleRows<2>(static_cast<Eigen::Index>(2 * b));
     m.topRightCorner<3, 2>() = m.bottomLeftCorner<2, 3>().transpose();
@@ -141,7 +142,8 @@ std::vector<std::optional<Matrix5d>> EifJoiner::Impl::AnchorLandmarkBounds(int a
   return out;
 }
 
-std::vector<Matrix5d> EifJoiner::Impl::FactorMarginals(int anchor, const std::vector<int>& landmarks) const {
+std::vector<association::Matrix5d> EifJoiner::Impl::FactorMarginals(int anchor,
+                                                                    const std::vector<int>& landmarks) const {
   // [anchor, landmark] is coupled in Λ by the factor that holds both, so its block lies on
   // L's pattern: all of them from one sparse-inverse recursion per factorisation.
   std::vector<std::vector<int>> groups;
@@ -153,7 +155,7 @@ std::vector<Matrix5d> EifJoiner::Impl::FactorMarginals(int anchor, const std::ve
     g.push_back(estimate_.landmark_offset[j] + 1);
     groups.push_back(std::move(g));
   }
-  std::vector<Matrix5d> out(landmarks.size(), Matrix5d::Zero());
+  std::vector<association::Matrix5d> out(landmarks.size(), association::Matrix5d::Zero());
   if (groups.empty()) return out;
   const std::vector<Eigen::MatrixXd> blocks = solver_.factor.DiagonalInverseBlocks(groups);
   const int h = o >= 0 ? 3 : 0;  // the fixed P0: zero rows and columns

@@ -30,9 +30,9 @@ absl::Status EifJoiner::Impl::ReviseAssociation(bool full) {
   }
   ++counters_.revision_passes;
   StageTimer timer(&times_, "revision");
-  std::vector<FeatureSplit> splits;
+  std::vector<association::FeatureSplit> splits;
   if (with_splits) {
-    splits = FindFeatureSplits(
+    splits = association::FindFeatureSplits(
         estimate_.graph,
         [this](int anchor, const std::vector<int>& landmarks) { return FactorMarginals(anchor, landmarks); },
         options_.revision);
@@ -56,18 +56,19 @@ absl::Status EifJoiner::Impl::ReviseAssociation(bool full) {
   touched_.resize(estimate_.graph.num_landmarks(), 1);
   std::vector<Eigen::Matrix2d> own(estimate_.graph.num_landmarks(),
                                    Eigen::Matrix2d::Constant(NAN));  // Λ is fixed in the pass
-  std::vector<LandmarkMerge> merges = FindLandmarkMerges(
+  std::vector<association::LandmarkMerge> merges = association::FindLandmarkMerges(
       estimate_.graph, marginals, [this, &own](int a, int b) { return LandmarkPairCovariance(a, b, &own); },
       options_.revision, options_.association.loop_test_min_sigma_radius_m, all_pairs ? std::vector<char>() : touched_,
-      LoopMergeTests{options_.association.min_loop_pairings, options_.association.loop_confirmation_min_sigma_radius_m,
-                     [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }},
+      association::LoopMergeTests{options_.association.min_loop_pairings,
+                                  options_.association.loop_confirmation_min_sigma_radius_m,
+                                  [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }},
       &relative_bounds_);
   touched_.assign(estimate_.graph.num_landmarks(), 0);
   // A landmark a split leaves is not merged in the same pass (its estimate will move).
   std::vector<char> split_from(estimate_.graph.num_landmarks(), 0);
-  for (const FeatureSplit& sp : splits)
+  for (const association::FeatureSplit& sp : splits)
     split_from[estimate_.graph.factors()[sp.factor].landmark_of_feature[sp.feature]] = 1;
-  std::erase_if(merges, [&](const LandmarkMerge& m) { return split_from[m.keep] || split_from[m.drop]; });
+  std::erase_if(merges, [&](const association::LandmarkMerge& m) { return split_from[m.keep] || split_from[m.drop]; });
   if (splits.empty() && merges.empty()) return absl::OkStatus();
   StageTimer solve(&times_, "revision_solve");  // (within "revision")
   return ApplyRevisions(splits, merges);
@@ -75,17 +76,17 @@ absl::Status EifJoiner::Impl::ReviseAssociation(bool full) {
 
 absl::Status EifJoiner::Impl::MergeLandmarks(int keep, int drop) {
   if (absl::Status st = estimate_.graph.ValidateMerge(keep, drop); !st.ok()) return st;
-  return ApplyRevisions({}, {LandmarkMerge{std::min(keep, drop), std::max(keep, drop), NAN}});
+  return ApplyRevisions({}, {association::LandmarkMerge{std::min(keep, drop), std::max(keep, drop), NAN}});
 }
 
 absl::Status EifJoiner::Impl::SplitFeature(int factor, int feature) {
   if (absl::Status st = estimate_.graph.ValidateSplit(factor, feature); !st.ok()) return st;
-  return ApplyRevisions({FeatureSplit{factor, feature, NAN}}, {});
+  return ApplyRevisions({association::FeatureSplit{factor, feature, NAN}}, {});
 }
 
-absl::Status EifJoiner::Impl::ApplyRevisions(const std::vector<FeatureSplit>& splits,
-                                             const std::vector<LandmarkMerge>& merges) {
-  for (const FeatureSplit& sp : splits) {
+absl::Status EifJoiner::Impl::ApplyRevisions(const std::vector<association::FeatureSplit>& splits,
+                                             const std::vector<association::LandmarkMerge>& merges) {
+  for (const association::FeatureSplit& sp : splits) {
     const SubmapFactor& record = estimate_.graph.factors()[sp.factor];
     const int from = record.landmark_of_feature[sp.feature];
     const double signature = record.submap.landmarks[sp.feature].signature;
@@ -98,7 +99,7 @@ absl::Status EifJoiner::Impl::ApplyRevisions(const std::vector<FeatureSplit>& sp
     marginal_bound_.push_back(Eigen::Matrix2d::Constant(NAN));
     ++counters_.features_split;
   }
-  for (const LandmarkMerge& m : merges) {
+  for (const association::LandmarkMerge& m : merges) {
     if (absl::Status st = estimate_.graph.MergeLandmarks(m.keep, m.drop); !st.ok()) return st;
     associator_.MergeLandmarks(m.keep, m.drop);
     if (m.drop < static_cast<int>(touched_.size())) touched_.erase(touched_.begin() + m.drop);

@@ -226,10 +226,10 @@ void EkfJoiner::DropVariable(int offset, int size) {
   }
 }
 
-SubmapAssociation EkfJoiner::AssociateAt(const LocalSubmap& s, int start,
-                                         const std::vector<std::vector<int>>* whole_map_groups) {
+association::SubmapAssociation EkfJoiner::AssociateAt(const LocalSubmap& s, int start,
+                                                      const std::vector<std::vector<int>>* whole_map_groups) {
   StageTimer timer(&times_, "association");
-  SubmapAssociation a = associator_.Associate(
+  association::SubmapAssociation a = associator_.Associate(
       s, start, graph_,
       [this](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
         return JointCovariance(anchors, landmarks);
@@ -253,10 +253,11 @@ absl::Status EkfJoiner::JoinLocalMap(const LocalSubmap& s) {
   }
   const int start = graph_.num_anchors() - 1;
   const LocalSubmap widened = associator_.WithRotationSpread(s);  // by the maps' rotation spread so far
-  SubmapAssociation a = AssociateAt(widened, start);
-  const std::optional<LocalSubmap> rotated_back = RotatedBack(widened, a);  // found rotated by the rotation test
+  association::SubmapAssociation a = AssociateAt(widened, start);
+  const std::optional<LocalSubmap> rotated_back =
+      association::RotatedBack(widened, a);  // found rotated by the rotation test
   LocalSubmap joined = rotated_back ? *rotated_back : widened;
-  StampRotationFit(a, &joined);
+  association::StampRotationFit(a, &joined);
   associator_.RecordRotationFit(joined);
   if (absl::Status st = JoinAssociated(joined, std::move(a.landmark_of_feature)); !st.ok()) return st;
   if (widened.rotation_spread_rad > 0) ++counters_.maps_spread;
@@ -341,11 +342,11 @@ absl::Status EkfJoiner::ReviseAssociation() {
   }
   StageTimer timer(&times_, "revision");
   ++counters_.revision_passes;
-  const std::vector<FeatureSplit> splits = FindFeatureSplits(
+  const std::vector<association::FeatureSplit> splits = association::FindFeatureSplits(
       graph_,
       [this](int anchor, const std::vector<int>& landmarks) {
         const Eigen::MatrixXd S = JointCovariance({anchor}, landmarks);
-        std::vector<Matrix5d> out(landmarks.size());
+        std::vector<association::Matrix5d> out(landmarks.size());
         for (size_t c = 0; c < landmarks.size(); ++c) {
           const std::vector<int> rows = {0, 1, 2, 3 + 2 * static_cast<int>(c), 4 + 2 * static_cast<int>(c)};
           out[c] = S(rows, rows);
@@ -358,15 +359,16 @@ absl::Status EkfJoiner::ReviseAssociation() {
   std::vector<Eigen::Matrix2d> marginals(graph_.num_landmarks());
   for (int j = 0; j < graph_.num_landmarks(); ++j)
     marginals[j] = P_.block<2, 2>(landmark_offset_[j], landmark_offset_[j]);
-  const std::vector<LandmarkMerge> merges = FindLandmarkMerges(
+  const std::vector<association::LandmarkMerge> merges = association::FindLandmarkMerges(
       graph_, marginals,
       [this](int a, int b) -> Eigen::Matrix4d {
         return JointCovariance({}, {a, b});
       },
       options_.revision, options_.association.loop_test_min_sigma_radius_m, {},
-      LoopMergeTests{options_.association.min_loop_pairings, options_.association.loop_confirmation_min_sigma_radius_m,
-                     [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }});
-  for (const LandmarkMerge& m : merges) {  // drop descending: later indices stay valid
+      association::LoopMergeTests{
+          options_.association.min_loop_pairings, options_.association.loop_confirmation_min_sigma_radius_m,
+          [this](const std::vector<int>& landmarks) { return JointCovariance({}, landmarks); }});
+  for (const association::LandmarkMerge& m : merges) {  // drop descending: later indices stay valid
     if (absl::Status st = MergeLandmarks(m.keep, m.drop); !st.ok()) return st;
   }
   return absl::OkStatus();
@@ -436,7 +438,7 @@ absl::Status EkfJoiner::JoinMap(const MapJoiner& right_base) {
   const int n = right.graph_.num_landmarks();
   std::vector<int> assoc(n, -1);
   if (!graph_.factors().empty()) {
-    const std::vector<std::vector<int>> groups = WholeMapGroups(right.graph_);
+    const std::vector<std::vector<int>> groups = association::WholeMapGroups(right.graph_);
     assoc = AssociateAt(*summary, start, &groups).landmark_of_feature;
   }
   // Augment right's anchors, its new landmarks, then the copies of its matched ones.

@@ -52,18 +52,18 @@ std::optional<LocalSubmap> TreeJoiner::RotatedAgainstPrevious(const LocalSubmap&
   if (previous_leaf_ == nullptr || !TestsRotation()) return std::nullopt;
   const absl::Time start = absl::Now();
   const MapJoiner& previous = *previous_leaf_;
-  const SubmapAssociation a =
+  const association::SubmapAssociation a =
       previous.associator().Associate(submap, previous.num_anchors() - 1, previous.graph(),
                                       [&previous](const std::vector<int>& anchors, const std::vector<int>& landmarks) {
                                         return previous.JointCovariance(anchors, landmarks);
                                       });
   rotation_test_seconds_ += absl::ToDoubleSeconds(absl::Now() - start);
   rotation_spread_.Add(a.map_rotation_fit_rad, a.map_rotation_fit_variance_rad2, submap.rotation_spread_rad);
-  return RotatedBack(submap, a);
+  return association::RotatedBack(submap, a);
 }
 
 bool TreeJoiner::TestsRotation() const {
-  const SubmapAssociationOptions& o = prototype_->associator().options();
+  const association::SubmapAssociationOptions& o = prototype_->associator().options();
   return o.map_rotation_sigma_rad > 0 && o.joint_compatibility && !o.known_association;
 }
 

@@ -313,11 +313,11 @@ TEST(EifJoiner, CandidateMarginalBoundsAreUpperBounds) {
       for (int j = 0; j < eif.num_landmarks(); ++j) landmarks[j] = j;
       // The last anchor, and the fixed P0 (zero anchor block and cross-covariance).
       for (const int anchor : {eif.num_anchors() - 1, 0}) {
-        const std::vector<std::optional<Matrix5d>> bounds = eif.AnchorLandmarkBounds(anchor, landmarks);
-        const std::vector<Matrix5d> exact = eif.AnchorLandmarkCovariances(anchor, landmarks);
+        const std::vector<std::optional<association::Matrix5d>> bounds = eif.AnchorLandmarkBounds(anchor, landmarks);
+        const std::vector<association::Matrix5d> exact = eif.AnchorLandmarkCovariances(anchor, landmarks);
         for (int j = 0; j < eif.num_landmarks(); ++j) {
           if (!bounds[j].has_value()) continue;
-          const Eigen::SelfAdjointEigenSolver<Matrix5d> eig(*bounds[j] - exact[j]);
+          const Eigen::SelfAdjointEigenSolver<association::Matrix5d> eig(*bounds[j] - exact[j]);
           EXPECT_GE(eig.eigenvalues().minCoeff(), -1e-9 * exact[j].norm()) << "map " << s.id << " landmark " << j;
           // The anchor block and the cross-covariance are exact.
           EXPECT_TRUE(MatricesNear(bounds[j]->leftCols<3>(), exact[j].leftCols<3>(), 1e-9));

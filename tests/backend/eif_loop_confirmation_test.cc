@@ -15,9 +15,9 @@
 #include <sstream>
 
 #include "dense_gauss_newton.h"
+#include "subslam/association/local_map_rotation.h"
 #include "subslam/backend/ceres_joiner.h"
 #include "subslam/backend/eif_joiner.h"
-#include "subslam/backend/local_map_rotation.h"
 #include "subslam/backend/submap_factor.h"
 #include "subslam/frontend/moment_matching.h"
 #include "synthetic_run.h"
@@ -342,7 +342,7 @@ TEST(EifJoiner, ReplaysARotatedClosingMapWithoutRotatingItAgain) {
   closing.insert(closing.end(), shared.begin(), shared.end());
   const LocalSubmap as_built = Map(5, Pose2(0, 0, 0), Pose2(10, 0, 0), closing, 0.1, 0.005);
   constexpr double kRotation = 0.15;
-  maps[5] = RotatedAboutStart(as_built, kRotation);
+  maps[5] = association::RotatedAboutStart(as_built, kRotation);
   EifJoiner eif(Pose2(0, 0, 0), EifJoinerOptions{});
   for (const LocalSubmap& s : maps) ASSERT_TRUE(eif.Join(s).ok());
   EXPECT_EQ(eif.counters().loop_closures_unconfirmed, 1);

@@ -2,7 +2,7 @@
 // asked for explicitly give the estimate of the association they make, from the start;
 // the automatic tests find the duplicates of a strict join gate and an injected wrong
 // association; bad requests get a clear error and change nothing.
-#include "subslam/backend/landmark_revision.h"
+#include "subslam/association/landmark_revision.h"
 
 #include <gtest/gtest.h>
 
@@ -21,8 +21,8 @@ namespace {
 constexpr int kMap = 4, kFeature = 0;  // the feature the tests re-key
 
 // The split test on (it is off by default).
-LandmarkRevisionOptions WithSplits() {
-  LandmarkRevisionOptions o;
+association::LandmarkRevisionOptions WithSplits() {
+  association::LandmarkRevisionOptions o;
   o.split = true;
   return o;
 }
@@ -117,7 +117,7 @@ TEST(LandmarkRevision, TheSplitTestFindsAnInjectedWrongAssociationAndNothingAfte
     maps[kMap].landmarks[kFeature].truth_id = wrong;
     EifJoiner eif(run.anchors[0], ConvergingKnownAssociation());
     JoinAll(&eif, maps);
-    const std::vector<FeatureSplit> splits = FindFeatureSplits(
+    const std::vector<association::FeatureSplit> splits = association::FindFeatureSplits(
         eif.graph(),
         [&](int anchor, const std::vector<int>& landmarks) { return eif.AnchorLandmarkCovariances(anchor, landmarks); },
         WithSplits());
@@ -125,7 +125,7 @@ TEST(LandmarkRevision, TheSplitTestFindsAnInjectedWrongAssociationAndNothingAfte
     EXPECT_EQ(splits[0].factor, kMap);
     EXPECT_EQ(splits[0].feature, kFeature);
     ASSERT_TRUE(eif.SplitFeature(splits[0].factor, splits[0].feature).ok());
-    EXPECT_TRUE(FindFeatureSplits(
+    EXPECT_TRUE(association::FindFeatureSplits(
                     eif.graph(),
                     [&](int anchor, const std::vector<int>& landmarks) {
                       return eif.AnchorLandmarkCovariances(anchor, landmarks);
@@ -136,7 +136,7 @@ TEST(LandmarkRevision, TheSplitTestFindsAnInjectedWrongAssociationAndNothingAfte
     // And the correctly associated run: no split.
     EifJoiner clean(run.anchors[0], ConvergingKnownAssociation());
     JoinAll(&clean, run.submaps);
-    EXPECT_TRUE(FindFeatureSplits(
+    EXPECT_TRUE(association::FindFeatureSplits(
                     clean.graph(),
                     [&](int anchor, const std::vector<int>& landmarks) {
                       return clean.AnchorLandmarkCovariances(anchor, landmarks);
@@ -352,11 +352,11 @@ struct LoopCopies {
     }
   }
 
-  std::vector<LandmarkMerge> Merges(int min_loop_pairings, bool merge_loops = true,
-                                    double max_sigma_radius_m = 60.0) const {
+  std::vector<association::LandmarkMerge> Merges(int min_loop_pairings, bool merge_loops = true,
+                                                 double max_sigma_radius_m = 60.0) const {
     std::vector<Eigen::Matrix2d> marginals;
     for (int j = 0; j < graph.num_landmarks(); ++j) marginals.push_back(Sigma.block<2, 2>(2 * j, 2 * j));
-    LandmarkRevisionOptions options;
+    association::LandmarkRevisionOptions options;
     options.merge_loops = merge_loops;
     const auto pair = [this](int a, int b) -> Eigen::Matrix4d {
       const std::vector<int> rows = {2 * a, 2 * a + 1, 2 * b, 2 * b + 1};
@@ -367,17 +367,18 @@ struct LoopCopies {
       for (int j : landmarks) rows.insert(rows.end(), {2 * j, 2 * j + 1});
       return Sigma(rows, rows);
     };
-    return FindLandmarkMerges(graph, marginals, pair, options, /*loop_sigma_radius_m=*/5.0, {},
-                              LoopMergeTests{min_loop_pairings, max_sigma_radius_m, joint});
+    return association::FindLandmarkMerges(graph, marginals, pair, options, /*loop_sigma_radius_m=*/5.0, {},
+                                           association::LoopMergeTests{min_loop_pairings, max_sigma_radius_m, joint});
   }
 };
 
 TEST(LandmarkRevision, CopiesOfALoopMergeTogetherWhenEnoughAgree) {
   const Eigen::Vector2d offset(3.0, 1.0);
   const LoopCopies four(4, 12.0, 4, offset);
-  const std::vector<LandmarkMerge> merges = four.Merges(4);
+  const std::vector<association::LandmarkMerge> merges = four.Merges(4);
   ASSERT_EQ(merges.size(), 4u);
-  for (const LandmarkMerge& m : merges) EXPECT_EQ(m.drop, four.copies[m.keep]) << m.keep;  // copy i with old i
+  for (const association::LandmarkMerge& m : merges)
+    EXPECT_EQ(m.drop, four.copies[m.keep]) << m.keep;  // copy i with old i
   EXPECT_TRUE(four.Merges(4, /*merge_loops=*/false).empty());
   // Known only to 3σ = 6 m: beyond a 5 m confirmation radius, relocalisation, not merged.
   EXPECT_TRUE(four.Merges(4, true, /*max_sigma_radius_m=*/5.0).empty());
@@ -416,20 +417,20 @@ TEST(LandmarkRevision, KeptRelativeBoundsSkipPairsOutsideTheGate) {
     EXPECT_EQ(std::min(a, b), 0);
     return Sigma;
   };
-  const LandmarkRevisionOptions options;
-  RelativeCovarianceBounds bounds;
-  EXPECT_TRUE(FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
+  const association::LandmarkRevisionOptions options;
+  association::RelativeCovarianceBounds bounds;
+  EXPECT_TRUE(association::FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
   EXPECT_EQ(asked, 1);
   ASSERT_NE(bounds.Find(1, 0), nullptr);
   EXPECT_TRUE(bounds.Find(0, 1)->isApprox(0.01 * Eigen::Matrix2d::Identity()));
-  EXPECT_TRUE(FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
+  EXPECT_TRUE(association::FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
   EXPECT_EQ(asked, 1);
   // The same pair 0.1 m apart merges (d² 1), with or without a valid bound.
   graph.landmark(1) = Eigen::Vector2d(0.1, 8);
-  EXPECT_EQ(FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).size(), 1u);
+  EXPECT_EQ(association::FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).size(), 1u);
   EXPECT_EQ(asked, 2);
   bounds.Insert(0, 1, 1e-4 * Eigen::Matrix2d::Identity());
-  EXPECT_TRUE(FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
+  EXPECT_TRUE(association::FindLandmarkMerges(graph, marginals, pair, options, 5.0, {}, {}, &bounds).empty());
   EXPECT_EQ(asked, 2);
 }
 
@@ -459,17 +460,17 @@ struct NeighbourPair {
     Sigma.topLeftCorner<4, 4>() << q, 0, -q, 0, 0, q, 0, -q, -q, 0, q, 0, 0, -q, 0, q;
   }
 
-  std::vector<LandmarkMerge> Merges(bool by_density = true, double outer_gate = 0.999) const {
+  std::vector<association::LandmarkMerge> Merges(bool by_density = true, double outer_gate = 0.999) const {
     std::vector<Eigen::Matrix2d> marginals;
     for (int j = 0; j < graph.num_landmarks(); ++j) marginals.push_back(Sigma.block<2, 2>(2 * j, 2 * j));
-    LandmarkRevisionOptions options;
+    association::LandmarkRevisionOptions options;
     options.merge_by_density = by_density;
     options.density_gate_probability = outer_gate;
     const auto pair = [this](int a, int b) -> Eigen::Matrix4d {
       const std::vector<int> rows = {2 * a, 2 * a + 1, 2 * b, 2 * b + 1};
       return Sigma(rows, rows);
     };
-    return FindLandmarkMerges(graph, marginals, pair, options, /*loop_sigma_radius_m=*/5.0);
+    return association::FindLandmarkMerges(graph, marginals, pair, options, /*loop_sigma_radius_m=*/5.0);
   }
 };
 
@@ -483,7 +484,7 @@ struct NeighbourPair {
 // N = 0.0116 /m²) merges only with the gate at χ²₂(0.9999) = 18.4. A pair inside the χ²
 // gate merges however dense its neighbourhood.
 TEST(LandmarkRevision, APairTheGateHoldsApartMergesWhereOnePointIsLikelierThanANeighbour) {
-  const std::vector<LandmarkMerge> alone = NeighbourPair(0.8, 0).Merges();
+  const std::vector<association::LandmarkMerge> alone = NeighbourPair(0.8, 0).Merges();
   ASSERT_EQ(alone.size(), 1u);
   EXPECT_EQ(alone[0].keep, 0);
   EXPECT_EQ(alone[0].drop, 1);
@@ -501,7 +502,7 @@ TEST(LandmarkRevision, APairTheGateHoldsApartMergesWhereOnePointIsLikelierThanAN
 }
 
 TEST(LandmarkRevision, OptionsAreValidated) {
-  LandmarkRevisionOptions o;
+  association::LandmarkRevisionOptions o;
   EXPECT_TRUE(o.Validate().ok());
   o.merge_probability = 1.0;
   EXPECT_FALSE(o.Validate().ok());

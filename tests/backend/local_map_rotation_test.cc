@@ -1,4 +1,4 @@
-#include "subslam/backend/local_map_rotation.h"
+#include "subslam/association/local_map_rotation.h"
 
 #include <gtest/gtest.h>
 
@@ -11,9 +11,9 @@
 #include <random>
 #include <vector>
 
+#include "subslam/association/submap_association.h"
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/ekf_joiner.h"
-#include "subslam/backend/submap_association.h"
 #include "subslam/backend/tree_joiner.h"
 #include "subslam/models/gating.h"
 #include "synthetic_run.h"
@@ -29,7 +29,7 @@ LocalSubmap SomeMap() { return MakeRun(3, 2).submaps[0]; }
 TEST(LocalMapRotation, RotatedAboutStartIsARigidMotionOfTheGaussian) {
   const LocalSubmap s = SomeMap();
   constexpr double kDelta = 0.4;
-  const LocalSubmap r = RotatedAboutStart(s, kDelta);
+  const LocalSubmap r = association::RotatedAboutStart(s, kDelta);
   const int dim = static_cast<int>(s.mean.size());
   Eigen::MatrixXd A = Eigen::MatrixXd::Identity(dim, dim);
   const Eigen::Matrix2d R = Eigen::Rotation2Dd(kDelta).toRotationMatrix();
@@ -42,31 +42,33 @@ TEST(LocalMapRotation, RotatedAboutStartIsARigidMotionOfTheGaussian) {
     EXPECT_TRUE(r.landmark(i).isApprox(R * s.landmark(i), 1e-12));
     EXPECT_NEAR(r.landmark(i).norm(), s.landmark(i).norm(), 1e-12);  // ranges from the start kept
   }
-  const LocalSubmap back = RotatedAboutStart(r, -kDelta);
+  const LocalSubmap back = association::RotatedAboutStart(r, -kDelta);
   EXPECT_TRUE(back.mean.isApprox(s.mean, 1e-12));
   EXPECT_TRUE(back.covariance.isApprox(s.covariance, 1e-12));
   EXPECT_TRUE(r.Validate().ok());
 }
 
-// RotationAboutStart is ∂mean/∂δ of RotatedAboutStart at 0 (central differences).
+// association::RotationAboutStart is ∂mean/∂δ of association::RotatedAboutStart at 0 (central differences).
 TEST(LocalMapRotation, RotationJacobianMatchesNumericalDerivative) {
   const LocalSubmap s = SomeMap();
   constexpr double h = 1e-6;
-  const Eigen::VectorXd plus = RotatedAboutStart(s, h).mean, minus = RotatedAboutStart(s, -h).mean;
+  const Eigen::VectorXd plus = association::RotatedAboutStart(s, h).mean,
+                        minus = association::RotatedAboutStart(s, -h).mean;
   Eigen::VectorXd numerical = (plus - minus) / (2 * h);
   numerical[2] = WrapAngle(plus[2] - minus[2]) / (2 * h);
-  EXPECT_TRUE(RotationAboutStart(s).isApprox(numerical, 1e-6)) << RotationAboutStart(s).transpose() << "\n"
-                                                               << numerical.transpose();
+  EXPECT_TRUE(association::RotationAboutStart(s).isApprox(numerical, 1e-6))
+      << association::RotationAboutStart(s).transpose() << "\n"
+      << numerical.transpose();
 }
 
 TEST(LocalMapRotation, WideningAddsTheRotationNuisanceAndRecordsIt) {
   const LocalSubmap s = SomeMap();
-  const Eigen::VectorXd g = RotationAboutStart(s);
-  const LocalSubmap w = WidenedByRotation(s, 0.3);
+  const Eigen::VectorXd g = association::RotationAboutStart(s);
+  const LocalSubmap w = association::WidenedByRotation(s, 0.3);
   EXPECT_EQ(w.mean, s.mean);
   EXPECT_TRUE(w.covariance.isApprox(s.covariance + 0.09 * g * g.transpose(), 1e-12));
   EXPECT_DOUBLE_EQ(w.rotation_widening_rad, 0.3);
-  EXPECT_NEAR(WidenedByRotation(w, 0.4).rotation_widening_rad, 0.5, 1e-12);  // in quadrature
+  EXPECT_NEAR(association::WidenedByRotation(w, 0.4).rotation_widening_rad, 0.5, 1e-12);  // in quadrature
   EXPECT_TRUE(w.Validate().ok());
   EXPECT_EQ(s.rotation_widening_rad, 0.0);
 }
@@ -95,7 +97,7 @@ struct RecentFixture {
       s.landmarks.push_back({static_cast<int>(i), NAN, 1.0, static_cast<int>(i), 1, {}});
     }
     s.covariance = 0.0025 * Eigen::MatrixXd::Identity(s.mean.size(), s.mean.size());
-    return RotatedAboutStart(s, rotation);
+    return association::RotatedAboutStart(s, rotation);
   }
 
   static Eigen::MatrixXd Covariance(const std::vector<int>& anchors, const std::vector<int>& landmarks) {
@@ -106,7 +108,7 @@ struct RecentFixture {
   }
 };
 
-int Pairings(const SubmapAssociation& a) {
+int Pairings(const association::SubmapAssociation& a) {
   int k = 0;
   for (int j : a.landmark_of_feature) k += j >= 0 ? 1 : 0;
   return k;
@@ -117,16 +119,16 @@ int Pairings(const SubmapAssociation& a) {
 // every feature with its own landmark. An unrotated map passes the test and is left alone.
 TEST(SubmapAssociator, FindsAMapRotatedAboutItsStartAndPairsItRotatedBack) {
   const RecentFixture f;
-  SubmapAssociationOptions off;
+  association::SubmapAssociationOptions off;
   off.map_rotation_sigma_rad = 0.0;
-  const SubmapAssociation plain =
-      SubmapAssociator(off).Associate(f.NewMap(0.15), 1, f.graph, RecentFixture::Covariance);
+  const association::SubmapAssociation plain =
+      association::SubmapAssociator(off).Associate(f.NewMap(0.15), 1, f.graph, RecentFixture::Covariance);
   EXPECT_LE(Pairings(plain), 1);
   EXPECT_FALSE(plain.map_rotated);
 
-  const SubmapAssociator associator{SubmapAssociationOptions{}};
+  const association::SubmapAssociator associator{association::SubmapAssociationOptions{}};
   ASSERT_GT(associator.options().map_rotation_sigma_rad, 0.0);
-  const SubmapAssociation a = associator.Associate(f.NewMap(0.15), 1, f.graph, RecentFixture::Covariance);
+  const association::SubmapAssociation a = associator.Associate(f.NewMap(0.15), 1, f.graph, RecentFixture::Covariance);
   EXPECT_TRUE(a.map_rotated);
   EXPECT_NEAR(a.map_rotation_rad, -0.15, 0.01);
   EXPECT_GE(a.map_rotation_statistic, models::ChiSquareQuantile(associator.options().map_rotation_probability, 1));
@@ -134,30 +136,31 @@ TEST(SubmapAssociator, FindsAMapRotatedAboutItsStartAndPairsItRotatedBack) {
   EXPECT_LE(a.map_widening_rad, std::abs(a.map_rotation_rad));
   for (int i = 0; i < static_cast<int>(f.landmarks.size()); ++i) EXPECT_EQ(a.landmark_of_feature[i], i);
   // What the joiners join: the map rotated back onto the landmarks, widened, and only once.
-  const std::optional<LocalSubmap> back = RotatedBack(f.NewMap(0.15), a);
+  const std::optional<LocalSubmap> back = association::RotatedBack(f.NewMap(0.15), a);
   ASSERT_TRUE(back.has_value());
   EXPECT_DOUBLE_EQ(back->rotation_widening_rad, a.map_widening_rad);
   for (int i = 0; i < static_cast<int>(f.landmarks.size()); ++i) {
     EXPECT_LT((back->landmark(i) - TransformTo(f.graph.anchors()[1], f.landmarks[i])).norm(), 0.05);
   }
-  EXPECT_FALSE(RotatedBack(*back, a).has_value());
+  EXPECT_FALSE(association::RotatedBack(*back, a).has_value());
 
-  const SubmapAssociation still = associator.Associate(f.NewMap(0.0), 1, f.graph, RecentFixture::Covariance);
+  const association::SubmapAssociation still =
+      associator.Associate(f.NewMap(0.0), 1, f.graph, RecentFixture::Covariance);
   EXPECT_FALSE(still.map_rotated);
   EXPECT_TRUE(std::isfinite(still.map_rotation_statistic));
   EXPECT_LT(still.map_rotation_statistic, 1e-6);
-  EXPECT_FALSE(RotatedBack(f.NewMap(0.0), still).has_value());
+  EXPECT_FALSE(association::RotatedBack(f.NewMap(0.0), still).has_value());
   for (int i = 0; i < static_cast<int>(f.landmarks.size()); ++i) EXPECT_EQ(still.landmark_of_feature[i], i);
 
   // A map already widened (joined so before an undone loop closure) is not tested again.
-  const SubmapAssociation again =
-      associator.Associate(WidenedByRotation(f.NewMap(0.15), 0.01), 1, f.graph, RecentFixture::Covariance);
+  const association::SubmapAssociation again =
+      associator.Associate(association::WidenedByRotation(f.NewMap(0.15), 0.01), 1, f.graph, RecentFixture::Covariance);
   EXPECT_FALSE(again.map_rotated);
   EXPECT_TRUE(std::isnan(again.map_rotation_statistic));
 }
 
 TEST(SubmapAssociationOptions, RejectsBadRotationSettings) {
-  SubmapAssociationOptions o;
+  association::SubmapAssociationOptions o;
   o.map_rotation_sigma_rad = -0.1;
   EXPECT_EQ(o.Validate().code(), absl::StatusCode::kInvalidArgument);
   o.map_rotation_sigma_rad = NAN;
@@ -226,7 +229,7 @@ TEST(RotatedLocalMap, IsJoinedRotatedBackBySequentialAndTreeJoiners) {
     SCOPED_TRACE(::testing::Message() << "joiner " << static_cast<int>(kind));
     const SyntheticRun run = MakeRun(7, 9);
     std::vector<LocalSubmap> rotated = run.submaps;
-    rotated[3] = RotatedAboutStart(rotated[3], 0.12);
+    rotated[3] = association::RotatedAboutStart(rotated[3], 0.12);
     const auto join_all = [&](const std::vector<LocalSubmap>& maps, double sigma) {
       std::unique_ptr<MapJoiner> j = MakeJoiner(kind, run.anchors[0], sigma);
       for (const LocalSubmap& s : maps) EXPECT_TRUE(j->Join(s).ok());
@@ -260,27 +263,27 @@ TEST(RotatedLocalMap, FewConsistentMapsAreWidened) {
     for (uint64_t seed = 101; seed < 116; ++seed) {
       const SyntheticRun run = MakeRun(seed, 15);
       std::unique_ptr<MapJoiner> j =
-          MakeJoiner(kind, run.anchors[0], SubmapAssociationOptions{}.map_rotation_sigma_rad);
+          MakeJoiner(kind, run.anchors[0], association::SubmapAssociationOptions{}.map_rotation_sigma_rad);
       for (const LocalSubmap& s : run.submaps) ASSERT_TRUE(j->Join(s).ok());
       joins += j->counters().joins;
       widened += j->counters().maps_widened;
     }
     ASSERT_GT(joins, 200);
-    const double level = 1.0 - SubmapAssociationOptions{}.map_rotation_probability;
+    const double level = 1.0 - association::SubmapAssociationOptions{}.map_rotation_probability;
     const double bound = boost::math::quantile(boost::math::binomial(static_cast<double>(joins), level), 0.999);
     EXPECT_LE(widened, bound) << widened << " of " << joins << " maps widened";
   }
 }
 
 // The rotation fit of a map widened along the rotation it fits: the same δ̂, and a variance
-// larger by the widening's (what MapRotationSpread::Add takes off again).
+// larger by the widening's (what association::MapRotationSpread::Add takes off again).
 TEST(SubmapAssociator, WideningTheFeaturesAddsItsVarianceToTheRotationFit) {
   const RecentFixture f;
-  SubmapAssociator associator{SubmapAssociationOptions{}};
+  association::SubmapAssociator associator{association::SubmapAssociationOptions{}};
   const LocalSubmap s = f.NewMap(0.02);
-  const LocalSubmap w = WidenedFeaturesByRotation(s, 0.01);
-  const SubmapAssociation a = associator.Associate(s, 1, f.graph, RecentFixture::Covariance);
-  const SubmapAssociation b = associator.Associate(w, 1, f.graph, RecentFixture::Covariance);
+  const LocalSubmap w = association::WidenedFeaturesByRotation(s, 0.01);
+  const association::SubmapAssociation a = associator.Associate(s, 1, f.graph, RecentFixture::Covariance);
+  const association::SubmapAssociation b = associator.Associate(w, 1, f.graph, RecentFixture::Covariance);
   ASSERT_TRUE(std::isfinite(a.map_rotation_fit_rad));
   ASSERT_TRUE(std::isfinite(b.map_rotation_fit_rad));
   EXPECT_NEAR(a.map_rotation_fit_rad, -0.02, 3.0 * std::sqrt(a.map_rotation_fit_variance_rad2));
@@ -311,7 +314,7 @@ TEST(RotatedLocalMap, MapsWithARotationSpreadOfTheirOwnAreJoinedWidened) {
       using Maps = const std::vector<LocalSubmap>;
       for (Maps* maps : std::vector<Maps*>{&turned, &run.submaps}) {
         std::unique_ptr<MapJoiner> j =
-            MakeJoiner(kind, run.anchors[0], SubmapAssociationOptions{}.map_rotation_sigma_rad);
+            MakeJoiner(kind, run.anchors[0], association::SubmapAssociationOptions{}.map_rotation_sigma_rad);
         for (const LocalSubmap& s : *maps) ASSERT_TRUE(j->Join(s).ok());
         ASSERT_TRUE(j->Finish().ok());
         (maps == &turned ? spread_on : spread_off) += j->counters().maps_spread;

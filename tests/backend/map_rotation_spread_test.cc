@@ -1,4 +1,4 @@
-#include "subslam/backend/map_rotation_spread.h"
+#include "subslam/association/map_rotation_spread.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "subslam/backend/local_map_rotation.h"
+#include "subslam/association/local_map_rotation.h"
 #include "subslam/models/gating.h"
 #include "synthetic_run.h"
 
@@ -17,11 +17,11 @@ namespace {
 // `n` fits of maps whose own rotation spreads by `tau`: δ̂ ~ N(0, v + τ²), the fits' sigmas
 // √v drawn between 2 and 10 mrad (as the rotation test's on Victoria Park's maps); whether
 // the test rejected at some fit.
-MapRotationSpread Fits(double tau, int n, std::mt19937_64* rng, std::vector<double>* variances = nullptr,
-                       bool* ever_rejected = nullptr) {
+association::MapRotationSpread Fits(double tau, int n, std::mt19937_64* rng, std::vector<double>* variances = nullptr,
+                                    bool* ever_rejected = nullptr) {
   std::uniform_real_distribution<double> sd(0.002, 0.010);
   std::normal_distribution<double> normal;
-  MapRotationSpread spread(0.999);
+  association::MapRotationSpread spread(0.999);
   for (int k = 0; k < n; ++k) {
     const double v = std::pow(sd(*rng), 2);
     spread.Add(std::sqrt(v + tau * tau) * normal(*rng), v);
@@ -41,7 +41,7 @@ TEST(MapRotationSpread, MaximumLikelihoodSpreadHoldsOverMonteCarloRuns) {
   double chi2 = 0.0;
   for (int run = 0; run < kRuns; ++run) {
     std::vector<double> v;
-    const MapRotationSpread spread = Fits(kTau, kFits, &rng, &v);
+    const association::MapRotationSpread spread = Fits(kTau, kFits, &rng, &v);
     ASSERT_TRUE(spread.rejected());
     ASSERT_EQ(spread.fits(), kFits);
     double information = 0.0;
@@ -62,7 +62,7 @@ TEST(MapRotationSpread, ConsistentFitsAreRarelyRejected) {
   int rejected = 0;
   for (int run = 0; run < kRuns; ++run) {
     bool ever = false;
-    const MapRotationSpread spread = Fits(0.0, 300, &rng, nullptr, &ever);
+    const association::MapRotationSpread spread = Fits(0.0, 300, &rng, nullptr, &ever);
     if (ever) ++rejected;
     if (!spread.rejected()) EXPECT_EQ(spread.sigma_rad(), 0.0);
   }
@@ -70,7 +70,7 @@ TEST(MapRotationSpread, ConsistentFitsAreRarelyRejected) {
 }
 
 TEST(MapRotationSpread, TakesTheWideningOffAndSkipsWhatIsNotAFit) {
-  MapRotationSpread a(0.999), b(0.999);
+  association::MapRotationSpread a(0.999), b(0.999);
   a.Add(0.01, 4e-6);                // δ̂²/v = 25: beyond χ²₁(0.99) = 6.63
   b.Add(0.01, 4e-6 + 9e-6, 0.003);  // a map widened by 3 mrad: its fit's variance grew by 9e-6
   a.Add(0.004, 4e-6);               // 4: within
@@ -84,7 +84,7 @@ TEST(MapRotationSpread, TakesTheWideningOffAndSkipsWhatIsNotAFit) {
   EXPECT_EQ(b.fits(), 2);
   // One gross outlier among a few fits is what the rotation test is for, not a spread.
   EXPECT_FALSE(a.rejected());
-  MapRotationSpread off(0.0);
+  association::MapRotationSpread off(0.0);
   for (int k = 0; k < 50; ++k) off.Add(0.1, 1e-6);
   EXPECT_FALSE(off.rejected());
   EXPECT_EQ(off.sigma_rad(), 0.0);
@@ -95,22 +95,22 @@ TEST(MapRotationSpread, TakesTheWideningOffAndSkipsWhatIsNotAFit) {
 TEST(MapRotationSpread, WidensTheFeaturesOnlyOnceRejected) {
   const LocalSubmap s = MakeRun(3, 2).submaps[0];
   std::mt19937_64 rng(1);
-  const MapRotationSpread none = Fits(0.0, 10, &rng);
+  const association::MapRotationSpread none = Fits(0.0, 10, &rng);
   ASSERT_FALSE(none.rejected());
   EXPECT_EQ(none.Widened(s).covariance, s.covariance);
-  const MapRotationSpread spread = Fits(0.01, 200, &rng);
+  const association::MapRotationSpread spread = Fits(0.01, 200, &rng);
   ASSERT_TRUE(spread.rejected());
   const double sigma = spread.sigma_rad();
   EXPECT_GT(sigma, 0.005);
   const LocalSubmap w = spread.Widened(s);
-  Eigen::VectorXd g = RotationAboutStart(s);
+  Eigen::VectorXd g = association::RotationAboutStart(s);
   g.head<3>().setZero();
   EXPECT_TRUE(w.covariance.isApprox(s.covariance + sigma * sigma * g * g.transpose(), 1e-12));
   EXPECT_EQ(Eigen::Matrix3d(w.covariance.topLeftCorner(3, 3)), Eigen::Matrix3d(s.covariance.topLeftCorner(3, 3)));
   EXPECT_EQ(w.mean, s.mean);
   EXPECT_DOUBLE_EQ(w.rotation_spread_rad, sigma);
   EXPECT_EQ(w.rotation_widening_rad, 0.0);
-  EXPECT_NEAR(WidenedFeaturesByRotation(w, 0.02).rotation_spread_rad, std::hypot(sigma, 0.02), 1e-12);
+  EXPECT_NEAR(association::WidenedFeaturesByRotation(w, 0.02).rotation_spread_rad, std::hypot(sigma, 0.02), 1e-12);
   EXPECT_TRUE(w.Validate().ok());
 }
 

@@ -222,7 +222,7 @@ class FailingJoiner final : public backend::MapJoiner {
   const std::vector<int>& last_association() const override { return inner_.last_association(); }
   std::map<std::string, double> stage_times() const override { return inner_.stage_times(); }
   const backend::JoinerCounters& counters() const override { return inner_.counters(); }
-  const backend::SubmapAssociator& associator() const override { return inner_.associator(); }
+  const association::SubmapAssociator& associator() const override { return inner_.associator(); }
 
  protected:
   absl::Status JoinLocalMap(const LocalSubmap& s) override {

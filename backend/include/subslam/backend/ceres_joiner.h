@@ -53,7 +53,7 @@ class CeresJoiner final : public MapJoiner {
   std::map<std::string, double> stage_times() const override;
   const JoinerCounters& counters() const override { return eif_.counters(); }
   JoinerExtras Extras() const override;
-  const SubmapAssociator& associator() const override { return eif_.associator(); }
+  const association::SubmapAssociator& associator() const override { return eif_.associator(); }
   absl::Status ReviseAssociation() override { return eif_.ReviseAssociation(); }
   absl::Status MergeLandmarks(int keep, int drop) override { return eif_.MergeLandmarks(keep, drop); }
   absl::Status SplitFeature(int factor, int feature) override { return eif_.SplitFeature(factor, feature); }

@@ -19,7 +19,7 @@
 // every stored linear model stays valid; they are wrapped in the outputs.
 //
 // Per local map, in order (Combined SLAM, Algorithm 1):
-//  1. data association (backend/submap_association.h), with the marginal covariances it
+//  1. data association (association/submap_association.h), with the marginal covariances it
 //     needs — [start anchor, candidate] blocks for individual compatibility, the joint of
 //     the start anchor and the compatible candidates for JCBB — recovered from the factor
 //     by forward solves limited to each column's reach (never the dense inverse);
@@ -54,9 +54,9 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "subslam/association/submap_association.h"
 #include "subslam/backend/eif_joiner_options.h"
 #include "subslam/backend/map_joiner.h"
-#include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 
@@ -112,7 +112,7 @@ class EifJoiner final : public MapJoiner {
   std::vector<Eigen::Matrix2d> LandmarkCovariances() const override;
   // For each landmark, the 5 × 5 marginal of [anchor, landmark] (what individual
   // compatibility needs), without the landmarks' cross-covariances.
-  std::vector<Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;
+  std::vector<association::Matrix5d> AnchorLandmarkCovariances(int anchor, const std::vector<int>& landmarks) const;
   // The joint marginal of landmarks a and b (a's rows first), entry by entry as
   // JointCovariance({}, {a, b}) gives it, each landmark's own block taken from `own` (NaN:
   // recovered now and kept there), so that a merge pass pays each pair's cross terms only.
@@ -121,7 +121,8 @@ class EifJoiner final : public MapJoiner {
   // cross-covariance (one solve for the anchor's columns) with the landmark's block
   // replaced by its marginal bound (see bound_candidate_marginals); nullopt for a
   // landmark without one.
-  std::vector<std::optional<Matrix5d>> AnchorLandmarkBounds(int anchor, const std::vector<int>& landmarks) const;
+  std::vector<std::optional<association::Matrix5d>> AnchorLandmarkBounds(int anchor,
+                                                                         const std::vector<int>& landmarks) const;
 
   const std::vector<int>& last_association() const override;
   // Ids of the local maps whose association failed validation.
@@ -139,7 +140,7 @@ class EifJoiner final : public MapJoiner {
   int landmark_offset(int j) const;
   std::map<std::string, double> stage_times() const override;
   const JoinerCounters& counters() const override;
-  const SubmapAssociator& associator() const override;
+  const association::SubmapAssociator& associator() const override;
 
   // Tree joining: `right` (an EifJoiner) is associated with this map, its anchors and new
   // landmarks are brought into this frame through the last anchor, its factors are

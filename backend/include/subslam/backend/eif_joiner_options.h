@@ -5,20 +5,20 @@
 #define SUBSLAM_BACKEND_EIF_JOINER_OPTIONS_H_
 
 #include "absl/status/status.h"
+#include "subslam/association/landmark_revision.h"
+#include "subslam/association/submap_association.h"
 #include "subslam/backend/fill_reducing_ordering.h"
-#include "subslam/backend/landmark_revision.h"
-#include "subslam/backend/submap_association.h"
 
 namespace subslam::backend {
 
 struct EifJoinerOptions {
-  SubmapAssociationOptions association;
+  association::SubmapAssociationOptions association;
   // Revisable association: landmark merges and feature splits (landmark_revision.h),
   // tested after each relinearisation that follows a join, every revision.every_joins
   // joins, after a whole-map join and at the end; each applied change re-keys the
   // factors and solves again (Gauss-Newton where the joiner relinearises). Not while a
   // loop closure waits for confirmation, nor under known association.
-  LandmarkRevisionOptions revision;
+  association::LandmarkRevisionOptions revision;
   // Join validation (beyond the papers): after the update, the new factor's normalised
   // residual rᵀQ⁻¹r at the new estimate is tested against χ²_{2m}(validation_probability),
   // m the features matched to existing landmarks; a join that fails is undone and the

@@ -8,7 +8,7 @@
 // block. Headings are continuous in the state and wrapped in graph().
 //
 // Per local map (z its mean [end pose, l1 … ln] in the start frame, Q its covariance):
-//  1. data association: the same module as the EIF's (backend/submap_association.h),
+//  1. data association: the same module as the EIF's (association/submap_association.h),
 //     with the joint covariance read from the dense covariance;
 //  2. augmentation with the local map transformed into the world frame through the start
 //     anchor P_s: P_e = P_s ⊕ z_e, L_i = P_s ⊕ l_i, with first-order covariance
@@ -41,9 +41,9 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/backend/landmark_revision.h"
+#include "subslam/association/landmark_revision.h"
+#include "subslam/association/submap_association.h"
 #include "subslam/backend/map_joiner.h"
-#include "subslam/backend/submap_association.h"
 
 namespace subslam::backend {
 
@@ -52,7 +52,7 @@ const char* ToString(EkfFusion fusion);  // zero-noise, conditional
 absl::StatusOr<EkfFusion> EkfFusionFromString(const std::string& name);
 
 struct EkfJoinerOptions {
-  SubmapAssociationOptions association;
+  association::SubmapAssociationOptions association;
   EkfFusion fusion = EkfFusion::kZeroNoiseConstraint;
   // false: marginalise each start anchor out once its local map is joined (the papers'
   // baseline); true: keep every anchor (the final trajectory then follows loop closures).
@@ -62,7 +62,7 @@ struct EkfJoinerOptions {
   // between the two landmarks (the copy dropped); a split, which the covariance form
   // cannot undo in place, joins every local map again from the first with the revised
   // association. Not under known association.
-  LandmarkRevisionOptions revision;
+  association::LandmarkRevisionOptions revision;
 
   absl::Status Validate() const;
 };
@@ -84,7 +84,7 @@ class EkfJoiner final : public MapJoiner {
   const std::vector<int>& last_association() const override { return last_association_; }
   std::map<std::string, double> stage_times() const override { return times_; }
   const JoinerCounters& counters() const override { return counters_; }
-  const SubmapAssociator& associator() const override { return associator_; }
+  const association::SubmapAssociator& associator() const override { return associator_; }
   // Tree joining: `right` (an EkfJoiner) is augmented whole through this map's last
   // anchor and its matched landmarks are fused by zero-noise constraints (whatever
   // `fusion` says); both must keep their anchors.
@@ -117,9 +117,9 @@ class EkfJoiner final : public MapJoiner {
   absl::Status FuseConditional(const LocalSubmap& s, int start, int end, const std::vector<int>& landmark_of_feature,
                                const std::vector<char>& matched);
   // Association of `s` (starting at anchor `start`) with the map, timed and counted: a
-  // local map, or with `whole_map_groups` a whole map's summary (SubmapAssociator::Associate).
-  SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
-                                const std::vector<std::vector<int>>* whole_map_groups = nullptr);
+  // local map, or with `whole_map_groups` a whole map's summary (association::SubmapAssociator::Associate).
+  association::SubmapAssociation AssociateAt(const LocalSubmap& s, int start,
+                                             const std::vector<std::vector<int>>* whole_map_groups = nullptr);
   // Join with the given association (−1: a new landmark).
   absl::Status JoinAssociated(const LocalSubmap& s, std::vector<int> assoc);
   // Every local map of the graph joined again, from an empty map, with the graph's
@@ -133,7 +133,7 @@ class EkfJoiner final : public MapJoiner {
 
   EkfJoinerOptions options_;
   SubmapGraph graph_;
-  SubmapAssociator associator_;
+  association::SubmapAssociator associator_;
   Eigen::VectorXd x_;
   Eigen::MatrixXd P_;
   std::vector<int> anchor_offset_;  // −1 for P0 and dropped anchors

@@ -16,7 +16,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/backend/submap_association.h"
+#include "subslam/association/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 
@@ -47,10 +47,10 @@ struct JoinerCounters {
   // (the joiner restored to the state it was made in), not a second search.
   long associations_replayed = 0;
   // Local maps found rotated beyond their covariance and joined widened
-  // (SubmapAssociationOptions::map_rotation_sigma_rad).
+  // (association::SubmapAssociationOptions::map_rotation_sigma_rad).
   long maps_widened = 0;
   // Local maps joined with their features widened by the maps' measured rotation spread
-  // (SubmapAssociationOptions::map_rotation_spread_probability).
+  // (association::SubmapAssociationOptions::map_rotation_spread_probability).
   long maps_spread = 0;
   long rejected_joins = 0;  // failed validation: joined again without associations
   // Revisions of the association (landmark_revision.h): passes run, landmarks merged into
@@ -95,7 +95,7 @@ struct JoinSummary {
   absl::Status status;
   JoinerCounters counts;
   // The joint innovation d² of the pairings the join's associations chose, and its
-  // degrees of freedom (SubmapAssociation::pairings_d2; 0 dof: none, or a joiner that
+  // degrees of freedom (association::SubmapAssociation::pairings_d2; 0 dof: none, or a joiner that
   // does not report it): the local map against the map, a χ² variable for consistent maps.
   double association_d2 = 0.0;
   long association_dof = 0;
@@ -152,7 +152,7 @@ class MapJoiner {
   virtual const JoinerCounters& counters() const = 0;
   virtual JoinerExtras Extras() const { return {}; }
   // What association keeps per landmark (signatures, truth ids).
-  virtual const SubmapAssociator& associator() const = 0;
+  virtual const association::SubmapAssociator& associator() const = 0;
 
   // Revisable association (landmark_revision.h). ReviseAssociation runs one pass: the
   // merge and split tests on the current estimate, their decisions applied and the

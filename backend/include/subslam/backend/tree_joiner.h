@@ -10,11 +10,11 @@
 // right feature a candidate), brings the right into the left's frame and fuses.
 //
 // Rotated local maps: the grouped association of a whole-map join does not test a map's
-// rotation (SubmapAssociationOptions::map_rotation_sigma_rad), so each new local map is
+// rotation (association::SubmapAssociationOptions::map_rotation_sigma_rad), so each new local map is
 // tested before it becomes a leaf, against the local map before it alone (that map's leaf:
 // the new map starts at its last anchor, and the landmarks it shares with it are what the
 // test fits the rotation to). A map that fails becomes a leaf rotated back and widened
-// (RotatedBack), as the sequential joiners join it. In the tree every map but the first
+// (association::RotatedBack), as the sequential joiners join it. In the tree every map but the first
 // starts the right node of exactly one join, which does not test it. The test is the
 // sequential joiners' against one map only (they look at the last recent_maps maps, so a
 // map after a map of no feature is tested there and not here), with the relative
@@ -43,9 +43,9 @@
 #include <string>
 #include <vector>
 
+#include "subslam/association/map_rotation_spread.h"
+#include "subslam/association/submap_association.h"
 #include "subslam/backend/map_joiner.h"
-#include "subslam/backend/map_rotation_spread.h"
-#include "subslam/backend/submap_association.h"
 #include "subslam/graph/local_submap.h"
 
 namespace subslam::backend {
@@ -79,7 +79,7 @@ class TreeJoiner final : public MapJoiner {
   std::vector<Eigen::Matrix3d> AnchorCovariances() const override { return Whole().AnchorCovariances(); }
   std::vector<Eigen::Matrix2d> LandmarkCovariances() const override { return Whole().LandmarkCovariances(); }
   const std::vector<int>& last_association() const override { return Whole().last_association(); }
-  const SubmapAssociator& associator() const override { return Whole().associator(); }
+  const association::SubmapAssociator& associator() const override { return Whole().associator(); }
   // Chained over the nodes (no fold), or the folded map's (online_anchor_from_whole_map).
   Pose2 LastAnchor() const override;
   Eigen::Matrix3d LastAnchorCovariance() const override;
@@ -126,7 +126,7 @@ class TreeJoiner final : public MapJoiner {
   long maps_widened_ = 0;                     // leaves joined rotated back and widened
   // The maps' rotation spread over the leaves' rotation tests (map_rotation_spread.h); the
   // leaves count the maps joined widened by it.
-  MapRotationSpread rotation_spread_;
+  association::MapRotationSpread rotation_spread_;
   double rotation_test_seconds_ = 0.0;
   bool finished_ = false;
   int tree_joins_ = 0;

@@ -45,17 +45,17 @@ struct LocalSubmap {
   int covariance_repairs = 0;
   // Set by the back-end only: σ [rad] of the rotation about the start that the covariance
   // was widened by when association found the map rotated beyond it (its mean then rotated
-  // by the fitted rotation; 0: neither; subslam/backend/local_map_rotation.h).
+  // by the fitted rotation; 0: neither; subslam/association/local_map_rotation.h).
   double rotation_widening_rad = 0.0;
   // Set by the back-end only: σ [rad] of the rotation about the start that the features'
   // covariance (not the end pose's) was widened by, the spread of the maps' own rotation
-  // measured over the run (0: not widened; subslam/backend/map_rotation_spread.h).
+  // measured over the run (0: not widened; subslam/association/map_rotation_spread.h).
   double rotation_spread_rad = 0.0;
   // Set by the back-end only: the association's rotation fit of this map when it was first
   // joined — the fitted rotation of its features about its start [rad] and that estimate's
   // variance [rad²] with the map as it was associated (NaN: no fit). Kept with the joined
   // map so that a map joined again (after an undone loop closure, or when a joiner replays
-  // its maps) counts its fit once (subslam/backend/map_rotation_spread.h).
+  // its maps) counts its fit once (subslam/association/map_rotation_spread.h).
   double rotation_fit_rad = std::numeric_limits<double>::quiet_NaN();
   double rotation_fit_variance_rad2 = std::numeric_limits<double>::quiet_NaN();
 

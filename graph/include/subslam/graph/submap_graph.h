@@ -39,7 +39,7 @@ class SubmapGraph {
   }
   void AddFactor(SubmapFactor factor) { factors_.push_back(std::move(factor)); }
 
-  // Revision of the association table (backend/landmark_revision.h decides when); each
+  // Revision of the association table (association/landmark_revision.h decides when); each
   // checks its request first and changes nothing on an error.
   // MergeLandmarks: every feature of landmark `drop` becomes a feature of `keep` (whose
   // position stays until the joiner solves again); `drop` is erased and the landmarks

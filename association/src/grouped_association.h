@@ -1,8 +1,8 @@
 // Grouped joint compatibility: the pairings of a local map with the map decided by JCBB
 // over groups of features, each group gated about the start anchor the decisions so far
-// imply (Relinearization), and the loop test on the pairings (backend/submap_association.h).
-#ifndef SUBSLAM_BACKEND_SRC_GROUPED_ASSOCIATION_H_
-#define SUBSLAM_BACKEND_SRC_GROUPED_ASSOCIATION_H_
+// imply (Relinearization), and the loop test on the pairings (association/submap_association.h).
+#ifndef SUBSLAM_ASSOCIATION_SRC_GROUPED_ASSOCIATION_H_
+#define SUBSLAM_ASSOCIATION_SRC_GROUPED_ASSOCIATION_H_
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -10,7 +10,7 @@
 
 #include "association_gating.h"
 
-namespace subslam::backend::submap_matching {
+namespace subslam::association::submap_matching {
 
 // A whole map's association problem linearised about another start-anchor pose. The
 // prediction of each candidate from a start anchor P ~ N(P̄, Σ) is linearised about P_lin:
@@ -153,6 +153,6 @@ association::AssociationResult JointlyCompatible(const SubmapAssociationOptions&
 // hypothesis with one or two old landmarks is easily compatible by chance.
 void ApplyLoopPairingTest(const SubmapAssociationOptions& o, const LoopFlags& flags, SubmapAssociation* out);
 
-}  // namespace subslam::backend::submap_matching
+}  // namespace subslam::association::submap_matching
 
-#endif  // SUBSLAM_BACKEND_SRC_GROUPED_ASSOCIATION_H_
+#endif  // SUBSLAM_ASSOCIATION_SRC_GROUPED_ASSOCIATION_H_

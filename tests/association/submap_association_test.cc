@@ -1,11 +1,11 @@
-#include "subslam/backend/submap_association.h"
+#include "subslam/association/submap_association.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <vector>
 
-namespace subslam::backend {
+namespace subslam::association {
 namespace {
 
 // A map driven along x: old landmarks seen by the first local map only, recent ones by
@@ -327,4 +327,4 @@ TEST(SubmapAssociationOptions, ValidationRejectsNonsense) {
 }
 
 }  // namespace
-}  // namespace subslam::backend
+}  // namespace subslam::association

@@ -9,14 +9,14 @@
 // Conventions: the map's mean is [end pose (x, y, θ), landmark 1 (x, y), …] in the frame of
 // its start pose (local_submap.h); a rotation by δ [rad] about that frame's origin moves a
 // point p to R(δ)·p and adds δ to the end heading.
-#ifndef SUBSLAM_BACKEND_LOCAL_MAP_ROTATION_H_
-#define SUBSLAM_BACKEND_LOCAL_MAP_ROTATION_H_
+#ifndef SUBSLAM_ASSOCIATION_LOCAL_MAP_ROTATION_H_
+#define SUBSLAM_ASSOCIATION_LOCAL_MAP_ROTATION_H_
 
 #include <Eigen/Core>
 
 #include "subslam/graph/local_submap.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 // ∂mean/∂δ at δ = 0 for the map rotated by δ about its start: (−y, x, 1) for the end pose,
 // (−y, x) for each landmark (3 + 2n rows).
@@ -39,6 +39,6 @@ LocalSubmap WidenedFeaturesByRotation(const LocalSubmap& s, double sigma_rad);
 // shifted by delta_rad and wrapped).
 LocalSubmap RotatedAboutStart(const LocalSubmap& s, double delta_rad);
 
-}  // namespace subslam::backend
+}  // namespace subslam::association
 
-#endif  // SUBSLAM_BACKEND_LOCAL_MAP_ROTATION_H_
+#endif  // SUBSLAM_ASSOCIATION_LOCAL_MAP_ROTATION_H_

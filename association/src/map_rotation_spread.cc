@@ -1,14 +1,14 @@
-#include "subslam/backend/map_rotation_spread.h"
+#include "subslam/association/map_rotation_spread.h"
 
 #include <algorithm>
 #include <boost/math/distributions/binomial.hpp>
 #include <cmath>
 
-#include "subslam/backend/local_map_rotation.h"
+#include "subslam/association/local_map_rotation.h"
 #include "subslam/graph/check.h"
 #include "subslam/models/gating.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 MapRotationSpread::MapRotationSpread(double probability, double fit_probability)
     : probability_(probability), fit_probability_(fit_probability) {
@@ -71,4 +71,4 @@ void MapRotationSpread::Estimate() {
   tau2_ = t;
 }
 
-}  // namespace subslam::backend
+}  // namespace subslam::association

@@ -1,11 +1,11 @@
-#include "subslam/backend/local_map_rotation.h"
+#include "subslam/association/local_map_rotation.h"
 
 #include <Eigen/Geometry>
 #include <cmath>
 
 #include "subslam/graph/check.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 Eigen::VectorXd RotationAboutStart(const LocalSubmap& s) {
   Eigen::VectorXd g(s.mean.size());
@@ -61,4 +61,4 @@ LocalSubmap RotatedAboutStart(const LocalSubmap& s, double delta_rad) {
   return r;
 }
 
-}  // namespace subslam::backend
+}  // namespace subslam::association

@@ -43,18 +43,18 @@
 //
 // The split level (Bonferroni over a pass) is stricter than the merge level per test, so
 // a feature split off is not merged back at once on the same evidence (hysteresis).
-#ifndef SUBSLAM_BACKEND_LANDMARK_REVISION_H_
-#define SUBSLAM_BACKEND_LANDMARK_REVISION_H_
+#ifndef SUBSLAM_ASSOCIATION_LANDMARK_REVISION_H_
+#define SUBSLAM_ASSOCIATION_LANDMARK_REVISION_H_
 
 #include <Eigen/Core>
 #include <functional>
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/backend/relative_covariance_bounds.h"
+#include "subslam/association/relative_covariance_bounds.h"
 #include "subslam/graph/submap_graph.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 struct LandmarkRevisionOptions {
   bool merge = true;
@@ -152,6 +152,6 @@ std::vector<FeatureSplit> FindFeatureSplits(const SubmapGraph& graph,
                                             const AnchorLandmarkCovarianceFn& anchor_landmark_covariance,
                                             const LandmarkRevisionOptions& options);
 
-}  // namespace subslam::backend
+}  // namespace subslam::association
 
-#endif  // SUBSLAM_BACKEND_LANDMARK_REVISION_H_
+#endif  // SUBSLAM_ASSOCIATION_LANDMARK_REVISION_H_

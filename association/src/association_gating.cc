@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace subslam::backend::submap_matching {
+namespace subslam::association::submap_matching {
 
 PlacedMap Place(const LocalSubmap& s, const Pose2& P_s, const Eigen::Matrix3d& Sigma_s, double landmark_radius) {
   PlacedMap m;
@@ -147,4 +147,4 @@ association::AssociationProblem IndividualCompatibility(const LocalSubmap& s, co
   return problem;
 }
 
-}  // namespace subslam::backend::submap_matching
+}  // namespace subslam::association::submap_matching

@@ -17,15 +17,15 @@
 //   ...  // joins that only add factors
 //   FindLandmarkMerges(...);  // skips the pairs whose bound already puts them outside the gate
 //   bounds.Clear();           // after a relinearisation
-#ifndef SUBSLAM_BACKEND_RELATIVE_COVARIANCE_BOUNDS_H_
-#define SUBSLAM_BACKEND_RELATIVE_COVARIANCE_BOUNDS_H_
+#ifndef SUBSLAM_ASSOCIATION_RELATIVE_COVARIANCE_BOUNDS_H_
+#define SUBSLAM_ASSOCIATION_RELATIVE_COVARIANCE_BOUNDS_H_
 
 #include <Eigen/Core>
 #include <cstdint>
 
 #include "absl/container/flat_hash_map.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 class RelativeCovarianceBounds {
  public:
@@ -47,6 +47,6 @@ class RelativeCovarianceBounds {
   absl::flat_hash_map<uint64_t, Eigen::Matrix2d> bounds_;
 };
 
-}  // namespace subslam::backend
+}  // namespace subslam::association
 
-#endif  // SUBSLAM_BACKEND_RELATIVE_COVARIANCE_BOUNDS_H_
+#endif  // SUBSLAM_ASSOCIATION_RELATIVE_COVARIANCE_BOUNDS_H_

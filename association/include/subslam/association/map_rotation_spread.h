@@ -35,15 +35,15 @@
 // rejects, joined again without association, has none.
 //
 // Units: radians. Not thread-safe.
-#ifndef SUBSLAM_BACKEND_MAP_ROTATION_SPREAD_H_
-#define SUBSLAM_BACKEND_MAP_ROTATION_SPREAD_H_
+#ifndef SUBSLAM_ASSOCIATION_MAP_ROTATION_SPREAD_H_
+#define SUBSLAM_ASSOCIATION_MAP_ROTATION_SPREAD_H_
 
 #include <cmath>
 #include <vector>
 
 #include "subslam/graph/local_submap.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 class MapRotationSpread {
  public:
@@ -78,6 +78,6 @@ class MapRotationSpread {
   double tau2_ = 0.0;  // the last maximum-likelihood estimate of τ² (kept as a warm start)
 };
 
-}  // namespace subslam::backend
+}  // namespace subslam::association
 
-#endif  // SUBSLAM_BACKEND_MAP_ROTATION_SPREAD_H_
+#endif  // SUBSLAM_ASSOCIATION_MAP_ROTATION_SPREAD_H_

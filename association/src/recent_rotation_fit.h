@@ -1,15 +1,15 @@
 // The rotation test of a local map against the landmarks the last local maps saw
 // (SubmapAssociationOptions::map_rotation_sigma_rad): the recent landmarks, and the fit of
 // the map's rotation about its start to its pairings with them.
-#ifndef SUBSLAM_BACKEND_SRC_RECENT_ROTATION_FIT_H_
-#define SUBSLAM_BACKEND_SRC_RECENT_ROTATION_FIT_H_
+#ifndef SUBSLAM_ASSOCIATION_SRC_RECENT_ROTATION_FIT_H_
+#define SUBSLAM_ASSOCIATION_SRC_RECENT_ROTATION_FIT_H_
 
 #include <cmath>
 #include <vector>
 
 #include "association_gating.h"
 
-namespace subslam::backend::submap_matching {
+namespace subslam::association::submap_matching {
 
 // The rotation test (map_rotation_sigma_rad) of a local map against the landmarks the last
 // recent_maps (at least one) local maps saw. Those are known relative to the start anchor
@@ -51,6 +51,6 @@ RotationFit FitRecentRotation(const SubmapAssociationOptions& o, const LocalSubm
                               const TimedCovariance& timed_covariance, const std::vector<char>& recent,
                               const std::vector<int>& own_pairing);
 
-}  // namespace subslam::backend::submap_matching
+}  // namespace subslam::association::submap_matching
 
-#endif  // SUBSLAM_BACKEND_SRC_RECENT_ROTATION_FIT_H_
+#endif  // SUBSLAM_ASSOCIATION_SRC_RECENT_ROTATION_FIT_H_

@@ -1,10 +1,10 @@
 // The steps of a local map's association against the map that decide which pairings are
-// possible (backend/submap_association.h, SubmapAssociator::Associate): the map placed by its
+// possible (association/submap_association.h, SubmapAssociator::Associate): the map placed by its
 // start anchor, the candidate landmarks near its features, their geometry seen from the
 // start anchor, the gate of each (feature, candidate) pairing, and the joint innovation
 // covariance JCBB asks for.
-#ifndef SUBSLAM_BACKEND_SRC_ASSOCIATION_GATING_H_
-#define SUBSLAM_BACKEND_SRC_ASSOCIATION_GATING_H_
+#ifndef SUBSLAM_ASSOCIATION_SRC_ASSOCIATION_GATING_H_
+#define SUBSLAM_ASSOCIATION_SRC_ASSOCIATION_GATING_H_
 
 #include <Eigen/Core>
 #include <optional>
@@ -12,12 +12,12 @@
 
 #include "absl/time/clock.h"
 #include "subslam/association/data_association.h"
-#include "subslam/backend/submap_association.h"
+#include "subslam/association/submap_association.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 #include "subslam/models/gating.h"
 
-namespace subslam::backend::submap_matching {
+namespace subslam::association::submap_matching {
 
 // A local map placed in the world by its start anchor P_s: where each feature lands, and
 // how far from it a landmark may lie and still be a candidate (the landmark search radius
@@ -203,6 +203,6 @@ association::AssociationProblem IndividualCompatibility(const LocalSubmap& s, co
                                                         const PlacedMap& m, const SubmapGraph& graph,
                                                         const CandidateGeometry& geometry, const GateTest& gate);
 
-}  // namespace subslam::backend::submap_matching
+}  // namespace subslam::association::submap_matching
 
-#endif  // SUBSLAM_BACKEND_SRC_ASSOCIATION_GATING_H_
+#endif  // SUBSLAM_ASSOCIATION_SRC_ASSOCIATION_GATING_H_

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <memory>
 
-namespace subslam::backend::submap_matching {
+namespace subslam::association::submap_matching {
 namespace {
 
 // Step 4 for a whole map, group by group (the features of each of its local maps, in
@@ -266,4 +266,4 @@ void ApplyLoopPairingTest(const SubmapAssociationOptions& o, const LoopFlags& fl
   }
 }
 
-}  // namespace subslam::backend::submap_matching
+}  // namespace subslam::association::submap_matching

@@ -5,9 +5,9 @@
 #include <optional>
 
 #include "grouped_association.h"
-#include "subslam/backend/local_map_rotation.h"
+#include "subslam/association/local_map_rotation.h"
 
-namespace subslam::backend::submap_matching {
+namespace subslam::association::submap_matching {
 
 std::vector<char> RecentLandmarks(const SubmapGraph& graph, int maps) {
   std::vector<char> recent(graph.num_landmarks(), 0);
@@ -180,4 +180,4 @@ RotationFit FitRecentRotation(const SubmapAssociationOptions& o, const LocalSubm
   return fit;
 }
 
-}  // namespace subslam::backend::submap_matching
+}  // namespace subslam::association::submap_matching

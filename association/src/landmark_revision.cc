@@ -1,4 +1,4 @@
-#include "subslam/backend/landmark_revision.h"
+#include "subslam/association/landmark_revision.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -9,7 +9,7 @@
 #include "subslam/association/data_association.h"
 #include "subslam/models/gating.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 absl::Status LandmarkRevisionOptions::Validate() const {
   if (!(merge_probability > 0 && merge_probability < 1)) {
@@ -355,4 +355,4 @@ std::vector<FeatureSplit> FindFeatureSplits(const SubmapGraph& graph,
   return out;
 }
 
-}  // namespace subslam::backend
+}  // namespace subslam::association

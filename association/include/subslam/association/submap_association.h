@@ -27,8 +27,8 @@
 // The associator keeps what association needs beyond the graph: the mean signature of
 // the features joined to each landmark, and the landmark of each truth id. It is a value
 // type, so a joiner that may undo a join copies it.
-#ifndef SUBSLAM_BACKEND_SUBMAP_ASSOCIATION_H_
-#define SUBSLAM_BACKEND_SUBMAP_ASSOCIATION_H_
+#ifndef SUBSLAM_ASSOCIATION_SUBMAP_ASSOCIATION_H_
+#define SUBSLAM_ASSOCIATION_SUBMAP_ASSOCIATION_H_
 
 #include <Eigen/Core>
 #include <cmath>
@@ -40,11 +40,11 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/backend/map_rotation_spread.h"
+#include "subslam/association/map_rotation_spread.h"
 #include "subslam/graph/local_submap.h"
 #include "subslam/graph/submap_graph.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 using Matrix5d = Eigen::Matrix<double, 5, 5>;
 
@@ -290,6 +290,6 @@ class SubmapAssociator {
   MapRotationSpread rotation_spread_;
 };
 
-}  // namespace subslam::backend
+}  // namespace subslam::association
 
-#endif  // SUBSLAM_BACKEND_SUBMAP_ASSOCIATION_H_
+#endif  // SUBSLAM_ASSOCIATION_SUBMAP_ASSOCIATION_H_

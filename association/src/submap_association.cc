@@ -1,4 +1,4 @@
-#include "subslam/backend/submap_association.h"
+#include "subslam/association/submap_association.h"
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -12,10 +12,10 @@
 #include "grouped_association.h"
 #include "recent_rotation_fit.h"
 #include "subslam/association/data_association.h"
-#include "subslam/backend/local_map_rotation.h"
+#include "subslam/association/local_map_rotation.h"
 #include "subslam/models/gating.h"
 
-namespace subslam::backend {
+namespace subslam::association {
 
 absl::Status SubmapAssociationOptions::Validate() const {
   if (!(anchor_search_radius_m >= 0 && landmark_search_radius_m >= 0)) {
@@ -277,4 +277,4 @@ SubmapAssociation SubmapAssociator::Associate(const LocalSubmap& s, int start_an
   return again;
 }
 
-}  // namespace subslam::backend
+}  // namespace subslam::association
