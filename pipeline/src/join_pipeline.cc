@@ -17,6 +17,8 @@
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/io/output_directory.h"
 #include "subslam/io/run_output_writer.h"
+#include "subslam/posegraph/graph_format.h"
+#include "subslam/posegraph/submap_marginals_graph.h"
 
 namespace subslam::pipeline {
 
@@ -199,7 +201,11 @@ absl::Status WriteJoinOutputs(const std::string& out_dir, const backend::MapJoin
   if (auto s = io::WriteTrajectoryCsv((out / "anchors.csv").string(), r.anchors); !s.ok()) return s;
   if (auto s = io::WriteTrajectoryCsv((out / "anchors_online.csv").string(), r.anchors_online); !s.ok()) return s;
   if (auto s = io::WriteLandmarksCsv((out / "landmarks.csv").string(), r.landmarks); !s.ok()) return s;
-  if (auto s = joiner.graph().WriteG2o((out / "graph.g2o").string()); !s.ok()) return s;
+  if (auto s = posegraph::WriteGraph(posegraph::SubmapMarginalsGraph(joiner.graph()), (out / "graph.g2o").string(),
+                                     {.format = posegraph::GraphFormat::kG2o});
+      !s.ok()) {
+    return s;
+  }
   if (auto s = io::WriteTextFile((out / "joins.csv").string(), JoinsCsv(r.joins)); !s.ok()) return s;
   if (auto s = io::WriteTumTrajectory((out / "anchors.tum").string(), r.anchors); !s.ok()) return s;
   if (!options.truth_poses.empty()) {

@@ -411,46 +411,6 @@ TEST(EifJoiner, NearestNeighbourAssociationMatchesTruth) {
   }
 }
 
-// g2o export: one vertex per anchor and landmark, P0 fixed, one EDGE_SE2 per local map and
-// one EDGE_SE2_XY per feature, with the inverse of the marginal block as information.
-TEST(SubmapGraph, WritesG2o) {
-  const SyntheticRun run = MakeRun(4, 4);
-  EifJoinerOptions options;
-  options.association.known_association = true;
-  EifJoiner eif(run.anchors[0], options);
-  int features = 0;
-  for (const LocalSubmap& s : run.submaps) {
-    ASSERT_TRUE(eif.Join(s).ok());
-    features += s.num_landmarks();
-  }
-  const std::string path = ::testing::TempDir() + "/graph.g2o";
-  ASSERT_TRUE(eif.graph().WriteG2o(path).ok());
-  std::ifstream in(path);
-  std::map<std::string, int> count;
-  std::string line, first_edge;
-  while (std::getline(in, line)) {
-    const std::string tag = line.substr(0, line.find(' '));
-    ++count[tag];
-    if (tag == "EDGE_SE2" && first_edge.empty()) first_edge = line;
-  }
-  EXPECT_EQ(count["VERTEX_SE2"], eif.num_anchors());
-  EXPECT_EQ(count["VERTEX_XY"], eif.num_landmarks());
-  EXPECT_EQ(count["FIX"], 1);
-  EXPECT_EQ(count["EDGE_SE2"], static_cast<int>(run.submaps.size()));
-  EXPECT_EQ(count["EDGE_SE2_XY"], features);
-  std::istringstream edge(first_edge);
-  std::string tag;
-  int from = -1, to = -1;
-  double dx, dy, dt, i11;
-  edge >> tag >> from >> to >> dx >> dy >> dt >> i11;
-  EXPECT_EQ(from, 0);
-  EXPECT_EQ(to, 1);
-  EXPECT_DOUBLE_EQ(dx, run.submaps[0].mean[0]);
-  const Eigen::Matrix3d information = run.submaps[0].covariance.topLeftCorner<3, 3>().inverse();
-  EXPECT_NEAR(i11, information(0, 0), 1e-9 * i11);
-  EXPECT_FALSE(eif.graph().WriteG2o("/nonexistent_dir/graph.g2o").ok());
-}
-
 // A local map whose features are grossly wrong (a 5 m shift) but associated by their true
 // ids fails validation: the join is undone and redone without associations, so the map
 // stays closer to the truth than when the bad map is fused.

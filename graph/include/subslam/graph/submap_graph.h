@@ -70,14 +70,6 @@ class SubmapGraph {
   Pose2& anchor(int k) { return anchors_[k]; }
   Eigen::Vector2d& landmark(int j) { return landmarks_[j]; }
 
-  // g2o text: VERTEX_SE2 (anchors, ids 0 … k; P0 marked FIX), VERTEX_XY (landmarks, ids
-  // k + 1 …), and each factor split into its marginal blocks — one EDGE_SE2 start → end
-  // with the inverse of the end-pose block of Q, one EDGE_SE2_XY start → landmark per
-  // feature with the inverse of its 2×2 block. This DROPS the cross-correlations inside a
-  // local map (pose–feature and feature–feature), so optimising the g2o file is not the
-  // same problem: it over-counts shared information and is over-confident.
-  absl::Status WriteG2o(const std::string& path) const;
-
  private:
   std::vector<Pose2> anchors_;
   std::vector<Eigen::Vector2d> landmarks_;

@@ -7,7 +7,8 @@
 //                   columns), row k = anchor k: the start of local map k (anchor 0: the
 //                   initial pose, fixed) and the end of map k − 1, at that time;
 //   landmarks.csv   the global map (id,x,y,cov_xx,cov_xy,cov_yy);
-//   graph.g2o       the submap graph in g2o text (see SubmapGraph::WriteG2o: marginal blocks);
+//   graph.g2o       the submap graph in g2o text, its local maps as their marginal blocks
+//                   (posegraph/submap_marginals_graph.h);
 //   joins.csv       one row per join: map_id,seconds, then the change of every joiner
 //                   counter over it (JoinerCounters::Fields' names);
 //   report.json     configuration, counts, time per stage, and — when ground truth is given —
