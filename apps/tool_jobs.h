@@ -18,7 +18,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 #include "subslam/io/dataset.h"
 #include "subslam/pipeline/calibrate_pipeline.h"
 #include "subslam/pipeline/join_pipeline.h"

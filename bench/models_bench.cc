@@ -4,8 +4,8 @@
 
 #include <cstdlib>
 
+#include "subslam/core/pose2.h"
 #include "subslam/frontend/ekf_slam.h"
-#include "subslam/graph/pose2.h"
 #include "subslam/io/steps.h"
 #include "subslam/models/ackermann_model.h"
 #include "subslam/models/range_bearing_model.h"

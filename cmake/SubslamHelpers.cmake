@@ -1,6 +1,6 @@
 # Helpers shared by every module's CMakeLists.txt.
 
-# subslam_add_module(NAME SOURCES a.cc b.cc DEPS subslam::graph Eigen3::Eigen ...
+# subslam_add_module(NAME SOURCES a.cc b.cc DEPS subslam::core Eigen3::Eigen ...
 #                    [PRIVATE_DEPS ...])
 # Creates the static library subslam_<NAME>, alias subslam::<NAME>, whose public
 # headers live in <module>/include/subslam/<NAME>/ and are installed.
@@ -37,7 +37,7 @@ function(subslam_add_module NAME)
   install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 endfunction()
 
-# subslam_add_test(NAME SOURCES a_test.cc DEPS subslam::graph ...)
+# subslam_add_test(NAME SOURCES a_test.cc DEPS subslam::core ...)
 # One GoogleTest executable registered with CTest through gtest_discover_tests.
 function(subslam_add_test NAME)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS;LABELS" ${ARGN})

@@ -8,7 +8,7 @@
 
 #include "bindings.h"
 #include "convert.h"
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 #include "subslam/io/submaps_jsonl.h"
 
 namespace py = pybind11;

@@ -15,7 +15,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/graph/estimates.h"
+#include "subslam/core/estimates.h"
 
 namespace subslam::python {
 

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::testing {
 

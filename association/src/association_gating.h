@@ -13,8 +13,8 @@
 #include "absl/time/clock.h"
 #include "subslam/association/data_association.h"
 #include "subslam/association/submap_association.h"
-#include "subslam/graph/local_submap.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/local_submap.h"
+#include "subslam/core/submap_graph.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::association::submap_matching {

@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
-#include "subslam/graph/enum_names.h"
+#include "subslam/core/enum_names.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::association {

@@ -3,7 +3,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::association {
 

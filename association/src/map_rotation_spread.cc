@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "subslam/association/local_map_rotation.h"
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::association {

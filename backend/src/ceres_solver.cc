@@ -11,7 +11,7 @@
 #include "absl/time/clock.h"
 #include "subslam/backend/ceres_options.h"
 #include "subslam/backend/ceres_submap_cost.h"
-#include "subslam/graph/enum_names.h"
+#include "subslam/core/enum_names.h"
 
 namespace subslam::backend {
 

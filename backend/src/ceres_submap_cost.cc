@@ -4,7 +4,7 @@
 #include <algorithm>
 
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::backend {
 

@@ -11,8 +11,8 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "subslam/graph/pose2.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/pose2.h"
+#include "subslam/core/submap_graph.h"
 
 namespace subslam::backend {
 

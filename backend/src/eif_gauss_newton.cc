@@ -13,8 +13,8 @@
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/check.h"
-#include "subslam/graph/stage_timer.h"
+#include "subslam/core/check.h"
+#include "subslam/core/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::backend {

@@ -8,9 +8,9 @@
 #include "absl/strings/str_cat.h"
 #include "state_blocks.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/check.h"
-#include "subslam/graph/enum_names.h"
-#include "subslam/graph/stage_timer.h"
+#include "subslam/core/check.h"
+#include "subslam/core/enum_names.h"
+#include "subslam/core/stage_timer.h"
 
 namespace subslam::backend {
 

@@ -4,7 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::backend {
 

@@ -9,7 +9,7 @@
 #include <numeric>
 
 #include "subslam/backend/internal/sparse_cholesky.h"
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::backend {
 

@@ -13,7 +13,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "subslam/backend/internal/sparse_cholesky.h"
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::backend {
 

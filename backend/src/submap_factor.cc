@@ -1,6 +1,6 @@
 #include "subslam/backend/submap_factor.h"
 
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::backend {
 

@@ -6,8 +6,8 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include "subslam/core/check.h"
 #include "subslam/eval/nees.h"
-#include "subslam/graph/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::eval {

@@ -2,7 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::eval {

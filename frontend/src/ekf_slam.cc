@@ -7,9 +7,9 @@
 #include <numbers>
 
 #include "absl/strings/str_cat.h"
+#include "subslam/core/check.h"
+#include "subslam/core/stage_timer.h"
 #include "subslam/frontend/internal/single_map_common.h"
-#include "subslam/graph/check.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {

@@ -11,11 +11,11 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "subslam/core/check.h"
+#include "subslam/core/stage_timer.h"
 #include "subslam/frontend/fastslam.h"
 #include "subslam/frontend/genealogy.h"
 #include "subslam/frontend/internal/worker_pool.h"
-#include "subslam/graph/check.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::frontend {
 

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::frontend {
 namespace {

@@ -12,10 +12,10 @@
 #include <optional>
 
 #include "absl/strings/str_cat.h"
+#include "subslam/core/check.h"
+#include "subslam/core/stage_timer.h"
 #include "subslam/frontend/internal/single_map_common.h"
 #include "subslam/frontend/seif_slam.h"
-#include "subslam/graph/check.h"
-#include "subslam/graph/stage_timer.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::frontend {

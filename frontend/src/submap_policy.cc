@@ -3,8 +3,8 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
-#include "subslam/graph/check.h"
-#include "subslam/graph/enum_names.h"
+#include "subslam/core/check.h"
+#include "subslam/core/enum_names.h"
 
 namespace subslam::frontend {
 

@@ -7,7 +7,7 @@
 #include <thread>
 #include <vector>
 
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 #if defined(__SANITIZE_THREAD__)
 #define SUBSLAM_THREAD_SANITIZER 1

@@ -1,7 +1,7 @@
 #include "subslam/io/dataset.h"
 
 #include "absl/strings/str_cat.h"
-#include "subslam/graph/enum_names.h"
+#include "subslam/core/enum_names.h"
 #include "subslam/models/unicycle_model.h"
 
 namespace subslam::io {

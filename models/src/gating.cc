@@ -3,7 +3,7 @@
 #include <Eigen/Cholesky>
 #include <boost/math/distributions/chi_squared.hpp>
 
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::models {
 

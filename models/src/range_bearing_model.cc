@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 namespace subslam::models {
 

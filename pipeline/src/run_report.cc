@@ -5,7 +5,7 @@
 
 #include "report_json.h"
 #include "subslam/association/data_association.h"
-#include "subslam/graph/enum_names.h"
+#include "subslam/core/enum_names.h"
 
 namespace subslam::pipeline {
 namespace {

@@ -7,8 +7,8 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
-#include "subslam/graph/check.h"
-#include "subslam/graph/enum_names.h"
+#include "subslam/core/check.h"
+#include "subslam/core/enum_names.h"
 #include "subslam/models/gating.h"
 
 namespace subslam::pipeline {

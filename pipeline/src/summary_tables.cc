@@ -5,7 +5,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "subslam/graph/conventions.h"
+#include "subslam/core/conventions.h"
 #include "subslam/pipeline/join_pipeline.h"
 #include "subslam/pipeline/run_pipeline.h"
 

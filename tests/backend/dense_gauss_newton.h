@@ -7,7 +7,7 @@
 #include <Eigen/LU>
 
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/submap_graph.h"
 #include "synthetic_run.h"
 
 namespace subslam::backend {

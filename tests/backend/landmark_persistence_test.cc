@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 #include "subslam/sim/simulator.h"
 
 namespace subslam::backend {

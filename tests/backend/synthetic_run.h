@@ -14,8 +14,8 @@
 #include "subslam/backend/eif_joiner.h"
 #include "subslam/backend/map_joiner.h"
 #include "subslam/backend/submap_factor.h"
-#include "subslam/graph/local_submap.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/local_submap.h"
+#include "subslam/core/submap_graph.h"
 
 namespace subslam::backend {
 

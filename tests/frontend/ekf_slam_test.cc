@@ -7,10 +7,10 @@
 #include <cstdio>
 #include <memory>
 
+#include "subslam/core/check.h"
 #include "subslam/eval/nees.h"
 #include "subslam/eval/trajectory_errors.h"
 #include "subslam/frontend/dead_reckoning.h"
-#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
 #include "subslam/models/gating.h"
 #include "subslam/models/unicycle_model.h"

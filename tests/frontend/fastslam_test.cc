@@ -4,8 +4,8 @@
 
 #include <algorithm>
 
+#include "subslam/core/check.h"
 #include "subslam/frontend/ekf_slam.h"
-#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
 #include "subslam/models/unicycle_model.h"
 #include "subslam/sim/simulator.h"

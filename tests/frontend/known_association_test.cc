@@ -6,9 +6,9 @@
 #include <map>
 #include <set>
 
+#include "subslam/core/check.h"
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
-#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
 #include "subslam/sim/simulator.h"
 

@@ -4,9 +4,9 @@
 #include <cmath>
 #include <map>
 
+#include "subslam/core/check.h"
 #include "subslam/frontend/ekf_slam.h"
 #include "subslam/frontend/fastslam.h"
-#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
 #include "subslam/models/ackermann_model.h"
 #include "subslam/models/unicycle_model.h"

@@ -8,8 +8,8 @@
 #include <functional>
 #include <memory>
 
+#include "subslam/core/check.h"
 #include "subslam/frontend/ekf_slam.h"
-#include "subslam/graph/check.h"
 #include "subslam/io/steps.h"
 #include "subslam/models/range_bearing_model.h"
 #include "subslam/sim/simulator.h"

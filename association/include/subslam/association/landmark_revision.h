@@ -52,7 +52,7 @@
 
 #include "absl/status/status.h"
 #include "subslam/association/relative_covariance_bounds.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/submap_graph.h"
 
 namespace subslam::association {
 

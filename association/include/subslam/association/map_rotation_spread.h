@@ -41,7 +41,7 @@
 #include <cmath>
 #include <vector>
 
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 
 namespace subslam::association {
 

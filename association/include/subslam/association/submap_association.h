@@ -41,8 +41,8 @@
 
 #include "absl/status/status.h"
 #include "subslam/association/map_rotation_spread.h"
-#include "subslam/graph/local_submap.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/local_submap.h"
+#include "subslam/core/submap_graph.h"
 
 namespace subslam::association {
 

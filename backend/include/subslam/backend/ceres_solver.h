@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/submap_graph.h"
 
 namespace subslam::backend {
 

@@ -14,7 +14,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 
 namespace subslam::backend {
 

@@ -57,8 +57,8 @@
 #include "subslam/association/submap_association.h"
 #include "subslam/backend/eif_joiner_options.h"
 #include "subslam/backend/map_joiner.h"
-#include "subslam/graph/local_submap.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/local_submap.h"
+#include "subslam/core/submap_graph.h"
 
 namespace subslam::backend {
 

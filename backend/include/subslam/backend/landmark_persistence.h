@@ -41,7 +41,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/graph/estimates.h"
+#include "subslam/core/estimates.h"
 #include "subslam/models/range_bearing_model.h"
 #include "subslam/models/scan.h"
 

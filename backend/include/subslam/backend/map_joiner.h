@@ -17,8 +17,8 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "subslam/association/submap_association.h"
-#include "subslam/graph/local_submap.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/local_submap.h"
+#include "subslam/core/submap_graph.h"
 
 namespace subslam::backend {
 

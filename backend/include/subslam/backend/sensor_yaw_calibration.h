@@ -51,7 +51,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 
 namespace subslam::backend {
 

@@ -10,8 +10,8 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "subslam/graph/local_submap.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/local_submap.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::backend {
 

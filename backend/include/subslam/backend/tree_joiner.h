@@ -46,7 +46,7 @@
 #include "subslam/association/map_rotation_spread.h"
 #include "subslam/association/submap_association.h"
 #include "subslam/backend/map_joiner.h"
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 
 namespace subslam::backend {
 

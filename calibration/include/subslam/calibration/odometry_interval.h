@@ -17,7 +17,7 @@
 #include <array>
 #include <vector>
 
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 #include "subslam/models/motion_model.h"
 
 namespace subslam::calibration {

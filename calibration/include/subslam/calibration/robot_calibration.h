@@ -55,7 +55,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 #include "subslam/io/dataset.h"
 
 namespace subslam::calibration {

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "subslam/graph/estimates.h"
+#include "subslam/core/estimates.h"
 #include "subslam/io/dataset.h"
 
 namespace subslam::eval {

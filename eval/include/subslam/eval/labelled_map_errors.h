@@ -6,9 +6,9 @@
 
 #include <vector>
 
-#include "subslam/graph/estimates.h"
-#include "subslam/graph/local_submap.h"
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/estimates.h"
+#include "subslam/core/local_submap.h"
+#include "subslam/core/submap_graph.h"
 #include "subslam/io/dataset.h"
 
 namespace subslam::eval {

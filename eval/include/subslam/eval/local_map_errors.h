@@ -12,7 +12,7 @@
 #include <optional>
 #include <vector>
 
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 #include "subslam/io/dataset.h"
 
 namespace subslam::eval {

@@ -13,7 +13,7 @@
 #include <Eigen/Core>
 #include <optional>
 
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::eval {
 

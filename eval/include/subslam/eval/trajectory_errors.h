@@ -22,7 +22,7 @@
 #include <optional>
 #include <vector>
 
-#include "subslam/graph/estimates.h"
+#include "subslam/core/estimates.h"
 #include "subslam/io/dataset.h"
 
 namespace subslam::eval {

@@ -1,5 +1,5 @@
 // Local mappers: a SLAM filter run in the frame of the local map's start pose, closed by
-// a SubmapPolicy and exported as one Gaussian (graph::LocalSubmap) per local map.
+// a SubmapPolicy and exported as one Gaussian (LocalSubmap) per local map.
 //
 // A local map starts at the current pose with zero uncertainty and no landmarks; when the
 // policy closes it, its Gaussian over [end pose, features] (in the start frame) is queued
@@ -19,12 +19,12 @@
 #include <string>
 #include <vector>
 
+#include "subslam/core/local_submap.h"
 #include "subslam/frontend/fastslam.h"
 #include "subslam/frontend/moment_matching.h"
 #include "subslam/frontend/moving_feature_test.h"
 #include "subslam/frontend/online_estimator.h"
 #include "subslam/frontend/submap_policy.h"
-#include "subslam/graph/local_submap.h"
 
 namespace subslam::frontend {
 

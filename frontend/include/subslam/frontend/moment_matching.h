@@ -28,7 +28,7 @@
 #include <span>
 #include <vector>
 
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::frontend {
 

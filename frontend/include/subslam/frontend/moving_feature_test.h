@@ -52,7 +52,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 #include "subslam/models/range_bearing_model.h"
 
 namespace subslam::frontend {

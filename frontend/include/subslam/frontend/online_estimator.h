@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/graph/estimates.h"
-#include "subslam/graph/stage_timer.h"
+#include "subslam/core/estimates.h"
+#include "subslam/core/stage_timer.h"
 #include "subslam/models/scan.h"
 
 namespace subslam::frontend {

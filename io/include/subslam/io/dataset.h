@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 #include "subslam/models/ackermann_model.h"
 #include "subslam/models/motion_model.h"
 #include "subslam/models/range_bearing_model.h"

@@ -14,7 +14,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/graph/estimates.h"
+#include "subslam/core/estimates.h"
 #include "subslam/io/dataset.h"
 
 namespace subslam::io {

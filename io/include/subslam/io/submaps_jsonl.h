@@ -22,7 +22,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 
 namespace subslam::io {
 

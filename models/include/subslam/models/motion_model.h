@@ -16,7 +16,7 @@
 #include <string>
 
 #include "absl/status/status.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::models {
 

@@ -12,7 +12,7 @@
 #include <Eigen/Core>
 
 #include "absl/status/status.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::models {
 

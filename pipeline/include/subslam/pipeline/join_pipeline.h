@@ -22,8 +22,8 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "subslam/graph/estimates.h"
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/estimates.h"
+#include "subslam/core/local_submap.h"
 #include "subslam/io/dataset.h"
 #include "subslam/pipeline/submap_slam.h"
 

@@ -8,7 +8,7 @@
 
 #include <Eigen/Core>
 
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::posegraph {
 

@@ -24,7 +24,7 @@
 #include "absl/container/flat_hash_map.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::posegraph {
 

@@ -12,7 +12,7 @@
 #ifndef SUBSLAM_POSEGRAPH_SUBMAP_MARGINALS_GRAPH_H_
 #define SUBSLAM_POSEGRAPH_SUBMAP_MARGINALS_GRAPH_H_
 
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/submap_graph.h"
 #include "subslam/posegraph/pose_graph.h"
 
 namespace subslam::posegraph {

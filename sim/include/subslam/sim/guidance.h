@@ -18,7 +18,7 @@
 #include <functional>
 #include <vector>
 
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam::sim {
 

@@ -1,4 +1,4 @@
-#include "subslam/graph/local_submap.h"
+#include "subslam/core/local_submap.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>

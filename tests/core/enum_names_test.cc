@@ -1,4 +1,4 @@
-#include "subslam/graph/enum_names.h"
+#include "subslam/core/enum_names.h"
 
 #include <gtest/gtest.h>
 

@@ -1,11 +1,11 @@
 // Plain estimate records shared by estimators, metrics and writers.
-#ifndef SUBSLAM_GRAPH_ESTIMATES_H_
-#define SUBSLAM_GRAPH_ESTIMATES_H_
+#ifndef SUBSLAM_CORE_ESTIMATES_H_
+#define SUBSLAM_CORE_ESTIMATES_H_
 
 #include <Eigen/Core>
 #include <vector>
 
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam {
 
@@ -27,4 +27,4 @@ using Trajectory = std::vector<PoseEstimate>;
 
 }  // namespace subslam
 
-#endif  // SUBSLAM_GRAPH_ESTIMATES_H_
+#endif  // SUBSLAM_CORE_ESTIMATES_H_

@@ -1,4 +1,4 @@
-#include "subslam/graph/check.h"
+#include "subslam/core/check.h"
 
 #include <cstdio>
 #include <cstdlib>

@@ -5,16 +5,16 @@
 //
 // Factor k: local map k (a LocalSubmap), start anchor k, end anchor k + 1, and for each of
 // its features the global landmark index (the association table).
-#ifndef SUBSLAM_GRAPH_SUBMAP_GRAPH_H_
-#define SUBSLAM_GRAPH_SUBMAP_GRAPH_H_
+#ifndef SUBSLAM_CORE_SUBMAP_GRAPH_H_
+#define SUBSLAM_CORE_SUBMAP_GRAPH_H_
 
 #include <string>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "subslam/graph/local_submap.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/local_submap.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam {
 
@@ -78,4 +78,4 @@ class SubmapGraph {
 
 }  // namespace subslam
 
-#endif  // SUBSLAM_GRAPH_SUBMAP_GRAPH_H_
+#endif  // SUBSLAM_CORE_SUBMAP_GRAPH_H_

@@ -1,17 +1,17 @@
 // SE(2) poses and point transforms with analytic Jacobians.
 //
 // Conventions (composition order, Jacobian layout, angle wrapping) are in
-// <subslam/graph/conventions.h>. Every function here is pure and thread-safe; the
+// <subslam/core/conventions.h>. Every function here is pure and thread-safe; the
 // optional Jacobian out-parameters may be nullptr. Each Jacobian is checked against
 // central differences in tests/graph/pose2_test.cc.
-#ifndef SUBSLAM_GRAPH_POSE2_H_
-#define SUBSLAM_GRAPH_POSE2_H_
+#ifndef SUBSLAM_CORE_POSE2_H_
+#define SUBSLAM_CORE_POSE2_H_
 
 #include <Eigen/Core>
 #include <cmath>
 #include <ostream>
 
-#include "subslam/graph/conventions.h"
+#include "subslam/core/conventions.h"
 
 namespace subslam {
 
@@ -76,4 +76,4 @@ Eigen::Vector3d PoseDifference(const Pose2& a, const Pose2& b);
 
 }  // namespace subslam
 
-#endif  // SUBSLAM_GRAPH_POSE2_H_
+#endif  // SUBSLAM_CORE_POSE2_H_

@@ -3,8 +3,8 @@
 // streamed message to stderr, then aborts. Checks stay on in Release builds: they
 // guard contracts (a non-positive-definite covariance, an out-of-range index), not
 // user input, which is answered with absl::Status instead.
-#ifndef SUBSLAM_GRAPH_CHECK_H_
-#define SUBSLAM_GRAPH_CHECK_H_
+#ifndef SUBSLAM_CORE_CHECK_H_
+#define SUBSLAM_CORE_CHECK_H_
 
 #include <sstream>
 
@@ -31,4 +31,4 @@ class CheckFailure {
   } else /* NOLINT */            \
     ::subslam::internal::CheckFailure(__FILE__, __LINE__, #condition)
 
-#endif  // SUBSLAM_GRAPH_CHECK_H_
+#endif  // SUBSLAM_CORE_CHECK_H_

@@ -1,8 +1,8 @@
 // Wall-clock time per named stage, as every estimator and back-end reports it
 // (report.json's "stages"): StageTimes accumulates seconds per stage over a run, and a
 // StageTimer adds the time of its scope to one stage.
-#ifndef SUBSLAM_GRAPH_STAGE_TIMER_H_
-#define SUBSLAM_GRAPH_STAGE_TIMER_H_
+#ifndef SUBSLAM_CORE_STAGE_TIMER_H_
+#define SUBSLAM_CORE_STAGE_TIMER_H_
 
 #include <map>
 #include <string>
@@ -29,4 +29,4 @@ class StageTimer {
 
 }  // namespace subslam
 
-#endif  // SUBSLAM_GRAPH_STAGE_TIMER_H_
+#endif  // SUBSLAM_CORE_STAGE_TIMER_H_

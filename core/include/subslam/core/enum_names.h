@@ -7,8 +7,8 @@
 //   NameOf(kColourNames, Colour::kRed)            → "red"
 //   ParseEnum(kColourNames, "blue", "colour")     → Colour::kBlue, or an InvalidArgument
 //                                                   error "unknown colour "…" (expected red or blue)"
-#ifndef SUBSLAM_GRAPH_ENUM_NAMES_H_
-#define SUBSLAM_GRAPH_ENUM_NAMES_H_
+#ifndef SUBSLAM_CORE_ENUM_NAMES_H_
+#define SUBSLAM_CORE_ENUM_NAMES_H_
 
 #include <cstddef>
 #include <string>
@@ -51,4 +51,4 @@ absl::StatusOr<E> ParseEnum(const EnumName<E> (&table)[N], std::string_view name
 
 }  // namespace subslam
 
-#endif  // SUBSLAM_GRAPH_ENUM_NAMES_H_
+#endif  // SUBSLAM_CORE_ENUM_NAMES_H_

@@ -24,8 +24,8 @@
 //
 // Randomness: every random draw comes from an explicitly seeded std::mt19937_64;
 // the same seed gives the same run, bit for bit, on the same build.
-#ifndef SUBSLAM_GRAPH_CONVENTIONS_H_
-#define SUBSLAM_GRAPH_CONVENTIONS_H_
+#ifndef SUBSLAM_CORE_CONVENTIONS_H_
+#define SUBSLAM_CORE_CONVENTIONS_H_
 
 #include <numbers>
 
@@ -40,4 +40,4 @@ constexpr double RadToDeg(double rad) { return rad * 180.0 / kPi; }
 
 }  // namespace subslam
 
-#endif  // SUBSLAM_GRAPH_CONVENTIONS_H_
+#endif  // SUBSLAM_CORE_CONVENTIONS_H_

@@ -8,8 +8,8 @@
 // all expressed in the frame of P_s (metres, radians, θ wrapped to (−π, π]), with a
 // symmetric positive-definite (3 + 2n)² covariance. `landmarks[i]` describes the
 // landmark at mean.segment<2>(3 + 2i).
-#ifndef SUBSLAM_GRAPH_LOCAL_SUBMAP_H_
-#define SUBSLAM_GRAPH_LOCAL_SUBMAP_H_
+#ifndef SUBSLAM_CORE_LOCAL_SUBMAP_H_
+#define SUBSLAM_CORE_LOCAL_SUBMAP_H_
 
 #include <Eigen/Core>
 #include <limits>
@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 namespace subslam {
 
@@ -91,4 +91,4 @@ struct LocalSubmap {
 
 }  // namespace subslam
 
-#endif  // SUBSLAM_GRAPH_LOCAL_SUBMAP_H_
+#endif  // SUBSLAM_CORE_LOCAL_SUBMAP_H_

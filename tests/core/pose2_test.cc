@@ -1,4 +1,4 @@
-#include "subslam/graph/pose2.h"
+#include "subslam/core/pose2.h"
 
 #include <gtest/gtest.h>
 

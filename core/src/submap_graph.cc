@@ -1,4 +1,4 @@
-#include "subslam/graph/submap_graph.h"
+#include "subslam/core/submap_graph.h"
 
 #include <Eigen/LU>
 #include <cstdio>
