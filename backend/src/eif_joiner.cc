@@ -208,39 +208,7 @@ absl::Status EifJoiner::Impl::JoinWith(const LocalSubmap& s, bool associate) {
     assoc = a.landmark_of_feature;
     start_covariance = a.start_anchor_covariance;
     rotated_back = association::RotatedBack(s, a);  // a map the rotation test found rotated
-    if (suppress_loop_closure_) {
-      // The closing map of an unconfirmed loop closure: without its loop pairings.
-      for (int i : a.uncertain_loop_features) assoc[i] = -1;
-    } else if (!a.thin_loop_pairings.empty() && options_.association.confirm_thin_loops &&
-               options_.association.loop_confirmation_maps > 0 && options_.RelinearizesAfterJoins() &&
-               3.0 * a.start_position_sigma_m < options_.association.loop_confirmation_min_sigma_radius_m) {
-      // A thin closure, held for confirmation; or, while a closure is held, more of the
-      // same evidence (this map was associated given it).
-      a.uncertain_loop_features.clear();
-      for (const auto& [feature, landmark] : a.thin_loop_pairings) {
-        assoc[feature] = landmark;
-        a.uncertain_loop_features.push_back(feature);
-      }
-      if (!pending_loop_) {
-        // It needs a full closure's worth of other old landmarks: the later maps are gated
-        // given the held pairings, so those lend them no evidence.
-        pending_loop_ = PendingLoopClosure{TakeSnapshot(),
-                                           static_cast<int>(estimate_.graph.factors().size()),
-                                           rejected_.size(),
-                                           std::move(a),
-                                           options_.association.min_loop_pairings,
-                                           0,
-                                           /*thin=*/true};
-        pending_loop_->before.counters = counters_before;
-      }
-    } else if (!a.uncertain_loop_features.empty() && options_.association.loop_confirmation_maps > 0 &&
-               options_.RelinearizesAfterJoins() && !pending_loop_ &&
-               3.0 * a.start_position_sigma_m >= options_.association.loop_confirmation_min_sigma_radius_m) {
-      pending_loop_ = PendingLoopClosure{TakeSnapshot(), static_cast<int>(estimate_.graph.factors().size()),
-                                         rejected_.size(), std::move(a)};
-      // Its decisions are counted again on an undo (its work is not): not twice.
-      pending_loop_->before.counters = counters_before;
-    }
+    GateLoopPairings(std::move(a), counters_before, &assoc);
   }
   LocalSubmap m = rotated_back ? *rotated_back : s;  // the map joined
   if (m.rotation_spread_rad > 0) ++counters_.maps_spread;

@@ -182,6 +182,13 @@ class EifJoiner::Impl {
   // Set while that map is joined again: its association, reused (the joiner is restored to
   // the state it was found in).
   std::optional<association::SubmapAssociation> replayed_association_;
+  // The loop-closure gate's decision on a map's association `a` (its pairings in
+  // *assoc): the closing map of an undone closure loses its loop pairings; a thin closure
+  // is held for confirmation (or, while one is held, adds to its evidence); a closure
+  // under a lost anchor is held too. `counters_before`: the counters before `a` was made,
+  // which a held closure's snapshot keeps.
+  void GateLoopPairings(association::SubmapAssociation a, const JoinerCounters& counters_before,
+                        std::vector<int>* assoc);
   // The decision counters of an association (truncated, thin, ambiguous).
   void CountDecisions(const association::SubmapAssociation& a);
   // Join() without the confirmation check (validated if validate_joins).
