@@ -75,6 +75,9 @@ ABSL_FLAG(bool, join_keep_certain_loop_pairings, EifDefaults().association.keep_
 ABSL_FLAG(double, join_loop_test_sigma, EifDefaults().association.loop_test_min_sigma_radius_m,
           "apply --join_min_loop_pairings only when 3 sigma of the start anchor's position is at "
           "least this [m]");
+ABSL_FLAG(bool, join_loop_test_spacing, EifDefaults().association.loop_test_scaled_by_spacing,
+          "the loop tests' radius is the smaller of --join_loop_test_sigma and the median "
+          "nearest-neighbour distance among the map's candidate landmarks (a lattice, a dense room)");
 ABSL_FLAG(bool, join_merge, EifDefaults().revision.merge,
           "every back-end: merge two global landmarks once the estimate shows they are one "
           "point (chi2 test on their difference with their joint marginal; never two that one "
@@ -201,6 +204,7 @@ backend::EifJoinerOptions EifOptionsFromFlags() {
   o.association.loop_ambiguity_test = absl::GetFlag(FLAGS_join_loop_ambiguity);
   o.association.keep_certain_loop_pairings = absl::GetFlag(FLAGS_join_keep_certain_loop_pairings);
   o.association.loop_test_min_sigma_radius_m = absl::GetFlag(FLAGS_join_loop_test_sigma);
+  o.association.loop_test_scaled_by_spacing = absl::GetFlag(FLAGS_join_loop_test_spacing);
   o.association.loop_confirmation_maps = absl::GetFlag(FLAGS_join_loop_confirmation_maps);
   o.association.confirm_thin_loops = absl::GetFlag(FLAGS_join_confirm_thin_loops);
   o.association.map_rotation_sigma_rad = absl::GetFlag(FLAGS_join_map_rotation_sigma);

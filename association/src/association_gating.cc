@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace subslam::association::submap_matching {
 
@@ -74,11 +75,30 @@ std::vector<int> PossiblyCompatible(const std::vector<int>& candidates,
   return kept;
 }
 
+double MedianNearestNeighbourDistance(const SubmapGraph& graph, const std::vector<int>& landmarks) {
+  const int n = static_cast<int>(landmarks.size());
+  if (n < 2) return std::numeric_limits<double>::infinity();
+  std::vector<double> nearest(n, std::numeric_limits<double>::infinity());
+  for (int a = 0; a < n; ++a) {
+    for (int b = a + 1; b < n; ++b) {
+      const double d = (graph.landmarks()[landmarks[a]] - graph.landmarks()[landmarks[b]]).norm();
+      nearest[a] = std::min(nearest[a], d);
+      nearest[b] = std::min(nearest[b], d);
+    }
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + n / 2, nearest.end());
+  return nearest[n / 2];
+}
+
 LoopFlags FlagLoopLandmarks(const SubmapAssociationOptions& o, const SubmapGraph& graph, double sigma_xy,
                             const std::vector<int>& candidates, const CandidateGeometry& geometry) {
   LoopFlags flags;
   flags.sigma_xy = sigma_xy;
-  flags.regime = o.min_loop_pairings > 1 && 3.0 * sigma_xy >= o.loop_test_min_sigma_radius_m;
+  flags.radius = o.loop_test_min_sigma_radius_m;
+  if (o.loop_test_scaled_by_spacing && o.min_loop_pairings > 1 && 3.0 * sigma_xy < flags.radius) {
+    flags.radius = std::min(flags.radius, MedianNearestNeighbourDistance(graph, candidates));
+  }
+  flags.regime = o.min_loop_pairings > 1 && 3.0 * sigma_xy >= flags.radius;
   if (!flags.regime) return flags;
   flags.recent.assign(graph.num_landmarks(), 0);
   flags.certain.assign(graph.num_landmarks(), 0);
@@ -86,7 +106,7 @@ LoopFlags FlagLoopLandmarks(const SubmapAssociationOptions& o, const SubmapGraph
   for (int f = std::max(0, first_recent); f < static_cast<int>(graph.factors().size()); ++f) {
     for (int j : graph.factors()[f].landmark_of_feature) flags.recent[j] = 1;
   }
-  const double radius = o.loop_test_min_sigma_radius_m / 3.0;
+  const double radius = flags.radius / 3.0;
   for (int c = 0; c < static_cast<int>(candidates.size()) && o.keep_certain_loop_pairings; ++c) {
     const Eigen::Matrix2d r = geometry.Relative(c);
     // The larger eigenvalue of the symmetric 2 × 2 block.

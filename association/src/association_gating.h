@@ -88,6 +88,9 @@ struct CandidateGeometry {
 struct LoopFlags {
   bool regime = false;
   double sigma_xy = 0.0;  // of the start anchor's position [m]
+  // The loop tests' radius [m]: loop_test_min_sigma_radius_m, or the candidates' spacing
+  // when smaller (loop_test_scaled_by_spacing); the regime is 3σ_xy at least this.
+  double radius = 0.0;
   std::vector<char> recent, certain;
 };
 
@@ -186,6 +189,10 @@ std::vector<int> PossiblyCompatible(const std::vector<int>& candidates,
                                     const std::vector<std::optional<Matrix5d>>& bounds, const PlacedMap& m,
                                     const SubmapGraph& graph, const LocalSubmap& s, const GateTest& gate,
                                     const PlacedMap* wide = nullptr, const std::vector<char>* keep_if_near = nullptr);
+
+// The median over `landmarks` of each one's distance to the nearest other [m] (infinite
+// for fewer than two): the spacing a chance fit can shift a map by.
+double MedianNearestNeighbourDistance(const SubmapGraph& graph, const std::vector<int>& landmarks);
 
 LoopFlags FlagLoopLandmarks(const SubmapAssociationOptions& o, const SubmapGraph& graph, double sigma_xy,
                             const std::vector<int>& candidates, const CandidateGeometry& geometry);

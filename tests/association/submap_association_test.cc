@@ -15,12 +15,13 @@ struct LoopFixture {
   SubmapGraph graph{Pose2(0, 0, 0)};
   std::vector<Eigen::Vector2d> old_landmarks, recent_landmarks;
 
-  LoopFixture() {
+  // `old_spacing`: the old landmarks' spacing along their row [m].
+  explicit LoopFixture(double old_spacing = 12.0) {
     for (int k = 1; k <= 4; ++k) graph.AddAnchor(Pose2(10.0 * k, 0, 0));
     LocalSubmap any;  // the factors' local maps do not matter to association
     std::vector<int> first, last;
     for (int i = 0; i < 5; ++i) {
-      old_landmarks.emplace_back(40.0 + 12.0 * i, 8.0);
+      old_landmarks.emplace_back(40.0 + old_spacing * i, 8.0);
       first.push_back(graph.AddLandmark(old_landmarks.back()));
     }
     for (int i = 0; i < 2; ++i) {
@@ -99,6 +100,33 @@ TEST(SubmapAssociator, DropsThinLoopClosuresUnderLargeUncertainty) {
   off.min_loop_pairings = 1;
   const SubmapAssociation kept = SubmapAssociator(off).Associate(f.NewMap(2), 4, f.graph, Covariance(3.0));
   EXPECT_EQ(OldPairings(kept), 2);
+}
+
+// Where the old landmarks stand 2 m apart, a start anchor known to 3σ = 3 m (below the
+// 5 m radius) can already put the map a landmark off: with the radius scaled by the
+// spacing (the default) the thin closure is dropped and offered for confirmation; with
+// the absolute radius alone it is taken as it comes.
+TEST(SubmapAssociator, ScalesTheLoopTestsByTheLandmarksSpacing) {
+  const LoopFixture f(/*old_spacing=*/2.0);
+  const SubmapAssociator scaled{SubmapAssociationOptions{}};
+  ASSERT_TRUE(scaled.options().loop_test_scaled_by_spacing);
+  const SubmapAssociation dropped = scaled.Associate(f.NewMap(2), 4, f.graph, Covariance(1.0));
+  EXPECT_EQ(dropped.loop_pairings_dropped, 2);
+  EXPECT_EQ(OldPairings(dropped), 0);
+  EXPECT_EQ(dropped.landmark_of_feature[0], 5);  // the recent ones are kept
+  EXPECT_EQ(dropped.landmark_of_feature[1], 6);
+
+  SubmapAssociationOptions absolute;
+  absolute.loop_test_scaled_by_spacing = false;
+  const SubmapAssociation taken = SubmapAssociator(absolute).Associate(f.NewMap(2), 4, f.graph, Covariance(1.0));
+  EXPECT_EQ(taken.loop_pairings_dropped, 0);
+  EXPECT_EQ(OldPairings(taken), 2);
+
+  // Spread 12 m apart, the same anchor is below both radii: no test.
+  const LoopFixture sparse;
+  const SubmapAssociation sparse_taken = scaled.Associate(sparse.NewMap(2), 4, sparse.graph, Covariance(1.0));
+  EXPECT_EQ(sparse_taken.loop_pairings_dropped, 0);
+  EXPECT_EQ(OldPairings(sparse_taken), 2);
 }
 
 // keep_certain_loop_pairings: old landmark 0 is known relative to the start anchor (its

@@ -81,6 +81,12 @@ struct SubmapAssociationOptions {
   bool keep_certain_loop_pairings = true;
   int recent_maps = 2;
   double loop_test_min_sigma_radius_m = 5.0;
+  // The loop tests' radius scaled by the landmarks' spacing: the regime (and the
+  // certain-pairing radius) uses the smaller of loop_test_min_sigma_radius_m and the median
+  // nearest-neighbour distance among the map's candidate landmarks. Where landmarks stand
+  // closer than the radius (a lattice, a dense room), a start anchor known to 3σ of a few
+  // spacings can already put a map one spacing off with every feature on a landmark.
+  bool loop_test_scaled_by_spacing = true;
   // Loop-closure confirmation (beyond the papers).
   //  - When: a loop closure made while the start anchor is lost, 3σ of its position at
   //    least `loop_confirmation_min_sigma_radius_m` (default 2·TH1: the map could lie
