@@ -1,14 +1,19 @@
 // EifJoiner's implementation (private to the back-end): the state and the steps behind
 // the public interface of subslam/backend/eif_joiner.h, whose comments say what each
-// public function does. The files that implement it:
-//   eif_joiner.cc             joining a local map (association, the factor), the end of
-//                             the run, whole-map (tree) joins
-//   eif_factor.cc             one local map's factor: linearisation, its error, its cost
-//   eif_information_matrix.cc Λ (pattern, values) and its factorisation, full or updated
-//   eif_marginals.cc          marginal covariances from the factor
-//   eif_gauss_newton.cc       relinearisation (Gauss-Newton over the submap graph)
-//   eif_loop_closure.cc       the loop-closure gate (snapshot, pending closure, undo)
-//   eif_revision.cc           revisable association (merge and split passes)
+// public function does. It sequences a join from parts with one job each
+// (docs/design/eif.md, "How the EIF joiner is built"):
+//   EifEstimate (eif_estimate.h)        the estimate and its rows in the state
+//   EifFactor (eif_factor.h)            one local map's factor: linearisation, error, cost
+//   EifInformationMatrix (eif_information_matrix.h)  Λ assembled from the factors
+//   EifSolver (eif_solver.h)            the factor of Λ; eif_factorization.cc factorises,
+//                                       updates and solves, eif_marginals.cc recovers marginals
+//   EifLinearizationWatch (eif_linearization_watch.h)  the rows the trigger must test
+// and the steps in their files:
+//   eif_joiner.cc        joining a local map (association, the factor), the end of the
+//                        run, whole-map (tree) joins
+//   eif_gauss_newton.cc  relinearisation (the trigger, Gauss-Newton over the submap graph)
+//   eif_loop_closure.cc  the loop-closure gate (snapshot, pending closure, undo)
+//   eif_revision.cc      revisable association (merge and split passes)
 #ifndef SUBSLAM_BACKEND_SRC_EIF_JOINER_IMPL_H_
 #define SUBSLAM_BACKEND_SRC_EIF_JOINER_IMPL_H_
 
@@ -89,13 +94,13 @@ class EifJoiner::Impl {
   // The factorisation itself: with incremental_factorization, spare slots and the last
   // anchor ordered last (for the rank updates of the next joins); without, neither.
   absl::Status FactorizeLambda();
+  // Gauss-Newton to convergence (GaussNewton), then the marginal bounds from the new
+  // factor for the joins that follow.
+  absl::Status Relinearize();
   // Gauss-Newton over every factor from the current estimate, until a step (taken, or
   // predicted with predict_convergence) is below relinearize_tolerance or
   // relinearize_step_chi2, or max_relinearizations; stopped at the best iterate after
   // divergence_rises cost rises in a row.
-  // Gauss-Newton to convergence (GaussNewton), then the marginal bounds from the new
-  // factor for the joins that follow.
-  absl::Status Relinearize();
   absl::Status GaussNewton();
   // With the factors linearised at the estimate x, and the factor (and x) still of the
   // previous linearisation: whether the Gauss-Newton step from x, solved with that factor,
