@@ -22,6 +22,14 @@
 namespace subslam::backend {
 namespace {
 double Square(double v) { return v * v; }
+
+// Q⁻¹ = L⁻ᵀ L⁻¹ from Q = L Lᵀ (L lower triangular), symmetric to the bit.
+std::shared_ptr<const Eigen::MatrixXd> InverseFromLowerSqrt(const Eigen::MatrixXd& L) {
+  Eigen::MatrixXd L_inv = Eigen::MatrixXd::Identity(L.rows(), L.rows());
+  L.triangularView<Eigen::Lower>().solveInPlace(L_inv);
+  const Eigen::MatrixXd information = L_inv.transpose() * L_inv;
+  return std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
+}
 }  // namespace
 
 EifFactor EifFactor::Make(const EifEstimate& estimate, int index, bool screened) {
@@ -161,13 +169,7 @@ void EifFactor::LinearizeStructured(const EifEstimate& estimate) {
     fi.R = R;
     fi.d = J_frame * start.vector() + R * landmark - fi.r;
   }
-  if (information_ == nullptr) {  // Q⁻¹ = L⁻ᵀ L⁻¹, once per factor
-    const int m = 3 + 2 * n;
-    Eigen::MatrixXd L_inv = Eigen::MatrixXd::Identity(m, m);
-    covariance_sqrt_->triangularView<Eigen::Lower>().solveInPlace(L_inv);
-    Eigen::MatrixXd information = L_inv.transpose() * L_inv;
-    information_ = std::make_shared<const Eigen::MatrixXd>(0.5 * (information + information.transpose()));
-  }
+  if (information_ == nullptr) information_ = InverseFromLowerSqrt(*covariance_sqrt_);  // once per factor
   const Eigen::MatrixXd& W = *information_;
   // Row block 0 (the relative pose) and each feature's row block of W J_a, W r and w.
   const Eigen::Matrix3d W00 = W.topLeftCorner<3, 3>();
