@@ -39,9 +39,9 @@ struct EifEstimate {
   // The last anchor's rows (none before the first join).
   std::vector<int> LastAnchorRows() const;
 
-  SubmapGraph graph;                 // headings wrapped
-  std::vector<int> anchor_offset;    // −1 for P0
-  std::vector<int> landmark_offset;  //
+  SubmapGraph graph;               // headings wrapped
+  std::vector<int> anchor_offset;  // −1 for P0
+  std::vector<int> landmark_offset;
   std::vector<double> anchor_theta;  // continuous headings
   int dim = 0;
 

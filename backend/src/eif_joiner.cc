@@ -368,7 +368,9 @@ absl::Status EifJoiner::JoinMap(const MapJoiner& right) {
 }
 
 absl::Status EifJoiner::Finish() {
-  if (absl::Status st = impl_->Finish(); !st.ok()) return st;
+  const absl::Status status = impl_->Finish();  // (a thin closure undone there associates again)
+  RecordInnovation();
+  if (!status.ok()) return status;
   // Revise at the converged estimate (each pass that changes something solves again).
   return ReviseUntilSettled(*this);
 }

@@ -175,7 +175,8 @@ class EifJoiner final : public MapJoiner {
 
   EifJoiner(const EifJoiner& other);  // every part copied, for Clone()
   friend class CeresJoiner;           // whose copies copy their EIF
-  // Hands the association innovation the joins since the last call recorded to MapJoiner.
+  // Hands the association innovation recorded since the last call to MapJoiner (after
+  // every call that may associate: a join, a whole-map join, Finish()).
   void RecordInnovation();
 
   ImplHolder impl_;
